@@ -1,0 +1,51 @@
+# Two commands do all set-up on a fresh machine (see README.md):
+#   make demo   build the environment and run the main job on the sample scenes
+#   make test   build the environments and run the whole test suite (what CI runs)
+SHELL := /bin/bash
+VENV   := .venv
+VENV45 := .venv45
+PY     := $(VENV)/bin/python
+PY45   := $(VENV45)/bin/python
+OUT    ?= out
+# Keep the test suite inside the 2-core machine: one process, hypothesis profile "ci".
+PYTEST_FLAGS ?= -q -p no:cacheprovider
+
+.PHONY: all demo test test-kernels test-blender test-blender45 lint samples extension bench clean
+
+all: test
+
+$(VENV)/.stamp: requirements/blender52.txt requirements/dev.txt tools/make_venv.sh
+	tools/make_venv.sh 3.13 $(VENV) requirements/blender52.txt requirements/dev.txt
+
+$(VENV45)/.stamp: requirements/blender45.txt tools/make_venv.sh
+	tools/make_venv.sh 3.11 $(VENV45) requirements/blender45.txt
+
+demo: $(VENV)/.stamp
+	$(PY) -m classic_bake demo sample_blends --out $(OUT)/demo
+
+test: lint test-kernels test-blender test-blender45
+
+lint: $(VENV)/.stamp
+	$(VENV)/bin/ruff check .
+
+test-kernels: $(VENV)/.stamp
+	$(PY) -m pytest $(PYTEST_FLAGS) tests/kernels
+
+test-blender: $(VENV)/.stamp
+	$(PY) -m pytest $(PYTEST_FLAGS) tests/blender
+
+# Compatibility run: the same Blender tests on the previous LTS (bpy 4.5, CPython 3.11).
+test-blender45: $(VENV45)/.stamp
+	$(PY45) -m pytest $(PYTEST_FLAGS) tests/blender
+
+samples: $(VENV)/.stamp
+	$(PY) sample_blends/make_samples.py
+
+extension: $(VENV)/.stamp
+	$(PY) tools/build_extension.py --out dist
+
+bench: $(VENV)/.stamp
+	for b in bench/*.py; do $(PY) $$b || exit 1; done
+
+clean:
+	rm -rf $(OUT) dist wheels

@@ -1,0 +1,7 @@
+"""`python -m classic_bake COMMAND SCENE.blend [options]` with the pip `bpy` module."""
+
+import sys
+
+from .pipeline.cli import main
+
+sys.exit(main(sys.argv[1:]))

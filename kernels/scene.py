@@ -1,0 +1,251 @@
+"""The kernel-side scene: everything a bake reads, as plain NumPy arrays.
+
+`addon/bridge.py` is the only producer (a snapshot of Blender's evaluated depsgraph); every kernel
+is a consumer. Nothing here knows Blender: a test can build a `Scene` by hand.
+
+Conventions, shared by every kernel
+-----------------------------------
+* Space: world space, metres (Blender units), right-handed, +Z up. Triangles are wound
+  counter-clockwise around their geometric normal (Blender's face order).
+* Colours: linear scene-referred Rec.709 RGB, float32. Images never carry a transfer curve.
+* Radiometry: watts. Point and spot lights carry radiant intensity I (W/sr), suns irradiance
+  E (W/m^2) on a surface facing them, area lights and emissive surfaces radiance L (W/(m^2 sr)).
+  `lights.py` holds the conversions from Blender's light power and what Cycles does with them.
+* Images: (H, W, C) float32, row 0 is the TOP row (as in every image file). A UV-space image
+  (lightmap) maps texel (i, j) centre to u = (j + 0.5) / W, v = 1 - (i + 0.5) / H.
+* Triangles of one object are contiguous: object k owns rows
+  `objects[k].tri_start : objects[k].tri_start + objects[k].tri_count`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+TextureKind = Literal["IMAGE", "CHECKER"]
+LightKind = Literal["POINT", "SPOT", "SUN", "AREA"]
+AreaShape = Literal["SQUARE", "RECTANGLE", "DISK", "ELLIPSE"]
+CameraKind = Literal["PERSP", "ORTHO"]
+
+
+@dataclass(frozen=True, eq=False)
+class Texture:
+    """A colour or height source sampled through UVs.
+
+    IMAGE: `pixels` (H, W, 4) float32, linear (sRGB images are decoded by the bridge), row 0 top.
+    CHECKER: Blender's Checker Texture on UV coordinates: `color1` where floor(u*scale) and
+    floor(v*scale) have equal parity, `color2` elsewhere (the same rule as Cycles' `svm_checker`
+    with z = 0).
+    """
+
+    kind: TextureKind
+    name: str = ""
+    pixels: np.ndarray | None = None  # (H, W, 4) float32, linear, row 0 top
+    extension: Literal["REPEAT", "CLIP", "EXTEND", "MIRROR"] = "REPEAT"
+    interpolation: Literal["LINEAR", "CLOSEST"] = "LINEAR"
+    color1: np.ndarray = field(default_factory=lambda: np.ones(3, np.float32))  # (3,) linear
+    color2: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))  # (3,) linear
+    scale: float = 1.0  # checker squares per UV unit
+    uv_layer: str | None = None  # None: the object's active render UV layer
+
+
+@dataclass(frozen=True, eq=False)
+class Material:
+    """What the kernels model of a surface: the Principled BSDF reduced to its classic parts.
+
+    | field              | range     | default | unit / meaning                                 |
+    |--------------------|-----------|---------|------------------------------------------------|
+    | base_color         | [0, 1]^3  | 0.8     | diffuse albedo, or specular tint when metallic |
+    | base_color_texture | Texture   | None    | replaces base_color when present               |
+    | metallic           | [0, 1]    | 0       | 1: perfect (tinted) mirror when roughness ~ 0  |
+    | roughness          | [0, 1]    | 0.5     | Blender's perceptual roughness                 |
+    | ior                | >= 1      | 1.5     | index of refraction (dielectric)               |
+    | transmission       | [0, 1]    | 0       | 1: glass                                       |
+    | specular           | [0, inf)  | 0.5     | Principled "Specular IOR Level"; 0: Lambertian |
+    | emission           | [0, inf)^3| 0       | radiance W/(m^2 sr): colour x strength         |
+    | normal_texture     | Texture   | None    | tangent-space normal map (bump mapping)        |
+    | height_texture     | Texture   | None    | height map feeding a Bump node                 |
+    | bump_strength      | [0, 1]    | 1       | the Bump node's strength                       |
+    | bump_distance      | [0, inf)  | 1       | the Bump node's distance, metres               |
+    """
+
+    name: str
+    base_color: np.ndarray = field(default_factory=lambda: np.full(3, 0.8, np.float32))
+    base_color_texture: Texture | None = None
+    metallic: float = 0.0
+    roughness: float = 0.5
+    ior: float = 1.5
+    transmission: float = 0.0
+    specular: float = 0.5
+    emission: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))
+    normal_texture: Texture | None = None
+    height_texture: Texture | None = None
+    bump_strength: float = 1.0
+    bump_distance: float = 1.0
+    # What the bridge could not model on this material, one reason per entry.
+    ignored: tuple[str, ...] = ()
+
+    @property
+    def is_emissive(self) -> bool:
+        return bool(np.any(self.emission > 0.0))
+
+
+@dataclass(frozen=True, eq=False)
+class Light:
+    """A Blender light in radiometric units (see `lights.py` for the conversions).
+
+    Exactly one of `intensity` (POINT, SPOT), `irradiance` (SUN) and `radiance` (AREA) is set.
+
+    | field       | unit                     | meaning                                           |
+    |-------------|--------------------------|---------------------------------------------------|
+    | position    | m, world                 | the light's origin (area: centre of the emitter)  |
+    | direction   | unit, world              | where the light points: the object's local -Z     |
+    | axis_x/y    | unit, world              | the object's local X and Y (area extents, spot)   |
+    | intensity   | W/sr, RGB                | point and spot: radiant intensity (cone inside)   |
+    | irradiance  | W/m^2, RGB               | sun: irradiance on a surface facing it            |
+    | radiance    | W/(m^2 sr), RGB          | area: radiance of the front face (one-sided)      |
+    | radius      | m                        | point/spot soft size (0: a true point)            |
+    | angle       | rad                      | sun: angular diameter                             |
+    | spot_size   | rad                      | spot: full cone angle                             |
+    | spot_blend  | [0, 1]                   | spot: smooth fraction of the cone edge            |
+    | size_x/y    | m, world                 | area: extents along axis_x and axis_y (scaled)    |
+    """
+
+    name: str
+    kind: LightKind
+    position: np.ndarray  # (3,) float64, world, m
+    direction: np.ndarray  # (3,) float64, world, unit
+    axis_x: np.ndarray  # (3,) float64, world, unit
+    axis_y: np.ndarray  # (3,) float64, world, unit
+    intensity: np.ndarray | None = None  # (3,) W/sr
+    irradiance: np.ndarray | None = None  # (3,) W/m^2
+    radiance: np.ndarray | None = None  # (3,) W/(m^2 sr)
+    radius: float = 0.0
+    angle: float = 0.0
+    spot_size: float = np.pi
+    spot_blend: float = 0.0
+    spot_square: bool = False
+    shape: AreaShape = "SQUARE"
+    size_x: float = 0.0
+    size_y: float = 0.0
+    cast_shadow: bool = True
+
+
+@dataclass(frozen=True, eq=False)
+class Camera:
+    """A pinhole (PERSP) or orthographic (ORTHO) camera, reduced to its image plane.
+
+    The camera looks down its local -Z with +Y up (Blender's convention). The image plane is
+    described at distance 1 in front of the eye (PERSP) or in metres (ORTHO): pixel (i, j) centre,
+    row 0 at the top, lies at
+        x = plane_min[0] + (j + 0.5) / W * (plane_max[0] - plane_min[0])
+        y = plane_max[1] - (i + 0.5) / H * (plane_max[1] - plane_min[1])
+    with sensor fit and lens shift already applied. `kernels/camera.py` turns this into rays.
+    """
+
+    kind: CameraKind
+    matrix_world: np.ndarray  # (4, 4) float64, camera to world, rigid (scale removed)
+    plane_min: np.ndarray  # (2,) float64, image-plane (x, y) of the bottom-left corner
+    plane_max: np.ndarray  # (2,) float64, image-plane (x, y) of the top-right corner
+    resolution: tuple[int, int]  # (W, H) pixels, render percentage applied
+    clip_start: float = 0.1  # m
+    clip_end: float = 1000.0  # m
+
+    @property
+    def position(self) -> np.ndarray:
+        return self.matrix_world[:3, 3]
+
+
+@dataclass(frozen=True, eq=False)
+class ObjectInfo:
+    """One evaluated mesh instance and where its triangles sit in the scene arrays."""
+
+    name: str  # unique within the snapshot; instances get "parent/child#k"
+    source_name: str  # the original bpy.types.Object name (what write-back targets)
+    tri_start: int
+    tri_count: int
+    has_uv: bool  # whether `Scene.uv` rows of this object come from a real UV layer
+    has_lightmap_uv: bool
+    # The evaluated mesh has the original's corners (no topology-changing modifier): per-corner
+    # results can be written back onto the original mesh.
+    topology_matches_original: bool
+    is_instance: bool = False
+
+
+@dataclass(frozen=True, eq=False)
+class Scene:
+    """A snapshot of what one bake needs. Unrequested parts are empty arrays or None.
+
+    Arrays (T triangles):
+        triangles       (T, 3, 3) float32  world-space corner positions, m
+        normals         (T, 3, 3) float32  world-space unit corner normals (custom normals honoured)
+        uv              (T, 3, 2) float32  active render UV per corner (zeros where has_uv is False)
+        lightmap_uv     (T, 3, 2) float32  the requested lightmap UV layer, or None
+        material_ids    (T,) int32         index into `materials`
+        object_ids      (T,) int32         index into `objects`
+        corner_loops    (T, 3) int32       loop (corner) index within the object's evaluated mesh
+        corner_verts    (T, 3) int32       vertex index within the object's evaluated mesh
+    """
+
+    triangles: np.ndarray
+    normals: np.ndarray
+    uv: np.ndarray
+    lightmap_uv: np.ndarray | None
+    material_ids: np.ndarray
+    object_ids: np.ndarray
+    corner_loops: np.ndarray
+    corner_verts: np.ndarray
+    objects: tuple[ObjectInfo, ...]
+    materials: tuple[Material, ...]
+    lights: tuple[Light, ...]
+    camera: Camera | None
+    world_color: np.ndarray  # (3,) float32, radiance W/(m^2 sr) of the uniform background
+    # What the snapshot met but does not model, one human-readable reason per entry.
+    ignored: tuple[str, ...] = ()
+
+    @property
+    def triangle_count(self) -> int:
+        return int(self.triangles.shape[0])
+
+    def object_slice(self, index: int) -> slice:
+        info = self.objects[index]
+        return slice(info.tri_start, info.tri_start + info.tri_count)
+
+
+def triangle_areas(triangles: np.ndarray) -> np.ndarray:
+    """Areas of (T, 3, 3) triangles, m^2, computed in float64. Returns (T,) float64."""
+    t = triangles.astype(np.float64, copy=False)
+    cross = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+    return 0.5 * np.linalg.norm(cross, axis=1)
+
+
+def geometric_normals(triangles: np.ndarray) -> np.ndarray:
+    """Unit geometric normals (counter-clockwise winding) of (T, 3, 3) triangles, (T, 3) float64.
+
+    Zero-area triangles get a zero vector rather than NaN.
+    """
+    t = triangles.astype(np.float64, copy=False)
+    cross = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+    length = np.linalg.norm(cross, axis=1, keepdims=True)
+    return np.divide(cross, length, out=np.zeros_like(cross), where=length > 0.0)
+
+
+def empty_scene() -> Scene:
+    """A scene with nothing in it: the neutral element tests and kernels can start from."""
+    return Scene(
+        triangles=np.zeros((0, 3, 3), np.float32),
+        normals=np.zeros((0, 3, 3), np.float32),
+        uv=np.zeros((0, 3, 2), np.float32),
+        lightmap_uv=None,
+        material_ids=np.zeros(0, np.int32),
+        object_ids=np.zeros(0, np.int32),
+        corner_loops=np.zeros((0, 3), np.int32),
+        corner_verts=np.zeros((0, 3), np.int32),
+        objects=(),
+        materials=(),
+        lights=(),
+        camera=None,
+        world_color=np.zeros(3, np.float32),
+    )
