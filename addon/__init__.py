@@ -1,0 +1,1 @@
+"""Blender side: registration, panel, properties, preferences and the scene bridge."""

@@ -1,0 +1,805 @@
+"""The one crossing between Blender data and kernel arrays.
+
+`snapshot()` reads the evaluated depsgraph (modifiers applied, instances expanded) into a kernel
+`Scene`; the `write_*` helpers put kernel results back as images, colour attributes and UV layers.
+Everything moves through `foreach_get`/`foreach_set` into preallocated typed arrays. This module owns
+the conventions that differ between Blender and the kernels:
+
+* images: Blender stores rows bottom-up, kernels top-down (`_flip_rows`);
+* mirrored objects (negative determinant): corners 1 and 2 are swapped so that every kernel triangle
+  winds counter-clockwise around the normal Blender shades with;
+* colour: byte images in sRGB are decoded to linear here, so kernels only ever see linear data;
+* lights: Blender's power is turned into radiometric quantities by `kernels/lights.py`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import bpy
+import numpy as np
+
+from ..kernels import lights as light_units
+from ..kernels.camera import image_plane
+from ..kernels.scene import Camera, Light, Material, ObjectInfo, Scene, Texture
+
+DEFAULT_MATERIAL_NAME = "(default surface)"
+# Cycles shades faces without a material with a 0.8 grey diffuse surface.
+DEFAULT_MATERIAL = Material(name=DEFAULT_MATERIAL_NAME, specular=0.0)
+
+MESH_LIKE_TYPES = {"MESH", "CURVE", "SURFACE", "META", "FONT", "CURVES_LEGACY"}
+
+
+@dataclass(frozen=True)
+class SnapshotRequest:
+    """What one bake needs from the scene; everything else is not read at all.
+
+    | field        | default | meaning                                                         |
+    |--------------|---------|-----------------------------------------------------------------|
+    | normals      | True    | corner normals (custom normals honoured)                        |
+    | uv           | True    | the active render UV layer                                      |
+    | lightmap_uv  | None    | name of a UV layer to read as `Scene.lightmap_uv`               |
+    | textures     | True    | image and checker textures (a shadow bake reads none)           |
+    | materials    | True    | materials beyond ids (False: every triangle gets the default)   |
+    | lights       | True    |                                                                 |
+    | camera       | True    |                                                                 |
+    | objects      | None    | restrict geometry to these object names (None: all renderable)  |
+    """
+
+    normals: bool = True
+    uv: bool = True
+    lightmap_uv: str | None = None
+    textures: bool = True
+    materials: bool = True
+    lights: bool = True
+    camera: bool = True
+    objects: tuple[str, ...] | None = None
+
+
+# --- small conversions ----------------------------------------------------------------------------
+
+
+def _flip_rows(pixels: np.ndarray) -> np.ndarray:
+    """Kernel images are top row first, Blender's bottom row first; the same flip goes both ways."""
+    return pixels[::-1]
+
+
+def srgb_to_linear(c: np.ndarray) -> np.ndarray:
+    """The sRGB EOTF (IEC 61966-2-1), applied to colour channels of byte images."""
+    c = np.asarray(c, np.float32)
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4).astype(np.float32)
+
+
+def _matrix(m) -> np.ndarray:
+    """A mathutils.Matrix as a (4, 4) float64 array."""
+    return np.array([list(row) for row in m], dtype=np.float64)
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    n = np.linalg.norm(v)
+    return v / n if n > 0 else v
+
+
+# --- geometry -------------------------------------------------------------------------------------
+
+
+@dataclass
+class _MeshChunk:
+    name: str
+    source_name: str
+    is_instance: bool
+    triangles: np.ndarray  # (T, 3, 3) float32, world
+    normals: np.ndarray | None  # (T, 3, 3) float32, world, unit
+    uv: np.ndarray | None  # (T, 3, 2) float32
+    lightmap_uv: np.ndarray | None  # (T, 3, 2) float32
+    slot_ids: np.ndarray  # (T,) int32 material slot per triangle
+    corner_loops: np.ndarray  # (T, 3) int32
+    corner_verts: np.ndarray  # (T, 3) int32
+    slot_materials: list = field(default_factory=list)
+    topology_matches_original: bool = True
+
+
+def mesh_triangles(mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(corner_verts (T, 3), corner_loops (T, 3), polygon (T,), material slot (T,)) of a mesh, int32."""
+    tris = mesh.loop_triangles
+    count = len(tris)
+    verts = np.empty(count * 3, np.int32)
+    loops = np.empty(count * 3, np.int32)
+    polys = np.empty(count, np.int32)
+    slots = np.empty(count, np.int32)
+    tris.foreach_get("vertices", verts)
+    tris.foreach_get("loops", loops)
+    tris.foreach_get("polygon_index", polys)
+    tris.foreach_get("material_index", slots)
+    return verts.reshape(-1, 3), loops.reshape(-1, 3), polys, slots
+
+
+def mesh_positions(mesh) -> np.ndarray:
+    """Vertex positions (V, 3) float32, object space."""
+    co = np.empty(len(mesh.vertices) * 3, np.float32)
+    mesh.vertices.foreach_get("co", co)
+    return co.reshape(-1, 3)
+
+
+def mesh_corner_normals(mesh) -> np.ndarray:
+    """Corner (loop) normals (L, 3) float32, object space, with custom and sharp normals honoured."""
+    normals = np.empty(len(mesh.loops) * 3, np.float32)
+    if hasattr(mesh, "corner_normals"):  # Blender 4.1+
+        mesh.corner_normals.foreach_get("vector", normals)
+    else:  # pragma: no cover - older than the manifest allows
+        mesh.calc_normals_split()
+        mesh.loops.foreach_get("normal", normals)
+    return normals.reshape(-1, 3)
+
+
+def mesh_uv(mesh, name: str | None) -> np.ndarray | None:
+    """Per-loop UVs (L, 2) float32 of layer `name` (None: the active render layer), or None."""
+    layers = mesh.uv_layers
+    if name is None:
+        layer = next((lay for lay in layers if lay.active_render), None)
+    else:
+        layer = layers.get(name)
+    if layer is None:
+        return None
+    uv = np.empty(len(mesh.loops) * 2, np.float32)
+    layer.uv.foreach_get("vector", uv)
+    return uv.reshape(-1, 2)
+
+
+def _mesh_chunk(
+    name, source_name, is_instance, mesh, matrix, request, original_mesh, slot_materials
+) -> _MeshChunk:
+    corner_verts, corner_loops, _, slots = mesh_triangles(mesh)
+    local = mesh_positions(mesh).astype(np.float64)
+    world = local @ matrix[:3, :3].T + matrix[:3, 3]
+    mirrored = np.linalg.det(matrix[:3, :3]) < 0.0
+    order = [0, 2, 1] if mirrored else [0, 1, 2]
+    corner_verts = corner_verts[:, order]
+    corner_loops = corner_loops[:, order]
+    triangles = world[corner_verts].astype(np.float32)
+
+    normals = None
+    if request.normals:
+        # Normals transform with the inverse transpose; a zero-scale axis leaves them as they are.
+        linear = matrix[:3, :3]
+        try:
+            normal_matrix = np.linalg.inv(linear).T
+        except np.linalg.LinAlgError:
+            normal_matrix = np.eye(3)
+        loop_n = mesh_corner_normals(mesh).astype(np.float64) @ normal_matrix.T
+        length = np.linalg.norm(loop_n, axis=1, keepdims=True)
+        loop_n = np.divide(loop_n, length, out=np.zeros_like(loop_n), where=length > 0)
+        normals = loop_n[corner_loops].astype(np.float32)
+
+    uv = None
+    if request.uv:
+        loop_uv = mesh_uv(mesh, None)
+        uv = None if loop_uv is None else loop_uv[corner_loops]
+    lightmap_uv = None
+    if request.lightmap_uv:
+        loop_uv = mesh_uv(mesh, request.lightmap_uv)
+        lightmap_uv = None if loop_uv is None else loop_uv[corner_loops]
+
+    matches = original_mesh is not None and (
+        len(original_mesh.loops) == len(mesh.loops)
+        and len(original_mesh.vertices) == len(mesh.vertices)
+    )
+    return _MeshChunk(
+        name=name,
+        source_name=source_name,
+        is_instance=is_instance,
+        triangles=triangles,
+        normals=normals,
+        uv=uv,
+        lightmap_uv=lightmap_uv,
+        slot_ids=slots,
+        corner_loops=corner_loops,
+        corner_verts=corner_verts,
+        slot_materials=slot_materials,
+        topology_matches_original=matches,
+    )
+
+
+# --- materials ------------------------------------------------------------------------------------
+
+
+def _follow(socket):
+    """The node and output socket feeding `socket`, skipping reroutes; (None, None) if unlinked."""
+    while socket is not None and socket.is_linked:
+        link = socket.links[0]
+        if not link.is_valid or link.is_muted:
+            return None, None
+        node = link.from_node
+        if node.type == "REROUTE":
+            socket = node.inputs[0]
+            continue
+        return node, link.from_socket
+    return None, None
+
+
+def _active_output(tree, kind: str):
+    outputs = [n for n in tree.nodes if n.type == kind]
+    for node in outputs:
+        if getattr(node, "is_active_output", False) and node.target in ("ALL", "CYCLES"):
+            return node
+    return outputs[0] if outputs else None
+
+
+def image_pixels(image) -> np.ndarray | None:
+    """An image's pixels as (H, W, 4) float32 linear, row 0 top, or None if it has no data."""
+    width, height = image.size
+    if width == 0 or height == 0:
+        return None
+    buf = np.empty(width * height * 4, np.float32)
+    image.pixels.foreach_get(buf)
+    pixels = _flip_rows(buf.reshape(height, width, 4)).copy()
+    space = image.colorspace_settings.name
+    if not image.is_float and space == "sRGB":
+        pixels[..., :3] = srgb_to_linear(pixels[..., :3])
+    return pixels
+
+
+class _MaterialReader:
+    """Reduces Blender materials to kernel `Material`s, recording what it could not model."""
+
+    def __init__(self, request: SnapshotRequest):
+        self.request = request
+        self.images: dict[str, np.ndarray | None] = {}
+
+    def read(self, mat) -> Material:
+        if mat is None:
+            return DEFAULT_MATERIAL
+        if not self.request.materials:
+            return Material(name=mat.name, specular=0.0)
+        tree = mat.node_tree if getattr(mat, "use_nodes", True) else None
+        if tree is None:
+            return Material(
+                name=mat.name,
+                base_color=np.array(mat.diffuse_color[:3], np.float32),
+                metallic=float(mat.metallic),
+                roughness=float(mat.roughness),
+                ignored=("no shader nodes: viewport display colour used",),
+            )
+        ignored: list[str] = []
+        output = _active_output(tree, "OUTPUT_MATERIAL")
+        if output is None:
+            return Material(name=mat.name, ignored=("no Material Output node",))
+        if output.inputs["Volume"].is_linked:
+            ignored.append("volume shader")
+        if output.inputs["Displacement"].is_linked:
+            ignored.append("displacement (bump mapping reads Bump/Normal Map nodes only)")
+        node, _ = _follow(output.inputs["Surface"])
+        if node is None:
+            return Material(name=mat.name, base_color=np.zeros(3, np.float32),
+                            ignored=tuple(ignored + ["no surface shader: black"]))
+        kind = node.type
+        if kind == "BSDF_PRINCIPLED":
+            return self._principled(mat.name, node, ignored)
+        if kind == "BSDF_DIFFUSE":
+            color, tex = self._color(node.inputs["Color"], ignored)
+            return Material(name=mat.name, base_color=color, base_color_texture=tex, specular=0.0,
+                            ignored=tuple(ignored))
+        if kind == "EMISSION":
+            color, _ = self._color(node.inputs["Color"], ignored, textures=False)
+            strength = self._value(node.inputs["Strength"], ignored)
+            return Material(name=mat.name, base_color=np.zeros(3, np.float32), specular=0.0,
+                            emission=(color * strength).astype(np.float32), ignored=tuple(ignored))
+        if kind == "BSDF_GLASS":
+            color, _ = self._color(node.inputs["Color"], ignored, textures=False)
+            return Material(name=mat.name, base_color=color, transmission=1.0,
+                            roughness=self._value(node.inputs["Roughness"], ignored),
+                            ior=self._value(node.inputs["IOR"], ignored), ignored=tuple(ignored))
+        if kind in ("BSDF_GLOSSY", "BSDF_ANISOTROPIC"):
+            color, tex = self._color(node.inputs["Color"], ignored)
+            return Material(name=mat.name, base_color=color, base_color_texture=tex, metallic=1.0,
+                            roughness=self._value(node.inputs["Roughness"], ignored),
+                            ignored=tuple(ignored))
+        ignored.append(f"surface shader '{node.bl_idname}' is not modelled: grey diffuse used")
+        return Material(name=mat.name, ignored=tuple(ignored))
+
+    def _principled(self, name, node, ignored) -> Material:
+        inputs = node.inputs
+        color, tex = self._color(inputs["Base Color"], ignored)
+        emission, _ = self._color(inputs["Emission Color"], ignored, textures=False)
+        strength = self._value(inputs["Emission Strength"], ignored)
+        for unmodelled in ("Subsurface Weight", "Coat Weight", "Sheen Weight"):
+            if unmodelled in inputs and (
+                inputs[unmodelled].is_linked or inputs[unmodelled].default_value > 0
+            ):
+                ignored.append(f"{unmodelled} is not modelled")
+        if "Alpha" in inputs and (inputs["Alpha"].is_linked or inputs["Alpha"].default_value < 1):
+            ignored.append("alpha is not modelled: opaque")
+        normal_tex, height_tex, strength_b, distance_b = self._normal(inputs["Normal"], ignored)
+        return Material(
+            name=name,
+            base_color=color,
+            base_color_texture=tex,
+            metallic=self._value(inputs["Metallic"], ignored),
+            roughness=self._value(inputs["Roughness"], ignored),
+            ior=self._value(inputs["IOR"], ignored),
+            transmission=self._value(inputs["Transmission Weight"], ignored),
+            specular=self._value(inputs["Specular IOR Level"], ignored),
+            emission=(emission * strength).astype(np.float32),
+            normal_texture=normal_tex,
+            height_texture=height_tex,
+            bump_strength=strength_b,
+            bump_distance=distance_b,
+            ignored=tuple(ignored),
+        )
+
+    def _value(self, socket, ignored) -> float:
+        node, _ = _follow(socket)
+        if node is not None:
+            if node.type == "VALUE":
+                return float(node.outputs[0].default_value)
+            ignored.append(f"'{socket.name}' driven by a '{node.bl_idname}' node: its default used")
+        return float(socket.default_value)
+
+    def _color(self, socket, ignored, textures=True) -> tuple[np.ndarray, Texture | None]:
+        default = np.array(socket.default_value[:3], np.float32)
+        node, _ = _follow(socket)
+        if node is None:
+            return default, None
+        if node.type == "RGB":
+            return np.array(node.outputs[0].default_value[:3], np.float32), None
+        if textures and self.request.textures:
+            tex = self._texture(node, ignored, what=socket.name)
+            if tex is not None:
+                return default, tex
+        elif node.type in ("TEX_IMAGE", "TEX_CHECKER"):
+            return default, None  # not requested: this bake does not read textures
+        ignored.append(f"'{socket.name}' driven by a '{node.bl_idname}' node: its default used")
+        return default, None
+
+    def _uv_layer(self, node, ignored, what) -> tuple[bool, str | None]:
+        """(ok, uv layer name or None for the active render layer) of a texture node's Vector."""
+        vec_node, vec_socket = _follow(node.inputs["Vector"])
+        if vec_node is None:
+            if node.type == "TEX_CHECKER":
+                ignored.append(f"{what}: checker on Generated coordinates is read on UVs")
+            return True, None
+        if vec_node.type == "UVMAP":
+            return True, (vec_node.uv_map or None)
+        if vec_node.type == "TEX_COORD" and vec_socket.name == "UV":
+            return True, None
+        ignored.append(f"{what}: texture coordinates from '{vec_node.bl_idname}' are not modelled")
+        return False, None
+
+    def _texture(self, node, ignored, what) -> Texture | None:
+        if node.type == "TEX_IMAGE":
+            ok, uv_layer = self._uv_layer(node, ignored, what)
+            image = node.image
+            if image is None or not ok:
+                return None
+            pixels = self.images.get(image.name)
+            if image.name not in self.images:
+                pixels = self.images[image.name] = image_pixels(image)
+            if pixels is None:
+                ignored.append(f"{what}: image '{image.name}' has no pixels (missing file?)")
+                return None
+            return Texture(
+                kind="IMAGE",
+                name=image.name,
+                pixels=pixels,
+                extension=node.extension if node.extension != "MIRROR" else "MIRROR",
+                interpolation="CLOSEST" if node.interpolation == "Closest" else "LINEAR",
+                uv_layer=uv_layer,
+            )
+        if node.type == "TEX_CHECKER":
+            ok, uv_layer = self._uv_layer(node, ignored, what)
+            linked = [s.name for s in node.inputs if s.name != "Vector" and s.is_linked]
+            if not ok or linked:
+                if linked:
+                    ignored.append(f"{what}: checker inputs {linked} are linked: not modelled")
+                return None
+            return Texture(
+                kind="CHECKER",
+                name=node.name,
+                color1=np.array(node.inputs["Color1"].default_value[:3], np.float32),
+                color2=np.array(node.inputs["Color2"].default_value[:3], np.float32),
+                scale=float(node.inputs["Scale"].default_value),
+                uv_layer=uv_layer,
+            )
+        return None
+
+    def _normal(self, socket, ignored):
+        node, _ = _follow(socket)
+        if node is None:
+            return None, None, 1.0, 1.0
+        if node.type == "NORMAL_MAP":
+            if node.space != "TANGENT":
+                ignored.append(f"normal map in {node.space} space is not modelled")
+                return None, None, 1.0, 1.0
+            tex_node, _ = _follow(node.inputs["Color"])
+            tex = self._texture(tex_node, ignored, "Normal Map") if tex_node else None
+            strength = self._value(node.inputs["Strength"], ignored)
+            return tex, None, strength, 1.0
+        if node.type == "BUMP":
+            tex_node, _ = _follow(node.inputs["Height"])
+            tex = self._texture(tex_node, ignored, "Bump height") if tex_node else None
+            if tex_node is not None and tex is None:
+                ignored.append(f"bump height from '{tex_node.bl_idname}' is not modelled")
+            return (None, tex, self._value(node.inputs["Strength"], ignored),
+                    self._value(node.inputs["Distance"], ignored))
+        ignored.append(f"normal input from '{node.bl_idname}' is not modelled")
+        return None, None, 1.0, 1.0
+
+
+# --- lights, camera, world ------------------------------------------------------------------------
+
+
+def light_power(light) -> tuple[float, np.ndarray]:
+    """(power or strength scalar, linear colour (3,)) of a Blender light, exposure included."""
+    power = float(light.energy) * 2.0 ** float(getattr(light, "exposure", 0.0))
+    color = np.array(light.color[:3], np.float64)
+    if getattr(light, "use_temperature", False):
+        color = color * np.array(light.temperature_color[:3], np.float64)
+    return power, color
+
+
+def _light_nodes_are_default(tree) -> bool:
+    """True if a light's node tree only passes an untouched Emission (colour 1, strength 1) out."""
+    if tree is None:
+        return True
+    output = _active_output(tree, "OUTPUT_LIGHT")
+    if output is None:
+        return True
+    node, _ = _follow(output.inputs["Surface"])
+    if node is None:
+        return True
+    if node.type != "EMISSION" or any(s.is_linked for s in node.inputs):
+        return False
+    color = tuple(node.inputs["Color"].default_value[:3])
+    return np.allclose(color, 1.0) and np.isclose(node.inputs["Strength"].default_value, 1.0)
+
+
+def read_light(name: str, light, matrix: np.ndarray) -> tuple[Light, list[str]]:
+    """A Blender light datablock placed by `matrix` (4, 4) as a kernel `Light`, plus what was ignored."""
+    ignored: list[str] = []
+    rot = matrix[:3, :3]
+    scale = np.linalg.norm(rot, axis=0)
+    position = matrix[:3, 3].copy()
+    axis_x, axis_y = _unit(rot[:, 0]), _unit(rot[:, 1])
+    direction = _unit(-rot[:, 2])
+    power, color = light_power(light)
+    common = dict(name=name, position=position, direction=direction, axis_x=axis_x, axis_y=axis_y,
+                  cast_shadow=bool(getattr(light, "use_shadow", True)))
+    if getattr(light, "use_nodes", False) and not _light_nodes_are_default(light.node_tree):
+        ignored.append(f"light '{name}': light nodes are not modelled")
+    kind = light.type
+    if kind in ("POINT", "SPOT"):
+        extra = {}
+        if kind == "SPOT":
+            extra = dict(spot_size=float(light.spot_size), spot_blend=float(light.spot_blend),
+                         spot_square=bool(light.use_square))
+            if not np.allclose(scale[0], scale[1]):
+                ignored.append(f"light '{name}': non-uniform spot scale (elliptic cone) not modelled")
+        return Light(kind=kind, intensity=light_units.point_intensity(power, color),
+                     radius=float(light.shadow_soft_size), **extra, **common), ignored
+    if kind == "SUN":
+        return Light(kind="SUN", irradiance=light_units.sun_irradiance(power, color),
+                     angle=float(light.angle), **common), ignored
+    if kind == "AREA":
+        shape = light.shape
+        size_x = float(light.size) * scale[0]
+        size_y = (float(light.size_y) if shape in ("RECTANGLE", "ELLIPSE") else float(light.size))
+        size_y *= scale[1]
+        area = light_units.area_of_shape(shape, size_x, size_y)
+        radiance = light_units.area_radiance(power, color, area, getattr(light, "normalize", True))
+        if getattr(light, "spread", np.pi) < np.pi - 1e-6:
+            ignored.append(f"light '{name}': area light spread is not modelled (full hemisphere)")
+        return Light(kind="AREA", radiance=radiance, shape=shape, size_x=size_x, size_y=size_y,
+                     **common), ignored
+    raise ValueError(f"light '{name}' has unknown type {kind}")
+
+
+def render_resolution(scene) -> tuple[int, int]:
+    """The render size in pixels, percentage applied as Blender does (integer truncation)."""
+    r = scene.render
+    pct = r.resolution_percentage
+    return max(1, r.resolution_x * pct // 100), max(1, r.resolution_y * pct // 100)
+
+
+def read_camera(scene, cam_obj, resolution: tuple[int, int] | None = None) -> Camera:
+    """The scene camera as a kernel `Camera`; raises ValueError for panoramic cameras."""
+    cam = cam_obj.data
+    if cam.type not in ("PERSP", "ORTHO"):
+        raise ValueError(f"camera '{cam_obj.name}' is {cam.type}: only perspective and "
+                         "orthographic cameras are modelled")
+    resolution = resolution or render_resolution(scene)
+    r = scene.render
+    plane_min, plane_max = image_plane(
+        cam.type,
+        resolution,
+        lens_mm=cam.lens,
+        sensor_width_mm=cam.sensor_width,
+        sensor_height_mm=cam.sensor_height,
+        sensor_fit=cam.sensor_fit,
+        ortho_scale=cam.ortho_scale,
+        shift=(cam.shift_x, cam.shift_y),
+        pixel_aspect=(r.pixel_aspect_x, r.pixel_aspect_y),
+    )
+    matrix = _matrix(cam_obj.matrix_world)
+    for k in range(3):  # rigid: the camera's scale does not change its view
+        matrix[:3, k] = _unit(matrix[:3, k])
+    return Camera(kind=cam.type, matrix_world=matrix, plane_min=plane_min, plane_max=plane_max,
+                  resolution=tuple(resolution), clip_start=float(cam.clip_start),
+                  clip_end=float(cam.clip_end))
+
+
+def read_world(scene) -> tuple[np.ndarray, list[str]]:
+    """The uniform background radiance (3,) of the world, and what was ignored."""
+    world = scene.world
+    if world is None:
+        return np.zeros(3, np.float32), []
+    tree = world.node_tree if getattr(world, "use_nodes", True) else None
+    if tree is None:
+        return np.array(world.color[:3], np.float32), []
+    output = _active_output(tree, "OUTPUT_WORLD")
+    if output is None:
+        return np.zeros(3, np.float32), ["world has no World Output node: black"]
+    node, _ = _follow(output.inputs["Surface"])
+    if node is None:
+        return np.zeros(3, np.float32), []
+    if node.type != "BACKGROUND":
+        return np.zeros(3, np.float32), [f"world shader '{node.bl_idname}' is not modelled: black"]
+    ignored = []
+    color_node, _ = _follow(node.inputs["Color"])
+    if color_node is not None:
+        ignored.append(f"world colour from '{color_node.bl_idname}' (e.g. an HDRI) is not "
+                       "modelled: its default colour used")
+    strength = float(node.inputs["Strength"].default_value)
+    return np.array(node.inputs["Color"].default_value[:3], np.float32) * strength, ignored
+
+
+# --- the snapshot ---------------------------------------------------------------------------------
+
+
+def snapshot(context=None, request: SnapshotRequest = SnapshotRequest(),
+             resolution: tuple[int, int] | None = None) -> Scene:
+    """Read the evaluated scene of `context` (default: bpy.context) into a kernel `Scene`."""
+    context = context or bpy.context
+    scene = context.scene
+    depsgraph = context.evaluated_depsgraph_get()
+    ignored: list[str] = []
+    chunks: list[_MeshChunk] = []
+    lights: list[Light] = []
+    instance_counts: dict[str, int] = {}
+
+    for original in scene.objects:
+        if original.hide_viewport and not original.hide_render:
+            ignored.append(f"object '{original.name}': disabled in viewports, so not evaluated")
+
+    for inst in depsgraph.object_instances:
+        obj = inst.object
+        source = obj.original
+        holder = inst.parent.original if inst.is_instance and inst.parent else source
+        if source.hide_render or holder.hide_render:
+            continue
+        matrix = _matrix(inst.matrix_world)
+        base = source.name if not inst.is_instance else f"{holder.name}/{source.name}"
+        k = instance_counts.get(base, 0)
+        instance_counts[base] = k + 1
+        name = base if k == 0 else f"{base}#{k}"
+        if obj.type == "LIGHT":
+            if request.lights:
+                light, why = read_light(name, obj.data, matrix)
+                lights.append(light)
+                ignored.extend(why)
+            continue
+        if obj.type not in MESH_LIKE_TYPES:
+            continue
+        if request.objects is not None and source.name not in request.objects:
+            continue
+        mesh = obj.data if obj.type == "MESH" else obj.to_mesh()
+        if mesh is None:
+            continue
+        try:
+            slot_materials = [slot.material for slot in obj.material_slots]
+            original_mesh = source.data if source.type == "MESH" and not inst.is_instance else None
+            chunks.append(_mesh_chunk(name, source.name, inst.is_instance, mesh, matrix, request,
+                                      original_mesh, slot_materials))
+        finally:
+            if obj.type != "MESH":
+                obj.to_mesh_clear()
+
+    # Materials: one table for the whole scene, in first-seen order; index 0 is the default surface.
+    reader = _MaterialReader(request)
+    materials: list[Material] = [DEFAULT_MATERIAL]
+    material_index: dict[str, int] = {}
+    for chunk in chunks:
+        table = np.zeros(max(1, len(chunk.slot_materials)), np.int32)
+        for slot, mat in enumerate(chunk.slot_materials):
+            if mat is None:
+                continue
+            key = mat.name_full
+            if key not in material_index:
+                material_index[key] = len(materials)
+                materials.append(reader.read(mat))
+            table[slot] = material_index[key]
+        # Out-of-range slots render with the default surface in Cycles; do the same.
+        in_range = chunk.slot_ids < len(chunk.slot_materials)
+        chunk.slot_ids = np.where(in_range, table[np.minimum(chunk.slot_ids, table.size - 1)], 0)
+    for mat in materials:
+        ignored.extend(f"material '{mat.name}': {why}" for why in mat.ignored)
+
+    camera = None
+    if request.camera:
+        if scene.camera is None:
+            ignored.append("the scene has no camera")
+        else:
+            camera = read_camera(scene, scene.camera, resolution)
+    world, why = read_world(scene)
+    ignored.extend(why)
+    return _assemble(chunks, materials, lights, camera, world, request, ignored)
+
+
+def _assemble(chunks, materials, lights, camera, world, request, ignored) -> Scene:
+    counts = [c.triangles.shape[0] for c in chunks]
+    total = int(sum(counts))
+    starts = np.concatenate([[0], np.cumsum(counts)]).astype(int)
+    objects = []
+    for k, chunk in enumerate(chunks):
+        if chunk.uv is None and request.uv:
+            ignored.append(f"object '{chunk.name}' has no UV layer: textures read UV (0, 0)")
+        objects.append(ObjectInfo(
+            name=chunk.name, source_name=chunk.source_name, tri_start=int(starts[k]),
+            tri_count=counts[k], has_uv=chunk.uv is not None,
+            has_lightmap_uv=chunk.lightmap_uv is not None,
+            topology_matches_original=chunk.topology_matches_original,
+            is_instance=chunk.is_instance))
+
+    def stack(attr, shape, dtype):
+        parts = [getattr(c, attr) if getattr(c, attr) is not None else np.zeros((n,) + shape, dtype)
+                 for c, n in zip(chunks, counts, strict=True)]
+        return np.concatenate(parts).astype(dtype) if parts else np.zeros((0,) + shape, dtype)
+
+    return Scene(
+        triangles=stack("triangles", (3, 3), np.float32),
+        normals=stack("normals", (3, 3), np.float32),
+        uv=stack("uv", (3, 2), np.float32),
+        lightmap_uv=stack("lightmap_uv", (3, 2), np.float32) if request.lightmap_uv else None,
+        material_ids=stack("slot_ids", (), np.int32),
+        object_ids=np.repeat(np.arange(len(chunks), dtype=np.int32), counts),
+        corner_loops=stack("corner_loops", (3,), np.int32),
+        corner_verts=stack("corner_verts", (3,), np.int32),
+        objects=tuple(objects),
+        materials=tuple(materials),
+        lights=tuple(lights),
+        camera=camera,
+        world_color=np.asarray(world, np.float32),
+        ignored=tuple(ignored),
+    )
+
+
+# --- write-back -----------------------------------------------------------------------------------
+
+
+def write_image(name: str, pixels: np.ndarray, image=None):
+    """Put (H, W, C) float32 linear pixels (row 0 top, C in 1..4) into a float Blender image.
+
+    Reuses `image` (resized if needed) or creates a new float image named `name`. Returns the image.
+    """
+    pixels = np.asarray(pixels, np.float32)
+    if pixels.ndim == 2:
+        pixels = pixels[:, :, None]
+    height, width, channels = pixels.shape
+    rgba = np.ones((height, width, 4), np.float32)
+    if channels == 1:
+        rgba[..., :3] = pixels
+    else:
+        rgba[..., :channels] = pixels
+    if image is None:
+        image = bpy.data.images.new(name, width, height, alpha=True, float_buffer=True)
+    elif tuple(image.size) != (width, height):
+        image.scale(width, height)
+    image.pixels.foreach_set(_flip_rows(rgba).ravel())
+    image.update()
+    return image
+
+
+def save_image_exr(image, pixels: np.ndarray, path: str) -> None:
+    """Write `pixels` as OpenEXR at `path` (OpenEXR package) and point `image` at that file."""
+    from ..kernels.exr import write_exr
+
+    write_exr(path, pixels)
+    image.filepath_raw = path
+    image.file_format = "OPEN_EXR"
+
+
+def pack_image(image) -> None:
+    """Keep a float image inside the .blend (as OpenEXR), so nothing depends on outside files."""
+    image.file_format = "OPEN_EXR"
+    image.pack()
+
+
+def write_color_attribute(mesh, name: str, colors: np.ndarray, domain: str = "POINT"):
+    """Write (N, 3|4) float32 linear colours as a float colour attribute on `mesh`.
+
+    `domain` is POINT (N = vertices) or CORNER (N = loops). An attribute of that name with another
+    type or domain is replaced; the render and active colour attributes are left as they were unless
+    the mesh had none.
+    """
+    count = len(mesh.vertices) if domain == "POINT" else len(mesh.loops)
+    colors = np.asarray(colors, np.float32)
+    if colors.shape[0] != count or colors.shape[1] not in (3, 4):
+        raise ValueError(f"write_color_attribute: expected ({count}, 3|4) colours for the {domain} "
+                         f"domain of '{mesh.name}', got {colors.shape}")
+    rgba = np.ones((count, 4), np.float32)
+    rgba[:, : colors.shape[1]] = colors
+    attrs = mesh.color_attributes
+    attr = attrs.get(name)
+    if attr is not None and (attr.data_type != "FLOAT_COLOR" or attr.domain != domain):
+        attrs.remove(attr)
+        attr = None
+    if attr is None:
+        attr = attrs.new(name=name, type="FLOAT_COLOR", domain=domain)
+    attr.data.foreach_set("color", rgba.ravel())
+    mesh.update()
+    return attr
+
+
+def read_color_attribute(mesh, name: str) -> np.ndarray:
+    """(N, 4) float32 linear colours of a colour attribute (N: its domain's size)."""
+    attr = mesh.color_attributes[name]
+    out = np.empty(len(attr.data) * 4, np.float32)
+    attr.data.foreach_get("color", out)
+    return out.reshape(-1, 4)
+
+
+def write_uv_layer(mesh, name: str, loop_uv: np.ndarray):
+    """Create UV layer `name` on `mesh` with per-loop UVs (L, 2); existing layers stay untouched.
+
+    Raises ValueError if a layer of that name exists (never overwritten) or the mesh has no room.
+    The active and active-render layers are kept as they were.
+    """
+    if mesh.uv_layers.get(name) is not None:
+        raise ValueError(f"mesh '{mesh.name}' already has a UV layer '{name}'")
+    active = mesh.uv_layers.active.name if mesh.uv_layers.active else None
+    render = next((lay.name for lay in mesh.uv_layers if lay.active_render), None)
+    layer = mesh.uv_layers.new(name=name, do_init=False)
+    if layer is None:
+        raise ValueError(f"mesh '{mesh.name}' cannot take another UV layer (Blender allows 8)")
+    layer.uv.foreach_set("vector", np.ascontiguousarray(loop_uv, np.float32).ravel())
+    if active is not None:
+        mesh.uv_layers.active = mesh.uv_layers[active]
+    if render is not None:
+        mesh.uv_layers[render].active_render = True
+    mesh.update()
+    return mesh.uv_layers[name]
+
+
+def lightmap_loop_uv(obj, settings) -> tuple[np.ndarray, dict]:
+    """Unwrap `obj`'s original mesh with xatlas: per-loop lightmap UVs (L, 2) and a summary.
+
+    Texel density follows world-space size (the object's scale applied), so charts of one object
+    get the same density. Polygons whose triangles xatlas put in different charts would give one
+    loop two UVs; they are counted in the summary (`split_polygons`) — the last triangle's UV wins.
+    """
+    from ..kernels.lightmap_uv import unwrap
+
+    mesh = obj.data
+    corner_verts, corner_loops, polys, _ = mesh_triangles(mesh)
+    matrix = _matrix(obj.matrix_world)
+    world = mesh_positions(mesh).astype(np.float64) @ matrix[:3, :3].T
+    result = unwrap(world, corner_verts, settings)
+    loop_uv = np.zeros((len(mesh.loops), 2), np.float32)
+    flat_loops = corner_loops.ravel()
+    flat_uv = result.corner_uv.reshape(-1, 2)
+    loop_uv[flat_loops] = flat_uv
+    # A loop written by several triangles must have received the same UV from each.
+    disagree = np.any(np.abs(loop_uv[flat_loops] - flat_uv) > 0, axis=1).reshape(-1, 3).any(1)
+    summary = {"charts": result.chart_count, "utilization": result.utilization,
+               "split_polygons": int(np.unique(polys[disagree]).size)}
+    return loop_uv, summary
+
+
+def ensure_lightmap_uv(obj, name: str, settings) -> tuple[bool, dict]:
+    """Give `obj`'s mesh a lightmap UV layer `name` unless it has one. Returns (created, summary)."""
+    if obj.type != "MESH":
+        raise ValueError(f"object '{obj.name}' is a {obj.type}, not a mesh: no lightmap UVs")
+    if obj.data.uv_layers.get(name) is not None:
+        return False, {}
+    loop_uv, summary = lightmap_loop_uv(obj, settings)
+    write_uv_layer(obj.data, name, loop_uv)
+    return True, summary

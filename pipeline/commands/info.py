@@ -1,0 +1,131 @@
+"""`info`: what the snapshot extracts from a scene, and what it ignores and why."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..cli import Command, RunContext, command
+
+
+def describe(scene) -> dict:
+    """A JSON-ready summary of a kernel Scene."""
+    from ...kernels.scene import triangle_areas
+
+    areas = triangle_areas(scene.triangles)
+    objects = []
+    for k, info in enumerate(scene.objects):
+        rows = scene.object_slice(k)
+        objects.append({
+            "name": info.name,
+            "triangles": info.tri_count,
+            "area_m2": float(areas[rows].sum()),
+            "materials": sorted({scene.materials[m].name for m in scene.material_ids[rows]}),
+            "has_uv": info.has_uv,
+            "instance": info.is_instance,
+        })
+    materials = []
+    used = set(np.unique(scene.material_ids).tolist())
+    for index, mat in enumerate(scene.materials):
+        if index not in used:
+            continue
+        tex = mat.base_color_texture
+        materials.append({
+            "name": mat.name,
+            "base_color": mat.base_color,
+            "base_color_texture": None if tex is None else f"{tex.kind}:{tex.name}",
+            "metallic": mat.metallic,
+            "roughness": mat.roughness,
+            "ior": mat.ior,
+            "transmission": mat.transmission,
+            "specular": mat.specular,
+            "emission_radiance": mat.emission,
+            "normal_map": None if mat.normal_texture is None else mat.normal_texture.name,
+            "bump_height": None if mat.height_texture is None else mat.height_texture.name,
+        })
+    lights = []
+    for light in scene.lights:
+        entry = {"name": light.name, "kind": light.kind, "position": light.position,
+                 "direction": light.direction}
+        if light.intensity is not None:
+            entry["intensity_w_per_sr"] = light.intensity
+            entry["radius_m"] = light.radius
+        if light.irradiance is not None:
+            entry["irradiance_w_per_m2"] = light.irradiance
+        if light.radiance is not None:
+            entry["radiance_w_per_m2_sr"] = light.radiance
+            entry["size_m"] = [light.size_x, light.size_y]
+        if light.kind == "SPOT":
+            entry["spot_size_deg"] = float(np.degrees(light.spot_size))
+            entry["spot_blend"] = light.spot_blend
+        lights.append(entry)
+    cam = scene.camera
+    camera = None if cam is None else {
+        "kind": cam.kind, "position": cam.position, "resolution": list(cam.resolution),
+        "plane_min": cam.plane_min, "plane_max": cam.plane_max,
+        "clip": [cam.clip_start, cam.clip_end]}
+    return {
+        "counts": {"objects": len(scene.objects), "triangles": scene.triangle_count,
+                   "materials": len(used), "lights": len(scene.lights)},
+        "total_area_m2": float(areas.sum()),
+        "objects": objects,
+        "materials": materials,
+        "lights": lights,
+        "camera": camera,
+        "world_radiance": scene.world_color,
+        "ignored": list(scene.ignored),
+    }
+
+
+def _fmt(v) -> str:
+    arr = np.atleast_1d(np.asarray(v, float))
+    return "(" + ", ".join(f"{x:.4g}" for x in arr) + ")" if arr.size > 1 else f"{arr[0]:.4g}"
+
+
+def _print(ctx: RunContext, d: dict) -> None:
+    c = d["counts"]
+    ctx.say(f"{ctx.record.scene}")
+    ctx.say(f"  {c['objects']} objects, {c['triangles']} triangles, "
+            f"{d['total_area_m2']:.4g} m^2, {c['materials']} materials, {c['lights']} lights")
+    for o in d["objects"]:
+        ctx.say(f"  object {o['name']}: {o['triangles']} tris, {o['area_m2']:.4g} m^2, "
+                f"materials {', '.join(o['materials'])}{'' if o['has_uv'] else ', no UVs'}")
+    for m in d["materials"]:
+        parts = [f"base {_fmt(m['base_color'])}"]
+        if m["base_color_texture"]:
+            parts.append(f"texture {m['base_color_texture']}")
+        for key in ("metallic", "transmission"):
+            if m[key]:
+                parts.append(f"{key} {m[key]:.3g}")
+        parts.append(f"roughness {m['roughness']:.3g}")
+        if np.any(np.asarray(m["emission_radiance"]) > 0):
+            parts.append(f"emits {_fmt(m['emission_radiance'])} W/(m^2 sr)")
+        if m["normal_map"] or m["bump_height"]:
+            parts.append(f"bump {m['normal_map'] or m['bump_height']}")
+        ctx.say(f"  material {m['name']}: " + ", ".join(parts))
+    for li in d["lights"]:
+        value = next((f"{label} {_fmt(li[key])}" for key, label in (
+            ("intensity_w_per_sr", "I W/sr"), ("irradiance_w_per_m2", "E W/m^2"),
+            ("radiance_w_per_m2_sr", "L W/(m^2 sr)")) if key in li), "")
+        ctx.say(f"  light {li['name']}: {li['kind']} at {_fmt(li['position'])}, {value}")
+    cam = d["camera"]
+    if cam:
+        ctx.say(f"  camera: {cam['kind']} at {_fmt(cam['position'])}, "
+                f"{cam['resolution'][0]}x{cam['resolution'][1]} px")
+    ctx.say(f"  world radiance {_fmt(d['world_radiance'])}")
+    for why in d["ignored"]:
+        ctx.say(f"  ignored: {why}")
+
+
+def run(ctx: RunContext) -> None:
+    from ...addon.bridge import snapshot
+
+    with ctx.phase("snapshot"):
+        scene = snapshot(resolution=ctx.resolution)
+    summary = describe(scene)
+    ctx.record.sizes = dict(summary["counts"])
+    ctx.staging.write_json("info.json", summary)
+    _print(ctx, summary)
+
+
+command(Command(name="info", help="print what the scene snapshot extracts, and what it ignores",
+                run=run))
