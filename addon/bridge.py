@@ -636,7 +636,6 @@ def snapshot(context=None, request: SnapshotRequest = SnapshotRequest(),
 
 def _assemble(chunks, materials, lights, camera, world, request, ignored) -> Scene:
     counts = [c.triangles.shape[0] for c in chunks]
-    total = int(sum(counts))
     starts = np.concatenate([[0], np.cumsum(counts)]).astype(int)
     objects = []
     for k, chunk in enumerate(chunks):
