@@ -44,7 +44,8 @@ class LightmapUV:
     """The result of an unwrap, per triangle corner of the input.
 
     corner_uv   (T, 3, 2) float32  UV of each triangle corner, in [0, 1]
-    chart_ids   (T,) int32         chart of each triangle
+    chart_ids   (T,) int32         chart of each triangle; -1 for zero-area triangles, which
+                                   xatlas leaves out (their corners sit at UV (0, 0), no texels)
     """
 
     corner_uv: np.ndarray
@@ -59,7 +60,7 @@ def unwrap(
     """Unwrap and pack one mesh.
 
     positions (V, 3) float, object or world space, m (only ratios matter); triangles (T, 3) vertex ids.
-    Zero-area triangles are passed through (xatlas gives them a spot of their own).
+    Zero-area triangles get no chart (chart id -1) and UV (0, 0): they cover no texel.
     """
     import xatlas
 

@@ -1,0 +1,48 @@
+"""The "Classic Bake" tab of the 3D viewport's sidebar. Operators are named by their bl_idname
+string, so this module never imports `operators` (dependency direction: operators -> addon)."""
+
+import bpy
+
+
+class CLASSICBAKE_PT_main(bpy.types.Panel):
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = "Classic Bake"
+    bl_label = "Classic Bake"
+
+    def draw(self, context):
+        layout = self.layout
+        scene = context.scene
+        meshes = sum(1 for o in scene.objects if o.type == "MESH")
+        lights = sum(1 for o in scene.objects if o.type == "LIGHT")
+        layout.label(text=f"{meshes} meshes, {lights} lights", icon="SCENE_DATA")
+
+
+class CLASSICBAKE_PT_lightmap_uv(bpy.types.Panel):
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = "Classic Bake"
+    bl_label = "Lightmap UVs"
+    bl_parent_id = "CLASSICBAKE_PT_main"
+
+    def draw(self, context):
+        layout = self.layout
+        props = context.scene.classic_bake
+        layout.use_property_split = True
+        layout.prop(props, "lightmap_uv_name")
+        layout.prop(props, "lightmap_resolution")
+        layout.prop(props, "lightmap_padding")
+        layout.operator("classic_bake.lightmap_uv", icon="UV")
+
+
+CLASSES = (CLASSICBAKE_PT_main, CLASSICBAKE_PT_lightmap_uv)
+
+
+def register() -> None:
+    for cls in CLASSES:
+        bpy.utils.register_class(cls)
+
+
+def unregister() -> None:
+    for cls in reversed(CLASSES):
+        bpy.utils.unregister_class(cls)

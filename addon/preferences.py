@@ -1,0 +1,44 @@
+"""Add-on preferences, keyed by the extension's package name."""
+
+import bpy
+from bpy.props import FloatProperty, StringProperty
+
+# "classic_bake" when run from a checkout, "bl_ext.<repo>.classic_bake" when installed.
+ADDON_PACKAGE = __package__.rpartition(".")[0]
+
+
+class CLASSICBAKE_AP_preferences(bpy.types.AddonPreferences):
+    bl_idname = ADDON_PACKAGE
+
+    tick_budget_ms: FloatProperty(
+        name="Work per UI Tick", description="Milliseconds of baking between interface updates "
+        "while a bake runs interactively (smaller: smoother interface, slower bake)",
+        default=50.0, min=5.0, max=1000.0, subtype="NONE")
+    output_dir: StringProperty(
+        name="Output Folder", description="Where baked images are saved ('//' is the .blend's folder)",
+        default="//classic_bake", subtype="DIR_PATH")
+
+    def draw(self, context):
+        layout = self.layout
+        layout.prop(self, "tick_budget_ms")
+        layout.prop(self, "output_dir")
+
+
+def get(context=None):
+    """These preferences, or None when the add-on is not enabled (e.g. in a bare script)."""
+    context = context or bpy.context
+    addon = context.preferences.addons.get(ADDON_PACKAGE)
+    return addon.preferences if addon else None
+
+
+CLASSES = (CLASSICBAKE_AP_preferences,)
+
+
+def register() -> None:
+    for cls in CLASSES:
+        bpy.utils.register_class(cls)
+
+
+def unregister() -> None:
+    for cls in reversed(CLASSES):
+        bpy.utils.unregister_class(cls)

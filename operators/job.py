@@ -1,0 +1,88 @@
+"""Two paths for every bake operator: `execute()` blocks (scripts, headless), `invoke()` runs modal.
+
+A subclass implements `start(context)`, returning a generator that does the work on the main thread
+and yields progress in [0, 1]. The generator must change Blender data only after its last yield
+(compute first, write at the end), so that Esc — which simply stops the generator — leaves the scene
+exactly as it was. The modal path runs the generator for a time budget per timer tick (preferences:
+"Work per UI Tick"), shows progress in the status bar and the window's progress cursor.
+"""
+
+from __future__ import annotations
+
+import time
+
+from ..addon import preferences
+
+TIMER_INTERVAL_S = 0.02  # how often the modal path wakes up to do another slice of work
+DEFAULT_TICK_BUDGET_MS = 50.0  # used when the add-on's preferences are not available
+
+
+class JobOperator:
+    """Mixin for `bpy.types.Operator` subclasses; see the module docstring."""
+
+    job_label = "Baking"
+
+    def start(self, context):  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    # --- blocking path ----------------------------------------------------------------------------
+
+    def execute(self, context):
+        try:
+            for _ in self.start(context):
+                pass
+        except ValueError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        return {"FINISHED"}
+
+    # --- modal path -------------------------------------------------------------------------------
+
+    def invoke(self, context, event):
+        try:
+            self._job = self.start(context)
+        except ValueError as exc:
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        wm = context.window_manager
+        self._timer = wm.event_timer_add(TIMER_INTERVAL_S, window=context.window)
+        wm.progress_begin(0, 100)
+        wm.modal_handler_add(self)
+        self._status(context, 0.0)
+        return {"RUNNING_MODAL"}
+
+    def modal(self, context, event):
+        if event.type == "ESC":
+            self._job.close()  # stops the generator before it wrote anything
+            self._finish(context)
+            self.report({"WARNING"}, f"{self.job_label}: cancelled, nothing changed")
+            return {"CANCELLED"}
+        if event.type != "TIMER":
+            return {"PASS_THROUGH"}
+        prefs = preferences.get(context)
+        budget = (prefs.tick_budget_ms if prefs else DEFAULT_TICK_BUDGET_MS) / 1000.0
+        deadline = time.perf_counter() + budget
+        try:
+            while time.perf_counter() < deadline:
+                progress = next(self._job)
+                context.window_manager.progress_update(int(100 * progress))
+                self._status(context, progress)
+        except StopIteration:
+            self._finish(context)
+            return {"FINISHED"}
+        except ValueError as exc:
+            self._finish(context)
+            self.report({"ERROR"}, str(exc))
+            return {"CANCELLED"}
+        return {"RUNNING_MODAL"}
+
+    def _status(self, context, progress: float) -> None:
+        if context.workspace is not None:
+            context.workspace.status_text_set(f"{self.job_label}: {progress:.0%} (Esc to cancel)")
+
+    def _finish(self, context) -> None:
+        wm = context.window_manager
+        wm.event_timer_remove(self._timer)
+        wm.progress_end()
+        if context.workspace is not None:
+            context.workspace.status_text_set(None)
