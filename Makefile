@@ -10,7 +10,7 @@ OUT    ?= out
 # Keep the test suite inside the 2-core machine: one process, hypothesis profile "ci".
 PYTEST_FLAGS ?= -q -p no:cacheprovider
 
-.PHONY: all demo test test-kernels test-blender test-blender45 lint samples extension bench clean
+.PHONY: all demo test test-kernels test-blender test-blender45 lint samples extension bench clean chromium
 
 all: test
 
@@ -28,7 +28,11 @@ test: lint test-kernels test-blender test-blender45
 lint: $(VENV)/.stamp
 	$(VENV)/bin/ruff check .
 
-test-kernels: $(VENV)/.stamp
+# The report's browser test needs Debian's Chromium (installed once, as root; a no-op when present).
+chromium:
+	tools/install_chromium.sh
+
+test-kernels: $(VENV)/.stamp chromium
 	$(PY) -m pytest $(PYTEST_FLAGS) tests/kernels
 
 test-blender: $(VENV)/.stamp

@@ -75,6 +75,16 @@ def _matrix(m) -> np.ndarray:
     return np.array([list(row) for row in m], dtype=np.float64)
 
 
+def _node_tree(idblock):
+    """The node tree Cycles shades `idblock` (material, world, light) with, or None.
+
+    Blender 5.0 always uses node trees and deprecates `use_nodes`; 4.5 still honours the flag.
+    """
+    if bpy.app.version < (5, 0, 0) and not getattr(idblock, "use_nodes", True):
+        return None
+    return getattr(idblock, "node_tree", None)
+
+
 def _unit(v: np.ndarray) -> np.ndarray:
     n = np.linalg.norm(v)
     return v / n if n > 0 else v
@@ -251,7 +261,7 @@ class _MaterialReader:
             return DEFAULT_MATERIAL
         if not self.request.materials:
             return Material(name=mat.name, specular=0.0)
-        tree = mat.node_tree if getattr(mat, "use_nodes", True) else None
+        tree = _node_tree(mat)
         if tree is None:
             return Material(
                 name=mat.name,
@@ -464,7 +474,7 @@ def read_light(name: str, light, matrix: np.ndarray) -> tuple[Light, list[str]]:
     power, color = light_power(light)
     common = dict(name=name, position=position, direction=direction, axis_x=axis_x, axis_y=axis_y,
                   cast_shadow=bool(getattr(light, "use_shadow", True)))
-    if getattr(light, "use_nodes", False) and not _light_nodes_are_default(light.node_tree):
+    if not _light_nodes_are_default(_node_tree(light)):
         ignored.append(f"light '{name}': light nodes are not modelled")
     kind = light.type
     if kind in ("POINT", "SPOT"):
@@ -532,7 +542,7 @@ def read_world(scene) -> tuple[np.ndarray, list[str]]:
     world = scene.world
     if world is None:
         return np.zeros(3, np.float32), []
-    tree = world.node_tree if getattr(world, "use_nodes", True) else None
+    tree = _node_tree(world)
     if tree is None:
         return np.array(world.color[:3], np.float32), []
     output = _active_output(tree, "OUTPUT_WORLD")

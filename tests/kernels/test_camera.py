@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+
 from classic_bake.kernels.camera import camera_rays, image_plane
 from classic_bake.kernels.scene import Camera
 

@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+
 from classic_bake.kernels.exr import read_exr, write_exr
 
 

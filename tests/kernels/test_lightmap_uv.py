@@ -7,6 +7,7 @@ triangle/box separating-axis test, so bilinear lookups of any point of a chart r
 
 import numpy as np
 import pytest
+
 from classic_bake.kernels.lightmap_uv import LightmapUVSettings, unwrap
 
 

@@ -7,6 +7,7 @@ them against Cycles itself).
 
 import numpy as np
 import pytest
+
 from classic_bake.kernels import lights
 from classic_bake.kernels.scene import Light
 
