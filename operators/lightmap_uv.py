@@ -19,6 +19,24 @@ def _targets(context, all_objects: bool):
     return out
 
 
+def unwrap_job(targets, name: str, settings, report):
+    """Unwrap `targets` one per step (yielding progress), then write every UV layer at the end."""
+    results = []
+    for k, obj in enumerate(targets):
+        loop_uv, summary = bridge.lightmap_loop_uv(obj, settings)
+        results.append((obj, loop_uv, summary))
+        yield (k + 1) / (len(targets) + 1)
+    # Everything computed: only now touch the meshes (a cancel above changed nothing).
+    split = 0
+    for obj, loop_uv, summary in results:
+        bridge.write_uv_layer(obj.data, name, loop_uv)
+        split += summary["split_polygons"]
+    message = f"Lightmap UVs '{name}' on {len(results)} meshes"
+    if split:
+        message += f" ({split} polygons split across charts)"
+    report({"WARNING"} if split else {"INFO"}, message)
+
+
 class CLASSICBAKE_OT_lightmap_uv(JobOperator, bpy.types.Operator):
     """Unwrap and pack meshes into a new lightmap UV layer (xatlas); existing layers are kept"""
 
@@ -49,27 +67,11 @@ class CLASSICBAKE_OT_lightmap_uv(JobOperator, bpy.types.Operator):
         targets = [o for o in _targets(context, self.all_objects) if name not in o.data.uv_layers]
         if not targets:
             return self._nothing_to_do(name)
-        return self._job(targets, name, settings)
+        return unwrap_job(targets, name, settings, self.report)
 
     def _nothing_to_do(self, name):
         self.report({"INFO"}, f"Every target mesh already has a '{name}' UV layer")
         yield 1.0
-
-    def _job(self, targets, name, settings):
-        results = []
-        for k, obj in enumerate(targets):
-            loop_uv, summary = bridge.lightmap_loop_uv(obj, settings)
-            results.append((obj, loop_uv, summary))
-            yield (k + 1) / (len(targets) + 1)
-        # Everything computed: only now touch the meshes (a cancel above changed nothing).
-        split = 0
-        for obj, loop_uv, summary in results:
-            bridge.write_uv_layer(obj.data, name, loop_uv)
-            split += summary["split_polygons"]
-        message = f"Lightmap UVs '{name}' on {len(results)} meshes"
-        if split:
-            message += f" ({split} polygons split across charts)"
-        self.report({"WARNING"} if split else {"INFO"}, message)
 
 
 CLASSES = (CLASSICBAKE_OT_lightmap_uv,)

@@ -17,10 +17,6 @@ SAMPLES = ROOT / "sample_blends"
 SHARED_REFERENCE = ROOT.parent / "shared" / "reference"
 
 
-def sample_scenes() -> list[Path]:
-    return sorted(SAMPLES.glob("*.blend"))
-
-
 @pytest.fixture(autouse=True)
 def factory_reset():
     bpy.ops.wm.read_factory_settings(use_empty=True)

@@ -1,0 +1,56 @@
+"""The lightmap-UV operator: creates missing layers only, and a cancelled run changes nothing."""
+
+import bmesh
+import bpy
+import numpy as np
+
+from classic_bake.addon import bridge
+
+
+def cube(name, size=1.0):
+    mesh = bpy.data.meshes.new(name)
+    bm = bmesh.new()
+    bm.loops.layers.uv.new("UVMap")  # calc_uvs fills an existing layer
+    bmesh.ops.create_cube(bm, size=size, calc_uvs=True)
+    bm.to_mesh(mesh)
+    bm.free()
+    obj = bpy.data.objects.new(name, mesh)
+    bpy.context.scene.collection.objects.link(obj)
+    return obj
+
+
+def test_operator_creates_lightmap_uvs_on_every_mesh(addon):
+    a, b = cube("A"), cube("B", 2.0)
+    bpy.context.scene.classic_bake.lightmap_resolution = 128
+    assert bpy.ops.classic_bake.lightmap_uv(all_objects=True) == {"FINISHED"}
+    for obj in (a, b):
+        assert [lay.name for lay in obj.data.uv_layers] == ["UVMap", "Lightmap"]
+        assert obj.data.uv_layers.active.name == "UVMap"
+    snap = bridge.snapshot(request=bridge.SnapshotRequest(lightmap_uv="Lightmap"))
+    assert all(o.has_lightmap_uv for o in snap.objects)
+    assert np.all((snap.lightmap_uv >= 0) & (snap.lightmap_uv <= 1))
+
+
+def test_existing_layers_are_never_overwritten(addon):
+    obj = cube("A")
+    layer = obj.data.uv_layers.new(name="Lightmap")
+    layer.uv.foreach_set("vector", np.full(len(obj.data.loops) * 2, 0.25, np.float32))
+    assert bpy.ops.classic_bake.lightmap_uv(all_objects=True) == {"FINISHED"}
+    values = np.empty(len(obj.data.loops) * 2, np.float32)
+    obj.data.uv_layers["Lightmap"].uv.foreach_get("vector", values)
+    assert np.all(values == 0.25)
+
+
+def test_cancelled_job_leaves_the_scene_as_it_was(addon):
+    from classic_bake.kernels.lightmap_uv import LightmapUVSettings
+    from classic_bake.operators.lightmap_uv import unwrap_job
+
+    targets = [cube("A"), cube("B")]
+    job = unwrap_job(targets, "Lightmap", LightmapUVSettings(resolution=64), report=print)
+    assert 0.0 < next(job) < 1.0  # one mesh unwrapped, nothing written yet
+    job.close()  # what Esc does
+    assert all("Lightmap" not in o.data.uv_layers for o in bpy.data.objects)
+
+
+def test_operator_poll_explains_itself(addon):
+    assert not bpy.ops.classic_bake.lightmap_uv.poll()
