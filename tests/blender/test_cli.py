@@ -1,0 +1,108 @@
+"""The command line contract: `python -m classic_bake COMMAND SCENE.blend [options]`."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import bpy
+import pytest
+
+from classic_bake.pipeline.cli import main
+from classic_bake.pipeline.outputs import Staging, safe_name
+
+ROOT = Path(__file__).resolve().parents[2]
+CORNELL = ROOT / "sample_blends" / "cornell_box.blend"
+
+
+def run_cli(*args, cwd=None):
+    return subprocess.run([sys.executable, "-m", "classic_bake", *map(str, args)],
+                          capture_output=True, text=True, timeout=300, cwd=cwd)
+
+
+def test_info_prints_the_extracted_scene(tmp_path):
+    done = run_cli("info", CORNELL, "--out", tmp_path)
+    assert done.returncode == 0, done.stderr
+    out = done.stdout
+    assert "objects" in out and "triangles" in out and "camera: PERSP" in out
+    for name in ("Floor", "ShortBlock", "TallBlock"):
+        assert f"object {name}" in out
+    info = json.loads((tmp_path / "info.json").read_text())
+    metrics = json.loads((tmp_path / "metrics.json").read_text())
+    assert info["counts"]["triangles"] > 0
+    assert metrics["technique"] == "info" and metrics["seconds"]["total"] > 0
+    assert metrics["sizes"]["triangles"] == info["counts"]["triangles"]
+    assert not any(p.name.startswith(".classic_bake-") for p in tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("args, words", [
+    (("info", "/no/such/scene.blend"), "not found"),
+    (("info", ROOT / "Makefile"), "not a .blend"),
+    (("info", ROOT), "not a file"),
+    (("nonsense", CORNELL), "invalid choice"),
+    (("info", CORNELL, "--resolution", "0", "10"), "resolution"),
+    (("lightmap-uv", CORNELL, "--lightmap-size", "4"), "resolution must be"),
+])
+def test_bad_input_exits_2_with_one_line(args, words, tmp_path):
+    done = run_cli(*args, "--out", tmp_path / "o") if args[0] != "nonsense" else run_cli(*args)
+    assert done.returncode == 2
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in done.stderr
+    assert lines[0].startswith("classic_bake: error:") and words in lines[0]
+
+
+def test_failed_run_leaves_earlier_outputs(tmp_path):
+    assert run_cli("lightmap-uv", CORNELL, "--out", tmp_path, "--save-blend").returncode == 0
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+    assert {"metrics.json", "result.blend", "lightmap_uv.json"} <= set(before)
+    failed = run_cli("lightmap-uv", CORNELL, "--out", tmp_path, "--lightmap-size", "4")
+    assert failed.returncode == 2
+    after = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+    assert after == before  # same files, same bytes, no staging folder left behind
+
+
+def test_the_scene_file_is_never_written(tmp_path):
+    before = CORNELL.read_bytes()
+    assert run_cli("lightmap-uv", CORNELL, "--out", tmp_path, "--save-blend").returncode == 0
+    assert CORNELL.read_bytes() == before
+    # result.blend holds the written-back UV layers.
+    bpy.ops.wm.open_mainfile(filepath=str(tmp_path / "result.blend"), load_ui=False,
+                             use_scripts=False)
+    meshes = [o for o in bpy.data.objects if o.type == "MESH"]
+    assert meshes and all("Lightmap" in o.data.uv_layers for o in meshes)
+
+
+def test_in_process_entry_point_matches(tmp_path, capsys):
+    # What `blender -c classic_bake ...` calls (registered by the extension).
+    assert main(["info", str(CORNELL), "--out", str(tmp_path)]) == 0
+    assert "TallBlock" in capsys.readouterr().out
+    assert main(["info", str(tmp_path / "missing.blend")]) == 2
+
+
+def test_cli_command_is_registered_with_blender(addon):
+    import classic_bake
+
+    assert classic_bake._cli_handle is not None
+
+
+@pytest.mark.parametrize("name, expected", [
+    ("Cube", "Cube"),
+    ("../../etc/passwd", "etc_passwd"),
+    ("a/b\\c", "a_b_c"),
+    ("CON", "_CON"),
+    ("nul.exr", "_nul.exr"),
+    ("...", "unnamed"),
+    ("Würfel Ω", "W_rfel"),
+    ("x" * 500, "x" * 120),
+])
+def test_safe_names(name, expected):
+    assert safe_name(name) == expected
+
+
+def test_staged_paths_never_leave_the_output_folder(tmp_path):
+    staging = Staging(tmp_path)
+    for hostile in ("../escape.txt", "/abs/path.txt", "a/../../b.txt"):
+        path = staging.file(hostile)
+        assert staging.path in path.resolve().parents
+    staging.discard()
+    assert list(tmp_path.iterdir()) == []
