@@ -1,7 +1,8 @@
-"""`demo`: the main job — every command on every sample scene, into one output folder."""
+"""`demo`: the main job — every command on every sample scene, then one HTML report."""
 
 from __future__ import annotations
 
+import argparse
 from pathlib import Path
 
 from ..cli import COMMANDS, Command, RunContext, command, run_command
@@ -15,10 +16,12 @@ def add_arguments(parser) -> None:
     parser.add_argument("folder", type=Path, nargs="?", default=Path("sample_blends"),
                         help="folder of .blend files (default sample_blends)")
     parser.add_argument("--out", type=Path, default=Path("out/demo"), help="output folder")
+    parser.add_argument("--resolution", type=int, nargs=2, metavar=("W", "H"), default=None,
+                        help="render size for every technique (default: each scene's own)")
 
 
 def run(ctx: RunContext) -> None:
-    import argparse
+    from ..report import build_report
 
     folder: Path = ctx.args.folder
     scenes = sorted(folder.glob("*.blend"))
@@ -26,11 +29,13 @@ def run(ctx: RunContext) -> None:
         raise UsageError(f"no .blend files in {folder}")
     for scene in scenes:
         for name in DEMO_COMMANDS:
-            cmd = COMMANDS[name]
-            out = ctx.args.out / safe_name(scene.stem) / name
-            args = argparse.Namespace(scene=scene, out=out, save_blend=False, resolution=None)
-            run_command(cmd, args)
+            # One folder per run: the report reads OUT/*/metrics.json.
+            out = ctx.args.out / f"{safe_name(scene.stem)}-{name}"
+            args = argparse.Namespace(scene=scene, out=out, save_blend=False,
+                                      resolution=ctx.args.resolution)
+            run_command(COMMANDS[name], args)
+    ctx.say(f"report: {build_report(ctx.args.out)}")
 
 
-command(Command(name="demo", help="run every command on every sample scene", run=run,
-                add_arguments=add_arguments, needs_scene=False))
+command(Command(name="demo", help="run every command on every sample scene and write the report",
+                run=run, add_arguments=add_arguments, needs_scene=False))
