@@ -816,3 +816,90 @@ def ensure_lightmap_uv(obj, name: str, settings) -> tuple[bool, dict]:
     loop_uv, summary = lightmap_loop_uv(obj, settings)
     write_uv_layer(obj.data, name, loop_uv)
     return True, summary
+
+
+# --- material wiring ------------------------------------------------------------------------------
+
+WIRING_TAG = "classic_bake"  # custom property on every node the wiring adds
+_ORIGINAL_OUTPUT = "classic_bake_original_output"  # material property: the output to restore
+
+
+def _material_slots_for_display(obj, single_user: bool):
+    """The materials of `obj` to wire, creating one where a slot is empty or there are none.
+
+    With `single_user` (a per-object lightmap image) a material shared with other objects is
+    replaced in this object's slot by a copy, so the other objects keep showing their own bake.
+    """
+    if len(obj.material_slots) == 0:
+        obj.data.materials.append(bpy.data.materials.new(f"{obj.name} (baked)"))
+    materials = []
+    for slot in obj.material_slots:
+        mat = slot.material
+        if mat is None:
+            mat = slot.material = bpy.data.materials.new(f"{obj.name} (baked)")
+        elif single_user and mat.users > 1:
+            mat = slot.material = mat.copy()
+        if bpy.app.version < (5, 0, 0):
+            mat.use_nodes = True
+        materials.append(mat)
+    return materials
+
+
+def unwire_baked_display(mat) -> None:
+    """Remove what `wire_baked_display` added to `mat` and make its original output active again."""
+    tree = mat.node_tree
+    if tree is None:
+        return
+    for node in [n for n in tree.nodes if n.get(WIRING_TAG)]:
+        tree.nodes.remove(node)
+    original = tree.nodes.get(mat.get(_ORIGINAL_OUTPUT, ""))
+    if original is not None:
+        original.is_active_output = True
+    if _ORIGINAL_OUTPUT in mat:
+        del mat[_ORIGINAL_OUTPUT]
+
+
+def wire_baked_display(obj, *, attribute: str | None = None, image=None,
+                       uv_layer: str | None = None) -> list:
+    """Make Blender's viewport and renders show a baked result on `obj`, losing nothing.
+
+    The baked radiance (a colour attribute by name, or a lightmap `image` read through `uv_layer`)
+    feeds an Emission shader into a new Material Output that becomes the active one; the original
+    output and every original node stay in the material (`unwire_baked_display` restores them).
+    Returns the materials wired.
+    """
+    if (attribute is None) == (image is None):
+        raise ValueError("wire_baked_display: give exactly one of attribute= and image=")
+    materials = _material_slots_for_display(obj, single_user=image is not None)
+    for mat in materials:
+        unwire_baked_display(mat)
+        tree = mat.node_tree
+        current = _active_output(tree, "OUTPUT_MATERIAL")
+        if current is not None:
+            mat[_ORIGINAL_OUTPUT] = current.name
+        nodes, links = tree.nodes, tree.links
+        if attribute is not None:
+            source = nodes.new("ShaderNodeVertexColor")
+            source.layer_name = attribute
+            color = source.outputs["Color"]
+        else:
+            source = nodes.new("ShaderNodeTexImage")
+            source.image = image
+            source.interpolation = "Linear"
+            source.extension = "EXTEND"  # lightmap charts are padded; never wrap across the atlas
+            uv = nodes.new("ShaderNodeUVMap")
+            uv.uv_map = uv_layer or ""
+            links.new(uv.outputs["UV"], source.inputs["Vector"])
+            uv[WIRING_TAG] = True
+            uv.location = (-700, -400)
+            color = source.outputs["Color"]
+        emission = nodes.new("ShaderNodeEmission")
+        output = nodes.new("ShaderNodeOutputMaterial")
+        output.target = "ALL"
+        links.new(color, emission.inputs["Color"])
+        links.new(emission.outputs["Emission"], output.inputs["Surface"])
+        for node, x in ((source, -450), (emission, -150), (output, 100)):
+            node[WIRING_TAG] = True
+            node.location = (x, -400)
+        output.is_active_output = True
+    return materials

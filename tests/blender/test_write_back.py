@@ -100,3 +100,65 @@ def test_uv_layer_is_added_never_overwritten_and_active_layers_kept():
     assert np.array_equal(back.reshape(-1, 2), loop_uv)
     with pytest.raises(ValueError, match="already has"):
         bridge.write_uv_layer(mesh, "Lightmap", loop_uv)
+
+
+def render_centre(scene, tmp_path) -> np.ndarray:
+    scene.render.engine = "CYCLES"
+    scene.cycles.samples = 1
+    scene.cycles.use_denoising = False
+    scene.render.resolution_x = scene.render.resolution_y = 8
+    scene.render.filepath = str(tmp_path / "r.exr")
+    scene.render.image_settings.file_format = "OPEN_EXR"
+    bpy.ops.render.render(write_still=True)
+    img = bpy.data.images.load(str(tmp_path / "r.exr"))
+    px = bridge.image_pixels(img)
+    bpy.data.images.remove(img)
+    return px[4, 4, :3]
+
+
+def camera_on(obj):
+    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
+    cam.data.type = "ORTHO"
+    cam.data.ortho_scale = 0.2
+    cam.location = (0.0, 0.0, 3.0)
+    bpy.context.scene.collection.objects.link(cam)
+    bpy.context.scene.camera = cam
+    bpy.context.scene.world = None
+
+
+def test_wired_attribute_shows_in_renders_and_unwiring_restores(tmp_path):
+    obj = cube()
+    mat = bpy.data.materials.new("Original")
+    if bpy.app.version < (5, 0, 0):
+        mat.use_nodes = True  # 4.5 creates materials without a node tree
+    obj.data.materials.append(mat)
+    original_nodes = sorted(n.name for n in mat.node_tree.nodes)
+    mesh = obj.data
+    bridge.write_color_attribute(mesh, "Baked", np.tile([0.25, 0.5, 2.0], (len(mesh.vertices), 1)))
+    camera_on(obj)
+    (wired,) = bridge.wire_baked_display(obj, attribute="Baked")
+    assert wired == mat
+    np.testing.assert_allclose(render_centre(bpy.context.scene, tmp_path), [0.25, 0.5, 2.0], rtol=1e-3)
+    bridge.unwire_baked_display(mat)
+    assert sorted(n.name for n in mat.node_tree.nodes) == original_nodes
+    active = [n for n in mat.node_tree.nodes if n.type == "OUTPUT_MATERIAL" and n.is_active_output]
+    assert len(active) == 1 and active[0].inputs["Surface"].is_linked
+
+
+def test_wired_lightmap_image_uses_its_uv_layer_and_copies_shared_materials(tmp_path):
+    a, b = cube("A"), cube("B")
+    shared = bpy.data.materials.new("Shared")
+    a.data.materials.append(shared)
+    b.data.materials.append(shared)
+    b.data = a.data.copy()  # separate meshes, same material
+    b.data.materials[0] = shared
+    loop_uv = np.full((len(a.data.loops), 2), 0.5, np.float32)
+    bridge.write_uv_layer(a.data, "Lightmap", loop_uv)
+    image = bridge.write_image("A_lightmap", np.full((4, 4, 3), 0.75, np.float32))
+    camera_on(a)
+    b.location = (10.0, 0.0, 0.0)
+    (wired,) = bridge.wire_baked_display(a, image=image, uv_layer="Lightmap")
+    assert wired != shared and b.material_slots[0].material == shared
+    np.testing.assert_allclose(render_centre(bpy.context.scene, tmp_path), 0.75, rtol=1e-3)
+    with pytest.raises(ValueError, match="exactly one"):
+        bridge.wire_baked_display(a)
