@@ -36,8 +36,9 @@ class Texture:
 
     IMAGE: `pixels` (H, W, 4) float32, linear (sRGB images are decoded by the bridge), row 0 top.
     CHECKER: Blender's Checker Texture on UV coordinates: `color1` where floor(u*scale) and
-    floor(v*scale) have equal parity, `color2` elsewhere (the same rule as Cycles' `svm_checker`
-    with z = 0).
+    floor(v*scale) have DIFFERENT parity, `color2` where they match (Cycles' `svm_checker` with
+    z = 0; measured in renders by tests/blender/test_sample_scenes.py's author: at scale 2 the
+    top-left quadrant u < 0.5, v > 0.5 is color1).
     """
 
     kind: TextureKind
