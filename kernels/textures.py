@@ -1,0 +1,97 @@
+"""Texture mapping: image and procedural (checkerboard) textures looked up through UVs.
+
+The lecture's two sources of texture images: "computer programs (e.g. checkerboard)" and "digital
+cameras (image files)". Both are sampled the way Cycles samples them, so a kernel render and a
+Cycles render of the same material agree texel for texel:
+
+* image lookup: texel centres sit at ((i + 0.5) / W, (j + 0.5) / H) in UV; bilinear weights between
+  the four nearest centres (Cycles' `kernel_tex_image_interp` with `INTERPOLATION_LINEAR`);
+* wrap modes: REPEAT (periodic), EXTEND (clamp to the edge texel), CLIP (outside [0, 1] is
+  transparent black, and bilinear lookups near the border blend towards it), MIRROR;
+* checker: Cycles' `svm_checker` on (u, v, 0): colour1 where floor(u s) and floor(v s) have
+  different parity.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .scene import Texture
+
+# Cycles nudges checker coordinates by (p + 1e-6) * 0.999999 so that integer lattice points fall
+# on a definite side; the same nudge keeps our squares aligned with its squares.
+CHECKER_NUDGE_ADD = 1e-6
+CHECKER_NUDGE_MUL = 0.999999
+
+
+def _wrap_index(i: np.ndarray, n: int, mode: str) -> tuple[np.ndarray, np.ndarray]:
+    """Integer texel indices wrapped by `mode`: (index in [0, n), valid mask for CLIP)."""
+    if mode == "REPEAT":
+        return np.mod(i, n), np.ones(i.shape, bool)
+    if mode == "MIRROR":
+        period = np.mod(i, 2 * n)
+        return np.where(period < n, period, 2 * n - 1 - period), np.ones(i.shape, bool)
+    valid = (i >= 0) & (i < n)
+    return np.clip(i, 0, n - 1), (valid if mode == "CLIP" else np.ones(i.shape, bool))
+
+
+def sample_image(
+    pixels: np.ndarray,
+    uv: np.ndarray,
+    extension: str = "REPEAT",
+    interpolation: str = "LINEAR",
+    out: np.ndarray | None = None,
+) -> np.ndarray:
+    """Look up (N, 2) UVs in an (H, W, C) image (row 0 top). Returns (N, C) float32.
+
+    | parameter     | values                        | default | meaning                         |
+    |---------------|-------------------------------|---------|---------------------------------|
+    | extension     | REPEAT, EXTEND, CLIP, MIRROR  | REPEAT  | what lies outside [0, 1]^2      |
+    | interpolation | LINEAR, CLOSEST               | LINEAR  | bilinear or nearest texel       |
+    """
+    height, width, channels = pixels.shape
+    uv = np.asarray(uv, np.float64)
+    # Continuous texel coordinates: x grows with u, y with v; image row = H - 1 - y.
+    x = uv[:, 0] * width - 0.5
+    y = uv[:, 1] * height - 0.5
+    if out is None:
+        out = np.empty((uv.shape[0], channels), np.float32)
+    if interpolation == "CLOSEST":
+        ix, vx = _wrap_index(np.floor(x + 0.5).astype(np.int64), width, extension)
+        iy, vy = _wrap_index(np.floor(y + 0.5).astype(np.int64), height, extension)
+        np.multiply(pixels[height - 1 - iy, ix], (vx & vy)[:, None], out=out)
+        return out
+    x0 = np.floor(x)
+    y0 = np.floor(y)
+    fx = (x - x0)[:, None]
+    fy = (y - y0)[:, None]
+    x0 = x0.astype(np.int64)
+    y0 = y0.astype(np.int64)
+    ix0, vx0 = _wrap_index(x0, width, extension)
+    ix1, vx1 = _wrap_index(x0 + 1, width, extension)
+    iy0, vy0 = _wrap_index(y0, height, extension)
+    iy1, vy1 = _wrap_index(y0 + 1, height, extension)
+    r0, r1 = height - 1 - iy0, height - 1 - iy1
+    acc = (pixels[r0, ix0] * ((1 - fx) * (1 - fy) * (vx0 & vy0)[:, None])
+           + pixels[r0, ix1] * (fx * (1 - fy) * (vx1 & vy0)[:, None])
+           + pixels[r1, ix0] * ((1 - fx) * fy * (vx0 & vy1)[:, None])
+           + pixels[r1, ix1] * (fx * fy * (vx1 & vy1)[:, None]))
+    out[...] = acc
+    return out
+
+
+def checker(uv: np.ndarray, color1: np.ndarray, color2: np.ndarray, scale: float) -> np.ndarray:
+    """Cycles' Checker Texture on UV coordinates (z = 0). uv (N, 2) -> (N, 3) float32."""
+    p = (np.asarray(uv, np.float64) * scale + CHECKER_NUDGE_ADD) * CHECKER_NUDGE_MUL
+    parity = (np.floor(p[:, 0]).astype(np.int64) + np.floor(p[:, 1]).astype(np.int64)) % 2
+    # Different parity (odd sum) -> colour 1, same parity -> colour 2.
+    return np.where(parity[:, None] == 1, np.asarray(color1, np.float32)[None],
+                    np.asarray(color2, np.float32)[None]).astype(np.float32)
+
+
+def sample_texture(texture: Texture, uv: np.ndarray) -> np.ndarray:
+    """RGB (N, 3) float32 of a kernel `Texture` at (N, 2) UVs."""
+    if texture.kind == "CHECKER":
+        return checker(uv, texture.color1, texture.color2, texture.scale)
+    rgba = sample_image(texture.pixels, uv, texture.extension, texture.interpolation)
+    return rgba[:, :3]

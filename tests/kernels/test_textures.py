@@ -1,0 +1,72 @@
+"""Texture lookups (kernels/textures.py): bilinear weights, wrap modes and the checkerboard, with
+exact expected values worked out by hand."""
+
+import numpy as np
+import pytest
+
+from classic_bake.kernels.scene import Texture
+from classic_bake.kernels.textures import checker, sample_image, sample_texture
+
+
+def ramp(w=4, h=2):
+    """Texel value = column index in R, row-from-bottom in G (row 0 of the array is the top)."""
+    img = np.zeros((h, w, 4), np.float32)
+    img[..., 0] = np.arange(w)[None, :]
+    img[..., 1] = (h - 1 - np.arange(h))[:, None]
+    img[..., 3] = 1
+    return img
+
+
+def test_texel_centres_return_the_texel():
+    img = ramp()
+    u = (np.arange(4) + 0.5) / 4
+    v = np.full(4, 0.25)  # centre of the bottom row
+    out = sample_image(img, np.stack([u, v], 1))
+    np.testing.assert_allclose(out[:, 0], [0, 1, 2, 3])
+    np.testing.assert_allclose(out[:, 1], 0)
+
+
+def test_bilinear_is_linear_between_centres():
+    img = ramp()
+    out = sample_image(img, np.array([[0.5, 0.5], [0.3125, 0.5]]), extension="EXTEND")
+    np.testing.assert_allclose(out[:, 0], [1.5, 0.75])  # halfway and a quarter way
+    np.testing.assert_allclose(out[:, 1], [0.5, 0.5])
+
+
+@pytest.mark.parametrize("mode, expected, alpha", [
+    ("REPEAT", 2.25, 1.0),  # x = -0.75: 3/4 of texel -1 (wraps to 3) + 1/4 of texel 0
+    ("EXTEND", 0.0, 1.0),   # texel -1 clamps to the edge texel 0
+    ("CLIP", 0.0, 0.25),    # texel -1 is transparent black: only texel 0's quarter is left
+    ("MIRROR", 0.0, 1.0),   # texel -1 mirrors to texel 0
+])
+def test_wrap_modes_left_of_the_image(mode, expected, alpha):
+    out = sample_image(ramp(), np.array([[-0.0625, 0.25]]), extension=mode)
+    assert out[0, 0] == pytest.approx(expected)
+    assert out[0, 3] == pytest.approx(alpha)
+
+
+def test_clip_is_transparent_outside_and_fades_at_the_border():
+    img = np.ones((2, 2, 4), np.float32)
+    out = sample_image(img, np.array([[1.5, 0.5], [0.0, 0.5], [0.25, 0.5]]), extension="CLIP")
+    np.testing.assert_allclose(out[:, 3], [0.0, 0.5, 1.0])
+
+
+def test_closest_interpolation():
+    out = sample_image(ramp(), np.array([[0.49, 0.75], [0.51, 0.75]]), interpolation="CLOSEST")
+    np.testing.assert_allclose(out[:, 0], [1, 2])
+    np.testing.assert_allclose(out[:, 1], [1, 1])
+
+
+def test_checker_parity_follows_cycles():
+    # Scale 2: the top-left quadrant (u < 0.5, v > 0.5) is colour 1 (different parities).
+    uv = np.array([[0.25, 0.75], [0.75, 0.75], [0.25, 0.25], [0.75, 0.25], [-0.25, 0.25]])
+    c1, c2 = np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0])
+    out = checker(uv, c1, c2, 2.0)
+    np.testing.assert_array_equal(out[:, 0], [1, 0, 0, 1, 1])
+
+
+def test_sample_texture_dispatches_on_kind():
+    tex = Texture(kind="IMAGE", pixels=ramp(), extension="EXTEND")
+    assert sample_texture(tex, np.array([[0.125, 0.25]])).shape == (1, 3)
+    chk = Texture(kind="CHECKER", color1=np.ones(3, np.float32), color2=np.zeros(3, np.float32), scale=1)
+    assert sample_texture(chk, np.array([[0.5, 0.5]]))[0, 0] == 0.0
