@@ -1,0 +1,506 @@
+"""Whitted ray tracing: backward from the eye through pixel centres, to a fixed depth.
+
+The lecture: "cast rays from the centre of projection through each pixel centre into the scene";
+diffuse surfaces are not traced further (their reflected rays go everywhere), highly specular ones
+spawn "a single reflected ray", and the ray tree has a "pre-fixed number of bounces".
+
+At every hit this kernel adds
+* emission of emissive surfaces (what the eye sees of a light);
+* direct light from every light by shadow rays: Lambert diffuse rho/pi * E, plus a GGX specular
+  highlight for rough dielectrics; area lights and emissive triangles on a fixed stratified
+  pattern (soft shadows), or as points where they are small against their distance;
+and spawns
+* a mirror ray for metals and smooth dielectric specular (Schlick / exact Fresnel weight);
+* for glass, a reflected and a refracted ray weighted by the exact Fresnel reflectance, with
+  total internal reflection.
+Escaping rays see the world colour. A branch whose weight (throughput) falls below `min_weight`
+stops early ("model no more than a scene needs"); the statistics count how many rays that saved.
+
+The whole tree is traced as a wavefront: all rays of one depth at once through the BVH.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import lights as light_units
+from .bvh import BVH
+from .camera import camera_rays
+from .optics import fresnel_dielectric, fresnel_schlick, reflect, refract
+from .scene import Light, Scene, geometric_normals
+from .textures import sample_texture
+
+# A new ray starts this fraction of the scene's size off its surface, along the geometric normal:
+# float32 triangles locate a hit to ~1e-7 of the coordinates' magnitude, so 1e-5 clears the surface
+# with two orders of magnitude to spare while staying invisible (0.1 mm in a 10 m scene).
+DEFAULT_OFFSET_SCALE = 1e-5
+# Shading normals are renormalised; below this length (degenerate corner normals) the geometric
+# normal is used instead.
+MIN_NORMAL_LENGTH = 1e-8
+# Relative luminance contrast between neighbouring pixels that marks an edge for supersampling;
+# 1/16 is about the smallest step visible in an 8-bit display of the result.
+EDGE_CONTRAST = 1.0 / 16.0
+# Added to the luminance sum in the contrast test so that near-black pixels do not all count as edges.
+CONTRAST_FLOOR = 1e-2
+
+
+@dataclass(frozen=True)
+class TracerSettings:
+    """| field            | range    | default | meaning                                              |
+    |------------------|----------|---------|------------------------------------------------------|
+    | max_depth        | 0..64    | 8       | ray-tree depth: 0 traces camera rays and shadows only |
+    | supersample      | 1..16    | 1       | n: n x n stratified samples in every pixel           |
+    | adaptive         | 0..16    | 4       | n x n samples again in pixels at edges (0: off)      |
+    | min_weight       | 0..1     | 1e-3    | a branch whose throughput falls below stops          |
+    | offset_scale     | >= 0     | 1e-5    | ray offset, fraction of the scene's size (0: acne)   |
+    | area_samples     | 1..16    | 4       | per side of an area light / emissive triangle grid   |
+    | point_like_ratio | >= 0     | 0.05    | emitters smaller than this x distance act as points   |
+    | mirror_roughness | 0..1     | 0.1     | rougher surfaces spawn no reflected/refracted ray    |
+    """
+
+    max_depth: int = 8
+    supersample: int = 1
+    adaptive: int = 4
+    min_weight: float = 1e-3
+    offset_scale: float = DEFAULT_OFFSET_SCALE
+    area_samples: int = 4
+    point_like_ratio: float = 0.05
+    mirror_roughness: float = 0.1
+
+    def __post_init__(self):
+        if not 0 <= self.max_depth <= 64:
+            raise ValueError(f"max_depth must be in [0, 64], got {self.max_depth}")
+        if not 1 <= self.supersample <= 16 or not 0 <= self.adaptive <= 16:
+            raise ValueError("supersample must be in [1, 16] and adaptive in [0, 16]")
+        if self.offset_scale < 0 or self.min_weight < 0:
+            raise ValueError("offset_scale and min_weight must be >= 0")
+
+
+def auto_settings(scene: Scene, **overrides) -> TracerSettings:
+    """Settings chosen from the scene: a ray tree only as deep as its specular materials need.
+
+    No mirror or glass: depth 0 (camera rays and shadow rays are all there is to trace). Mirrors
+    only: 4 bounces. Glass: each transmissive object can take 4 interfaces (in and out of a
+    hollow shell), plus 2 for mirrors around them, capped at 16.
+    """
+    used = set(np.unique(scene.material_ids).tolist()) if scene.triangle_count else set()
+    mats = [scene.materials[m] for m in used]
+    glassy = {scene.objects[o].name for o in np.unique(scene.object_ids[np.isin(
+        scene.material_ids, [m for m in used if scene.materials[m].transmission > 0])])}
+    mirrors = any(m.metallic > 0 or m.specular > 0 for m in mats)
+    if glassy:
+        depth = min(16, 2 + 4 * len(glassy))
+    elif mirrors:
+        depth = 4
+    else:
+        depth = 0
+    params = {"max_depth": depth}
+    params.update(overrides)
+    return TracerSettings(**params)
+
+
+@dataclass
+class TraceStats:
+    """What the tracer did: rays per kind and how many branches the weight threshold cut."""
+
+    camera_rays: int = 0
+    secondary_rays: int = 0
+    shadow_rays: int = 0
+    pruned_branches: int = 0  # reflected/refracted rays not traced because their weight was small
+    depth_limited: int = 0  # rays alive at max_depth (their energy is lost)
+    edge_pixels: int = 0
+    rays_per_depth: list = field(default_factory=list)
+
+    def as_dict(self) -> dict:
+        return dict(self.__dict__)
+
+
+@dataclass
+class _Emitters:
+    """Every light as a set of point samples: positions, a radiometric weight, and the kind."""
+
+    lights: list  # kernel Light objects (point, spot, sun handled analytically)
+    area_points: np.ndarray  # (S, 3) sample positions on area lights / emissive triangles
+    area_normals: np.ndarray  # (S, 3) emitting side's normal
+    area_radiance_da: np.ndarray  # (S, 3) radiance times the sample's area, W/sr
+    area_two_sided: np.ndarray  # (S,) bool: emissive meshes emit from both sides in Cycles
+
+
+def _scene_scale(scene: Scene) -> float:
+    if scene.triangle_count == 0:
+        return 1.0
+    lo = scene.triangles.reshape(-1, 3).min(0).astype(np.float64)
+    hi = scene.triangles.reshape(-1, 3).max(0).astype(np.float64)
+    return float(max(np.linalg.norm(hi - lo), np.abs(lo).max(), np.abs(hi).max(), 1e-6))
+
+
+def _stratified_unit_square(n: int) -> np.ndarray:
+    g = (np.arange(n) + 0.5) / n
+    gx, gy = np.meshgrid(g, g, indexing="xy")
+    return np.stack([gx.ravel(), gy.ravel()], 1)
+
+
+def _emitters(scene: Scene, settings: TracerSettings) -> _Emitters:
+    points, normals, power, two_sided = [], [], [], []
+    n = settings.area_samples
+    for light in scene.lights:
+        if light.kind != "AREA":
+            continue
+        if light.shape in ("DISK", "ELLIPSE"):
+            samples = light_units.area_light_samples(light, max(n, 2) * 2)  # cells inside the shape
+        else:
+            samples = light_units.area_light_samples(light, n)
+        area = light_units.area_of_shape(light.shape, light.size_x, light.size_y)
+        points.append(samples)
+        normals.append(np.tile(light.direction, (len(samples), 1)))
+        power.append(np.tile(light.radiance * area / len(samples), (len(samples), 1)))
+        two_sided.append(np.zeros(len(samples), bool))
+    emissive = [k for k, m in enumerate(scene.materials) if m.is_emissive]
+    if emissive:
+        tri_ids = np.nonzero(np.isin(scene.material_ids, emissive))[0]
+        tris = scene.triangles[tri_ids].astype(np.float64)
+        ng = geometric_normals(tris)
+        area = 0.5 * np.linalg.norm(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]), axis=1)
+        # Stratified points on each triangle: a square grid folded into the triangle.
+        st = _stratified_unit_square(n)
+        fold = st[:, 0] + st[:, 1] > 1.0
+        st[fold] = 1.0 - st[fold][:, ::-1]
+        bary = np.stack([1.0 - st[:, 0] - st[:, 1], st[:, 0], st[:, 1]], 1)  # (K, 3)
+        pts = np.einsum("kc,tcj->tkj", bary, tris).reshape(-1, 3)
+        radiance = np.stack([scene.materials[m].emission for m in scene.material_ids[tri_ids]])
+        k = bary.shape[0]
+        points.append(pts)
+        normals.append(np.repeat(ng, k, axis=0))
+        power.append(np.repeat(radiance * (area / k)[:, None], k, axis=0))
+        two_sided.append(np.ones(len(pts), bool))
+    if points:
+        return _Emitters([li for li in scene.lights if li.kind != "AREA"], np.concatenate(points),
+                         np.concatenate(normals), np.concatenate(power), np.concatenate(two_sided))
+    z = np.zeros((0, 3))
+    return _Emitters(list(scene.lights), z, z, z, np.zeros(0, bool))
+
+
+@dataclass
+class _Hits:
+    """Surface data at a batch of hits (N rays)."""
+
+    p: np.ndarray  # (N, 3) float64 world position
+    ng: np.ndarray  # (N, 3) geometric normal facing the incoming ray
+    ns: np.ndarray  # (N, 3) shading normal facing the incoming ray
+    front: np.ndarray  # (N,) bool: the ray hit the triangle's front face
+    material: np.ndarray  # (N,) int32
+    albedo: np.ndarray  # (N, 3) base colour (textured)
+
+
+def _surface(scene: Scene, tri_normals, origins, dirs, hits) -> _Hits:
+    tri = hits.tri
+    t = hits.t.astype(np.float64)
+    p = origins + dirs * t[:, None]
+    u = hits.u.astype(np.float64)[:, None]
+    v = hits.v.astype(np.float64)[:, None]
+    w = 1.0 - u - v
+    ng = tri_normals[tri]
+    cn = scene.normals[tri].astype(np.float64)
+    ns = w * cn[:, 0] + u * cn[:, 1] + v * cn[:, 2]
+    length = np.linalg.norm(ns, axis=1, keepdims=True)
+    ns = np.where(length > MIN_NORMAL_LENGTH, ns / np.maximum(length, MIN_NORMAL_LENGTH), ng)
+    front = np.einsum("ij,ij->i", dirs, ng) < 0.0
+    side = np.where(front, 1.0, -1.0)[:, None]
+    ng = ng * side
+    ns = ns * side
+    # A shading normal turned away from the viewer would shade the back: fall back to geometry.
+    away = np.einsum("ij,ij->i", ns, dirs) > 0.0
+    ns[away] = ng[away]
+    material = scene.material_ids[tri]
+    albedo = np.empty((len(tri), 3))
+    uv = None
+    for m in np.unique(material):
+        rows = material == m
+        mat = scene.materials[m]
+        if mat.base_color_texture is None:
+            albedo[rows] = mat.base_color
+            continue
+        if uv is None:
+            cuv = scene.uv[tri].astype(np.float64)
+            uv = w * cuv[:, 0] + u * cuv[:, 1] + v * cuv[:, 2]
+        albedo[rows] = sample_texture(mat.base_color_texture, uv[rows])
+    return _Hits(p, ng, ns, front, material, albedo)
+
+
+def _ggx_specular(n, wi, wo, roughness, f0) -> np.ndarray:
+    """GGX microfacet BRDF (Trowbridge-Reitz D, Smith G, Schlick F) times cos_i: (N, 3)."""
+    alpha2 = np.maximum(roughness, 1e-3) ** 4  # Blender: alpha = roughness^2
+    h = wi + wo
+    h /= np.maximum(np.linalg.norm(h, axis=1, keepdims=True), 1e-12)
+    cos_i = np.clip(np.einsum("ij,ij->i", n, wi), 0.0, 1.0)
+    cos_o = np.clip(np.einsum("ij,ij->i", n, wo), 1e-6, 1.0)
+    cos_h = np.clip(np.einsum("ij,ij->i", n, h), 0.0, 1.0)
+    d = alpha2 / (np.pi * (cos_h * cos_h * (alpha2 - 1.0) + 1.0) ** 2)
+
+    def g1(c):
+        return 2.0 * c / (c + np.sqrt(alpha2 + (1.0 - alpha2) * c * c))
+
+    g = g1(cos_i) * g1(cos_o)
+    f = fresnel_schlick(np.einsum("ij,ij->i", wi, h), f0)
+    return f * (d * g / (4.0 * cos_o))[:, None]
+
+
+class _Tracer:
+    def __init__(self, scene: Scene, bvh: BVH, settings: TracerSettings):
+        self.scene = scene
+        self.bvh = bvh
+        self.settings = settings
+        self.offset = settings.offset_scale * _scene_scale(scene)
+        self.tri_normals = geometric_normals(scene.triangles)
+        self.emitters = _emitters(scene, settings)
+        self.stats = TraceStats()
+        mats = scene.materials
+        self.metallic = np.array([m.metallic for m in mats])
+        self.transmission = np.array([m.transmission for m in mats])
+        self.roughness = np.array([m.roughness for m in mats])
+        self.ior = np.array([max(m.ior, 1.0 + 1e-6) for m in mats])
+        self.specular = np.array([m.specular for m in mats])
+        self.emission = np.array([m.emission for m in mats], np.float64).reshape(-1, 3)
+
+    # --- direct light ---------------------------------------------------------------------------
+
+    def _visible(self, origins, directions, t_max) -> np.ndarray:
+        self.stats.shadow_rays += len(origins)
+        return ~self.bvh.occluded(origins, directions, 0.0, t_max)
+
+    def direct(self, h: _Hits, wo: np.ndarray, diffuse_w: np.ndarray, spec_f0, spec_rough) -> np.ndarray:
+        """Reflected radiance (N, 3) from every light at the hits, shadow rays included."""
+        out = np.zeros_like(h.p)
+        shading = (diffuse_w > 0) | (spec_f0 is not None)
+        if not shading.any():
+            return out
+        idx = np.nonzero(shading)[0]
+        p, ng, ns = h.p[idx], h.ng[idx], h.ns[idx]
+        origin = p + ng * self.offset
+        brdf_d = (h.albedo[idx] * diffuse_w[idx, None]) / np.pi
+        for light in self.emitters.lights:
+            to_l, dist = light_units.light_vectors(light, p)
+            e = light_units.direct_irradiance(light, p, ns)  # (n, 3), includes cos and falloff
+            lit = np.any(e > 0, axis=1)
+            if not lit.any():
+                continue
+            sub = np.nonzero(lit)[0]
+            t_max = np.where(np.isinf(dist[sub]), np.inf, dist[sub] - self.offset)
+            if light.cast_shadow:
+                vis = self._visible(origin[sub], to_l[sub], t_max)
+            else:
+                vis = np.ones(len(sub), bool)
+            contrib = brdf_d[sub] * e[sub]
+            if spec_f0 is not None:
+                contrib += _ggx_specular(ns[sub], to_l[sub], wo[idx][sub], spec_rough[idx][sub],
+                                         spec_f0[idx][sub]) * e[sub] / np.maximum(
+                    np.einsum("ij,ij->i", ns[sub], to_l[sub]), 1e-6)[:, None]
+            out[idx[sub]] += contrib * vis[:, None]
+        if len(self.emitters.area_points):
+            out[idx] += self._area_direct(origin, ns, brdf_d)
+        return out
+
+    def _area_direct(self, origin, ns, brdf_d) -> np.ndarray:
+        em = self.emitters
+        out = np.zeros_like(origin)
+        for s in range(len(em.area_points)):  # S samples, each vectorised over the hits
+            delta = em.area_points[s] - origin
+            d2 = np.einsum("ij,ij->i", delta, delta)
+            dist = np.sqrt(d2)
+            to_l = delta / np.maximum(dist, 1e-12)[:, None]
+            cos_r = np.einsum("ij,ij->i", ns, to_l)
+            cos_e = -to_l @ em.area_normals[s]
+            if em.area_two_sided[s]:
+                cos_e = np.abs(cos_e)
+            g = np.clip(cos_r, 0, None) * np.clip(cos_e, 0, None) / np.maximum(d2, 1e-12)
+            sub = np.nonzero(g > 0)[0]
+            if len(sub) == 0:
+                continue
+            vis = self._visible(origin[sub], to_l[sub], dist[sub] * (1.0 - 1e-4) - self.offset)
+            out[sub] += brdf_d[sub] * (em.area_radiance_da[s] * (g[sub] * vis)[:, None])
+        return out
+
+    # --- the wavefront ---------------------------------------------------------------------------
+
+    def radiance(self, origins: np.ndarray, dirs: np.ndarray) -> np.ndarray:
+        """Radiance (N, 3) arriving at the camera along N primary rays."""
+        s = self.settings
+        result = np.zeros((len(origins), 3))
+        pixel = np.arange(len(origins))
+        weight = np.ones((len(origins), 3))
+        t_min = np.zeros(len(origins))
+        self.stats.camera_rays += len(origins)
+        for depth in range(s.max_depth + 1):
+            if len(origins) == 0:
+                break
+            self.stats.rays_per_depth.append(len(origins))
+            if depth > 0:
+                self.stats.secondary_rays += len(origins)
+            hits = self.bvh.intersect(origins, dirs, t_min, np.inf)
+            miss = hits.tri < 0
+            np.add.at(result, pixel[miss], weight[miss] * self.scene.world_color)
+            keep = ~miss
+            origins, dirs, pixel, weight = origins[keep], dirs[keep], pixel[keep], weight[keep]
+            hits = type(hits)(t=hits.t[keep], tri=hits.tri[keep], u=hits.u[keep], v=hits.v[keep])
+            if len(origins) == 0:
+                break
+            h = _surface(self.scene, self.tri_normals, origins, dirs, hits)
+            m = h.material
+            metallic, trans, rough = self.metallic[m], self.transmission[m], self.roughness[m]
+            dielectric = (1.0 - metallic) * (1.0 - trans)
+            wo = -dirs
+            spec_level = self.specular[m]
+            has_spec = (dielectric > 0) & (spec_level > 0) & (rough >= s.mirror_roughness)
+            f0_dielectric = ((self.ior[m] - 1.0) / (self.ior[m] + 1.0)) ** 2 * 2.0 * spec_level
+            spec_f0 = None
+            if has_spec.any():
+                spec_f0 = np.where(has_spec[:, None], f0_dielectric[:, None], 0.0) * np.ones((1, 3))
+            own = self.emission[m] + self.direct(h, wo, dielectric, spec_f0, rough)
+            np.add.at(result, pixel, weight * own)
+            if depth == s.max_depth:
+                self.stats.depth_limited += int(np.count_nonzero(
+                    (rough < s.mirror_roughness) & ((metallic > 0) | (trans > 0) | (spec_level > 0))))
+                break
+            # --- spawn the next generation: mirror reflection and refraction -----------------------
+            smooth = rough < s.mirror_roughness
+            # Mirror and refraction directions about the (smooth) shading normal, falling back to
+            # the geometric normal where that would send the ray to the wrong side of the surface.
+            r_dir = reflect(dirs, h.ns)
+            wrong = np.einsum("ij,ij->i", r_dir, h.ng) <= 0.0
+            r_dir[wrong] = reflect(dirs[wrong], h.ng[wrong])
+            eta = np.where(h.front, 1.0 / self.ior[m], self.ior[m])
+            t_dir, tir = refract(dirs, h.ns, eta)
+            wrong = ~tir & (np.einsum("ij,ij->i", t_dir, h.ng) >= 0.0)
+            if wrong.any():
+                t_dir[wrong], tir[wrong] = refract(dirs[wrong], h.ng[wrong], eta[wrong])
+            cos_o = np.einsum("ij,ij->i", wo, h.ns)
+            children = []  # (origins, dirs, pixel, weight)
+            # metals: a tinted mirror (Schlick with F0 = base colour)
+            metal_w = np.where((smooth & (metallic > 0))[:, None],
+                               metallic[:, None] * fresnel_schlick(cos_o, h.albedo), 0.0)
+            # dielectric specular layer of opaque surfaces: exact Fresnel at the IOR, level-scaled
+            f_d = fresnel_dielectric(cos_o, 1.0 / self.ior[m]) * np.minimum(2.0 * spec_level, 1.0)
+            spec_w = np.where((smooth & (dielectric > 0) & (spec_level > 0))[:, None],
+                              (dielectric * f_d)[:, None] * np.ones((1, 3)), 0.0)
+            # glass: Fresnel split between the reflected and the refracted ray
+            glass = smooth & (trans > 0) & (metallic < 1)
+            f_g = fresnel_dielectric(cos_o, eta)
+            glass_w = ((1.0 - metallic) * trans)[:, None]
+            refl_w = metal_w + spec_w + np.where(glass[:, None], glass_w * f_g[:, None], 0.0)
+            refr_w = np.where((glass & ~tir)[:, None], glass_w * (1.0 - f_g)[:, None] * h.albedo, 0.0)
+            for w_new, d_new, side in ((refl_w, r_dir, 1.0), (refr_w, t_dir, -1.0)):
+                w_total = weight * w_new
+                alive = np.max(w_total, axis=1) > 0.0
+                strong = alive & (np.max(w_total, axis=1) >= s.min_weight)
+                self.stats.pruned_branches += int(np.count_nonzero(alive & ~strong))
+                if strong.any():
+                    o_new = h.p[strong] + side * h.ng[strong] * self.offset
+                    children.append((o_new, d_new[strong], pixel[strong], w_total[strong]))
+            if not children:
+                break
+            origins = np.concatenate([c[0] for c in children])
+            dirs = np.concatenate([c[1] for c in children])
+            pixel = np.concatenate([c[2] for c in children])
+            weight = np.concatenate([c[3] for c in children])
+            t_min = np.zeros(len(origins))
+        return result
+
+
+def _luminance(rgb: np.ndarray) -> np.ndarray:
+    return rgb @ np.array([0.2126, 0.7152, 0.0722])
+
+
+def edge_pixels(image: np.ndarray, ids: np.ndarray) -> np.ndarray:
+    """(H, W) bool: pixels whose 4-neighbours see another object/material or a visible contrast."""
+    lum = _luminance(image)
+    mark = np.zeros(ids.shape, bool)
+    for axis in (0, 1):
+        a = [slice(None)] * 2
+        b = [slice(None)] * 2
+        a[axis] = slice(1, None)
+        b[axis] = slice(None, -1)
+        differ = ids[tuple(a)] != ids[tuple(b)]
+        la, lb = lum[tuple(a)], lum[tuple(b)]
+        differ |= np.abs(la - lb) > EDGE_CONTRAST * (la + lb + CONTRAST_FLOOR)
+        mark[tuple(a)] |= differ
+        mark[tuple(b)] |= differ
+    return mark
+
+
+@dataclass
+class TraceResult:
+    image: np.ndarray  # (H, W, 3) float32 linear radiance, row 0 top
+    stats: TraceStats
+    settings: TracerSettings
+
+
+def trace_steps(scene: Scene, settings: TracerSettings, bvh: BVH | None = None,
+                resolution: tuple[int, int] | None = None, out: np.ndarray | None = None
+                ) -> Iterator[float | TraceResult]:
+    """Trace the scene camera's view; yields progress in [0, 1), then the `TraceResult`.
+
+    resolution: (W, H) pixels, default the camera's. out: optional (H, W, 3) float32 buffer.
+    """
+    if scene.camera is None:
+        raise ValueError("the scene has no camera to trace from")
+    width, height = resolution or scene.camera.resolution
+    bvh = bvh or BVH.build(scene.triangles)
+    tracer = _Tracer(scene, bvh, settings)
+    image = out if out is not None else np.empty((height, width, 3), np.float32)
+    n = settings.supersample
+    passes = n * n
+    # --- pass 1: n x n stratified samples everywhere (1: the pixel centres) ----------------------
+    acc = np.zeros((height * width, 3))
+    first_ids = None
+    for k, (ox, oy) in enumerate(_stratified_unit_square(n)):
+        o, d = camera_rays(scene.camera, width, height, offsets=(ox, oy))
+        acc += tracer.radiance(o.reshape(-1, 3), d.reshape(-1, 3))
+        if first_ids is None:
+            first_ids = _primary_ids(scene, bvh, o.reshape(-1, 3), d.reshape(-1, 3))
+        yield 0.6 * (k + 1) / passes
+    pixels = acc / passes
+    # --- pass 2: supersample only where it changes the image (edges) -----------------------------
+    a = settings.adaptive
+    if a > 1:
+        mark = edge_pixels(pixels.reshape(height, width, 3), first_ids.reshape(height, width)).ravel()
+        tracer.stats.edge_pixels = int(mark.sum())
+        if mark.any():
+            sel = np.nonzero(mark)[0]
+            sub = np.zeros((len(sel), 3))
+            grid = _stratified_unit_square(a)
+            for k, (ox, oy) in enumerate(grid):
+                o, d = camera_rays(scene.camera, width, height, offsets=(ox, oy))
+                sub += tracer.radiance(o.reshape(-1, 3)[sel], d.reshape(-1, 3)[sel])
+                yield 0.6 + 0.4 * (k + 1) / len(grid)
+            pixels[sel] = sub / len(grid)
+    image[...] = pixels.reshape(height, width, 3)
+    yield TraceResult(image=image, stats=tracer.stats, settings=settings)
+
+
+def _primary_ids(scene: Scene, bvh: BVH, origins, dirs) -> np.ndarray:
+    """Object * materials + material id seen by each camera ray (-1: background)."""
+    hits = bvh.intersect(origins, dirs)
+    ids = np.full(len(origins), -1, np.int64)
+    hit = hits.tri >= 0
+    tri = hits.tri[hit]
+    ids[hit] = scene.object_ids[tri].astype(np.int64) * (len(scene.materials) + 1) + scene.material_ids[tri]
+    return ids
+
+
+def trace(scene: Scene, settings: TracerSettings | None = None, **kwargs) -> TraceResult:
+    """Blocking form of `trace_steps` (settings default to `auto_settings(scene)`)."""
+    settings = settings or auto_settings(scene)
+    for step in trace_steps(scene, settings, **kwargs):
+        if isinstance(step, TraceResult):
+            return step
+    raise RuntimeError("trace_steps ended without a result")
+
+
+def point_light(name: str, position, intensity) -> Light:
+    """A kernel point light of radiant intensity `intensity` (W/sr, RGB) — for tests and tools."""
+    return Light(name=name, kind="POINT", position=np.asarray(position, np.float64),
+                 direction=np.array([0.0, 0.0, -1.0]), axis_x=np.array([1.0, 0.0, 0.0]),
+                 axis_y=np.array([0.0, 1.0, 0.0]), intensity=np.asarray(intensity, np.float64))

@@ -1,0 +1,175 @@
+"""Whitted ray tracing (kernels/tracer.py) on scenes with closed-form answers.
+
+Fresnel and slab values: ../shared/reference/fresnel_snell.json.
+"""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scene_builder import build, ortho_camera, quad, uv_sphere
+
+from classic_bake.kernels.scene import Material
+from classic_bake.kernels.tracer import TracerSettings, auto_settings, point_light, trace
+
+REF = json.loads((Path(__file__).resolve().parents[3] / "shared/reference/fresnel_snell.json").read_text())
+EXACT = TracerSettings(max_depth=48, adaptive=0, min_weight=0.0)
+GLASS = Material(name="glass", base_color=np.ones(3, np.float32), transmission=1.0, roughness=0.0,
+                 ior=1.5, specular=0.5)
+
+
+def emitter(level=1.0):
+    return Material(name="emit", base_color=np.zeros(3, np.float32), specular=0.0,
+                    emission=np.full(3, level, np.float32))
+
+
+def test_diffuse_plane_under_a_point_light_is_rho_e_over_pi_at_every_pixel():
+    rho, intensity, height = 0.5, 40.0, 2.0
+    plane = quad([(-2, -2, 0), (2, -2, 0), (2, 2, 0), (-2, 2, 0)])
+    cam = ortho_camera((0, 0, 5), (0, 0, -1), (0, 1, 0), 3.0, (16, 16))
+    light = point_light("P", (0.3, -0.2, height), np.full(3, intensity))
+    mat = Material(name="white", base_color=np.full(3, rho, np.float32), specular=0.0)
+    scene = build([(plane, mat)], cam, [light])
+    image = trace(scene, TracerSettings(max_depth=0, adaptive=0)).image
+    # Pixel centres of the orthographic camera on the plane z = 0.
+    xs = -1.5 + (np.arange(16) + 0.5) / 16 * 3.0
+    x, y = np.meshgrid(xs, xs[::-1])
+    d2 = (x - 0.3) ** 2 + (y + 0.2) ** 2 + height**2
+    expected = rho / np.pi * intensity * height / d2**1.5  # E = I cos / d^2, cos = h / d
+    np.testing.assert_allclose(image[..., 0], expected, rtol=1e-5)
+
+
+def test_fresnel_reflectance_at_normal_incidence_is_0_04():
+    # Ortho camera looks down at a glass surface; an emitter of radiance 1 behind the camera is seen
+    # only in the reflection; the refracted ray escapes into the black world.
+    glass_top = quad([(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)])
+    light = quad([(-2, -2, 3), (-2, 2, 3), (2, 2, 3), (2, -2, 3)])  # faces down
+    cam = ortho_camera((0, 0, 2), (0, 0, -1), (0, 1, 0), 1.0, (4, 4))
+    scene = build([(glass_top, GLASS), (light, emitter())], cam)
+    image = trace(scene, EXACT).image
+    np.testing.assert_allclose(image, REF["R0 n=1.5"], rtol=1e-5)
+
+
+@pytest.mark.parametrize("depth, expected", [
+    (1, 0.0),  # enter, then the exit ray is never traced
+    (2, REF["T two interfaces at normal incidence n=1.5 (1-R0)^2"]),
+    (48, REF["T slab incoherent multiple reflections n=1.5 (1-R)/(1+R)"]),
+])
+def test_glass_slab_transmission_by_depth(depth, expected):
+    # A slab between z = 0 and z = 0.2 over an emitter: (1-R)^2 sum R^2k, truncated by the depth.
+    top = quad([(-1, -1, 0.2), (1, -1, 0.2), (1, 1, 0.2), (-1, 1, 0.2)])
+    bottom = quad([(-1, -1, 0), (-1, 1, 0), (1, 1, 0), (1, -1, 0)])
+    light = quad([(-2, -2, -1), (2, -2, -1), (2, 2, -1), (-2, 2, -1)])  # faces up
+    cam = ortho_camera((0, 0, 2), (0, 0, -1), (0, 1, 0), 1.0, (2, 2))
+    scene = build([(np.concatenate([top, bottom]), GLASS), (light, emitter())], cam)
+    image = trace(scene, TracerSettings(max_depth=depth, adaptive=0, min_weight=0.0)).image
+    assert image[0, 0, 0] == pytest.approx(expected, rel=1e-6, abs=1e-7)
+
+
+def prism_scene(ior):
+    """A right-angle glass prism: light enters the top face, meets the hypotenuse at 45 degrees and
+    leaves through the side face towards an emitter at x = -0.5."""
+    a, b, c = np.array([0.0, 1.0]), np.array([1.0, 1.0]), np.array([0.0, 0.0])  # (x, z)
+
+    def p(xz, y):
+        return (xz[0], y, xz[1])
+
+    y0, y1 = -1.0, 1.0
+    tris = [
+        quad([p(a, y0), p(a, y1), p(b, y1), p(b, y0)]),  # top z = 1
+        quad([p(c, y0), p(c, y1), p(a, y1), p(a, y0)]),  # side x = 0
+        quad([p(b, y0), p(b, y1), p(c, y1), p(c, y0)]),  # hypotenuse x = z
+    ]
+    caps = np.array([[p(a, y0), p(b, y0), p(c, y0)], [p(a, y1), p(c, y1), p(b, y1)]])
+    solid = np.concatenate(tris + [caps])[:, ::-1]  # listed clockwise from outside: flip to CCW
+    light = quad([(-0.5, -2, -1), (-0.5, 2, -1), (-0.5, 2, 2), (-0.5, -2, 2)])
+    glass = Material(name="glass", base_color=np.ones(3, np.float32), transmission=1.0,
+                     roughness=0.0, ior=ior)
+    cam = ortho_camera((0.5, 0, 3), (0, 0, -1), (0, 1, 0), 0.2, (2, 2))
+    return build([(solid, glass), (light, emitter())], cam)
+
+
+def test_total_internal_reflection_in_a_prism():
+    # n = 1.5: 45 degrees is beyond the 41.8-degree critical angle, so the hypotenuse is a perfect
+    # mirror: the prism acts as a folded slab, (1 - R)^2 sum R^2k = (1 - R)/(1 + R), where the
+    # light reflected at the exit face returns via the hypotenuse and the top face.
+    image = trace(prism_scene(1.5), EXACT).image
+    expected = REF["T slab incoherent multiple reflections n=1.5 (1-R)/(1+R)"]
+    assert image[0, 0, 0] == pytest.approx(expected, rel=1e-5)
+    shallow = trace(prism_scene(1.5), TracerSettings(max_depth=3, adaptive=0, min_weight=0.0)).image
+    assert shallow[0, 0, 0] == pytest.approx((1 - REF["R0 n=1.5"]) ** 2, rel=1e-5)
+
+
+def test_below_the_critical_angle_the_prism_leaks():
+    # n = 1.3: critical angle 50.3 degrees > 45, so most light leaves through the hypotenuse.
+    from classic_bake.kernels.optics import fresnel_dielectric
+
+    r0 = ((1.3 - 1) / 2.3) ** 2
+    r45 = fresnel_dielectric(np.array([np.cos(np.radians(45))]), 1.3)[0]
+    image = trace(prism_scene(1.3), EXACT).image
+    assert image[0, 0, 0] == pytest.approx((1 - r0) ** 2 * r45, rel=1e-5)
+
+
+def acne_scene():
+    # A sphere lit by a point light: every lit pixel must match the unshadowed diffuse value.
+    sphere = uv_sphere((0, 0, 0), 1.0, rings=24, segments=48)
+    mat = Material(name="white", base_color=np.full(3, 0.8, np.float32), specular=0.0)
+    cam = ortho_camera((0, -5, 0), (0, 1, 0), (0, 0, 1), 2.2, (48, 48))
+    return build([(sphere, mat)], cam, [point_light("P", (3, -3, 3), np.full(3, 50.0))])
+
+
+def test_zero_offset_shows_acne_and_the_default_offset_none():
+    scene = acne_scene()
+    clean = trace(scene, TracerSettings(max_depth=0, adaptive=0)).image[..., 0]
+    acne = trace(scene, TracerSettings(max_depth=0, adaptive=0, offset_scale=0.0)).image[..., 0]
+    lit = clean > 0
+    speckled = np.count_nonzero(acne[lit] < 0.5 * clean[lit])
+    assert speckled > 0.01 * lit.sum()  # self-shadowing speckles without an offset
+    # With the default offset no lit pixel goes dark (the reference: shadow rays never re-hit).
+    unshadowed = trace(scene, TracerSettings(max_depth=0, adaptive=0, offset_scale=0.0)).stats
+    assert unshadowed.shadow_rays > 0
+    assert np.all(clean[lit] > 0)
+
+
+def test_facing_mirrors_lose_energy_at_the_depth_limit():
+    # Two emissive mirrors face each other; a ray between them sees E * sum_k rho^k up to the depth.
+    rho, e = 0.8, 1.0
+    mirror = Material(name="mirror", base_color=np.full(3, rho, np.float32), metallic=1.0,
+                      roughness=0.0, emission=np.full(3, e, np.float32))
+    a = quad([(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)])  # faces +z
+    b = quad([(-1, -1, 1), (-1, 1, 1), (1, 1, 1), (1, -1, 1)])  # faces -z
+    cam = ortho_camera((0, 0, 0.5), (0, 0, -1), (0, 1, 0), 0.5, (2, 2))
+    lost = []
+    for depth in range(6):
+        scene = build([(a, mirror), (b, mirror)], cam)
+        image = trace(scene, TracerSettings(max_depth=depth, adaptive=0, min_weight=0.0)).image
+        expected = e * sum(rho**k for k in range(depth + 1))
+        assert image[0, 0, 0] == pytest.approx(expected, rel=1e-6)
+        lost.append(e / (1 - rho) - image[0, 0, 0])
+    np.testing.assert_allclose(lost, e * rho ** (np.arange(6) + 1) / (1 - rho), rtol=1e-5)
+
+
+def test_weight_threshold_prunes_and_counts():
+    image_full = trace(prism_scene(1.5), EXACT)
+    pruned = trace(prism_scene(1.5), TracerSettings(max_depth=48, adaptive=0, min_weight=0.05))
+    assert pruned.stats.pruned_branches > 0
+    assert pruned.stats.secondary_rays < image_full.stats.secondary_rays
+    # The branches cut carry less than min_weight each: the image barely moves.
+    np.testing.assert_allclose(pruned.image, image_full.image, atol=0.01)
+
+
+def test_auto_settings_trace_only_as_deep_as_needed():
+    diffuse = build([(quad([(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)]), Material(name="d", specular=0.0))])
+    assert auto_settings(diffuse).max_depth == 0
+    assert auto_settings(prism_scene(1.5)).max_depth > 2
+
+
+def test_no_nan_with_degenerate_triangles_and_grazing_rays():
+    plane = quad([(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)])
+    degenerate = np.array([[[0, 0, 0.5], [0, 0, 0.5], [0, 0, 0.5]], [[0, 0, 1], [1, 1, 1], [2, 2, 1]]])
+    cam = ortho_camera((0, -3, 0.0), (0, 1, 0), (0, 0, 1), 2.0, (8, 8))  # grazing the plane
+    scene = build([(plane, GLASS), (degenerate, GLASS)], cam, [point_light("P", (0, 0, 2), np.ones(3))],
+                  world=(0.2, 0.3, 0.4))
+    image = trace(scene, TracerSettings(max_depth=8)).image
+    assert np.all(np.isfinite(image))

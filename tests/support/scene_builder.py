@@ -1,0 +1,73 @@
+"""Build kernel `Scene`s by hand for tests: quads, boxes, spheres and cameras, no Blender."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from classic_bake.kernels.scene import Camera, Material, ObjectInfo, Scene
+
+
+def quad(corners) -> np.ndarray:
+    """Two CCW triangles (2, 3, 3) from four corners given counter-clockwise."""
+    c = np.asarray(corners, np.float64)
+    return np.array([[c[0], c[1], c[2]], [c[0], c[2], c[3]]])
+
+
+def uv_sphere(centre, radius, rings=48, segments=96, inward=False) -> np.ndarray:
+    """(T, 3, 3) triangles of a UV sphere, outward normals (inward=True flips them)."""
+    th = np.linspace(0, np.pi, rings + 1)
+    ph = np.linspace(0, 2 * np.pi, segments + 1)
+    p = np.stack(np.meshgrid(th, ph, indexing="ij"), -1)
+    pts = np.stack([np.sin(p[..., 0]) * np.cos(p[..., 1]), np.sin(p[..., 0]) * np.sin(p[..., 1]),
+                    np.cos(p[..., 0])], -1) * radius + np.asarray(centre)
+    tris = []
+    for i in range(rings):
+        for j in range(segments):
+            a, b, c, d = pts[i, j], pts[i + 1, j], pts[i + 1, j + 1], pts[i, j + 1]
+            if i > 0:
+                tris.append([a, b, d])
+            if i < rings - 1:
+                tris.append([b, c, d])
+    tris = np.array(tris)
+    return tris[:, ::-1] if not inward else tris
+
+
+def build(parts, camera=None, lights=(), world=(0.0, 0.0, 0.0)) -> Scene:
+    """parts: list of (triangles (T, 3, 3), Material). Flat shading normals; UV = xy of the corner."""
+    tris, mats, mids, oids, objects = [], [Material(name="(default)")], [], [], []
+    start = 0
+    for k, (t, mat) in enumerate(parts):
+        t = np.asarray(t, np.float64)
+        tris.append(t)
+        mats.append(mat)
+        mids.append(np.full(len(t), len(mats) - 1, np.int32))
+        oids.append(np.full(len(t), k, np.int32))
+        objects.append(ObjectInfo(name=f"obj{k}", source_name=f"obj{k}", tri_start=start,
+                                  tri_count=len(t), has_uv=True, has_lightmap_uv=False,
+                                  topology_matches_original=True))
+        start += len(t)
+    tri = np.concatenate(tris).astype(np.float32)
+    e = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]).astype(np.float64)
+    n = e / np.maximum(np.linalg.norm(e, axis=1, keepdims=True), 1e-30)
+    return Scene(
+        triangles=tri, normals=np.repeat(n[:, None], 3, 1).astype(np.float32),
+        uv=tri[:, :, :2].copy(), lightmap_uv=None, material_ids=np.concatenate(mids),
+        object_ids=np.concatenate(oids), corner_loops=np.zeros((len(tri), 3), np.int32),
+        corner_verts=np.zeros((len(tri), 3), np.int32), objects=tuple(objects),
+        materials=tuple(mats), lights=tuple(lights), camera=camera,
+        world_color=np.asarray(world, np.float32))
+
+
+def ortho_camera(position, forward, up, width_m, resolution=(8, 8)) -> Camera:
+    """An orthographic camera at `position` looking along `forward`, `width_m` across."""
+    f = np.asarray(forward, np.float64) / np.linalg.norm(forward)
+    u = np.asarray(up, np.float64)
+    r = np.cross(f, u)
+    r /= np.linalg.norm(r)
+    u = np.cross(r, f)
+    m = np.eye(4)
+    m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3] = r, u, -f, position
+    aspect = resolution[1] / resolution[0]
+    half = np.array([width_m / 2, width_m / 2 * aspect])
+    return Camera(kind="ORTHO", matrix_world=m, plane_min=-half, plane_max=half,
+                  resolution=resolution, clip_start=0.0)
