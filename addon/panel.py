@@ -35,7 +35,24 @@ class CLASSICBAKE_PT_lightmap_uv(bpy.types.Panel):
         layout.operator("classic_bake.lightmap_uv", icon="UV")
 
 
-CLASSES = (CLASSICBAKE_PT_main, CLASSICBAKE_PT_lightmap_uv)
+class CLASSICBAKE_PT_trace(bpy.types.Panel):
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = "Classic Bake"
+    bl_label = "Ray Tracing"
+    bl_parent_id = "CLASSICBAKE_PT_main"
+
+    def draw(self, context):
+        layout = self.layout
+        props = context.scene.classic_bake
+        layout.use_property_split = True
+        layout.prop(props, "trace_depth")
+        layout.prop(props, "trace_supersample")
+        layout.prop(props, "trace_adaptive")
+        layout.operator("classic_bake.trace", icon="RENDER_STILL")
+
+
+CLASSES = (CLASSICBAKE_PT_main, CLASSICBAKE_PT_lightmap_uv, CLASSICBAKE_PT_trace)
 
 
 def register() -> None:

@@ -15,6 +15,17 @@ class CLASSICBAKE_PG_settings(bpy.types.PropertyGroup):
         "never overwritten)", default="Lightmap")
 
 
+    trace_depth: IntProperty(
+        name="Depth", description="Ray-tree depth; -1 chooses it from the scene's mirrors and glass",
+        default=-1, min=-1, max=64)
+    trace_supersample: IntProperty(
+        name="Samples", description="N x N samples in every pixel (1: pixel centres)",
+        default=1, min=1, max=16)
+    trace_adaptive: IntProperty(
+        name="Edge Samples", description="N x N samples again in pixels at edges (0: off)",
+        default=4, min=0, max=16)
+
+
 CLASSES = (CLASSICBAKE_PG_settings,)
 
 

@@ -1,8 +1,8 @@
 """Thin operators: read settings, snapshot the scene, call kernels, write back."""
 
-from . import lightmap_uv
+from . import lightmap_uv, trace
 
-_MODULES = (lightmap_uv,)
+_MODULES = (lightmap_uv, trace)
 
 
 def register() -> None:

@@ -80,18 +80,40 @@ def error_rgb8(
     return np.round(rgba[:, :, :3] * 255.0).astype(np.uint8)
 
 
-def write_png(path: str | Path, rgb8: np.ndarray) -> Path:
-    """Write a (H, W, 3|4) or (H, W) uint8 array as PNG (row 0 at the top). Returns the path."""
-    from PIL import Image
+def encode_png(rgb8: np.ndarray) -> bytes:
+    """PNG bytes of a (H, W), (H, W, 3) or (H, W, 4) uint8 array, row 0 at the top.
 
-    array = np.asarray(rgb8)
+    A plain encoder (zlib + the PNG chunk layout of RFC 2083, filter type 0 on every row), so
+    previews need no imaging library: Blender's Python has none.
+    """
+    import struct
+    import zlib
+
+    array = np.ascontiguousarray(rgb8)
     if array.dtype != np.uint8:
         raise ValueError(f"write_png takes uint8 pixels, got {array.dtype}")
     if array.ndim == 3 and array.shape[2] == 1:
         array = array[:, :, 0]
+    height, width = array.shape[:2]
+    # PNG colour types: 0 greyscale, 2 RGB, 6 RGBA.
+    colour_type = 0 if array.ndim == 2 else {3: 2, 4: 6}[array.shape[2]]
+    rows = array.reshape(height, -1)
+    raw = np.concatenate([np.zeros((height, 1), np.uint8), rows], axis=1).tobytes()
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return (struct.pack(">I", len(data)) + kind + data
+                + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF))
+
+    header = struct.pack(">IIBBBBB", width, height, 8, colour_type, 0, 0, 0)
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header)
+            + chunk(b"IDAT", zlib.compress(raw, 6)) + chunk(b"IEND", b""))
+
+
+def write_png(path: str | Path, rgb8: np.ndarray) -> Path:
+    """Write a (H, W, 3|4) or (H, W) uint8 array as PNG (row 0 at the top). Returns the path."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    Image.fromarray(np.ascontiguousarray(array)).save(path, format="PNG")
+    path.write_bytes(encode_png(rgb8))
     return path
 
 

@@ -1,0 +1,60 @@
+"""Whitted ray tracing of the scene camera into a float image."""
+
+import bpy
+
+from ..addon import bridge
+from ..addon.settings import tracer_settings
+from .job import JobOperator
+
+IMAGE_NAME = "Classic Bake Trace"
+
+
+def trace_job(scene, settings, report):
+    """Trace (yielding progress), then write the image: a cancel before the end changes nothing."""
+    from ..kernels.tracer import TraceResult, trace_steps
+
+    result = None
+    for step in trace_steps(scene, settings):
+        if isinstance(step, TraceResult):
+            result = step
+        else:
+            yield step
+    image = bridge.write_image(IMAGE_NAME, result.image, image=bpy.data.images.get(IMAGE_NAME))
+    s = result.stats
+    report({"INFO"}, f"Traced '{image.name}': {s.camera_rays + s.secondary_rays} rays, "
+                     f"{s.shadow_rays} shadow rays, {s.pruned_branches} branches pruned")
+
+
+class CLASSICBAKE_OT_trace(JobOperator, bpy.types.Operator):
+    """Ray trace the scene camera's view (Whitted: shadows, mirrors, glass) into a float image"""
+
+    bl_idname = "classic_bake.trace"
+    bl_label = "Trace Camera View"
+    bl_options = {"REGISTER"}
+    job_label = "Ray tracing"
+
+    @classmethod
+    def poll(cls, context):
+        if context.scene is None or context.scene.camera is None:
+            cls.poll_message_set("The scene needs a camera")
+            return False
+        return True
+
+    def start(self, context):
+        scene = bridge.snapshot(context)
+        if scene.camera is None:
+            raise ValueError("The scene needs a camera")
+        return trace_job(scene, tracer_settings(context.scene.classic_bake, scene), self.report)
+
+
+CLASSES = (CLASSICBAKE_OT_trace,)
+
+
+def register() -> None:
+    for cls in CLASSES:
+        bpy.utils.register_class(cls)
+
+
+def unregister() -> None:
+    for cls in reversed(CLASSES):
+        bpy.utils.unregister_class(cls)
