@@ -106,3 +106,16 @@ def test_staged_paths_never_leave_the_output_folder(tmp_path):
         assert staging.path in path.resolve().parents
     staging.discard()
     assert list(tmp_path.iterdir()) == []
+
+
+def test_report_command_builds_a_page_from_run_folders(tmp_path):
+    runs = tmp_path / "runs"
+    assert run_cli("info", CORNELL, "--out", runs / "cornell-info").returncode == 0
+    done = run_cli("report", runs)
+    assert done.returncode == 0, done.stderr
+    html = (runs / "index.html").read_text()
+    assert "cornell_box.blend" in html and "info" in html
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    failed = run_cli("report", empty)
+    assert failed.returncode == 2 and "no run folders" in failed.stderr
