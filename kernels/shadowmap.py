@@ -1,0 +1,508 @@
+"""Shadow mapping: the lecture's two-pass z-buffer shadow test, with the usual cures for its flaws.
+
+The lecture (lecture 13, "4. Shadow Mapping"; L. Williams, "Casting curved shadows on curved
+surfaces", SIGGRAPH 1978):
+  1. Put the viewer at the light position L and render the scene into a z-buffer: the shadow map M.
+  2. For each receiver point f, with depth z_f seen from L at map pixel p: f is lit when
+     |z_f - M_p| <= eps ("test case (b) first": the tolerance against self-shadowing) or
+     z_f <= M_p; otherwise f is shadowed.
+
+Depth is the linear view depth in metres (see `raster.py`), so eps is a world distance.
+
+Per light kind (`scene.Light`):
+* SUN: orthographic, along `direction`. The frustum is fitted to what can matter ("model no more
+  than needed"): laterally, the receivers' bounds (the receivers extruded towards the light)
+  intersected with the bounds of the casters inside that prism; in depth, from the nearest such
+  caster to the farthest receiver. Texels are square: the longer side gets `resolution` texels.
+* SPOT: perspective from `position` along `direction` over the full cone angle `spot_size`. A cone
+  wider than SPOT_CUBE_ANGLE is mapped with the six cube faces instead (a single perspective map
+  would spend its texels on the rim).
+* POINT (and AREA, approximated by a point at its centre: hard shadows): six 90-degree faces in the
+  OpenGL cube-map convention of `cubemap.py`; each face stores the view depth |ma| of the table.
+The light's `radius` / area is ignored: shadow maps give hard shadows.
+
+Tolerance (bias). With texel(f) the side and h(f) the half diagonal of a texel's footprint at f
+(ORTHO: in metres; PERSP: at f's view depth d, a texel's footprint there being at most d times its
+size on the unit image plane), theta the angle between f's normal and the direction to the light,
+and a k x k PCF block:
+
+    fixed: eps(f) = eps + slope_bias * texel(f) * tan(theta)
+    auto:  eps(f) = fixed eps(f) + k * h(f) * tan(theta) + DEPTH_PRECISION_REL * (|z_f| + |f|_inf)
+
+The fixed form is Direct3D's depth bias "DepthBias + SlopeScaledDepthBias * MaxDepthSlope" in world
+units (MaxDepthSlope = texel * tan(theta), the depth change across one texel; OpenGL's
+glPolygonOffset(factor, units) is the same idea). The auto term is the minimum bias of
+/work/shared/reference/shadow_bias.json: a planar receiver may sit anywhere in its texel, up to half
+a texel diagonal from the centre where M was sampled, where its plane's depth differs by at most
+h * tan(theta) (k * h for the farthest texel of a k x k PCF block); plus float32 precision (the
+reference's r_min is 2^-24 relative; the position term covers float32 receivers and vertices).
+tan(theta) is capped at TAN_THETA_MAX.
+Normal offset (D. Holbert, "Normal Offset Shadows", GDC 2011): f moves normal_offset texels along
+its normal (turned towards the light) before it is projected. One texel removes the acne of planar
+receivers at any angle: the moved point stands texel / cos(theta) in front of its plane along the
+light, more than the h * tan(theta) by which the plane varies within a texel.
+Percentage-closer filtering (Reeves, Salesin and Cook 1987): the lecture's test on the k x k texels
+around p, averaged; the neighbours are clamped to the map (to the face, for cube maps).
+
+Receivers outside every map (beyond a fitted sun frustum, outside a spot cone, behind a spot) are
+reported lit: no caster was recorded for them; the spot cone's own falloff is the shading's job.
+Receivers whose normal faces away from the light (N.L < 0) are in their attached shadow and get 0
+(`shadow_back_faces`): testing them would only trade acne for light leaking through thin walls
+near the terminator, where tan(theta) and so the tolerance grow without bound. Pass geometric
+(face) normals: smooth shading normals can under-state a facet's slope.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from . import cubemap
+from .raster import Projection, look_at, project_points, rasterize_steps
+from .scene import Light
+
+EpsMode = Literal["fixed", "auto"]
+MapKind = Literal["ORTHO", "PERSP", "CUBE"]
+
+TAN_THETA_MAX = 20.0  # caps the slope terms at ~87 degrees, where N.L < 0.05 dims the light anyway
+DEPTH_PRECISION_REL = 2.0**-21  # 8 half-ulps of float32: stored depth and float32 positions
+SPOT_CUBE_ANGLE = np.radians(120.0)  # wider spot cones use the six-face cube map
+DEPTH_MARGIN_REL = 1e-3  # of the depth range: keeps fitted near/far planes off the geometry
+DEPTH_MARGIN_ABS = 1e-4  # m, the same for scenes of zero depth range
+NEAR_REL = 1e-6  # PERSP near plane as a fraction of far: linear depth loses no precision for it
+EDGE_ON_COS = 1e-3  # |cos| between a caster's normal and the light below this: seen edge-on
+MIN_EXTENT_REL = 1e-6  # a fitted sun map is at least this fraction of the scene size across
+RECEIVER_CHUNK = 1 << 16  # receivers per vectorised lookup step: ~20 MB of temporaries
+
+
+@dataclass(frozen=True)
+class ShadowMapSettings:
+    """How the shadow map is made and read.
+
+    | field         | range           | default | unit / meaning                                  |
+    |---------------|-----------------|---------|-------------------------------------------------|
+    | resolution    | [8, 16384]      | 2048    | texels along the map's longer side (per face)   |
+    | eps_mode      | "fixed", "auto" | "auto"  | auto adds the minimum bias of shadow_bias.json  |
+    | eps           | [0, inf)        | 0.0     | m, the lecture's constant tolerance             |
+    | slope_bias    | [0, inf)        | 0.0     | texels of depth slope added (Direct3D's slope-  |
+    |               |                 |         | scaled depth bias, in world units)              |
+    | normal_offset | [0, inf)        | 0.0     | texels: receivers move along their normal       |
+    | pcf_size      | odd, [1, 15]    | 1       | k: k x k percentage-closer filtering (1: off)   |
+    | shadow_back_  | bool            | True    | receivers whose normal faces away from the light|
+    |   faces       |                 |         | (N.L < 0) are shadowed, as N.L shading and      |
+    |               |                 |         | Cycles' SHADOW bake have it; False: tested      |
+    """
+
+    resolution: int = 2048
+    eps_mode: EpsMode = "auto"
+    eps: float = 0.0
+    slope_bias: float = 0.0
+    normal_offset: float = 0.0
+    pcf_size: int = 1
+    shadow_back_faces: bool = True
+
+    def __post_init__(self) -> None:
+        if not 8 <= self.resolution <= 16384:
+            raise ValueError(f"resolution {self.resolution} outside [8, 16384]")
+        if self.eps_mode not in ("fixed", "auto"):
+            raise ValueError(f"eps_mode must be 'fixed' or 'auto', got {self.eps_mode!r}")
+        if min(self.eps, self.slope_bias, self.normal_offset) < 0.0:
+            raise ValueError("eps, slope_bias and normal_offset must be >= 0")
+        if self.pcf_size < 1 or self.pcf_size % 2 == 0 or self.pcf_size > 15:
+            raise ValueError(f"pcf_size must be odd in [1, 15], got {self.pcf_size}")
+
+
+@dataclass(frozen=True, eq=False)
+class ShadowView:
+    """One rendered view of the light: its projection and its z-buffer."""
+
+    projection: Projection
+    depth: np.ndarray  # (H, W) float32, linear view depth from the light (m), +inf: nothing
+
+    @property
+    def texel_size(self) -> tuple[float, float]:
+        """Texel (width, height): metres (ORTHO) or on the image plane at distance 1 (PERSP)."""
+        left, right, bottom, top = self.projection.extent
+        height, width = self.depth.shape
+        return (right - left) / width, (top - bottom) / height
+
+
+@dataclass(frozen=True, eq=False)
+class ShadowMap:
+    """The shadow map of one light: one view (SUN, SPOT) or six cube faces (CUBE, face order)."""
+
+    kind: MapKind
+    views: tuple[ShadowView, ...]
+    light_position: np.ndarray  # (3,) float64, world m (the sun: its map's eye)
+    light_direction: np.ndarray  # (3,) float64, world unit: where the light points
+    settings: ShadowMapSettings
+
+
+# --------------------------------------------------------------------------------------------
+# Planning: which views, fitted to what
+# --------------------------------------------------------------------------------------------
+
+
+def _frame(light: Light) -> tuple[np.ndarray, np.ndarray]:
+    """(forward, up) unit float64 of the light: up is axis_y made orthogonal to forward."""
+    forward = np.asarray(light.direction, np.float64)
+    forward = forward / np.linalg.norm(forward)
+    up = np.asarray(light.axis_y, np.float64)
+    up = up - forward * (up @ forward)
+    if np.linalg.norm(up) < 1e-6:  # a broken axis_y: any perpendicular will do
+        up = np.cross(forward, [1.0, 0.0, 0.0] if abs(forward[0]) < 0.9 else [0.0, 1.0, 0.0])
+    return forward, up / np.linalg.norm(up)
+
+
+def _margin(lo: float, hi: float) -> float:
+    return DEPTH_MARGIN_REL * max(hi - lo, 0.0) + DEPTH_MARGIN_ABS
+
+
+def _nearest_in_prism(tris: np.ndarray, rect: tuple[float, float, float, float]) -> float:
+    """Smallest light-space depth of (T, 3, 3) light-space triangles inside the prism over `rect`.
+
+    A lower bound, per triangle the larger of its nearest vertex and its plane's minimum over the
+    rectangle's corners (depth is affine over the rectangle): a huge ground plane seen slantwise
+    contributes the depth it has above the receivers, not the depth of its far corners.
+    """
+    nearest = tris[..., 2].min(axis=1)
+    n = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])  # (T, 3) light space
+    slanted = np.abs(n[:, 2]) > EDGE_ON_COS * np.linalg.norm(n, axis=1)
+    if slanted.any():
+        x0, x1, y0, y1 = rect
+        corners = np.array([[x0, y0], [x1, y0], [x0, y1], [x1, y1]])  # (4, 2)
+        v0, ns = tris[slanted, 0], n[slanted]
+        # plane: n . (p - v0) = 0  ->  depth = v0_z - (n_x (x - v0_x) + n_y (y - v0_y)) / n_z
+        dx = corners[None, :, 0] - v0[:, 0:1]
+        dy = corners[None, :, 1] - v0[:, 1:2]
+        plane = v0[:, 2:3] - (ns[:, 0:1] * dx + ns[:, 1:2] * dy) / ns[:, 2:3]  # (T', 4)
+        nearest[slanted] = np.maximum(nearest[slanted], plane.min(axis=1))
+    return float(nearest.min())
+
+
+def _plan_sun(tris: np.ndarray, receivers: np.ndarray, light: Light,
+              settings: ShadowMapSettings) -> ShadowMap:
+    forward, up = _frame(light)
+    right = np.cross(forward, up)
+    basis = np.stack([right, up, forward])  # rows: light-space x, y, depth
+    verts = tris.reshape(-1, 3).astype(np.float64) @ basis.T  # (3T, 3) light space, m
+    recv = receivers @ basis.T  # (N, 3) light space, m
+    scene_size = float(np.ptp(np.concatenate([verts, recv]), axis=0).max()) if len(verts) else 0.0
+    r_lo, r_hi = recv.min(axis=0), recv.max(axis=0)
+    # Casters that can shadow a receiver: inside the receivers' prism extruded towards the light.
+    lo = verts.reshape(-1, 3, 3).min(axis=1)
+    hi = verts.reshape(-1, 3, 3).max(axis=1)
+    relevant = ((hi[:, 0] >= r_lo[0]) & (lo[:, 0] <= r_hi[0]) & (hi[:, 1] >= r_lo[1])
+                & (lo[:, 1] <= r_hi[1]) & (lo[:, 2] <= r_hi[2]))
+    if relevant.any():
+        c_lo, c_hi = lo[relevant].min(axis=0), hi[relevant].max(axis=0)
+        x0, x1 = max(r_lo[0], c_lo[0]), min(r_hi[0], c_hi[0])
+        y0, y1 = max(r_lo[1], c_lo[1]), min(r_hi[1], c_hi[1])
+        d0 = _nearest_in_prism(verts.reshape(-1, 3, 3)[relevant], (x0, x1, y0, y1))
+    else:  # nothing can shadow: an empty map over the receivers
+        x0, x1, y0, y1, d0 = r_lo[0], r_hi[0], r_lo[1], r_hi[1], r_lo[2]
+    d1 = max(r_hi[2], d0)
+    # Square texels: the longer side gets `resolution` texels minus a border for the PCF block and
+    # the normal offset, plus one texel.
+    pad = settings.pcf_size // 2 + int(np.ceil(settings.normal_offset)) + 1
+    span = max(x1 - x0, y1 - y0, MIN_EXTENT_REL * scene_size, 1e-9)
+    texel = span / (settings.resolution - 2 * pad)
+    width = min(settings.resolution, int(np.ceil(max(x1 - x0, 0.0) / texel - 1e-9)) + 2 * pad)
+    height = min(settings.resolution, int(np.ceil(max(y1 - y0, 0.0) / texel - 1e-9)) + 2 * pad)
+    cx, cy = 0.5 * (x0 + x1), 0.5 * (y0 + y1)
+    half_w, half_h = 0.5 * width * texel, 0.5 * height * texel
+    margin = _margin(d0, d1)
+    eye_depth = d0 - 2.0 * margin  # the eye sits just before the nearest caster: small depths
+    eye = basis.T @ np.array([cx, cy, eye_depth])
+    projection = Projection.orthographic(
+        look_at(eye, forward, up), (-half_w, half_w, -half_h, half_h), margin,
+        d1 - eye_depth + margin,
+    )
+    view = ShadowView(projection, np.full((height, width), np.inf, np.float32))
+    return ShadowMap("ORTHO", (view,), eye, forward, settings)
+
+
+def _far_from(position: np.ndarray, tris: np.ndarray, receivers: np.ndarray) -> float:
+    """Farthest receiver (or vertex, without receivers) from the light, m, with a margin."""
+    pts = receivers if len(receivers) else tris.reshape(-1, 3).astype(np.float64)
+    far = float(np.linalg.norm(pts - position, axis=1).max()) if len(pts) else 1.0
+    return far + _margin(0.0, far)
+
+
+def plan_shadow_map(
+    triangles: np.ndarray,
+    light: Light,
+    settings: ShadowMapSettings | None = None,
+    receivers: np.ndarray | None = None,
+) -> ShadowMap:
+    """Choose and fit the views of `light`'s shadow map; their depth buffers start at +inf.
+
+    `receivers` (N, 3) world m are the points that will be looked up: the sun's map is fitted to
+    them and every map's far plane stops behind them. Without them, the whole scene is covered.
+    """
+    settings = settings or ShadowMapSettings()
+    tris = np.asarray(triangles, np.float32).reshape(-1, 3, 3)
+    if receivers is None or len(receivers) == 0:
+        recv = tris.reshape(-1, 3).astype(np.float64)
+    else:
+        recv = np.asarray(receivers, np.float64).reshape(-1, 3)
+    if len(recv) == 0:
+        recv = np.zeros((1, 3))
+    if light.kind == "SUN":
+        return _plan_sun(tris, recv, light, settings)
+    position = np.asarray(light.position, np.float64)
+    forward, up = _frame(light)
+    far = _far_from(position, tris, recv)
+    near = NEAR_REL * far
+    res = settings.resolution
+    if light.kind == "SPOT" and light.spot_size <= SPOT_CUBE_ANGLE:
+        projection = Projection.perspective(look_at(position, forward, up), light.spot_size,
+                                            near, far)
+        view = ShadowView(projection, np.full((res, res), np.inf, np.float32))
+        return ShadowMap("PERSP", (view,), position, forward, settings)
+    if light.kind not in ("POINT", "SPOT", "AREA"):
+        raise ValueError(f"unknown light kind {light.kind!r}")
+    views = tuple(
+        ShadowView(cubemap.face_projection(f, position, near, far),
+                   np.full((res, res), np.inf, np.float32))
+        for f in range(6)
+    )
+    return ShadowMap("CUBE", views, position, forward, settings)
+
+
+def render_shadow_map_steps(shadow_map: ShadowMap, triangles: np.ndarray) -> Iterator[float]:
+    """Step 1 of the lecture: z-buffer (T, 3, 3) world triangles into every view; yield progress."""
+    n = len(shadow_map.views)
+    for k, view in enumerate(shadow_map.views):
+        for progress in rasterize_steps(triangles, view.projection, view.depth):
+            yield (k + progress) / n
+
+
+def build_shadow_map(
+    triangles: np.ndarray,
+    light: Light,
+    settings: ShadowMapSettings | None = None,
+    receivers: np.ndarray | None = None,
+) -> ShadowMap:
+    """Plan and render `light`'s shadow map of (T, 3, 3) world triangles (see `plan_shadow_map`)."""
+    shadow_map = plan_shadow_map(triangles, light, settings, receivers)
+    for _ in render_shadow_map_steps(shadow_map, triangles):
+        pass
+    return shadow_map
+
+
+# --------------------------------------------------------------------------------------------
+# Lookup: step 2 of the lecture
+# --------------------------------------------------------------------------------------------
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    """Rows of v scaled to unit length; zero rows stay zero."""
+    n = np.linalg.norm(v, axis=1, keepdims=True)
+    return np.divide(v, n, out=np.zeros_like(v), where=n > 0.0)
+
+
+def _footprint(view: ShadowView, depth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(texel side, half texel diagonal) in metres at view depth `depth` (N,)."""
+    tw, th = view.texel_size
+    scale = depth if view.projection.kind == "PERSP" else np.ones_like(depth)
+    scale = np.abs(scale)
+    return max(tw, th) * scale, 0.5 * float(np.hypot(tw, th)) * scale
+
+
+def depth_tolerance(
+    view: ShadowView,
+    settings: ShadowMapSettings,
+    depth: np.ndarray,
+    tan_theta: np.ndarray,
+    points: np.ndarray | None = None,
+) -> np.ndarray:
+    """The lecture's eps for receivers at view `depth` (N,) m with slopes `tan_theta` (N,).
+
+    (N,) float64 metres, the formulas of the module docstring; `points` (N, 3) world m feed the
+    float32-position part of the precision term (omitted when None).
+    """
+    texel, half_diag = _footprint(view, depth)
+    eps = settings.eps + settings.slope_bias * texel * tan_theta
+    if settings.eps_mode == "auto":
+        scale = np.abs(depth)
+        if points is not None:
+            scale = scale + np.abs(points).max(axis=1)
+        eps = eps + settings.pcf_size * half_diag * tan_theta + DEPTH_PRECISION_REL * scale
+    return eps
+
+
+def _view_of(shadow_map: ShadowMap, points: np.ndarray) -> np.ndarray:
+    """(N,) int64 view index of every point (its cube face for CUBE maps)."""
+    if shadow_map.kind != "CUBE":
+        return np.zeros(len(points), np.int64)
+    face, _, _ = cubemap.direction_to_face(points - shadow_map.light_position)
+    return face
+
+
+def _visibility_chunk(shadow_map: ShadowMap, p: np.ndarray, n: np.ndarray) -> np.ndarray:
+    s = shadow_map.settings
+    if shadow_map.kind == "ORTHO":
+        to_light = np.broadcast_to(-shadow_map.light_direction, p.shape)
+    else:
+        to_light = _unit(shadow_map.light_position - p)
+    nl = np.einsum("ij,ij->i", n, to_light)  # cos(theta), signed
+    cos_t = np.abs(nl)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tan_t = np.sqrt(np.maximum(1.0 - cos_t * cos_t, 0.0)) / cos_t
+    tan_t = np.where(cos_t > 0.0, np.minimum(tan_t, TAN_THETA_MAX), TAN_THETA_MAX)
+    tan_t[~(np.abs(n).sum(axis=1) > 0.0)] = 0.0  # no normal given: no slope term
+
+    if s.normal_offset > 0.0:  # move towards the light side of the surface, texel-sized
+        view_idx = _view_of(shadow_map, p)
+        side = np.where(nl < 0.0, -1.0, 1.0)[:, None]
+        shift = np.zeros(len(p))
+        for v in np.unique(view_idx):
+            sel = view_idx == v
+            view = shadow_map.views[v]
+            _, _, depth = project_points(p[sel], view.projection, *view.depth.shape[::-1])
+            shift[sel] = _footprint(view, depth)[0] * s.normal_offset
+        p = p + side * n * shift[:, None]
+
+    k = s.pcf_size
+    offsets = np.arange(k) - k // 2
+    vis = np.ones(len(p), np.float64)
+    view_idx = _view_of(shadow_map, p)
+    for v in np.unique(view_idx):
+        sel = np.nonzero(view_idx == v)[0]
+        view = shadow_map.views[v]
+        height, width = view.depth.shape
+        col, row, z = project_points(p[sel], view.projection, width, height)
+        eps = depth_tolerance(view, s, z, tan_t[sel], p[sel])
+        if shadow_map.kind == "CUBE":  # its face was chosen for it: s = 1 or t = 0 is a last texel
+            col, row = np.minimum(col, width - 0.5), np.minimum(row, height - 0.5)
+        with np.errstate(invalid="ignore"):
+            inside = (col >= 0) & (col < width) & (row >= 0) & (row < height)  # NaN: False
+        sel, z, eps = sel[inside], z[inside], eps[inside]
+        j = np.floor(col[inside]).astype(np.int64)  # the texel p holding f
+        i = np.floor(row[inside]).astype(np.int64)
+        lit = np.zeros(len(sel), np.float64)
+        for di in offsets:
+            ii = np.clip(i + di, 0, height - 1)
+            for dj in offsets:
+                m = view.depth[ii, np.clip(j + dj, 0, width - 1)].astype(np.float64)  # M_p
+                # The lecture: case (b) "|z_f - M_p| <= eps" first, else "z_f <= M_p".
+                lit += (np.abs(z - m) <= eps) | (z <= m)
+        vis[sel] = lit / (k * k)
+    if s.shadow_back_faces:
+        vis[nl < 0.0] = 0.0  # attached shadow: the surface itself stands between f and the light
+    return vis
+
+
+def shadow_visibility(
+    shadow_map: ShadowMap,
+    points: np.ndarray,
+    normals: np.ndarray,
+    out: np.ndarray | None = None,
+) -> np.ndarray:
+    """Step 2 of the lecture: (N,) float32 light visibility in [0, 1] of receivers (1 = lit).
+
+    `points` (N, 3) world m and their `normals` (N, 3) world (any length; zero: unknown, which
+    drops the slope terms). PCF gives fractions k'/k^2. `out` (N,) float32 may be caller-owned.
+    """
+    pts = np.asarray(points, np.float64).reshape(-1, 3)
+    nrm = _unit(np.asarray(normals, np.float64).reshape(-1, 3))
+    if out is None:
+        out = np.empty(len(pts), np.float32)
+    for a in range(0, len(pts), RECEIVER_CHUNK):
+        b = a + RECEIVER_CHUNK
+        out[a:b] = _visibility_chunk(shadow_map, pts[a:b], nrm[a:b])
+    return out
+
+
+def light_visibility(
+    triangles: np.ndarray,
+    points: np.ndarray,
+    normals: np.ndarray,
+    light: Light,
+    settings: ShadowMapSettings | None = None,
+    out: np.ndarray | None = None,
+) -> np.ndarray:
+    """Both steps: (N,) float32 visibility of receivers (N, 3) from `light` past (T, 3, 3) casters.
+
+    | parameter | shape / range       | unit / meaning                                          |
+    |-----------|---------------------|---------------------------------------------------------|
+    | triangles | (T, 3, 3) float32   | m, world: the casters (receivers' own surfaces included)|
+    | points    | (N, 3) float        | m, world: the receivers f                               |
+    | normals   | (N, 3) float        | world: receiver normals (slope bias, normal offset)     |
+    | light     | scene.Light         | SUN, SPOT, POINT (AREA: a point at its centre)          |
+    | settings  | ShadowMapSettings   | default ShadowMapSettings()                             |
+    | out       | (N,) float32        | optional caller-owned result                            |
+    """
+    pts = np.asarray(points, np.float64).reshape(-1, 3)
+    if out is None:
+        out = np.empty(len(pts), np.float32)
+    if not light.cast_shadow or len(pts) == 0 or len(triangles) == 0:
+        out[...] = 1.0
+        return out
+    shadow_map = build_shadow_map(triangles, light, settings, pts)
+    return shadow_visibility(shadow_map, pts, normals, out)
+
+
+# --------------------------------------------------------------------------------------------
+# Debugging and failure measures
+# --------------------------------------------------------------------------------------------
+
+
+def debug_image(shadow_map: ShadowMap) -> np.ndarray:
+    """(H, W, 1) float32 picture of the map: depth scaled to [0, 1] over its finite texels,
+    1 where nothing was drawn; a cube map is its six faces side by side in face order."""
+    depth = np.concatenate([v.depth for v in shadow_map.views], axis=1).astype(np.float64)
+    finite = np.isfinite(depth)
+    image = np.ones_like(depth)
+    if finite.any():
+        lo, hi = depth[finite].min(), depth[finite].max()
+        image[finite] = (depth[finite] - lo) / (hi - lo) if hi > lo else 0.0
+    return image[..., None].astype(np.float32)
+
+
+def acne_fraction(
+    visibility: np.ndarray, truth: np.ndarray, tolerance: float = 0.5,
+    mask: np.ndarray | None = None,
+) -> float:
+    """Fraction of truly lit receivers (truth >= 0.5) reported darker than truth - tolerance.
+
+    tolerance 0.5 counts receivers a binary test calls shadowed; a small tolerance counts any
+    darkening (then exclude the PCF penumbra with `mask`, (N,) bool of receivers to consider).
+    """
+    lit = np.asarray(truth) >= 0.5
+    if mask is not None:
+        lit &= np.asarray(mask, bool)
+    if not lit.any():
+        return 0.0
+    wrong = np.asarray(visibility)[lit] < np.asarray(truth)[lit] - tolerance
+    return float(wrong.mean())
+
+
+def peter_panning_gap(
+    points: np.ndarray, visibility: np.ndarray, truth: np.ndarray, threshold: float = 0.5
+) -> float:
+    """How far a shadow comes loose from its caster, m (0: attached; inf: shadow gone).
+
+    Leaked receivers are truly shadowed (truth < threshold) but reported lit; the gap is the largest
+    distance from a leaked receiver to the nearest receiver shadowed in both, i.e. the width of the
+    lit strip between a caster's contact and where its shadow starts (plus up to a texel of edge
+    quantisation). Brute force, O(leaked x shadowed): meant for test- and sweep-sized point sets.
+    """
+    pts = np.asarray(points, np.float64).reshape(-1, 3)
+    vis, tru = np.asarray(visibility), np.asarray(truth)
+    leaked = pts[(tru < threshold) & (vis >= threshold)]
+    held = pts[(tru < threshold) & (vis < threshold)]
+    if len(leaked) == 0:
+        return 0.0
+    if len(held) == 0:
+        return float("inf")
+    gap = 0.0
+    step = max(1, (1 << 22) // len(held))  # ~4M distances (32 MB) at a time
+    for a in range(0, len(leaked), step):
+        d2 = ((leaked[a : a + step, None, :] - held[None, :, :]) ** 2).sum(axis=2)
+        gap = max(gap, float(np.sqrt(d2.min(axis=1).max())))
+    return gap
