@@ -335,6 +335,27 @@ def depth_tolerance(
     return eps
 
 
+def _perspective_slope(view: ShadowView, p: np.ndarray, n: np.ndarray, tan_t: np.ndarray) -> np.ndarray:
+    """The depth slope that replaces tan(theta) in a perspective map, (N,).
+
+    The map stores depth along the view axis a, not along the ray r, so within one texel a plane's
+    stored depth changes by (half diagonal x d) x |n_perp| (r . a) / |n . r|, with n_perp the part of
+    the normal across the axis. On the axis (r = a) this is tan(theta); off the axis it is not zero
+    even for a surface facing the light, which is where a tilted spot showed acne without it.
+    """
+    rot = view.projection.view[:3, :3]
+    axis = -rot[2]  # world direction of the view's -Z
+    eye = -rot.T @ view.projection.view[:3, 3]
+    r = _unit(p - eye)
+    nn = _unit(n)
+    n_perp = np.linalg.norm(nn - np.outer(nn @ axis, axis), axis=1)
+    cos_r = np.abs(np.einsum("ij,ij->i", nn, r))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        slope = n_perp * np.abs(r @ axis) / cos_r
+    slope = np.where(cos_r > 0.0, np.minimum(slope, TAN_THETA_MAX), TAN_THETA_MAX)
+    return np.where(np.abs(n).sum(axis=1) > 0.0, slope, tan_t)
+
+
 def _view_of(shadow_map: ShadowMap, points: np.ndarray) -> np.ndarray:
     """(N,) int64 view index of every point (its cube face for CUBE maps)."""
     if shadow_map.kind != "CUBE":
@@ -376,7 +397,9 @@ def _visibility_chunk(shadow_map: ShadowMap, p: np.ndarray, n: np.ndarray) -> np
         view = shadow_map.views[v]
         height, width = view.depth.shape
         col, row, z = project_points(p[sel], view.projection, width, height)
-        eps = depth_tolerance(view, s, z, tan_t[sel], p[sel])
+        slope = tan_t[sel] if view.projection.kind == "ORTHO" else _perspective_slope(
+            view, p[sel], n[sel], tan_t[sel])
+        eps = depth_tolerance(view, s, z, slope, p[sel])
         if shadow_map.kind == "CUBE":  # its face was chosen for it: s = 1 or t = 0 is a last texel
             col, row = np.minimum(col, width - 0.5), np.minimum(row, height - 0.5)
         with np.errstate(invalid="ignore"):

@@ -1,0 +1,189 @@
+"""Direct light with shadow maps: the shadow mask of bake targets, and a camera render of it.
+
+For receivers f (lightmap texels, mesh corners or camera pixels) and every light l:
+    E_l(f)  unshadowed irradiance (`lights.direct_irradiance`, W/m^2)
+    V_l(f)  the lecture's shadow-map test (`shadowmap.py`), in [0, 1] with PCF
+    shadow mask  S(f) = sum_l Y(E_l) V_l / sum_l Y(E_l)   (Y: luminance; 0 where no light reaches)
+    radiance     L(f) = emission + albedo / pi * sum_l E_l V_l
+The mask is the fraction of the direct light that arrives, which for one light is V itself.
+Area lights are treated as points at their centre (hard shadows); emissive meshes are not lights.
+
+Map resolution is chosen from the receivers ("model no more than a scene needs"): a map texel no
+larger than half the receivers' own spacing where they are, clamped to [MIN_MAP, MAX_MAP].
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from . import lights as light_units
+from .bake_targets import BakeTargets
+from .camera import camera_rays
+from .raster import Projection, rasterize
+from .scene import Scene, geometric_normals
+from .shadowmap import ShadowMapSettings, build_shadow_map, shadow_visibility
+from .textures import sample_texture
+
+MIN_MAP = 256  # below this a map cannot place even a coarse shadow edge
+MAX_MAP = 8192  # 256 MiB of float32 depth per face: the memory bound of one map
+LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
+# A map texel is at most this fraction of the receivers' spacing (Nyquist: two texels per sample).
+TEXELS_PER_SPACING = 2.0
+
+
+@dataclass(frozen=True)
+class DirectLightSettings:
+    """| field      | default          | meaning                                               |
+    |------------|------------------|-------------------------------------------------------|
+    | shadow     | ShadowMapSettings| eps mode, bias, PCF; its `resolution` is used when     |
+    |            |                  | `auto_resolution` is False                             |
+    | auto_resolution | True        | pick each map's resolution from the receivers          |
+    """
+
+    shadow: ShadowMapSettings = ShadowMapSettings()
+    auto_resolution: bool = True
+
+
+def map_resolution(light, points: np.ndarray, spacing: float) -> int:
+    """Map texels (per side, per face) so that a texel is <= spacing / 2 at the receivers."""
+    spacing = max(spacing, 1e-9)
+    target = spacing / TEXELS_PER_SPACING
+    pts = np.asarray(points, np.float64)
+    if light.kind == "SUN":
+        d = np.asarray(light.direction, np.float64)
+        # Extent of the receivers across the light's beam (an upper bound of the fitted frustum).
+        lateral = pts - np.outer(pts @ d, d)
+        extent = float(np.max(np.ptp(lateral, axis=0))) if len(pts) else 1.0
+        res = extent / target
+    else:
+        dist = np.linalg.norm(pts - light.position, axis=1)
+        d = float(np.median(dist)) if len(pts) else 1.0
+        angle = light.spot_size if light.kind == "SPOT" and light.spot_size < np.radians(120) else (
+            np.pi / 2)
+        res = 2.0 * d * np.tan(0.5 * angle) / target
+    return int(np.clip(2 ** np.ceil(np.log2(max(res, 1.0))), MIN_MAP, MAX_MAP))
+
+
+def receiver_spacing(targets: BakeTargets, area_m2: float) -> float:
+    """Typical distance between neighbouring receivers: sqrt(area / count)."""
+    return float(np.sqrt(max(area_m2, 1e-12) / max(len(targets), 1)))
+
+
+def light_visibility_steps(scene: Scene, points, geo_normals, spacing: float,
+                           settings: DirectLightSettings, out: np.ndarray) -> Iterator[float]:
+    """Fill out (L, N) float32 with each light's shadow-map visibility; yields progress."""
+    lights = scene.lights
+    for k, light in enumerate(lights):
+        if not light.cast_shadow or scene.triangle_count == 0:
+            out[k] = 1.0
+            continue
+        shadow = settings.shadow
+        if settings.auto_resolution:
+            shadow = replace(shadow, resolution=map_resolution(light, points, spacing))
+        shadow_map = build_shadow_map(scene.triangles, light, shadow, points)
+        shadow_visibility(shadow_map, points, geo_normals, out=out[k])
+        yield (k + 1) / max(len(lights), 1)
+
+
+def irradiance_per_light(scene: Scene, points, normals) -> np.ndarray:
+    """(L, N, 3) unshadowed irradiance of each light at the receivers, W/m^2."""
+    out = np.zeros((len(scene.lights), len(points), 3))
+    for k, light in enumerate(scene.lights):
+        out[k] = light_units.direct_irradiance(light, points, normals)
+    return out
+
+
+def shadow_mask(irradiance: np.ndarray, visibility: np.ndarray) -> np.ndarray:
+    """(N,) float32: fraction of the direct light (by luminance) that arrives; 0 where none could."""
+    y = np.einsum("lnc,c->ln", irradiance, LUMINANCE)
+    total = y.sum(0)
+    arrived = (y * visibility).sum(0)
+    return np.where(total > 0, arrived / np.where(total > 0, total, 1.0), 0.0).astype(np.float32)
+
+
+def albedo_at(scene: Scene, tri: np.ndarray, bary: np.ndarray) -> np.ndarray:
+    """Base colour (N, 3) at barycentric points of triangles, textures sampled through UVs."""
+    mids = scene.material_ids[tri]
+    out = np.empty((len(tri), 3))
+    for m in np.unique(mids):
+        rows = mids == m
+        mat = scene.materials[m]
+        if mat.base_color_texture is None:
+            out[rows] = mat.base_color
+        else:
+            uv = np.einsum("nc,ncj->nj", bary[rows], scene.uv[tri[rows]].astype(np.float64))
+            out[rows] = sample_texture(mat.base_color_texture, uv)
+    return out
+
+
+# --- the camera view ------------------------------------------------------------------------------
+
+
+def camera_projection(camera) -> Projection:
+    """The kernel camera as a rasteriser projection (same image plane, clip range)."""
+    view = np.linalg.inv(camera.matrix_world)
+    extent = (camera.plane_min[0], camera.plane_max[0], camera.plane_min[1], camera.plane_max[1])
+    if camera.kind == "ORTHO":
+        return Projection.orthographic(view, extent, camera.clip_start, camera.clip_end)
+    return Projection("PERSP", view, tuple(float(e) for e in extent), max(camera.clip_start, 1e-6),
+                      camera.clip_end)
+
+
+def _ray_triangle_bary(origins, dirs, tris) -> tuple[np.ndarray, np.ndarray]:
+    """Barycentrics (N, 3) and distance (N,) where each ray meets its own triangle's plane."""
+    a, b, c = tris[:, 0], tris[:, 1], tris[:, 2]
+    e1, e2 = b - a, c - a
+    pvec = np.cross(dirs, e2)
+    det = np.einsum("ij,ij->i", e1, pvec)
+    inv = np.where(np.abs(det) > 1e-300, 1.0 / np.where(det == 0, 1.0, det), 0.0)
+    tvec = origins - a
+    u = np.einsum("ij,ij->i", tvec, pvec) * inv
+    qvec = np.cross(tvec, e1)
+    v = np.einsum("ij,ij->i", dirs, qvec) * inv
+    t = np.einsum("ij,ij->i", e2, qvec) * inv
+    bary = np.clip(np.stack([1 - u - v, u, v], 1), 0.0, 1.0)
+    return bary / np.maximum(bary.sum(1, keepdims=True), 1e-12), t
+
+
+def render_steps(scene: Scene, settings: DirectLightSettings, resolution=None,
+                 out: np.ndarray | None = None) -> Iterator[float | np.ndarray]:
+    """The camera's view of direct light with shadow-mapped shadows: the lecture's step 2, with
+    the eye's own z-buffer giving the fragments f. Yields progress, then the (H, W, 3) image."""
+    camera = scene.camera
+    if camera is None:
+        raise ValueError("the scene has no camera")
+    width, height = resolution or camera.resolution
+    image = np.empty((height, width, 3), np.float32) if out is None else out
+    image[...] = scene.world_color
+    raster = rasterize(scene.triangles, camera_projection(camera), width, height,
+                       with_triangle_ids=True)
+    yield 0.2
+    rows, cols = np.nonzero(raster.triangle >= 0)
+    if len(rows) == 0:
+        yield image
+        return
+    tri = raster.triangle[rows, cols].astype(np.int64)
+    origins, dirs = camera_rays(camera, width, height)
+    o, d = origins[rows, cols], dirs[rows, cols]
+    bary, t = _ray_triangle_bary(o, d, scene.triangles[tri].astype(np.float64))
+    points = o + d * t[:, None]
+    normals = np.einsum("nc,ncj->nj", bary, scene.normals[tri].astype(np.float64))
+    normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
+    geo = geometric_normals(scene.triangles[tri])
+    facing = np.einsum("ij,ij->i", geo, d) > 0  # seen from behind: shade the side we see
+    geo[facing] *= -1
+    normals[np.einsum("ij,ij->i", normals, d) > 0] *= -1
+    # Pixel footprint at the receivers: the image plane's texel at distance t (PERSP) or in m.
+    texel = (camera.plane_max[0] - camera.plane_min[0]) / width
+    spacing = texel * (float(np.median(t)) if camera.kind == "PERSP" else 1.0)
+    vis = np.ones((len(scene.lights), len(points)), np.float32)
+    for p in light_visibility_steps(scene, points, geo, spacing, settings, vis):
+        yield 0.2 + 0.7 * p
+    e = irradiance_per_light(scene, points, normals)
+    albedo = albedo_at(scene, tri, bary)
+    emission = np.array([m.emission for m in scene.materials], np.float64)[scene.material_ids[tri]]
+    image[rows, cols] = emission + albedo / np.pi * np.einsum("lnc,ln->nc", e, vis)
+    yield image
