@@ -13,27 +13,30 @@ mirrors and glass are followed up to `depth` glossy/transmission bounces, point 
 are true points (radius 0), suns are parallel (angle 0), no caustics and no glossy filter (both
 would change mirrors), no transparent bounces. The pixel filter is a 1-px box: each pixel is the
 average over its area, the limit the tracer's n x n supersampling converges to.
-Remaining differences: Cycles' glass chooses reflection or refraction stochastically by Fresnel
-(the tracer splits both, deterministically): same expectation, different noise. Cycles' shadow
-rays stop at glass as the tracer's do, but with `world_lighting` on (the default) the world
-still lights diffuse surfaces as a light source (occluded), which a tracer models at best as an
-ambient term: `whitted(world_lighting=False)` hides the world from diffuse rays (it stays
-visible to the camera, mirrors and glass). Area lights keep their size (a point cannot replace
-them). The Principled specular lobe of a non-mirror surface is lit directly in both.
+Remaining differences: Cycles' glass picks reflection or refraction at random with the Fresnel
+weight where a Whitted tracer follows both rays weighted: the same expectation, only noise.
+Cycles' shadow rays stop at glass as Whitted's do. The world lights no diffuse surface (it is
+hidden from diffuse rays, `world_lighting=False`, the default of every model: no kernel uses the
+sky as a light) and stays visible to the camera, mirrors and glass, as the tracer returns the
+world colour for rays that miss. Area lights keep their size (the tracer samples them on a
+grid). Cycles lights the Principled specular lobe of non-mirror surfaces directly (the
+sample scenes set Specular IOR Level 0 on diffuse surfaces, which is exactly Lambertian).
 
 `radiosity(diffuse_bounces)`, for diffuse global illumination: glossy and transmission bounces 0,
 `diffuse_bounces` diffuse bounces (default 32: a closed box of albedo 0.8 keeps 0.8^32 < 0.1% of
 the light), point and spot radius 0, area lights kept (they are the radiosity emitters). Bake
 with `bake_type="DIFFUSE"` and the colour pass on: the result is the radiance a Lambertian surface
 sends out, L = rho E / pi, so the kernel's radiosity (exitance, W/m^2) is B = pi * L (see
-"Bake semantics"). Remaining differences: Cycles integrates per texel or pixel over the surface
-point, a radiosity solver assumes constant B per patch (compare at texel level after
-interpolation); a Principled specular lobe is lit directly in a camera render (the DIFFUSE bake
-leaves it out).
+"Bake semantics"). Remaining differences: Cycles evaluates each texel at its own surface point,
+a radiosity solver holds B constant per patch (or interpolates it), so patch-sized detail
+differs; a Principled specular lobe is lit directly in a camera render (the DIFFUSE bake leaves
+it out).
 
 `direct()`, for shadow maps and direct lighting: max_bounces 0, point/spot radius 0, sun angle
-0. Remaining differences: area lights keep their size (soft shadows); the world lights surfaces
-directly unless `world_lighting=False`.
+0, area lights shrunk to 1 mm squares of the same power (kernels/direct_light.py treats them as
+points at their centre: hard shadows, intensity P cos / pi). Remaining differences: shadow maps
+filter (PCF) and bias their shadow edges, Cycles' shadows are exact; emissive meshes light
+surfaces in Cycles, not in that kernel.
 
 Settings every model shares (`FIXED_SETTINGS`): Cycles on the CPU, denoising and adaptive
 sampling off, no sample clamping, no fast-GI approximation, no time limit, view-layer sample
@@ -44,8 +47,8 @@ look touches (tests/blender/test_cycles_reference.py renders with AgX and a view
 
 Bake semantics (measured, Blender 5.2.3 and 4.5.15; tests re-measure them)
 ---------------------------------------------------------------------------
-A plane of albedo rho, Principled with Specular IOR Level 0 (exactly Lambertian), under a sun of
-strength E at normal incidence, black world:
+A plane of albedo rho, Principled with Specular IOR Level 0 (exactly Lambertian), under a sun,
+black world; E = sun strength x cos(incidence) is the irradiance on the plane:
 
 | bake_type | pass filter                       | texel value             |
 |-----------|-----------------------------------|-------------------------|
@@ -55,8 +58,10 @@ strength E at normal incidence, black world:
 | SHADOW    | none, with max_bounces 0          | 1 lit, 0 shadowed       |
 
 Baked texels get alpha 1, untouched ones keep the alpha 0 the image starts with: that alpha is
-the coverage mask returned with each lightmap (with margin 0, exactly the texels whose centres
-lie in a UV triangle; a margin > 0 adds the dilated texels to it).
+the coverage mask returned with each lightmap (with margin 0 the texels Cycles' rasteriser gives
+to a UV triangle, for an axis-aligned UV square exactly those whose centres lie inside it; a
+margin > 0 adds the dilated texels). A colour-attribute bake of a vertex gives the same values
+at the vertex's position (a point light over a 3 x 3 grid agrees with rho I cos / (pi d^2)).
 
 Timing
 ------
@@ -96,6 +101,7 @@ import numpy as np
 
 from ..kernels.exr import read_exr, write_exr
 from ..kernels.lightmap_uv import LightmapUVSettings
+from ..kernels.lights import area_of_shape
 from ..kernels.metrics import rel_mse
 from . import bridge
 
@@ -120,6 +126,9 @@ START_SAMPLES = 8
 # Default cap on a reference's total samples (both halves): 1024 samples of the Cornell box at
 # 256 x 256 take about three minutes on a 2-core machine (cycles_facts.md: 2-2.5 us/pixel-sample).
 MAX_SAMPLES = 1024
+# Side (m) of the square an area light is shrunk to when a model treats area lights as points:
+# at 0.1 m from the receiver it differs from a point emitter by (size / distance)^2 = 1e-4.
+AREA_POINT_SIZE = 1e-3
 # Size of the warm-up render (pixels per side) and its sample count.
 WARM_UP_PIXELS = 8
 WARM_UP_SAMPLES = 1
@@ -128,8 +137,18 @@ CACHE_FORMAT = 1
 # Prefix of every temporary datablock (images, materials, attributes) this module creates.
 TEMP_PREFIX = "classic_bake_cycles"
 
-# Cycles and render settings every model uses, (owner path, property, value). The owner path is
-# an attribute of the scene ("cycles", "render", "render.image_settings").
+# The render output used to read renders back: lossless float32 OpenEXR in the scene's linear
+# space. `file_format` comes first: the valid depths and modes depend on it.
+EXR_OUTPUT: tuple[tuple[str, str], ...] = (
+    ("file_format", "OPEN_EXR"),
+    ("color_depth", "32"),
+    ("color_mode", "RGB"),
+    ("exr_codec", "ZIP"),
+    ("color_management", "FOLLOW_SCENE"),
+)
+# Cycles and render settings every model uses: (owner, property, value), the owner an attribute
+# path from the scene ("cycles" is scene.cycles). Properties missing in a Blender version are
+# skipped.
 FIXED_SETTINGS: tuple[tuple[str, str, Any], ...] = (
     ("render", "engine", "CYCLES"),
     ("cycles", "device", "CPU"),  # the kernels are CPU code; compare like with like
@@ -170,19 +189,21 @@ class CyclesModel:
     | diffuse_bounces      | >= 0         | diffuse bounces (0: diffuse surfaces see lights only)  |
     | glossy_bounces       | >= 0         | glossy (mirror) bounces                                |
     | transmission_bounces | >= 0         | transmission (glass) bounces                           |
-    | transparent_bounces  | >= 0         | transparent-BSDF (alpha) bounces; 0: alpha is opaque   |
+    | transparent_bounces  | >= 0         | transparent-BSDF (alpha) bounces; 0: rays stop there   |
     | volume_bounces       | >= 0         | volume scattering bounces                              |
     | caustics_reflective  | bool         | follow glossy bounces after a diffuse one              |
     | caustics_refractive  | bool         | follow transmission bounces after a diffuse one        |
     | blur_glossy          | >= 0         | Cycles' "Filter Glossy" (0: off; blurs mirrors)        |
     | point_radius_zero    | bool         | point/spot soft size set to 0 m (true point lights)    |
     | sun_angle_zero       | bool         | sun angular diameter set to 0 rad (parallel light)     |
-    | world_lighting       | bool         | False: the world is invisible to diffuse rays, so it   |
-    |                      |              | lights no diffuse surface (still seen by the camera,   |
-    |                      |              | mirrors and glass)                                     |
+    | area_lights_as_points| bool         | area lights shrunk to AREA_POINT_SIZE squares of the   |
+    |                      |              | same power: one-sided points of intensity P cos / pi   |
+    | world_lighting       | bool         | False (default): the world is invisible to diffuse     |
+    |                      |              | rays, so it lights no diffuse surface, as in every     |
+    |                      |              | kernel (still seen by the camera, mirrors and glass)   |
     | pixel_filter         | BOX/GAUSSIAN/BLACKMAN_HARRIS | Cycles' pixel filter                   |
     | filter_width         | 0.01..10 px  | its width; BOX 1.0 = the average over the pixel        |
-    | seed                 | >= 0         | Cycles' seed of the first render (ladders, chunks add) |
+    | seed                 | >= 0         | Cycles' seed (convergence chunks use seed, seed+1, ...) |
     """
 
     name: str
@@ -197,7 +218,8 @@ class CyclesModel:
     blur_glossy: float = 0.0
     point_radius_zero: bool = True
     sun_angle_zero: bool = True
-    world_lighting: bool = True
+    area_lights_as_points: bool = False
+    world_lighting: bool = False
     pixel_filter: str = "BOX"
     filter_width: float = 1.0
     seed: int = 0
@@ -215,23 +237,28 @@ class CyclesModel:
         return dataclasses.asdict(self)
 
 
-def whitted(depth: int = 8, *, world_lighting: bool = True, seed: int = 0) -> CyclesModel:
-    """The Whitted ray tracer's model: `depth` mirror/glass bounces, direct light on diffuse."""
+def whitted(depth: int = 8, *, world_lighting: bool = False, seed: int = 0) -> CyclesModel:
+    """The Whitted ray tracer's model (kernels/tracer.py): `depth` mirror/glass bounces, direct
+    light on diffuse surfaces, the world seen only by rays that miss everything."""
     return CyclesModel(name="whitted", max_bounces=depth, diffuse_bounces=0, glossy_bounces=depth,
                        transmission_bounces=depth, world_lighting=world_lighting, seed=seed)
 
 
-def radiosity(diffuse_bounces: int = 32, *, seed: int = 0) -> CyclesModel:
+def radiosity(diffuse_bounces: int = 32, *, world_lighting: bool = False,
+              seed: int = 0) -> CyclesModel:
     """Diffuse global illumination only: `diffuse_bounces` bounces, no glossy or transmission."""
     return CyclesModel(name="radiosity", max_bounces=diffuse_bounces,
                        diffuse_bounces=diffuse_bounces, glossy_bounces=0, transmission_bounces=0,
-                       seed=seed)
+                       world_lighting=world_lighting, seed=seed)
 
 
-def direct(*, world_lighting: bool = True, seed: int = 0) -> CyclesModel:
-    """Direct light only (shadow maps, direct lighting): no bounce at all."""
+def direct(*, area_lights_as_points: bool = True, world_lighting: bool = False,
+           seed: int = 0) -> CyclesModel:
+    """Direct light only (kernels/direct_light.py: shadow maps): no bounce at all, area lights
+    as points at their centre (hard shadows), as that kernel treats them."""
     return CyclesModel(name="direct", max_bounces=0, diffuse_bounces=0, glossy_bounces=0,
-                       transmission_bounces=0, world_lighting=world_lighting, seed=seed)
+                       transmission_bounces=0, area_lights_as_points=area_lights_as_points,
+                       world_lighting=world_lighting, seed=seed)
 
 
 MODELS: dict[str, Callable[..., CyclesModel]] = {
@@ -275,17 +302,22 @@ def _owner(scene, path: str):
 
 
 def _scene_lights(scene) -> list:
-    """The light datablocks of the scene's objects, each once."""
+    """(light datablock, first object using it) of the scene's lights, each datablock once."""
     seen: dict[int, Any] = {}
     for obj in scene.objects:
         if obj.type == "LIGHT":
-            seen.setdefault(obj.data.as_pointer(), obj.data)
+            seen.setdefault(obj.data.as_pointer(), (obj.data, obj))
     return list(seen.values())
 
 
 def configure(scene, model: CyclesModel, log: SettingsLog | None = None) -> SettingsLog:
     """Set `scene` up so that Cycles computes what `model` describes. Returns the undo log
-    (`log.restore()` puts everything back); prefer `matched_scene`, which always restores."""
+    (`log.restore()` puts everything back); prefer `matched_scene`, which always restores.
+
+    Changes `FIXED_SETTINGS`, the bounce, caustics, filter and seed settings of scene.cycles, the
+    radius of point/spot lights and the angle of suns of the scene (per the model), and with
+    `world_lighting` off the world's diffuse ray visibility. The view transform is not touched.
+    """
     log = log if log is not None else SettingsLog()
     for path, prop, value in FIXED_SETTINGS:
         owner = _owner(scene, path)
@@ -304,14 +336,31 @@ def configure(scene, model: CyclesModel, log: SettingsLog | None = None) -> Sett
     log.set(cycles, "pixel_filter_type", model.pixel_filter)
     log.set(cycles, "filter_width", model.filter_width)
     log.set(cycles, "seed", model.seed)
-    for light in _scene_lights(scene):
+    for light, obj in _scene_lights(scene):
         if model.point_radius_zero and light.type in ("POINT", "SPOT"):
             log.set(light, "shadow_soft_size", 0.0)
         if model.sun_angle_zero and light.type == "SUN":
             log.set(light, "angle", 0.0)
+        if model.area_lights_as_points and light.type == "AREA":
+            _shrink_area_light(log, light, obj)
     if scene.world is not None and not model.world_lighting:
         log.set(scene.world.cycles_visibility, "diffuse", False)
     return log
+
+
+def _shrink_area_light(log: SettingsLog, light, obj) -> None:
+    """Make an area light an `AREA_POINT_SIZE` square emitting the same power (one-sided)."""
+    if not getattr(light, "normalize", True):
+        # Unnormalised, radiance is P / (pi * 1 m^2) whatever the size, so the emitted power is
+        # P * A (A in m^2, object scale included: kernels/lights.py area_radiance); keep it by
+        # normalising with that power. A datablock shared at several scales uses the first's.
+        scale = obj.matrix_world.to_scale()
+        size_y = light.size_y if light.shape in ("RECTANGLE", "ELLIPSE") else light.size
+        area = area_of_shape(light.shape, light.size * abs(scale.x), size_y * abs(scale.y))
+        log.set(light, "energy", float(light.energy) * area)
+        log.set(light, "normalize", True)
+    log.set(light, "shape", "SQUARE")
+    log.set(light, "size", AREA_POINT_SIZE)
 
 
 @contextlib.contextmanager
@@ -358,14 +407,18 @@ def _exr_output(scene, log: SettingsLog, resolution) -> Iterator[str]:
         log.set(scene.render, "resolution_x", width)
         log.set(scene.render, "resolution_y", height)
         log.set(scene.render, "resolution_percentage", 100)
+    # The output format is restored by hand: which colour depths and modes are valid depends on
+    # the file format, so it must be put back first and its dependents after it.
     settings = scene.render.image_settings
-    log.set(settings, "file_format", "OPEN_EXR")
-    log.set(settings, "color_depth", "32")
-    log.set(settings, "color_mode", "RGB")
-    log.set(settings, "exr_codec", "ZIP")
-    log.set(settings, "color_management", "FOLLOW_SCENE")
-    with tempfile.TemporaryDirectory(prefix="classic_bake_render_") as folder:
-        yield folder
+    saved = [(prop, getattr(settings, prop)) for prop, _ in EXR_OUTPUT]
+    try:
+        for prop, value in EXR_OUTPUT:
+            setattr(settings, prop, value)
+        with tempfile.TemporaryDirectory(prefix="classic_bake_render_") as folder:
+            yield folder
+    finally:
+        for prop, value in saved:
+            setattr(settings, prop, value)
 
 
 def render_camera(scene, model: CyclesModel, samples: int,
@@ -388,9 +441,13 @@ def render_camera(scene, model: CyclesModel, samples: int,
 def warm_up(scene=None) -> float:
     """Pay Cycles' one-off start-up costs with an 8 x 8, 1-sample render; returns its seconds.
 
-    Measured on the shared 2-core machine (Blender 5.2.3): the first render of a process takes
-    about 10-20 ms longer than the next identical one (kernel and colour-management setup); the
-    ladder and reference timings call this first so that no entry pays it.
+    Measured on the shared 2-core machine, 8 x 8 px at 1 sample, first render of a fresh process
+    against the median of the next five (3 processes per scene): Cornell box and ray-tracing
+    scenes +1 to +3 ms (Blender 5.2.3) and +1 to +2 ms (4.5.15) on 3-10 ms renders; the
+    environment room +60 ms (5.2.3) and +17 ms (4.5.15): its packed floor image is decoded on
+    the first render and cached by Blender afterwards. So the one-off cost is mostly image
+    loading, and it is paid by a render of the scene itself: `sample_ladder` and `reference`
+    call this before timing anything. (`import bpy` itself, 0.5-0.75 s, is outside every timing.)
     """
     scene = scene or bpy.context.scene
     if scene.camera is None:
@@ -485,7 +542,9 @@ def _bake_materials(stack: contextlib.ExitStack, objects: Sequence, images: dict
             temp = _default_surface()
             stack.callback(bpy.data.materials.remove, temp)
             obj.data.materials.append(temp)
-            stack.callback(obj.data.materials.pop, index=len(obj.data.materials) - 1)
+            # The mesh had no material: clear() empties it again (pop() would leave the object
+            # an empty slot behind, as measured in Blender 5.2).
+            stack.callback(obj.data.materials.clear)
         for index, slot in enumerate(obj.material_slots):
             mat = slot.material
             if mat is None or mat.as_pointer() in claimed:
