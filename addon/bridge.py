@@ -903,3 +903,22 @@ def wire_baked_display(obj, *, attribute: str | None = None, image=None,
             node.location = (x, -400)
         output.is_active_output = True
     return materials
+
+
+def write_corner_values(mesh, scene, object_index: int, values: np.ndarray, name: str):
+    """Write per-triangle-corner values of one snapshot object onto its original mesh's corners.
+
+    values (T * 3,) or (T * 3, C) in the snapshot's corner order; the object must not have
+    topology-changing modifiers (`ObjectInfo.topology_matches_original`). Mirrored objects had
+    corners 1 and 2 swapped by the snapshot; `corner_loops` carries the swap, so nothing is lost.
+    """
+    info = scene.objects[object_index]
+    if not info.topology_matches_original:
+        raise ValueError(f"object '{info.name}': its evaluated mesh differs from the original")
+    loops = scene.corner_loops[scene.object_slice(object_index)].ravel()
+    values = np.asarray(values, np.float32)
+    if values.ndim == 1:
+        values = np.repeat(values[:, None], 3, axis=1)
+    per_loop = np.zeros((len(mesh.loops), values.shape[1]), np.float32)
+    per_loop[loops] = values
+    return write_color_attribute(mesh, name, per_loop, domain="CORNER")

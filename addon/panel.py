@@ -52,7 +52,28 @@ class CLASSICBAKE_PT_trace(bpy.types.Panel):
         layout.operator("classic_bake.trace", icon="RENDER_STILL")
 
 
-CLASSES = (CLASSICBAKE_PT_main, CLASSICBAKE_PT_lightmap_uv, CLASSICBAKE_PT_trace)
+class CLASSICBAKE_PT_shadowmap(bpy.types.Panel):
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = "Classic Bake"
+    bl_label = "Shadow Mapping"
+    bl_parent_id = "CLASSICBAKE_PT_main"
+
+    def draw(self, context):
+        layout = self.layout
+        props = context.scene.classic_bake
+        layout.use_property_split = True
+        layout.prop(props, "shadow_map_size")
+        layout.prop(props, "shadow_eps_auto")
+        row = layout.row()
+        row.enabled = not props.shadow_eps_auto
+        row.prop(props, "shadow_eps")
+        layout.prop(props, "shadow_pcf")
+        layout.operator("classic_bake.shadowmap", icon="LIGHT_SUN")
+
+
+CLASSES = (CLASSICBAKE_PT_main, CLASSICBAKE_PT_lightmap_uv, CLASSICBAKE_PT_trace,
+           CLASSICBAKE_PT_shadowmap)
 
 
 def register() -> None:

@@ -1,7 +1,7 @@
 """Per-scene settings (`scene.classic_bake`), edited in the sidebar and read by `settings.py`."""
 
 import bpy
-from bpy.props import IntProperty, PointerProperty, StringProperty
+from bpy.props import BoolProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
 
 class CLASSICBAKE_PG_settings(bpy.types.PropertyGroup):
@@ -24,6 +24,18 @@ class CLASSICBAKE_PG_settings(bpy.types.PropertyGroup):
     trace_adaptive: IntProperty(
         name="Edge Samples", description="N x N samples again in pixels at edges (0: off)",
         default=4, min=0, max=16)
+    shadow_map_size: IntProperty(
+        name="Map Size", description="Shadow-map texels per side; 0 chooses it per light from the "
+        "receivers' texel size", default=0, min=0, max=16384)
+    shadow_eps_auto: BoolProperty(
+        name="Automatic Tolerance", description="Depth tolerance from texel size and slope "
+        "(shadow_bias reference); off: the fixed tolerance below", default=True)
+    shadow_eps: FloatProperty(
+        name="Tolerance", description="The lecture's depth tolerance against self-shadowing",
+        default=0.0, min=0.0, soft_max=0.5, subtype="DISTANCE", unit="LENGTH")
+    shadow_pcf: IntProperty(
+        name="PCF", description="K x K percentage-closer filtering (1: hard)", default=1, min=1,
+        max=15, step=2)
 
 
 CLASSES = (CLASSICBAKE_PG_settings,)

@@ -15,3 +15,15 @@ def tracer_settings(props, scene) -> TracerSettings:
     if props.trace_depth >= 0:
         overrides["max_depth"] = props.trace_depth
     return auto_settings(scene, **overrides)
+
+
+def direct_light_settings(props):
+    """`scene.classic_bake` -> DirectLightSettings (shadow maps)."""
+    from ..kernels.direct_light import DirectLightSettings
+    from ..kernels.shadowmap import ShadowMapSettings
+
+    pcf = props.shadow_pcf if props.shadow_pcf % 2 else props.shadow_pcf + 1
+    shadow = ShadowMapSettings(resolution=props.shadow_map_size or 2048,
+                               eps_mode="auto" if props.shadow_eps_auto else "fixed",
+                               eps=props.shadow_eps, pcf_size=pcf)
+    return DirectLightSettings(shadow=shadow, auto_resolution=props.shadow_map_size == 0)

@@ -187,3 +187,54 @@ def render_steps(scene: Scene, settings: DirectLightSettings, resolution=None,
     emission = np.array([m.emission for m in scene.materials], np.float64)[scene.material_ids[tri]]
     image[rows, cols] = emission + albedo / np.pi * np.einsum("lnc,ln->nc", e, vis)
     yield image
+
+
+# --- baking the shadow mask -----------------------------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class ObjectShadowBake:
+    """One object's baked shadow mask."""
+
+    lightmap: np.ndarray | None  # (S, S, 1) float32, row 0 top, dilated over the padding
+    lightmap_mask: np.ndarray | None  # (S, S) bool: texels baked (before dilation)
+    corners: np.ndarray  # (T * 3,) float32, per triangle corner, scene corner order
+    per_light_lightmaps: np.ndarray | None  # (L, S, S) float32 visibility per light
+
+
+def shadow_bake_steps(scene: Scene, objects, lightmap_size: int, padding: int,
+                      settings: DirectLightSettings) -> Iterator[float | dict]:
+    """Shadow masks of `objects` (indices into scene.objects) on their lightmap texels (when the
+    scene carries lightmap UVs) and corners. Yields progress, then {object index: ObjectShadowBake}.
+    """
+    from .bake_targets import corner_targets, dilate, lightmap_targets
+    from .scene import triangle_areas
+
+    results = {}
+    areas = triangle_areas(scene.triangles)
+    for n, k in enumerate(objects):
+        sl = scene.object_slice(k)
+        area = float(areas[sl].sum())
+        parts = []
+        if scene.lightmap_uv is not None and scene.objects[k].has_lightmap_uv:
+            parts.append(("lightmap", lightmap_targets(scene, k, lightmap_size)))
+        parts.append(("corners", corner_targets(scene, k)))
+        out = {}
+        for kind, targets in parts:
+            spacing = receiver_spacing(targets, area)
+            vis = np.ones((len(scene.lights), len(targets)), np.float32)
+            for p in light_visibility_steps(scene, targets.points, targets.geo_normals, spacing,
+                                            settings, vis):
+                yield (n + 0.5 * p) / len(objects)
+            mask = shadow_mask(irradiance_per_light(scene, targets.points, targets.normals), vis)
+            out[kind] = (targets, mask, vis)
+        lightmap = mask_image = per_light = None
+        if "lightmap" in out:
+            targets, mask, vis = out["lightmap"]
+            mask_image = targets.mask
+            lightmap = dilate(targets.to_image(mask), targets.mask, padding)
+            per_light = np.stack([targets.to_image(v)[..., 0] for v in vis]) if len(vis) else None
+        results[k] = ObjectShadowBake(lightmap=lightmap, lightmap_mask=mask_image,
+                                      corners=out["corners"][1], per_light_lightmaps=per_light)
+        yield (n + 1) / len(objects)
+    yield results

@@ -9,7 +9,7 @@ from ..cli import COMMANDS, Command, RunContext, command, run_command
 from ..outputs import UsageError, safe_name
 
 # The commands the demo runs on each scene, in order. Techniques join this list as they land.
-DEMO_COMMANDS = ("info", "trace")
+DEMO_COMMANDS = ("info", "trace", "shadowmap")
 
 
 def add_arguments(parser) -> None:

@@ -1,0 +1,55 @@
+"""Shadow-map bake: masks into lightmaps and a colour attribute, and the camera's direct light."""
+
+import bpy
+
+from ..addon.jobs import shadow_bake_job
+from ..addon.settings import direct_light_settings, lightmap_uv_settings
+from .job import JobOperator
+
+
+class CLASSICBAKE_OT_shadowmap(JobOperator, bpy.types.Operator):
+    """Bake shadow-map shadows of every light into lightmaps and a 'Shadow' colour attribute"""
+
+    bl_idname = "classic_bake.shadowmap"
+    bl_label = "Bake Shadow Maps"
+    bl_options = {"REGISTER", "UNDO"}
+    job_label = "Shadow maps"
+
+    @classmethod
+    def poll(cls, context):
+        scene = context.scene
+        if scene is None or not any(o.type == "LIGHT" for o in scene.objects):
+            cls.poll_message_set("The scene needs a light")
+            return False
+        if not any(o.type == "MESH" for o in scene.objects):
+            cls.poll_message_set("The scene has no meshes")
+            return False
+        return True
+
+    def start(self, context):
+        props = context.scene.classic_bake
+        return self._job(context, direct_light_settings(props), props.lightmap_uv_name,
+                         lightmap_uv_settings(props))
+
+    def _job(self, context, settings, uv_name, uv_settings):
+        summary = None
+        for step in shadow_bake_job(context, settings, uv_name, uv_settings):
+            if isinstance(step, dict):
+                summary = step
+            else:
+                yield step
+        self.report({"INFO"}, f"Shadow masks on {len(summary['images'])} objects, colour "
+                              f"attribute 'Shadow' on {len(summary['attributes'])}")
+
+
+CLASSES = (CLASSICBAKE_OT_shadowmap,)
+
+
+def register() -> None:
+    for cls in CLASSES:
+        bpy.utils.register_class(cls)
+
+
+def unregister() -> None:
+    for cls in reversed(CLASSES):
+        bpy.utils.unregister_class(cls)
