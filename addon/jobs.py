@@ -20,10 +20,42 @@ def mesh_objects(context, names=None):
             and (names is None or o.name in names)]
 
 
-def _create_lightmap_uvs(objects, uv_name, uv_settings):
+def object_areas(objects) -> list[float]:
+    """World-space surface area (m^2) of each object's mesh, modifiers not applied."""
+    from ..kernels.scene import triangle_areas
+
+    areas = []
+    for obj in objects:
+        verts, _, _, _ = bridge.mesh_triangles(obj.data)
+        world = bridge.mesh_positions(obj.data).astype(np.float64) @ np.array(
+            obj.matrix_world)[:3, :3].T
+        areas.append(float(triangle_areas(world[verts]).sum()))
+    return areas
+
+
+def lightmap_plan(objects, uv_settings) -> dict:
+    """{object name: lightmap size} at one texel density (`uv_settings.resolution` is the size of
+    the largest object's lightmap)."""
+    from ..kernels.lightmap_uv import lightmap_sizes
+
+    sizes = lightmap_sizes(object_areas(objects), uv_settings.resolution)
+    return {obj.name: size for obj, size in zip(objects, sizes, strict=True)}
+
+
+def create_lightmap_uvs(objects, uv_name, uv_settings, plan):
+    from dataclasses import replace
+
     created = []
     for obj in objects:
-        made, _ = bridge.ensure_lightmap_uv(obj, uv_name, uv_settings)
+        while True:  # a small lightmap may not hold every chart with its padding: grow it
+            try:
+                settings = replace(uv_settings, resolution=plan[obj.name])
+                made, _ = bridge.ensure_lightmap_uv(obj, uv_name, settings)
+                break
+            except ValueError:
+                if plan[obj.name] >= 4 * uv_settings.resolution:
+                    raise
+                plan[obj.name] *= 2
         if made:
             created.append(obj)
     return created
@@ -46,7 +78,8 @@ def shadow_bake_job(context, settings, uv_name: str, uv_settings, attribute: str
     objects = mesh_objects(context)
     if not objects:
         raise ValueError("the scene has no mesh objects to bake")
-    created = _create_lightmap_uvs(objects, uv_name, uv_settings)
+    plan = lightmap_plan(objects, uv_settings)
+    created = create_lightmap_uvs(objects, uv_name, uv_settings, plan)
     try:
         scene = bridge.snapshot(context, bridge.SnapshotRequest(lightmap_uv=uv_name, textures=render),
                                 resolution=resolution)
@@ -54,8 +87,9 @@ def shadow_bake_job(context, settings, uv_name: str, uv_settings, attribute: str
             raise ValueError("the scene has no lights: nothing casts a shadow")
         targets = [k for k, o in enumerate(scene.objects) if not o.is_instance]
         results = None
-        for step in direct_light.shadow_bake_steps(scene, targets, uv_settings.resolution,
-                                                   uv_settings.padding, settings):
+        sizes = {k: plan.get(scene.objects[k].source_name, uv_settings.resolution) for k in targets}
+        for step in direct_light.shadow_bake_steps(scene, targets, sizes, uv_settings.padding,
+                                                   settings):
             if isinstance(step, dict):
                 results = step
             else:

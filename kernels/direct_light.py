@@ -202,39 +202,49 @@ class ObjectShadowBake:
     per_light_lightmaps: np.ndarray | None  # (L, S, S) float32 visibility per light
 
 
-def shadow_bake_steps(scene: Scene, objects, lightmap_size: int, padding: int,
+def shadow_bake_steps(scene: Scene, objects, lightmap_sizes: dict, padding: int,
                       settings: DirectLightSettings) -> Iterator[float | dict]:
     """Shadow masks of `objects` (indices into scene.objects) on their lightmap texels (when the
-    scene carries lightmap UVs) and corners. Yields progress, then {object index: ObjectShadowBake}.
+    scene carries lightmap UVs; `lightmap_sizes` {object index: texels per side}) and corners.
+    Yields progress, then {object index: ObjectShadowBake}.
     """
     from .bake_targets import corner_targets, dilate, lightmap_targets
     from .scene import triangle_areas
 
-    results = {}
+    # Every receiver of every object at once: one shadow map per light serves them all, at the
+    # resolution the median receiver spacing asks for (a small object with a dense lightmap does
+    # not set the map size for the whole scene).
     areas = triangle_areas(scene.triangles)
-    for n, k in enumerate(objects):
-        sl = scene.object_slice(k)
-        area = float(areas[sl].sum())
-        parts = []
+    sets = []  # (object, kind, targets)
+    for k in objects:
         if scene.lightmap_uv is not None and scene.objects[k].has_lightmap_uv:
-            parts.append(("lightmap", lightmap_targets(scene, k, lightmap_size)))
-        parts.append(("corners", corner_targets(scene, k)))
-        out = {}
-        for kind, targets in parts:
-            spacing = receiver_spacing(targets, area)
-            vis = np.ones((len(scene.lights), len(targets)), np.float32)
-            for p in light_visibility_steps(scene, targets.points, targets.geo_normals, spacing,
-                                            settings, vis):
-                yield (n + 0.5 * p) / len(objects)
-            mask = shadow_mask(irradiance_per_light(scene, targets.points, targets.normals), vis)
-            out[kind] = (targets, mask, vis)
+            sets.append((k, "lightmap", lightmap_targets(scene, k, lightmap_sizes[k])))
+        sets.append((k, "corners", corner_targets(scene, k)))
+        yield 0.1 * (len(sets) / (2 * max(len(objects), 1)))
+    points = np.concatenate([t.points for _, _, t in sets]) if sets else np.zeros((0, 3))
+    geo = np.concatenate([t.geo_normals for _, _, t in sets]) if sets else np.zeros((0, 3))
+    normals = np.concatenate([t.normals for _, _, t in sets]) if sets else np.zeros((0, 3))
+    spacing = np.concatenate([np.full(len(t), receiver_spacing(t, float(areas[scene.object_slice(k)].sum())))
+                              for k, _, t in sets]) if sets else np.ones(0)
+    vis = np.ones((len(scene.lights), len(points)), np.float32)
+    for p in light_visibility_steps(scene, points, geo, float(np.median(spacing)) if len(spacing)
+                                    else 1.0, settings, vis):
+        yield 0.1 + 0.85 * p
+    mask = shadow_mask(irradiance_per_light(scene, points, normals), vis)
+    results, start = {}, 0
+    parts: dict = {}
+    for k, kind, t in sets:
+        stop = start + len(t)
+        parts.setdefault(k, {})[kind] = (t, mask[start:stop], vis[:, start:stop])
+        start = stop
+    for k in objects:
+        out = parts[k]
         lightmap = mask_image = per_light = None
         if "lightmap" in out:
-            targets, mask, vis = out["lightmap"]
+            targets, m, v = out["lightmap"]
             mask_image = targets.mask
-            lightmap = dilate(targets.to_image(mask), targets.mask, padding)
-            per_light = np.stack([targets.to_image(v)[..., 0] for v in vis]) if len(vis) else None
+            lightmap = dilate(targets.to_image(m), targets.mask, padding)
+            per_light = np.stack([targets.to_image(row)[..., 0] for row in v]) if len(v) else None
         results[k] = ObjectShadowBake(lightmap=lightmap, lightmap_mask=mask_image,
                                       corners=out["corners"][1], per_light_lightmaps=per_light)
-        yield (n + 1) / len(objects)
     yield results

@@ -103,3 +103,21 @@ def unwrap(
     _, vertex_chart = atlas.get_mesh_vertex_assignment(0)
     chart_ids = np.asarray(vertex_chart, np.int64)[indices[:, 0]].astype(np.int32)
     return LightmapUV(corner_uv, chart_ids, int(atlas.chart_count), float(atlas.utilization))
+
+
+# Smallest lightmap an object gets: below 16 texels a side the padding eats the charts.
+MIN_LIGHTMAP_SIZE = 16
+
+
+def lightmap_sizes(areas_m2, largest_size: int) -> list[int]:
+    """Per-object lightmap sizes at one texel density: the largest object gets `largest_size`
+    texels per side, every other object sqrt(its area / the largest area) of it, rounded up to a
+    power of two and kept in [MIN_LIGHTMAP_SIZE, largest_size]. A 1 m^2 plate beside a 400 m^2
+    floor then gets 1/20 of the floor's texels per side instead of as many."""
+    areas = np.maximum(np.asarray(areas_m2, np.float64), 0.0)
+    if areas.size == 0:
+        return []
+    top = max(float(areas.max()), 1e-12)
+    wanted = largest_size * np.sqrt(areas / top)
+    sizes = 2 ** np.ceil(np.log2(np.maximum(wanted, 1.0)))
+    return [int(s) for s in np.clip(sizes, MIN_LIGHTMAP_SIZE, largest_size)]

@@ -281,13 +281,56 @@ def render_shadow_map_steps(shadow_map: ShadowMap, triangles: np.ndarray) -> Ite
             yield (k + progress) / n
 
 
+# A receiver this close to a triangle's plane (relative to the scene's size) counts as on it, so
+# it cannot be shadowed by that plane: the floor's own texels do not keep the floor in its map.
+CASTER_PLANE_EPS = 1e-6
+
+
+def potential_casters(triangles: np.ndarray, light: Light, receivers: np.ndarray) -> np.ndarray:
+    """(T,) bool: triangles that may shadow some receiver; the others need not enter the map.
+
+    A triangle only blocks light towards points on the far side of its plane from the light. If
+    all eight corners of the receivers' bounding box lie on the light's side of the plane (or on
+    it), no receiver can be behind it: culling it changes no visibility, only the work. Exact,
+    conservative (a box corner may be behind while no receiver is) and O(T).
+    """
+    tris = np.asarray(triangles, np.float64)
+    if len(tris) == 0:
+        return np.zeros(0, bool)
+    pts = np.asarray(receivers, np.float64).reshape(-1, 3)
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
+                        for z in (lo[2], hi[2])])  # (8, 3)
+    n = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+    length = np.linalg.norm(n, axis=1)
+    keep = length > 0.0
+    n = n / np.where(length > 0.0, length, 1.0)[:, None]
+    if light.kind == "SUN":
+        toward = np.broadcast_to(-np.asarray(light.direction, np.float64), n.shape)
+    else:
+        toward = np.asarray(light.position, np.float64) - tris[:, 0]
+    # Orient each plane normal towards the light; a plane through the light blocks nothing.
+    side = np.einsum("ij,ij->i", n, toward)
+    n = n * np.sign(side)[:, None]
+    keep &= side != 0.0
+    scale = max(float(np.abs(np.concatenate([lo, hi])).max()), 1.0)
+    behind = (corners @ n.T) - np.einsum("ij,ij->i", n, tris[:, 0])[None, :]  # (8, T)
+    return keep & np.any(behind < -CASTER_PLANE_EPS * scale, axis=0)
+
+
 def build_shadow_map(
     triangles: np.ndarray,
     light: Light,
     settings: ShadowMapSettings | None = None,
     receivers: np.ndarray | None = None,
 ) -> ShadowMap:
-    """Plan and render `light`'s shadow map of (T, 3, 3) world triangles (see `plan_shadow_map`)."""
+    """Plan and render `light`'s shadow map of (T, 3, 3) world triangles (see `plan_shadow_map`).
+
+    With `receivers` given, triangles that cannot shadow any of them are left out first
+    (`potential_casters`): a floor under everything is never drawn into its own map.
+    """
+    if receivers is not None and len(receivers):
+        triangles = triangles[potential_casters(triangles, light, receivers)]
     shadow_map = plan_shadow_map(triangles, light, settings, receivers)
     for _ in render_shadow_map_steps(shadow_map, triangles):
         pass
