@@ -1,0 +1,137 @@
+"""The Whitted tracer against Cycles computing the same model, on sample_blends/raytrace.blend.
+
+    .venv/bin/python bench/trace.py [--scales 1 2] [--quick]
+
+Cycles runs the matched `whitted` model (addon/cycles_reference.py: lights as points, no diffuse
+bounces, the world not lighting diffuse surfaces, box filter). A converged Cycles render (cached
+in out/cache) is the reference. The tracer's quality ladder (supersampling, adaptive edge samples)
+and Cycles' sample ladder run alternately; for each tracer setting the time Cycles needs to reach
+the same relative MSE is interpolated on its ladder (log-log). At the scene's resolution and at
+2x2 = 4x its pixel count (--scales 1 2).
+Writes out/bench/trace.json and out/bench/trace_*.png/svg.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _report import OUT_DIR, versions, write_report  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENE = ROOT / "sample_blends" / "raytrace.blend"
+# (supersample n, adaptive edge samples n): from plain pixel centres to dense edge sampling.
+LADDER = [(1, 0), (1, 2), (1, 4), (2, 4), (2, 8), (4, 8)]
+
+
+def seconds_to_reach(error: float, ladder: list[dict]) -> float | None:
+    """Seconds Cycles needs for relMSE `error`, log-log interpolated on its ladder (None: never)."""
+    pts = sorted((r["seconds"], r["rel_mse"]) for r in ladder)
+    for (t0, e0), (t1, e1) in zip(pts, pts[1:], strict=False):
+        if e1 <= error <= e0 and e0 > e1:
+            f = (np.log(error) - np.log(e0)) / (np.log(e1) - np.log(e0))
+            return float(np.exp(np.log(t0) + f * (np.log(t1) - np.log(t0))))
+    if pts and error >= pts[0][1]:
+        return pts[0][0]  # already reached by the cheapest rung
+    return None
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scales", type=int, nargs="+", default=[1, 2],
+                        help="resolution multipliers per side (2: 4x the pixels)")
+    parser.add_argument("--quick", action="store_true", help="short ladders (smoke run)")
+    args = parser.parse_args()
+
+    import bpy
+
+    from classic_bake.addon import bridge
+    from classic_bake.addon import cycles_reference as cr
+    from classic_bake.kernels.bvh import BVH
+    from classic_bake.kernels.metrics import compare, rel_mse
+    from classic_bake.kernels.tracer import auto_settings, trace
+    from classic_bake.pipeline.charts import speed_accuracy_chart
+    from classic_bake.pipeline.images import write_preview_png
+
+    bpy.ops.wm.open_mainfile(filepath=str(SCENE), load_ui=False, use_scripts=False)
+    base = bridge.render_resolution(bpy.context.scene)
+    ladder = LADDER[:3] if args.quick else LADDER
+    cycles_counts = [1, 2, 4, 8, 16] if args.quick else [1, 2, 4, 8, 16, 32, 64, 128]
+    figures, ratios = {"scales": {}}, {}
+    cr.warm_up()
+    for scale in args.scales:
+        resolution = (base[0] * scale, base[1] * scale)
+        snap = bridge.snapshot(resolution=resolution)
+        depth = auto_settings(snap).max_depth
+        model = cr.whitted(depth)
+        ref = cr.reference(SCENE, model, "render", resolution=resolution,
+                           samples=128 if args.quick else None, max_samples=2048,
+                           target_rel_mse=1e-4)
+        reference = ref.image
+        bpy.ops.wm.open_mainfile(filepath=str(SCENE), load_ui=False, use_scripts=False)
+        snap = bridge.snapshot(resolution=resolution)
+        start = time.perf_counter()
+        bvh = BVH.build(snap.triangles)
+        build_s = time.perf_counter() - start
+        kernel_rows, cycles_rows = [], []
+        for step in range(max(len(ladder), len(cycles_counts))):  # alternate the two sides
+            if step < len(ladder):
+                n, a = ladder[step]
+                settings = auto_settings(snap, supersample=n, adaptive=a)
+                start = time.perf_counter()
+                result = trace(snap, settings, bvh=bvh, resolution=resolution)
+                seconds = time.perf_counter() - start + build_s
+                m = compare(result.image, reference)
+                kernel_rows.append({"setting": f"{n}x{n} + edges {a}x{a}", "seconds": seconds,
+                                    "rel_mse": m.rel_mse, "flip": m.flip,
+                                    "rays": result.stats.camera_rays + result.stats.secondary_rays
+                                    + result.stats.shadow_rays,
+                                    "pruned_branches": result.stats.pruned_branches})
+                if step == 2:
+                    write_preview_png(OUT_DIR / f"trace_x{scale}.png", result.image)
+            if step < len(cycles_counts):
+                image, seconds = cr.render_camera(bpy.context.scene, model, cycles_counts[step],
+                                                  resolution=resolution)
+                cycles_rows.append({"samples": cycles_counts[step], "seconds": seconds,
+                                    "rel_mse": rel_mse(image, reference)})
+        for row in kernel_rows:
+            reach = seconds_to_reach(row["rel_mse"], cycles_rows)
+            row["cycles_seconds_to_same_error"] = reach
+            row["ratio"] = None if reach is None else reach / row["seconds"]
+        best = max((r for r in kernel_rows if r["ratio"] is not None), key=lambda r: r["ratio"],
+                   default=None)
+        key = f"cycles_vs_tracer_seconds_to_same_rel_mse_x{scale * scale}_pixels"
+        ratios[key] = None if best is None else best["ratio"]
+        figures["scales"][f"x{scale * scale}"] = {
+            "resolution": resolution, "depth": depth, "bvh_build_s": build_s,
+            "reference": {"samples": ref.samples, "noise_rel_mse": ref.noise_rel_mse,
+                          "seconds": ref.seconds, "cache_hit": ref.cache_hit},
+            "kernel": kernel_rows, "cycles": cycles_rows}
+        OUT_DIR.mkdir(parents=True, exist_ok=True)
+        speed_accuracy_chart(kernel_rows, cycles_rows, OUT_DIR / f"trace_speed_x{scale * scale}",
+                             title=f"Whitted tracer vs Cycles (whitted model), {resolution[0]}x"
+                                   f"{resolution[1]}",
+                             kernel_label="tracer (n x n + edge samples)",
+                             cycles_label="Cycles (samples per pixel)")
+        noise = ref.noise_rel_mse if ref.noise_rel_mse is not None else float("nan")
+        print(f"\n{resolution[0]}x{resolution[1]} (depth {depth}); reference {ref.samples} samples, "
+              f"noise relMSE {noise:.2e}")
+        print(f"{'tracer setting':22s} {'s':>7s} {'relMSE':>9s} {'FLIP':>6s} {'Cycles s':>9s} {'ratio':>6s}")
+        for r in kernel_rows:
+            reach = r["cycles_seconds_to_same_error"]
+            print(f"{r['setting']:22s} {r['seconds']:7.2f} {r['rel_mse']:9.2e} {r['flip']:6.3f} "
+                  f"{(reach or float('nan')):9.2f} {(r['ratio'] or float('nan')):6.2f}")
+        print(f"{'Cycles samples':22s} {'s':>7s} {'relMSE':>9s}")
+        for r in cycles_rows:
+            print(f"{r['samples']:<22d} {r['seconds']:7.2f} {r['rel_mse']:9.2e}")
+    write_report("trace", ratios, figures, versions("bpy", "embreex"))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
