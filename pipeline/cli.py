@@ -119,6 +119,16 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def command_args(cmd: Command, scene: Path, out: Path, resolution=None, argv=()) -> argparse.Namespace:
+    """The namespace `cmd` would get from `COMMAND SCENE --out OUT [argv]` on the command line:
+    for running one command from another (demo, compare) with the command's own defaults."""
+    parser = _Parser()
+    cmd.add_arguments(parser)
+    args = parser.parse_args(list(argv))
+    args.scene, args.out, args.save_blend, args.resolution = scene, out, False, resolution
+    return args
+
+
 def check_blend(path: Path) -> Path:
     """The resolved path of a readable .blend file, or UsageError naming what is wrong."""
     if not path.exists():

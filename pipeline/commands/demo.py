@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-import argparse
 from pathlib import Path
 
-from ..cli import COMMANDS, Command, RunContext, command, run_command
+from ..cli import COMMANDS, Command, RunContext, command, command_args, run_command
 from ..outputs import UsageError, safe_name
 
 # The commands the demo runs on each scene, in order. Techniques join this list as they land.
@@ -27,14 +26,23 @@ def run(ctx: RunContext) -> None:
     scenes = sorted(folder.glob("*.blend"))
     if not scenes:
         raise UsageError(f"no .blend files in {folder}")
+    skipped = []
     for scene in scenes:
         for name in DEMO_COMMANDS:
+            if name not in COMMANDS:
+                continue
             # One folder per run: the report reads OUT/*/metrics.json.
             out = ctx.args.out / f"{safe_name(scene.stem)}-{name}"
-            args = argparse.Namespace(scene=scene, out=out, save_blend=False,
-                                      resolution=ctx.args.resolution)
-            run_command(COMMANDS[name], args)
+            cmd = COMMANDS[name]
+            args = command_args(cmd, scene, out, ctx.args.resolution)
+            try:
+                run_command(cmd, args)
+            except UsageError as exc:  # a technique that does not apply to this scene
+                skipped.append(f"{scene.name} {name}: {exc}")
+                ctx.say(f"skipped {scene.name} {name}: {exc}")
     ctx.say(f"report: {build_report(ctx.args.out)}")
+    if skipped:
+        ctx.say(f"{len(skipped)} runs skipped (see above)")
 
 
 command(Command(name="demo", help="run every command on every sample scene and write the report",

@@ -1,0 +1,50 @@
+"""`compare` against Cycles, and the report of the sample scenes opened in headless Chromium."""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def run_cli(*args, timeout=600):
+    return subprocess.run([sys.executable, "-m", "classic_bake", *map(str, args)],
+                          capture_output=True, text=True, timeout=timeout)
+
+
+def test_compare_writes_both_ladders_errors_and_chart(tmp_path):
+    done = run_cli("compare", ROOT / "sample_blends" / "shadows.blend", "--technique", "shadowmap",
+                   "--resolution", "40", "30", "--max-samples", "2", "--out", tmp_path)
+    assert done.returncode == 0, done.stderr[-2000:]
+    metrics = json.loads((tmp_path / "metrics.json").read_text())
+    comparison = metrics["comparison"]
+    kernel, cycles = comparison["ladder"]["kernel"], comparison["ladder"]["cycles"]
+    assert len(kernel) == 4 and [r["samples"] for r in cycles] == [1, 2]
+    for row in kernel + cycles:
+        assert row["seconds"] > 0 and row["rel_mse"] >= 0 and 0 <= row["flip"] <= 1
+    # The chart plots exactly the figures in metrics.json.
+    data = json.loads((tmp_path / "speed_accuracy.data.json").read_text())
+    assert json.dumps(data).count("rel_mse") >= 1
+    for name in ("speed_accuracy.png", "speed_accuracy.svg", "error_rel_se.png", "render.exr"):
+        assert (tmp_path / name).stat().st_size > 0
+    bad = run_cli("compare", ROOT / "sample_blends" / "shadows.blend", "--technique", "nonsense")
+    assert bad.returncode == 2
+
+
+def test_report_of_the_sample_scenes_opens_in_chromium(tmp_path):
+    done = run_cli("demo", ROOT / "sample_blends", "--out", tmp_path, "--resolution", "32", "24")
+    assert done.returncode == 0, done.stderr[-2000:]
+    index = tmp_path / "index.html"
+    html = index.read_text()
+    for scene in ("cornell_box", "raytrace", "shadows"):
+        assert f"{scene}-trace" in html and f"{scene}-shadowmap" in html or scene == "cornell_box"
+    shot = subprocess.run([sys.executable, str(ROOT / "tools" / "screenshot_report.py"), str(index),
+                           "--out", str(tmp_path / "shot.png")], capture_output=True, text=True,
+                          timeout=300)
+    if shot.returncode == 3 and not os.environ.get("CI"):
+        pytest.skip("no Chromium on this machine (make chromium installs it)")
+    assert shot.returncode == 0, shot.stdout + shot.stderr
