@@ -72,8 +72,33 @@ class CLASSICBAKE_PT_shadowmap(bpy.types.Panel):
         layout.operator("classic_bake.shadowmap", icon="LIGHT_SUN")
 
 
+class CLASSICBAKE_PT_compare(bpy.types.Panel):
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = "Classic Bake"
+    bl_label = "Compare with Cycles"
+    bl_parent_id = "CLASSICBAKE_PT_main"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        layout = self.layout
+        props = context.scene.classic_bake
+        layout.use_property_split = True
+        layout.prop(props, "compare_technique")
+        layout.prop(props, "compare_samples")
+        layout.operator("classic_bake.compare", icon="IMAGE_REFERENCE")
+        if props.compare_rel_mse >= 0.0:
+            box = layout.box()
+            box.label(text=f"Relative MSE {props.compare_rel_mse:.3g}")
+            if props.compare_flip >= 0.0:
+                box.label(text=f"HDR-FLIP {props.compare_flip:.3f}")
+            box.label(text=f"Kernel {props.compare_kernel_seconds:.2f} s, "
+                           f"Cycles {props.compare_cycles_seconds:.2f} s")
+            box.label(text="Error image: 'Classic Bake Error'", icon="IMAGE_DATA")
+
+
 CLASSES = (CLASSICBAKE_PT_main, CLASSICBAKE_PT_lightmap_uv, CLASSICBAKE_PT_trace,
-           CLASSICBAKE_PT_shadowmap)
+           CLASSICBAKE_PT_shadowmap, CLASSICBAKE_PT_compare)
 
 
 def register() -> None:

@@ -1,7 +1,14 @@
 """Per-scene settings (`scene.classic_bake`), edited in the sidebar and read by `settings.py`."""
 
 import bpy
-from bpy.props import BoolProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
+from bpy.props import (
+    BoolProperty,
+    EnumProperty,
+    FloatProperty,
+    IntProperty,
+    PointerProperty,
+    StringProperty,
+)
 
 
 class CLASSICBAKE_PG_settings(bpy.types.PropertyGroup):
@@ -36,6 +43,19 @@ class CLASSICBAKE_PG_settings(bpy.types.PropertyGroup):
     shadow_pcf: IntProperty(
         name="PCF", description="K x K percentage-closer filtering (1: hard)", default=1, min=1,
         max=15, step=2)
+    compare_technique: EnumProperty(
+        name="Technique", description="Which kernel render to compare with Cycles",
+        items=[("TRACE", "Ray Tracing", "The Whitted tracer against Cycles' whitted model"),
+               ("SHADOWMAP", "Shadow Mapping", "Direct light with shadow maps against Cycles' "
+                "direct-light model")], default="TRACE")
+    compare_samples: IntProperty(
+        name="Cycles Samples", description="Samples of the Cycles render compared with",
+        default=64, min=1, max=65536)
+    # Results of the last comparison, shown in the panel (read-only in the interface).
+    compare_rel_mse: FloatProperty(name="Relative MSE", default=-1.0)
+    compare_flip: FloatProperty(name="HDR-FLIP", default=-1.0)
+    compare_kernel_seconds: FloatProperty(name="Kernel Seconds", default=0.0)
+    compare_cycles_seconds: FloatProperty(name="Cycles Seconds", default=0.0)
 
 
 CLASSES = (CLASSICBAKE_PG_settings,)

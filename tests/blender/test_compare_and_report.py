@@ -48,3 +48,22 @@ def test_report_of_the_sample_scenes_opens_in_chromium(tmp_path):
     if shot.returncode == 3 and not os.environ.get("CI"):
         pytest.skip("no Chromium on this machine (make chromium installs it)")
     assert shot.returncode == 0, shot.stdout + shot.stderr
+
+
+def test_compare_button_shows_figures_and_an_error_image(addon, open_sample):
+    import bpy
+
+    from classic_bake.addon import bridge
+
+    open_sample("raytrace")
+    scene = bpy.context.scene
+    scene.render.resolution_x, scene.render.resolution_y = 32, 24
+    props = scene.classic_bake
+    props.compare_technique, props.compare_samples, props.trace_adaptive = "TRACE", 16, 2
+    assert props.compare_rel_mse < 0  # nothing compared yet: the panel shows no figures
+    assert bpy.ops.classic_bake.compare() == {"FINISHED"}
+    assert 0 <= props.compare_rel_mse < 0.1
+    assert props.compare_kernel_seconds > 0 and props.compare_cycles_seconds > 0
+    error = bridge.image_pixels(bpy.data.images["Classic Bake Error"])
+    assert error.shape == (24, 32, 4) and error[..., 0].max() > 0
+    assert "Classic Bake Cycles View" in bpy.data.images
