@@ -74,7 +74,7 @@ def run(ctx: RunContext) -> None:
             seconds = record["seconds"]["total"] - record["seconds"].get("open", 0.0)
             images[step] = read_exr(out / "render.exr")
             kernel_rows.append({"setting": " ".join(ladder[step]) or "default",
-                                "seconds": seconds})
+                                "argv": list(ladder[step]), "seconds": seconds})
             if model is None:
                 model = cycles_model(technique, record["settings"])
         if model is not None and reference is None:
@@ -90,6 +90,12 @@ def run(ctx: RunContext) -> None:
     for step, row in enumerate(kernel_rows):
         row.update(compare(images[step], reference.image).to_dict())
     best = min(range(len(kernel_rows)), key=lambda k: kernel_rows[k]["rel_mse"])
+    from ...addon.bridge import snapshot
+    from ..quality import record, scene_features
+
+    bpy.ops.wm.open_mainfile(filepath=str(scene_path), load_ui=False, use_scripts=False)
+    features = scene_features(snapshot(resolution=ctx.resolution), ctx.resolution)
+    db = record(technique, scene_path.name, features, kernel_rows)
     errors = error_images(images[best], reference.image)
     write_preview_png(ctx.output("render.png"), images[best])
     write_preview_png(ctx.output("cycles_reference.png"), reference.image)
@@ -112,6 +118,7 @@ def run(ctx: RunContext) -> None:
         "charts": [c for c in charts if c.endswith(".png")],
         "reference": {"samples": reference.samples, "noise_rel_mse": reference.noise_rel_mse,
                       "cache_hit": reference.cache_hit},
+        "quality_db": str(db), "features": features,
     }
     ctx.say(f"{technique}: best rung '{kernel_rows[best]['setting']}' relMSE "
             f"{kernel_rows[best]['rel_mse']:.3g} in {kernel_rows[best]['seconds']:.2f} s; Cycles "

@@ -19,6 +19,9 @@ def add_arguments(parser) -> None:
                         help="lightmap resolution per object (default 256)")
     parser.add_argument("--padding", type=int, default=2, metavar="TEXELS", help="chart padding")
     parser.add_argument("--uv-name", default="Lightmap", help="lightmap UV layer (created if missing)")
+    parser.add_argument("--target-error", type=float, default=None, metavar="REL_MSE",
+                        help="pick the cheapest settings that reached this relative MSE on the "
+                             "most similar scene `compare` measured")
 
 
 def settings_from(args):
@@ -51,7 +54,11 @@ def run(ctx: RunContext) -> None:
     from ...kernels.exr import write_exr
     from ..images import write_preview_png
     from ..outputs import safe_name
+    from ..quality import apply_target
 
+    if ctx.args.target_error is not None:
+        apply_target(ctx, "shadowmap", bridge.snapshot(request=bridge.SnapshotRequest(
+            textures=False, uv=False), resolution=ctx.resolution))
     settings, uv = settings_from(ctx.args)
     summary = None
     with ctx.phase("bake"):

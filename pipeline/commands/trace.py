@@ -17,6 +17,9 @@ def add_arguments(parser) -> None:
                         help="stop branches whose weight falls below this (default 1e-3)")
     parser.add_argument("--offset-scale", type=float, default=None,
                         help="ray offset as a fraction of the scene size (default 1e-5)")
+    parser.add_argument("--target-error", type=float, default=None, metavar="REL_MSE",
+                        help="pick the cheapest settings that reached this relative MSE on the "
+                             "most similar scene `compare` measured (overrides the options above)")
 
 
 def tracer_settings(scene, args):
@@ -41,11 +44,13 @@ def run(ctx: RunContext) -> None:
     from ...kernels.bvh import BVH
     from ...kernels.tracer import TraceResult, trace_steps
     from ..images import write_preview_png
+    from ..quality import apply_target
 
     with ctx.phase("snapshot"):
         scene = snapshot(request=SnapshotRequest(lightmap_uv=None), resolution=ctx.resolution)
     if scene.camera is None:
         raise UsageError("the scene has no camera to trace from")
+    apply_target(ctx, "trace", scene)
     settings = tracer_settings(scene, ctx.args)
     with ctx.phase("bvh"):
         bvh = BVH.build(scene.triangles)

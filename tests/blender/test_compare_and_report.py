@@ -11,14 +11,17 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def run_cli(*args, timeout=600):
+def run_cli(*args, timeout=600, env=None):
     return subprocess.run([sys.executable, "-m", "classic_bake", *map(str, args)],
-                          capture_output=True, text=True, timeout=timeout)
+                          capture_output=True, text=True, timeout=timeout,
+                          env=None if env is None else {**os.environ, **env})
 
 
-def test_compare_writes_both_ladders_errors_and_chart(tmp_path):
-    done = run_cli("compare", ROOT / "sample_blends" / "shadows.blend", "--technique", "shadowmap",
-                   "--resolution", "40", "30", "--max-samples", "2", "--out", tmp_path)
+def test_compare_writes_both_ladders_errors_and_chart_and_feeds_auto_quality(tmp_path):
+    db = {"CLASSIC_BAKE_QUALITY_DB": str(tmp_path / "ladders.json")}
+    scene = ROOT / "sample_blends" / "shadows.blend"
+    done = run_cli("compare", scene, "--technique", "shadowmap", "--resolution", "40", "30",
+                   "--max-samples", "2", "--out", tmp_path, env=db)
     assert done.returncode == 0, done.stderr[-2000:]
     metrics = json.loads((tmp_path / "metrics.json").read_text())
     comparison = metrics["comparison"]
@@ -31,8 +34,17 @@ def test_compare_writes_both_ladders_errors_and_chart(tmp_path):
     assert json.dumps(data).count("rel_mse") >= 1
     for name in ("speed_accuracy.png", "speed_accuracy.svg", "error_rel_se.png", "render.exr"):
         assert (tmp_path / name).stat().st_size > 0
-    bad = run_cli("compare", ROOT / "sample_blends" / "shadows.blend", "--technique", "nonsense")
+    bad = run_cli("compare", scene, "--technique", "nonsense")
     assert bad.returncode == 2
+    # Auto quality: the cheapest measured rung that met the target, and it says which.
+    target = sorted(r["rel_mse"] for r in kernel)[1]
+    picked = run_cli("shadowmap", scene, "--resolution", "40", "30", "--target-error", target,
+                     "--lightmap-size", "64", "--out", tmp_path / "auto", env=db)
+    assert picked.returncode == 0, picked.stderr[-2000:]
+    assert "auto quality: picked" in picked.stdout
+    auto = json.loads((tmp_path / "auto" / "metrics.json").read_text())["auto_quality"]
+    met = [r for r in kernel if r["rel_mse"] <= target]
+    assert auto["met_target"] and auto["expected_seconds"] == min(r["seconds"] for r in met)
 
 
 def test_report_of_the_sample_scenes_opens_in_chromium(tmp_path):

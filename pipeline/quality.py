@@ -1,0 +1,79 @@
+"""The measured-ladder store behind auto quality (kernels/auto_quality.py).
+
+`compare` records each ladder it measures in a JSON file (default out/quality/ladders.json, or
+$CLASSIC_BAKE_QUALITY_DB); technique commands given `--target-error` pick their settings from it.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+
+DEFAULT_DB = Path("out/quality/ladders.json")
+
+
+def db_path() -> Path:
+    return Path(os.environ.get("CLASSIC_BAKE_QUALITY_DB", DEFAULT_DB))
+
+
+def scene_features(scene, resolution=None) -> dict:
+    """What makes two scenes cost and err alike: triangles, lights, pixels, specular objects."""
+    width, height = resolution or (scene.camera.resolution if scene.camera else (0, 0))
+    specular = {int(o) for o in np.unique(scene.object_ids[np.isin(
+        scene.material_ids, [k for k, m in enumerate(scene.materials)
+                             if m.metallic > 0 or m.transmission > 0])])} if scene.triangle_count else set()
+    return {"triangles": scene.triangle_count, "lights": len(scene.lights),
+            "pixels": int(width * height), "specular_objects": len(specular)}
+
+
+def load() -> list[dict]:
+    path = db_path()
+    if not path.exists():
+        return []
+    try:
+        return json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError):
+        return []
+
+
+def record(technique: str, scene: str, features: dict, rows: list[dict]) -> Path:
+    """Store (replace) the ladder measured for `technique` on `scene`; written atomically."""
+    records = [r for r in load() if not (r["technique"] == technique and r["scene"] == scene)]
+    records.append({"technique": technique, "scene": scene, "features": features,
+                    "rows": [{"argv": r["argv"], "seconds": r["seconds"], "rel_mse": r["rel_mse"]}
+                             for r in rows]})
+    path = db_path()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps(records, indent=1))
+    os.replace(tmp, path)
+    return path
+
+
+def apply_target(ctx, technique: str, scene) -> None:
+    """If `--target-error` was given, replace the quality options by the picked rung's."""
+    from ..kernels.auto_quality import pick
+    from .cli import COMMANDS, command_args
+    from .outputs import UsageError
+
+    target = getattr(ctx.args, "target_error", None)
+    if target is None:
+        return
+    try:
+        chosen = pick(load(), technique, scene_features(scene, ctx.resolution), target)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from exc
+    picked = command_args(COMMANDS[technique], ctx.args.scene, ctx.args.out, ctx.resolution,
+                          chosen.setting)
+    for key in vars(picked):
+        if key not in ("scene", "out", "save_blend", "resolution", "target_error"):
+            setattr(ctx.args, key, getattr(picked, key))
+    ctx.record.extra["auto_quality"] = {"target_rel_mse": target, "picked": chosen.setting,
+                                        "expected_rel_mse": chosen.expected_rel_mse,
+                                        "expected_seconds": chosen.expected_seconds,
+                                        "from_scene": chosen.scene, "met_target": chosen.met_target,
+                                        "reason": chosen.reason}
+    ctx.say(f"auto quality: picked {' '.join(chosen.setting) or 'the defaults'} ({chosen.reason})")
