@@ -323,10 +323,24 @@ class _Tracer:
             out[sub] += brdf_d[sub] * (em.area_radiance_da[s] * (g[sub] * vis)[:, None])
         return out
 
+    def hit_ids(self, tri: np.ndarray) -> np.ndarray:
+        """Object * (materials + 1) + material of each hit triangle; -1 where nothing was hit."""
+        ids = np.full(len(tri), -1, np.int64)
+        hit = tri >= 0
+        t = tri[hit]
+        ids[hit] = (self.scene.object_ids[t].astype(np.int64) * (len(self.scene.materials) + 1)
+                    + self.scene.material_ids[t])
+        return ids
+
     # --- the wavefront ---------------------------------------------------------------------------
 
-    def radiance(self, origins: np.ndarray, dirs: np.ndarray) -> np.ndarray:
-        """Radiance (N, 3) arriving at the camera along N primary rays."""
+    def radiance(self, origins: np.ndarray, dirs: np.ndarray,
+                 primary_ids: np.ndarray | None = None) -> np.ndarray:
+        """Radiance (N, 3) arriving at the camera along N primary rays.
+
+        primary_ids: optional (N,) int64 filled with what each camera ray hit (object and
+        material, -1 for the background), for edge detection without tracing twice.
+        """
         s = self.settings
         result = np.zeros((len(origins), 3))
         pixel = np.arange(len(origins))
@@ -341,6 +355,8 @@ class _Tracer:
                 self.stats.secondary_rays += len(origins)
             hits = self.bvh.intersect(origins, dirs, t_min, np.inf)
             miss = hits.tri < 0
+            if depth == 0 and primary_ids is not None:
+                primary_ids[...] = self.hit_ids(hits.tri)
             np.add.at(result, pixel[miss], weight[miss] * self.scene.world_color)
             keep = ~miss
             origins, dirs, pixel, weight = origins[keep], dirs[keep], pixel[keep], weight[keep]
@@ -454,12 +470,10 @@ def trace_steps(scene: Scene, settings: TracerSettings, bvh: BVH | None = None,
     passes = n * n
     # --- pass 1: n x n stratified samples everywhere (1: the pixel centres) ----------------------
     acc = np.zeros((height * width, 3))
-    first_ids = None
+    first_ids = np.empty(height * width, np.int64)
     for k, (ox, oy) in enumerate(_stratified_unit_square(n)):
         o, d = camera_rays(scene.camera, width, height, offsets=(ox, oy))
-        acc += tracer.radiance(o.reshape(-1, 3), d.reshape(-1, 3))
-        if first_ids is None:
-            first_ids = _primary_ids(scene, bvh, o.reshape(-1, 3), d.reshape(-1, 3))
+        acc += tracer.radiance(o.reshape(-1, 3), d.reshape(-1, 3), first_ids if k == 0 else None)
         yield 0.6 * (k + 1) / passes
     pixels = acc / passes
     # --- pass 2: supersample only where it changes the image (edges) -----------------------------
@@ -478,16 +492,6 @@ def trace_steps(scene: Scene, settings: TracerSettings, bvh: BVH | None = None,
             pixels[sel] = sub / len(grid)
     image[...] = pixels.reshape(height, width, 3)
     yield TraceResult(image=image, stats=tracer.stats, settings=settings)
-
-
-def _primary_ids(scene: Scene, bvh: BVH, origins, dirs) -> np.ndarray:
-    """Object * materials + material id seen by each camera ray (-1: background)."""
-    hits = bvh.intersect(origins, dirs)
-    ids = np.full(len(origins), -1, np.int64)
-    hit = hits.tri >= 0
-    tri = hits.tri[hit]
-    ids[hit] = scene.object_ids[tri].astype(np.int64) * (len(scene.materials) + 1) + scene.material_ids[tri]
-    return ids
 
 
 def trace(scene: Scene, settings: TracerSettings | None = None, **kwargs) -> TraceResult:
