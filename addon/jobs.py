@@ -127,3 +127,71 @@ def shadow_bake_job(context, settings, uv_name: str, uv_settings, attribute: str
         name = "Classic Bake Shadows"
         bridge.write_image(name, image, image=bpy.data.images.get(name))
     yield summary
+
+
+def radiosity_bake_job(context, settings, uv_name: str, uv_settings, attribute: str = "Radiosity",
+                       image_prefix: str = "Radiosity", render: bool = True, resolution=None,
+                       wire: bool = False):
+    """Solve the scene's radiosity and bake its outgoing radiance B / pi into a lightmap image
+    ("Radiosity <object>") and a CORNER colour attribute (`attribute`) per mesh, and (render=True)
+    the camera's view of the solution. `wire` makes materials show the attribute (Emission).
+    Yields progress, then a summary {"images", "attributes", "render", "skipped", "lightmaps",
+    "result", "scene"}."""
+    from ..kernels import radiosity
+
+    objects = mesh_objects(context)
+    if not objects:
+        raise ValueError("the scene has no mesh objects to bake")
+    plan = lightmap_plan(objects, uv_settings)
+    created = create_lightmap_uvs(objects, uv_name, uv_settings, plan)
+    try:
+        scene = bridge.snapshot(context, bridge.SnapshotRequest(lightmap_uv=uv_name, textures=True),
+                                resolution=resolution)
+        result = None
+        for step in radiosity.radiosity_steps(scene, settings):
+            if isinstance(step, radiosity.RadiosityResult):
+                result = step
+            else:
+                yield 0.85 * step
+        targets = [k for k, o in enumerate(scene.objects) if not o.is_instance]
+        sizes = {k: plan.get(scene.objects[k].source_name, uv_settings.resolution) for k in targets}
+        bakes = None
+        for step in radiosity.bake_steps(scene, result, targets, sizes, uv_settings.padding):
+            if isinstance(step, dict):
+                bakes = step
+            else:
+                yield 0.85 + 0.1 * step
+        image = None
+        if render and scene.camera is not None:
+            for step in radiosity.render_steps(scene, result, resolution):
+                if isinstance(step, np.ndarray):
+                    image = step
+                else:
+                    yield 0.95 + 0.05 * step
+    except BaseException:
+        _remove_uv_layers(created, uv_name)
+        raise
+    # --- write back: everything computed ---------------------------------------------------------
+    summary = {"images": {}, "attributes": [], "render": None, "skipped": [], "lightmaps": {},
+               "result": result, "scene": scene, "lightmap_sizes": plan}
+    for k, bake in bakes.items():
+        info = scene.objects[k]
+        obj = bpy.data.objects[info.source_name]
+        if bake.lightmap is not None:
+            name = f"{image_prefix} {info.source_name}"
+            summary["images"][info.source_name] = bridge.write_image(
+                name, bake.lightmap, image=bpy.data.images.get(name))
+            summary["lightmaps"][info.source_name] = (bake.lightmap, bake.lightmap_mask)
+        if info.topology_matches_original:
+            bridge.write_corner_values(obj.data, scene, k, bake.corners, attribute)
+            summary["attributes"].append(info.source_name)
+            if wire:
+                bridge.wire_baked_display(obj, attribute=attribute)
+        else:
+            summary["skipped"].append(f"{info.source_name}: modifiers change its topology, so the "
+                                      "colour attribute is not written (the lightmap is)")
+    if image is not None:
+        summary["render"] = image
+        name = "Classic Bake Radiosity"
+        bridge.write_image(name, image, image=bpy.data.images.get(name))
+    yield summary

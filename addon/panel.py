@@ -97,8 +97,27 @@ class CLASSICBAKE_PT_compare(bpy.types.Panel):
             box.label(text="Error image: 'Classic Bake Error'", icon="IMAGE_DATA")
 
 
+class CLASSICBAKE_PT_radiosity(bpy.types.Panel):
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = "Classic Bake"
+    bl_label = "Radiosity"
+    bl_parent_id = "CLASSICBAKE_PT_main"
+
+    def draw(self, context):
+        layout = self.layout
+        props = context.scene.classic_bake
+        layout.use_property_split = True
+        layout.prop(props, "radiosity_method")
+        layout.prop(props, "radiosity_solver")
+        layout.prop(props, "radiosity_patches")
+        layout.prop(props, "radiosity_refine")
+        layout.prop(props, "radiosity_wire")
+        layout.operator("classic_bake.radiosity", icon="LIGHT_AREA")
+
+
 CLASSES = (CLASSICBAKE_PT_main, CLASSICBAKE_PT_lightmap_uv, CLASSICBAKE_PT_trace,
-           CLASSICBAKE_PT_shadowmap, CLASSICBAKE_PT_compare)
+           CLASSICBAKE_PT_shadowmap, CLASSICBAKE_PT_radiosity, CLASSICBAKE_PT_compare)
 
 
 def register() -> None:

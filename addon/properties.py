@@ -43,6 +43,27 @@ class CLASSICBAKE_PG_settings(bpy.types.PropertyGroup):
     shadow_pcf: IntProperty(
         name="PCF", description="K x K percentage-closer filtering (1: hard)", default=1, min=1,
         max=15, step=2)
+    radiosity_method: EnumProperty(
+        name="Form Factors", description="How form factors between patches are estimated",
+        items=[("raycast", "Ray-Cast", "Exact point-to-polygon factors, visibility by shadow rays"),
+               ("hemicube", "Hemicube", "Hemicubes at points of each patch (Cohen & Greenberg)")],
+        default="raycast")
+    radiosity_solver: EnumProperty(
+        name="Solver", description="How the radiosity system is solved",
+        items=[("auto", "Automatic", "Gauss-Seidel while the dense matrix fits in memory, else "
+                "progressive refinement"),
+               ("gauss_seidel", "Gauss-Seidel", "Gathering on the dense form factor matrix"),
+               ("progressive", "Progressive", "Shooting, one row at a time, never N x N")],
+        default="auto")
+    radiosity_patches: IntProperty(
+        name="Patches", description="Patches aimed at before refinement (sets the patch size)",
+        default=400, min=1, soft_max=5000)
+    radiosity_refine: IntProperty(
+        name="Refinement", description="Adaptive refinement levels (patches split where the "
+        "solution varies strongly or a shadow boundary crosses)", default=1, min=0, max=4)
+    radiosity_wire: BoolProperty(
+        name="Show in Materials", description="Wire the 'Radiosity' attribute into the materials "
+        "(Emission) so viewport and renders show the bake", default=False)
     compare_technique: EnumProperty(
         name="Technique", description="Which kernel render to compare with Cycles",
         items=[("TRACE", "Ray Tracing", "The Whitted tracer against Cycles' whitted model"),

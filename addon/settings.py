@@ -27,3 +27,12 @@ def direct_light_settings(props):
                                eps_mode="auto" if props.shadow_eps_auto else "fixed",
                                eps=props.shadow_eps, pcf_size=pcf)
     return DirectLightSettings(shadow=shadow, auto_resolution=props.shadow_map_size == 0)
+
+
+def radiosity_settings(props):
+    """`scene.classic_bake` -> RadiositySettings."""
+    from ..kernels.radiosity import RadiositySettings
+
+    return RadiositySettings(method=props.radiosity_method, solver=props.radiosity_solver,
+                             patch_budget=props.radiosity_patches,
+                             refine_levels=props.radiosity_refine)

@@ -1,0 +1,286 @@
+"""Radiosity against Cycles on the Cornell box: baked lightmaps and the camera render.
+
+    .venv/bin/python bench/radiosity.py [--size 64] [--ref-samples 1024] [--quick] [--scale]
+
+One process, alternating sides. Cycles bakes the SAME lightmap texels (DIFFUSE with colour, into
+the same xatlas lightmap UVs; its texels are rho E / pi, ours B / pi) at a ladder of samples;
+the radiosity bake runs at a ladder of patch counts, solvers and form factor methods. Errors are
+relative MSE (`kernels.metrics.rel_mse`) against a converged Cycles bake (`--ref-samples`) over
+the texels both bake, every object but the emitter (a DIFFUSE bake leaves out emission). The
+camera render of the solution is compared with Cycles' render the same way. For every radiosity
+rung, the seconds Cycles needs to reach the same error (log-log interpolation along its ladder,
+its top rung when it never gets there) over the radiosity seconds: the ratio
+`cycles_bake_vs_radiosity_seconds_to_same_rel_mse` is the smallest of these.
+
+--scale: a procedural 100k-triangle scene (a Cornell-like box of finely tessellated walls and
+blocks, no Blender), progressive refinement with a shot budget; reports the up-front memory
+estimate against the measured peak (tracemalloc) and the seconds.
+Writes out/bench/radiosity.json, out/bench/radiosity_*.png/svg and radiosity_cornell.png.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _report import OUT_DIR, format_table, versions, write_report  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENE = ROOT / "sample_blends" / "cornell_box.blend"
+UV_NAME = "Lightmap"
+EMITTER = "Light"
+RENDER_SIZE = (80, 60)
+
+
+def stack(images: dict, masks: dict, names) -> np.ndarray:
+    """Every valid texel of `names` as one (N, 1, 3) image."""
+    return np.concatenate([images[n][masks[n]] for n in names])[:, None, :]
+
+
+def seconds_to_reach(ladder: list[dict], error: float) -> tuple[float, bool]:
+    """Cycles seconds to reach `error` (log-log interpolation); (top rung's seconds, False) when
+    the ladder never gets there."""
+    pts = [(r["seconds"], r["rel_mse"]) for r in ladder]
+    if pts[0][1] <= error:
+        return pts[0][0], True
+    for (s0, e0), (s1, e1) in zip(pts[:-1], pts[1:], strict=True):
+        if e1 <= error:
+            f = np.log(error / e0) / np.log(e1 / e0)
+            return float(np.exp(np.log(s0) + f * (np.log(s1) - np.log(s0)))), True
+    return pts[-1][0], False
+
+
+def cornell(args) -> tuple[dict, dict, list]:
+    import bpy
+
+    from classic_bake.addon import bridge
+    from classic_bake.addon import cycles_reference as cr
+    from classic_bake.addon.jobs import create_lightmap_uvs, lightmap_plan
+    from classic_bake.kernels import radiosity as rad
+    from classic_bake.kernels.bvh import BVH
+    from classic_bake.kernels.lightmap_uv import LightmapUVSettings
+    from classic_bake.kernels.metrics import rel_mse
+    from classic_bake.pipeline.charts import speed_accuracy_chart
+    from classic_bake.pipeline.images import write_preview_png
+
+    bpy.ops.wm.open_mainfile(filepath=str(SCENE), load_ui=False, use_scripts=False)
+    uv = LightmapUVSettings(resolution=args.size, padding=2)
+    meshes = [o for o in bpy.context.scene.objects if o.type == "MESH"]
+    plan = lightmap_plan(meshes, uv)
+    create_lightmap_uvs(meshes, UV_NAME, uv, plan)
+    scene = bridge.snapshot(request=bridge.SnapshotRequest(lightmap_uv=UV_NAME),
+                            resolution=RENDER_SIZE)
+    names = [o.name for o in meshes if o.name != EMITTER]
+    objects = [k for k, o in enumerate(scene.objects) if o.source_name in names]
+    sizes = {k: plan[scene.objects[k].source_name] for k in objects}
+    model = cr.radiosity()
+    cr.warm_up()
+
+    def cycles_bake(samples):
+        images, masks, seconds = {}, {}, 0.0
+        for size in sorted({plan[n] for n in names}):
+            group = [n for n in names if plan[n] == size]
+            got, secs, m = cr.bake_lightmaps(bpy.context.scene, model, samples, group, UV_NAME,
+                                             size, "DIFFUSE")
+            images.update(got)
+            masks.update(m)
+            seconds += secs
+        return images, masks, seconds
+
+    start = time.perf_counter()
+    ref_images, ref_masks, ref_seconds = cycles_bake(args.ref_samples)
+    ref_render, ref_render_s = cr.render_camera(bpy.context.scene, model, args.ref_samples,
+                                                RENDER_SIZE)
+    print(f"references: bake {ref_seconds:.1f} s, render {ref_render_s:.1f} s "
+          f"({args.ref_samples} samples; {time.perf_counter() - start:.0f} s wall)")
+
+    def radiosity_run(settings):
+        start = time.perf_counter()
+        bvh = BVH.build(scene.triangles)
+        result = rad.solve_radiosity(scene, settings, bvh)
+        bakes = None
+        for step in rad.bake_steps(scene, result, objects, sizes, 2):
+            bakes = step
+        seconds = time.perf_counter() - start
+        images = {scene.objects[k].source_name: b.lightmap for k, b in bakes.items()}
+        masks = {scene.objects[k].source_name: b.lightmap_mask for k, b in bakes.items()}
+        start = time.perf_counter()
+        image = None
+        for step in rad.render_steps(scene, result, RENDER_SIZE):
+            image = step
+        render_s = seconds + time.perf_counter() - start  # solve + bake + camera view
+        return images, masks, seconds, image, render_s, result
+
+    rungs = [("raycast", "gauss_seidel", 50, 0), ("raycast", "gauss_seidel", 150, 0),
+             ("raycast", "gauss_seidel", 300, 1), ("hemicube", "gauss_seidel", 150, 0),
+             ("raycast", "progressive", 150, 0)]
+    if not args.quick:
+        rungs.insert(3, ("raycast", "gauss_seidel", 600, 1))
+    cycles_samples = [1, 4, 16, 64] if args.quick else [1, 4, 16, 64, 256]
+    kernel, cycles, kernel_render, cycles_render = [], [], [], []
+    best_image = None
+    for step in range(max(len(rungs), len(cycles_samples))):  # alternate the two sides
+        if step < len(rungs):
+            method, solver, budget, levels = rungs[step]
+            settings = rad.RadiositySettings(method=method, solver=solver, patch_budget=budget,
+                                             refine_levels=levels)
+            images, masks, seconds, image, render_s, result = radiosity_run(settings)
+            valid = {n: masks[n] & ref_masks[n] for n in names}
+            error = rel_mse(stack(images, valid, names), stack(ref_images, valid, names))
+            label = f"{method} {solver} {result.stats['patches']}p"
+            kernel.append({"setting": label, "seconds": seconds, "rel_mse": error,
+                           "patches": result.stats["patches"],
+                           "per_level": result.stats["per_level"]})
+            kernel_render.append({"setting": label, "seconds": render_s,
+                                  "rel_mse": rel_mse(image, ref_render)})
+            if budget == 300:
+                best_image = image
+        if step < len(cycles_samples):
+            n = cycles_samples[step]
+            images, masks, seconds = cycles_bake(n)
+            valid = {k: masks[k] & ref_masks[k] for k in names}
+            cycles.append({"samples": n, "seconds": seconds,
+                           "rel_mse": rel_mse(stack(images, valid, names),
+                                              stack(ref_images, valid, names))})
+            image, seconds = cr.render_camera(bpy.context.scene, model, n, RENDER_SIZE)
+            cycles_render.append({"samples": n, "seconds": seconds,
+                                  "rel_mse": rel_mse(image, ref_render)})
+    ratios, rows = {}, []
+    for which, ours, theirs in (("bake", kernel, cycles), ("render", kernel_render, cycles_render)):
+        worst = np.inf
+        for entry in ours:
+            s, reached = seconds_to_reach(theirs, entry["rel_mse"])
+            entry["cycles_seconds_to_same_rel_mse"] = s
+            entry["cycles_reached"] = reached
+            entry["speedup"] = s / entry["seconds"]
+            worst = min(worst, entry["speedup"])
+        ratios[f"cycles_{which}_vs_radiosity_seconds_to_same_rel_mse"] = float(worst)
+    for e, r in zip(kernel, kernel_render, strict=True):
+        rows.append([e["setting"], e["seconds"], e["rel_mse"], e["cycles_seconds_to_same_rel_mse"],
+                     e["speedup"], r["rel_mse"], r["speedup"]])
+    print(format_table(["radiosity rung", "bake s", "bake rel_mse", "cycles s same err",
+                        "speedup", "render rel_mse", "render speedup"], rows))
+    print(format_table(["cycles samples", "bake s", "bake rel_mse", "render s", "render rel_mse"],
+                       [[c["samples"], c["seconds"], c["rel_mse"], r["seconds"], r["rel_mse"]]
+                        for c, r in zip(cycles, cycles_render, strict=True)]))
+    OUT_DIR.mkdir(parents=True, exist_ok=True)
+    speed_accuracy_chart(kernel, cycles, OUT_DIR / "radiosity_bake", metric="rel_mse",
+                         title="Cornell box lightmaps: radiosity vs Cycles DIFFUSE bake",
+                         kernel_label="radiosity (patches)", cycles_label="Cycles bake (samples)")
+    speed_accuracy_chart(kernel_render, cycles_render, OUT_DIR / "radiosity_render",
+                         metric="rel_mse", title="Cornell box camera: radiosity vs Cycles",
+                         kernel_label="radiosity (patches)", cycles_label="Cycles (samples)")
+    if best_image is not None:
+        write_preview_png(OUT_DIR / "radiosity_cornell.png", best_image)
+    figures = {"bake": {"kernel": kernel, "cycles": cycles}, "render": {"kernel": kernel_render,
+               "cycles": cycles_render}, "reference_samples": args.ref_samples,
+               "lightmap_sizes": plan, "render_size": RENDER_SIZE}
+    return ratios, figures, rows
+
+
+def scale_scene(target_triangles: int):
+    """A Cornell-like box (1 m, inward walls, an emissive ceiling patch, two blocks) whose faces are
+    grids, about `target_triangles` triangles in all."""
+    sys.path.insert(0, str(ROOT / "tests" / "support"))
+    from scene_builder import build
+
+    from classic_bake.kernels.scene import Material
+
+    def grid(origin, du, dv, n):
+        o, du, dv = (np.asarray(x, float) for x in (origin, du, dv))
+        i, j = np.meshgrid(np.arange(n), np.arange(n), indexing="ij")
+        p = lambda a, b: o + (a[..., None] / n) * du + (b[..., None] / n) * dv  # noqa: E731
+        a, b, c, d = p(i, j), p(i + 1, j), p(i + 1, j + 1), p(i, j + 1)
+        return np.concatenate([np.stack([a, b, c], -2), np.stack([a, c, d], -2)]).reshape(-1, 3, 3)
+
+    faces = 5 + 2 * 5  # walls + two open-bottom blocks
+    n = int(np.sqrt(target_triangles / (2 * faces))) + 1
+    white = Material("White", base_color=np.full(3, 0.7, np.float32))
+    red = Material("Red", base_color=np.array([0.6, 0.05, 0.05], np.float32))
+    green = Material("Green", base_color=np.array([0.1, 0.5, 0.1], np.float32))
+    lamp = Material("Lamp", base_color=np.full(3, 0.0, np.float32),
+                    emission=np.full(3, 20.0, np.float32))
+    parts = [
+        (grid([0, 0, 0], [1, 0, 0], [0, 1, 0], n), white),  # floor, up
+        (grid([0, 0, 1], [0, 1, 0], [1, 0, 0], n), white),  # ceiling, down
+        (grid([0, 1, 0], [1, 0, 0], [0, 0, 1], n), white),  # back wall, -y
+        (grid([0, 0, 0], [0, 1, 0], [0, 0, 1], n), red),  # left wall, +x
+        (grid([1, 0, 0], [0, 0, 1], [0, 1, 0], n), green),  # right wall, -x
+        (grid([0.4, 0.4, 0.999], [0, 0.2, 0], [0.2, 0, 0], 2), lamp),
+    ]
+    for lo, h in (((0.15, 0.2), 0.3), ((0.55, 0.5), 0.6)):
+        x, y = lo
+        s = 0.3
+        parts += [
+            (grid([x, y, h], [s, 0, 0], [0, s, 0], n), white),  # top
+            (grid([x, y, 0], [s, 0, 0], [0, 0, h], n), white),  # front (-y)
+            (grid([x, y + s, 0], [0, 0, h], [s, 0, 0], n), white),  # back (+y)
+            (grid([x, y, 0], [0, 0, h], [0, s, 0], n), white),  # left (-x)
+            (grid([x + s, y, 0], [0, s, 0], [0, 0, h], n), white),  # right (+x)
+        ]
+    return build(parts)
+
+
+def scale_run(args) -> tuple[dict, dict]:
+    import tracemalloc
+
+    from classic_bake.kernels import radiosity as rad
+
+    scene = scale_scene(args.scale_triangles)
+    settings = rad.RadiositySettings(solver="progressive", patch_budget=1, patch_size=10.0,
+                                     refine_levels=0, samples_per_side=1,
+                                     visibility_samples_per_side=1, light_samples_per_side=1,
+                                     max_shots=args.scale_shots)
+    estimate = rad.memory_estimate(scene.triangle_count, scene.triangle_count, settings,
+                                   "progressive")
+    print(f"scale: {scene.triangle_count} triangles; memory estimate up front "
+          f"{estimate['total'] / 2**20:.0f} MiB")
+    tracemalloc.start()
+    start = time.perf_counter()
+    result = rad.solve_radiosity(scene, settings)
+    seconds = time.perf_counter() - start
+    _, peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    figures = {"triangles": scene.triangle_count, "patches": result.stats["patches"],
+               "shots": result.stats["levels"][-1]["iterations"],
+               "unshot_fraction": result.stats["levels"][-1]["solver_error"],
+               "seconds": seconds, "memory_estimate_bytes": estimate["total"],
+               "memory_estimate_parts": estimate, "peak_traced_bytes": peak}
+    print(f"scale: {result.stats['patches']} patches, {figures['shots']} shots (unshot "
+          f"{figures['unshot_fraction']:.3f} of the emitted power, ambient term covers it) in "
+          f"{seconds:.1f} s; peak traced memory {peak / 2**20:.0f} MiB vs estimate "
+          f"{estimate['total'] / 2**20:.0f} MiB")
+    return {"scale_peak_vs_estimate_bytes": peak / estimate["total"]}, figures
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--size", type=int, default=64, help="lightmap of the largest object")
+    parser.add_argument("--ref-samples", type=int, default=1024, help="converged Cycles samples")
+    parser.add_argument("--quick", action="store_true", help="shorter ladders")
+    parser.add_argument("--scale", action="store_true", help="also the 100k-triangle scale run")
+    parser.add_argument("--scale-only", action="store_true", help="only the scale run")
+    parser.add_argument("--scale-triangles", type=int, default=100_000)
+    parser.add_argument("--scale-shots", type=int, default=40)
+    args = parser.parse_args()
+    ratios, figures = {}, {}
+    if not args.scale_only:
+        r, f, _ = cornell(args)
+        ratios.update(r)
+        figures["cornell"] = f
+    if args.scale or args.scale_only:
+        r, f = scale_run(args)
+        ratios.update(r)
+        figures["scale"] = f
+    write_report("radiosity", ratios, figures, versions("bpy", "classic_bake"))
+    print({k: round(v, 3) for k, v in ratios.items()})
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,246 @@
+"""Radiosity patches: the scene's triangles cut into sub-triangles of about a target size, refined
+where the solution asks, and located again from any point on the scene's surface.
+
+A patch is a sub-triangle of exactly one scene triangle (its parent), described by the
+barycentric coordinates of its three corners in that parent. Meshing is uniform subdivision: a
+parent whose longest edge is e is cut into n^2 similar sub-triangles, n = ceil(e / target), so
+the patches of a triangle tile it exactly (total patch area = scene area) and keep its shape
+(a well-shaped mesh gives well-shaped patches). Refinement splits a patch into its four midpoint
+children (`split`). Patches are wound like their parent (counter-clockwise around its normal).
+
+Display: B is constant per patch; `corner_values` averages the patches that meet at a corner
+(area-weighted, only patches of the same object whose normals differ by less than a smoothing
+angle), and `interpolate` blends those corner values barycentrically inside the patch that holds
+a point (`locate`). Discontinuities stay where objects meet or where surfaces fold.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .scene import Scene, geometric_normals, triangle_areas
+
+# Most sub-divisions per parent edge at the first level: bounds a sliver (a long, thin scene
+# triangle) to 64^2 = 4096 patches instead of letting it explode the patch count.
+MAX_SUBDIVISIONS = 64
+# Corner positions are matched on a grid of this fraction of the scene's bounding-box diagonal:
+# far above float64 rounding of barycentric blends (1e-16 relative) and far below any patch.
+WELD_REL = 1e-7
+# A point is inside a patch when its smallest local barycentric coordinate is at least this
+# (negative: rounding slack on shared edges). The best-scoring patch wins anyway.
+INSIDE_EPS = -1e-9
+# (point, candidate patch) pairs tested at once by `locate`: bounds its temporaries (~100 MB).
+LOCATE_PAIRS = 1 << 20
+
+
+@dataclass(frozen=True, eq=False)
+class Patches:
+    """N triangular patches of a scene.
+
+    corners     (N, 3, 3) float64  world, m, counter-clockwise around the parent's normal
+    parent      (N,) int64         scene triangle each patch lies in
+    bary        (N, 3, 3) float64  barycentric coordinates of the corners in the parent
+    level       (N,) int32         refinement level (0: the first meshing)
+    normals     (N, 3) float64     unit geometric normals (the parent's)
+    areas       (N,) float64       m^2
+    object_ids  (N,) int32         the parent's object
+    """
+
+    corners: np.ndarray
+    parent: np.ndarray
+    bary: np.ndarray
+    level: np.ndarray
+    normals: np.ndarray
+    areas: np.ndarray
+    object_ids: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.parent.shape[0])
+
+    def level_counts(self) -> dict[int, int]:
+        """{refinement level: patch count}."""
+        levels, counts = np.unique(self.level, return_counts=True)
+        return {int(k): int(c) for k, c in zip(levels, counts, strict=True)}
+
+
+def auto_patch_size(scene: Scene, budget: int) -> float:
+    """Target longest patch edge (m) for about `budget` patches: sqrt(4 x total area / budget),
+    the hypotenuse of a right isosceles triangle of area total / budget (what a subdivided quad
+    yields)."""
+    area = float(triangle_areas(scene.triangles).sum())
+    if area <= 0.0 or budget < 1:
+        raise ValueError("the scene has no surface area to mesh into patches")
+    return float(np.sqrt(4.0 * area / budget))
+
+
+def _template(n: int) -> np.ndarray:
+    """(n^2, 3, 3) barycentric corners of the uniform n-subdivision of a triangle, CCW."""
+    out = []
+    for i in range(n):
+        for j in range(n - i):
+            out.append([(i, j), (i + 1, j), (i, j + 1)])
+            if i + j < n - 1:
+                out.append([(i + 1, j), (i + 1, j + 1), (i, j + 1)])
+    ab = np.asarray(out, np.float64) / n  # (n^2, 3, 2): weights of parent corners 1 and 2
+    return np.concatenate([1.0 - ab.sum(axis=2, keepdims=True), ab], axis=2)
+
+
+def make_patches(scene: Scene, target_size: float) -> Patches:
+    """Uniform meshing: each non-degenerate scene triangle cut into n^2 sub-triangles with
+    n = ceil(longest edge / target_size), clamped to [1, MAX_SUBDIVISIONS]."""
+    if not target_size > 0.0:
+        raise ValueError(f"patch size must be > 0 m, got {target_size}")
+    tris = scene.triangles.astype(np.float64)
+    edges = np.linalg.norm(tris - np.roll(tris, -1, axis=1), axis=2).max(axis=1)  # (T,)
+    keep = triangle_areas(tris) > 0.0
+    n = np.clip(np.ceil(edges / target_size), 1, MAX_SUBDIVISIONS).astype(np.int64)
+    parents, barys = [], []
+    for k in np.unique(n[keep]):
+        ids = np.flatnonzero(keep & (n == k))
+        tpl = _template(int(k))
+        parents.append(np.repeat(ids, len(tpl)))
+        barys.append(np.tile(tpl, (len(ids), 1, 1)))
+    if not parents:
+        raise ValueError("the scene has no triangle with area to mesh into patches")
+    parent = np.concatenate(parents)
+    order = np.argsort(parent, kind="stable")
+    return _assemble(scene, parent[order], np.concatenate(barys)[order],
+                     np.zeros(len(parent), np.int32))
+
+
+def split(scene: Scene, patches: Patches, mask: np.ndarray) -> Patches:
+    """Replace the patches where `mask` (N,) bool is set by their four midpoint children."""
+    mask = np.asarray(mask, bool)
+    if not mask.any():
+        return patches
+    b = patches.bary[mask]  # (M, 3, 3)
+    m01, m12, m20 = (b[:, 0] + b[:, 1]) / 2, (b[:, 1] + b[:, 2]) / 2, (b[:, 2] + b[:, 0]) / 2
+    children = np.stack([
+        np.stack([b[:, 0], m01, m20], 1), np.stack([m01, b[:, 1], m12], 1),
+        np.stack([m20, m12, b[:, 2]], 1), np.stack([m01, m12, m20], 1),
+    ], axis=1).reshape(-1, 3, 3)  # (4M, 3, 3), each CCW like its parent
+    parent = np.concatenate([patches.parent[~mask], np.repeat(patches.parent[mask], 4)])
+    bary = np.concatenate([patches.bary[~mask], children])
+    level = np.concatenate([patches.level[~mask], np.repeat(patches.level[mask] + 1, 4)])
+    order = np.argsort(parent, kind="stable")
+    return _assemble(scene, parent[order], bary[order], level[order].astype(np.int32))
+
+
+def _assemble(scene: Scene, parent: np.ndarray, bary: np.ndarray, level: np.ndarray) -> Patches:
+    tris = scene.triangles.astype(np.float64)[parent]  # (N, 3, 3)
+    corners = np.einsum("nkc,ncj->nkj", bary, tris)
+    return Patches(corners=corners, parent=parent, bary=bary, level=level,
+                   normals=geometric_normals(tris), areas=triangle_areas(corners),
+                   object_ids=scene.object_ids[parent].astype(np.int32))
+
+
+# --- locating points and interpolating --------------------------------------------------------
+
+
+def _local_bary(tri2: np.ndarray, p2: np.ndarray) -> np.ndarray:
+    """Barycentric coordinates (M, 3) of 2-D points p2 (M, 2) in 2-D triangles tri2 (M, 3, 2)."""
+    a, b, c = tri2[:, 0], tri2[:, 1], tri2[:, 2]
+    v0, v1, v2 = b - a, c - a, p2 - a
+    det = v0[:, 0] * v1[:, 1] - v0[:, 1] * v1[:, 0]
+    safe = np.where(det != 0.0, det, 1.0)
+    s = (v2[:, 0] * v1[:, 1] - v2[:, 1] * v1[:, 0]) / safe
+    t = (v0[:, 0] * v2[:, 1] - v0[:, 1] * v2[:, 0]) / safe
+    return np.stack([1.0 - s - t, s, t], axis=1)
+
+
+def locate(patches: Patches, tri: np.ndarray, bary: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The patch holding each point and the point's barycentric coordinates in it.
+
+    tri (M,) scene triangles, bary (M, 3) barycentric coordinates in them. Returns patch (M,)
+    int64 (-1 where the triangle has no patch: zero area) and local (M, 3) float64.
+    Every patch of the point's triangle is tested (in the parent's barycentric plane); the one
+    whose smallest local coordinate is largest wins, so points on shared edges land once.
+    """
+    tri = np.asarray(tri, np.int64)
+    bary = np.asarray(bary, np.float64)
+    count = len(tri)
+    start = np.searchsorted(patches.parent, np.arange(int(tri.max(initial=-1)) + 2))
+    first, number = start[tri], start[tri + 1] - start[tri]
+    patch = np.full(count, -1, np.int64)
+    local = np.zeros((count, 3))
+    has = np.flatnonzero(number > 0)
+    per_point = number[has]
+    bounds = np.concatenate([[0], np.cumsum(per_point)])
+    chunk_starts = [0]
+    while chunk_starts[-1] < len(has):  # chunks of points whose pairs fit LOCATE_PAIRS
+        s = chunk_starts[-1]
+        e = int(np.searchsorted(bounds, bounds[s] + LOCATE_PAIRS, side="right")) - 1
+        chunk_starts.append(max(e, s + 1))
+    for s, e in zip(chunk_starts[:-1], chunk_starts[1:], strict=True):
+        pts = has[s:e]
+        k = per_point[s:e]
+        offsets = np.arange(int(k.sum())) - np.repeat(bounds[s:e] - bounds[s], k)
+        cand = np.repeat(first[pts], k) + offsets  # (P,) candidate patches
+        owner = np.repeat(pts, k)  # (P,) point of each pair
+        coords = _local_bary(patches.bary[cand][:, :, 1:], bary[owner][:, 1:])
+        score = coords.min(axis=1)
+        group_start = np.concatenate([[0], np.cumsum(k)[:-1]])
+        best = np.maximum.reduceat(score, group_start)
+        is_best = score >= np.repeat(best, k)
+        # The first pair of each point that reaches the best score.
+        pick = np.flatnonzero(is_best)
+        pick = pick[np.concatenate([[True], owner[pick][1:] != owner[pick][:-1]])]
+        patch[owner[pick]] = cand[pick]
+        local[owner[pick]] = np.clip(coords[pick], 0.0, None)
+    local /= np.maximum(local.sum(axis=1, keepdims=True), 1e-300)
+    return patch, local
+
+
+def corner_values(patches: Patches, values: np.ndarray, smooth_angle: float,
+                  scale: float | None = None) -> np.ndarray:
+    """Smooth per-corner values (N, 3, C) from per-patch values (N, C).
+
+    Each patch corner takes the area-weighted mean of `values` over the patches that share the
+    corner's position, belong to the same object and whose normals are within `smooth_angle`
+    (radians) of this patch's normal (the patch itself always counts). `scale` m: the scene size
+    that sets the welding grid (default: the patches' bounding-box diagonal).
+    """
+    values = np.asarray(values, np.float64)
+    count = len(patches)
+    flat = patches.corners.reshape(-1, 3)
+    if scale is None:
+        scale = float(np.linalg.norm(flat.max(axis=0) - flat.min(axis=0))) if count else 1.0
+    quantum = max(WELD_REL * scale, 1e-300)
+    keys = np.round(flat / quantum).astype(np.int64)
+    obj = np.repeat(patches.object_ids, 3).astype(np.int64)
+    _, vertex = np.unique(np.column_stack([keys, obj]), axis=0, return_inverse=True)
+    vertex = vertex.ravel()
+    order = np.argsort(vertex, kind="stable")
+    sorted_v = vertex[order]
+    starts = np.flatnonzero(np.concatenate([[True], sorted_v[1:] != sorted_v[:-1]]))
+    sizes = np.diff(np.concatenate([starts, [len(order)]]))
+    # Every ordered pair (a, b) of corners at one vertex: a receives b's patch value.
+    group_size = np.repeat(sizes, sizes)  # per sorted corner
+    group_start = np.repeat(starts, sizes)
+    a_sorted = np.repeat(np.arange(len(order)), group_size)
+    b_sorted = np.repeat(group_start, group_size) + (
+        np.arange(len(a_sorted)) - np.repeat(np.cumsum(group_size) - group_size, group_size))
+    a, b = order[a_sorted], order[b_sorted]  # corner indices (patch * 3 + k)
+    pa, pb = a // 3, b // 3
+    cos_limit = np.cos(smooth_angle)
+    agree = np.einsum("ij,ij->i", patches.normals[pa], patches.normals[pb]) >= cos_limit
+    agree |= pa == pb
+    weight = np.where(agree, patches.areas[pb], 0.0)
+    channels = values.shape[1]
+    total = np.zeros((count * 3, channels))
+    for c in range(channels):
+        total[:, c] = np.bincount(a, weights=weight * values[pb, c], minlength=count * 3)
+    norm = np.bincount(a, weights=weight, minlength=count * 3)
+    return (total / norm[:, None]).reshape(count, 3, channels)
+
+
+def interpolate(corner: np.ndarray, patch: np.ndarray, local: np.ndarray,
+                fill: float = 0.0) -> np.ndarray:
+    """(M, C) values at located points: corner (N, 3, C) blended with local (M, 3) weights;
+    `fill` where patch is -1."""
+    safe = np.maximum(patch, 0)
+    out = np.einsum("mk,mkc->mc", local, corner[safe])
+    out[patch < 0] = fill
+    return out

@@ -1,0 +1,538 @@
+"""Radiosity of a whole scene: patches, lights' first shot, form factors with BVH visibility, a
+solver chosen by memory, adaptive refinement, and the solution evaluated anywhere on the surface.
+
+Pipeline (`radiosity_steps`):
+
+1. Patches: the scene's triangles cut into sub-triangles of about `patch_size` (`patches.py`;
+   "auto" aims at `patch_budget` patches over the scene's area).
+2. Sources, per patch: E_i = pi L_e (emissive materials: radiance L_e, front face only) plus the
+   lights' first shot rho_i H_i, with H_i the direct irradiance of point, spot, sun and area
+   lights (`lights.direct_irradiance`) averaged over n x n points of the patch, each point's
+   contribution multiplied by its visibility (BVH shadow rays; area lights: the visible fraction
+   of a grid of points on the emitter). Area lights are not geometry: they only shoot.
+3. Form factors, one row at a time (`form_factors.py`): "raycast" (exact point-to-polygon factor
+   times the visible share by BVH shadow rays over the scene's triangles) or "hemicube" (rays
+   from hemicubes through a BVH over the patches).
+4. Solve B = E + rho F B in RGB (`radiosity_solvers.py`): Gauss-Seidel on the dense matrix when
+   it fits `dense_memory_limit`, else progressive refinement (one row per shot, never N x N).
+5. Refine: patches whose interpolated corner values differ from their own B by more than
+   `refine_threshold` (relative), or that straddle a light's shadow boundary (some of their
+   points see the light, others do not), are split in four and the system is solved again, up
+   to `refine_levels` times and `max_patches` patches.
+
+Display: `RadiosityResult.exitance_at(tri, bary)` interpolates B smoothly inside objects
+(`patches.corner_values`, `interpolate`); outgoing radiance is B / pi, what Cycles' DIFFUSE bake
+(with colour) gives plus the emission. `bake_steps` evaluates lightmap texels and mesh corners,
+`render_steps` the scene camera's view.
+
+Materials: every surface is treated as Lambertian with its base colour (textures sampled at the
+patch centre); metallic, glossy and transmissive parts are not modelled (listed in `ignored`).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+from . import lights as light_units
+from . import patches as patching
+from .form_factors import (
+    RAY_OFFSET_REL,
+    HemicubeFormFactors,
+    HemicubeSettings,
+    RayCastFormFactors,
+    RayCastSettings,
+    enforce_reciprocity,
+    iter_matrix,
+    sample_patches,
+)
+from .radiosity_solvers import (
+    GaussSeidelSettings,
+    GaussSeidelSolver,
+    ProgressiveSettings,
+    ProgressiveSolver,
+)
+from .scene import Scene
+
+# Below this luminance fraction of the scene's mean radiosity a patch counts as dark: relative
+# differences are measured against it, so noise in black corners does not trigger refinement.
+REFINE_FLOOR_REL = 0.05
+# The quick unoccluded-pair test of method B keeps (T, N) bool tables and a (T, N, 3) float64
+# temporary; it is used only while that stays under this many bytes.
+QUICK_TEST_BYTES = 256 << 20
+# Bytes per (point, patch) element of the ray-cast row temporaries (factors, clipped polygons,
+# visibility kernels; measured order of magnitude, for the up-front estimate).
+ROW_BYTES_PER_ELEMENT = 400
+# Shadow rays stop this fraction short of a point light (it has no surface to hit).
+LIGHT_END_REL = 1e-6
+LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
+
+
+@dataclass(frozen=True)
+class RadiositySettings:
+    """| field                       | range               | default  | unit / meaning             |
+    |-----------------------------|---------------------|----------|----------------------------|
+    | method                      | raycast / hemicube  | raycast  | form factor estimator      |
+    | solver                      | auto / gauss_seidel | auto     | auto: Gauss-Seidel when the|
+    |                             | / progressive       |          | dense F fits the memory    |
+    |                             |                     |          | limit, else progressive    |
+    | patch_size                  | >= 0                | 0        | m, longest patch edge; 0:  |
+    |                             |                     |          | from patch_budget          |
+    | patch_budget                | >= 1                | 400      | patches aimed at (auto)    |
+    | refine_levels               | >= 0                | 1        | adaptive splits (0: none)  |
+    | refine_threshold            | > 0                 | 0.25     | relative corner difference |
+    |                             |                     |          | that splits a patch        |
+    | max_patches                 | >= 1                | 3000     | refinement stops here      |
+    | tolerance                   | (0, 1)              | 1e-4     | solver stop (see solvers)  |
+    | dense_memory_limit          | >= 0                | 512 MiB  | bytes for the dense F      |
+    | samples_per_side            | >= 1                | 2        | n x n points per patch     |
+    |                             |                     |          | (ray-cast sources, hemicube|
+    |                             |                     |          | positions)                 |
+    | visibility_samples_per_side | >= 1                | 2        | m x m ray targets per patch|
+    | hemicube_resolution         | even >= 2           | 32       | hemicube top-face pixels   |
+    | light_samples_per_side      | >= 1                | 3        | points per patch side for  |
+    |                             |                     |          | the lights' first shot     |
+    | area_light_samples_per_side | >= 1                | 4        | emitter grid for area-light|
+    |                             |                     |          | shadow rays                |
+    | smooth_angle                | [0, pi]             | 0.5236   | rad; corners average the   |
+    |                             |                     |          | patches within this angle  |
+    | max_shots                   | >= 0                | 0        | progressive: stop after    |
+    |                             |                     |          | this many shots, the       |
+    |                             |                     |          | ambient term covering the  |
+    |                             |                     |          | rest (0: until tolerance)  |
+    | seed                        | int                 | 0        | RNG seed of the estimators |
+    """
+
+    method: Literal["raycast", "hemicube"] = "raycast"
+    solver: Literal["auto", "gauss_seidel", "progressive"] = "auto"
+    patch_size: float = 0.0
+    patch_budget: int = 400
+    refine_levels: int = 1
+    refine_threshold: float = 0.25
+    max_patches: int = 3000
+    tolerance: float = 1e-4
+    dense_memory_limit: int = 512 << 20
+    samples_per_side: int = 2
+    visibility_samples_per_side: int = 2
+    hemicube_resolution: int = 32
+    light_samples_per_side: int = 3
+    area_light_samples_per_side: int = 4
+    smooth_angle: float = math.radians(30.0)
+    max_shots: int = 0
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.method not in ("raycast", "hemicube"):
+            raise ValueError(f"method must be 'raycast' or 'hemicube', got {self.method!r}")
+        if self.solver not in ("auto", "gauss_seidel", "progressive"):
+            raise ValueError(f"solver must be auto, gauss_seidel or progressive, got {self.solver!r}")
+        if self.patch_size < 0.0 or self.patch_budget < 1 or self.max_patches < 1:
+            raise ValueError("patch_size must be >= 0, patch_budget and max_patches >= 1")
+        if self.refine_levels < 0 or not self.refine_threshold > 0.0:
+            raise ValueError("refine_levels must be >= 0 and refine_threshold > 0")
+        if not 0.0 < self.tolerance < 1.0:
+            raise ValueError(f"tolerance must be in (0, 1), got {self.tolerance}")
+        if min(self.samples_per_side, self.visibility_samples_per_side,
+               self.light_samples_per_side, self.area_light_samples_per_side) < 1:
+            raise ValueError("sample counts must be >= 1")
+        if self.max_shots < 0:
+            raise ValueError(f"max_shots must be >= 0, got {self.max_shots}")
+        if self.hemicube_resolution < 2 or self.hemicube_resolution % 2:
+            raise ValueError("hemicube_resolution must be even and >= 2")
+
+
+@dataclass(frozen=True, eq=False)
+class RadiosityResult:
+    """The solved scene.
+
+    patches     `Patches` (N of them)
+    radiosity   (N, 3) float64  B, W/m^2 (exitance; outgoing radiance is B / pi)
+    emitted     (N, 3) float64  pi x emission radiance, W/m^2
+    direct      (N, 3) float64  the lights' direct irradiance H (first shot), W/m^2
+    reflectance (N, 3) float64  rho
+    corner_b    (N, 3, 3)       B at each patch corner, smoothed within objects
+    corner_e    (N, 3, 3)       the same for `emitted`
+    stats       dict            patch counts per level, solver, memory estimate, seconds
+    """
+
+    patches: patching.Patches
+    radiosity: np.ndarray
+    emitted: np.ndarray
+    direct: np.ndarray
+    reflectance: np.ndarray
+    corner_b: np.ndarray
+    corner_e: np.ndarray
+    stats: dict = field(default_factory=dict)
+
+    def exitance_at(self, tri: np.ndarray, bary: np.ndarray, reflected_only: bool = False
+                    ) -> np.ndarray:
+        """(M, 3) interpolated B at points given as scene triangles (M,) and barycentrics (M, 3);
+        `reflected_only`: B minus the emission (what Cycles' DIFFUSE bake sees, times pi)."""
+        patch, local = patching.locate(self.patches, tri, bary)
+        values = patching.interpolate(self.corner_b, patch, local)
+        if reflected_only:
+            values -= patching.interpolate(self.corner_e, patch, local)
+        return values
+
+    def radiance_at(self, tri: np.ndarray, bary: np.ndarray, reflected_only: bool = False
+                    ) -> np.ndarray:
+        """(M, 3) outgoing radiance B / pi, W/(m^2 sr)."""
+        return self.exitance_at(tri, bary, reflected_only) / np.pi
+
+
+# --- sources ------------------------------------------------------------------------------------
+
+
+def patch_reflectance(scene: Scene, patches: patching.Patches) -> np.ndarray:
+    """(N, 3) diffuse reflectance at each patch centre (base colour, textures sampled there).
+
+    Raises ValueError naming the material when any channel is >= 1 (no convergence)."""
+    from .direct_light import albedo_at
+
+    for mat in scene.materials:
+        if mat.base_color_texture is None and np.any(np.asarray(mat.base_color) >= 1.0):
+            raise ValueError(
+                f"material '{mat.name}' has a base colour of {np.max(mat.base_color):.3g} >= 1: "
+                "radiosity needs reflectance < 1 in every channel (a surface reflecting all "
+                "light never lets a closed scene converge)")
+    rho = albedo_at(scene, patches.parent, patches.bary.mean(axis=1))
+    if np.any(rho >= 1.0):
+        bad = scene.materials[int(scene.material_ids[patches.parent[np.argmax(rho.max(1))]])]
+        raise ValueError(f"material '{bad.name}': its texture reaches reflectance >= 1; "
+                         "radiosity needs reflectance < 1 in every channel")
+    return rho.astype(np.float64)
+
+
+def patch_emission(scene: Scene, patches: patching.Patches) -> np.ndarray:
+    """(N, 3) emitted radiosity pi L_e, W/m^2 (front face)."""
+    table = np.array([np.asarray(m.emission, np.float64) for m in scene.materials]).reshape(-1, 3)
+    return np.pi * table[scene.material_ids[patches.parent]]
+
+
+def first_shot(scene: Scene, patches: patching.Patches, occluded, settings: RadiositySettings,
+               scale: float) -> tuple[np.ndarray, np.ndarray]:
+    """Direct irradiance of the scene's lights on every patch, with shadows.
+
+    occluded: the BVH callback (origins, directions, t_min, t_max) -> (R,) bool, or None (no
+    shadows). Returns H (N, 3) W/m^2, the mean over n x n midpoint samples of each patch, and
+    boundary (N,) bool: patches with some samples lit and some shadowed by one light.
+    """
+    count = len(patches)
+    irradiance = np.zeros((count, 3))
+    boundary = np.zeros(count, bool)
+    if not scene.lights or count == 0:
+        return irradiance, boundary
+    n = settings.light_samples_per_side
+    points, weights = sample_patches(patches.corners, n, "midpoint")  # (N, S, 3), (N, S)
+    samples = points.shape[1]
+    flat = points.reshape(-1, 3)
+    normals = np.repeat(patches.normals, samples, axis=0)
+    offset = RAY_OFFSET_REL * scale
+    origins = flat + offset * normals
+    for light in scene.lights:
+        e = light_units.direct_irradiance(light, flat, normals)  # (N S, 3)
+        lit = np.flatnonzero(e.max(axis=1) > 0.0)
+        vis = np.ones(len(flat))
+        if occluded is not None and light.cast_shadow and lit.size:
+            vis[lit] = _light_visibility(light, origins[lit], occluded, settings)
+        e *= vis[:, None]
+        irradiance += np.einsum("ns,nsc->nc", weights, e.reshape(count, samples, 3))
+        v = vis.reshape(count, samples)
+        reached = (e.max(axis=1) > 0.0).reshape(count, samples) | (v < 1.0)
+        some_lit = np.any(reached & (v > 0.0), axis=1)
+        some_dark = np.any(reached & (v < 1.0), axis=1)
+        boundary |= some_lit & some_dark
+    return irradiance, boundary
+
+
+def _light_visibility(light, origins: np.ndarray, occluded, settings) -> np.ndarray:
+    """(R,) visible fraction of `light` from `origins` (area lights: over an emitter grid)."""
+    if light.kind == "SUN":
+        dirs = np.broadcast_to(-np.asarray(light.direction, np.float64), origins.shape)
+        return 1.0 - np.asarray(occluded(origins, np.ascontiguousarray(dirs), 0.0, np.inf), float)
+    if light.kind == "AREA":
+        targets = light_units.area_light_samples(light, settings.area_light_samples_per_side)
+    else:
+        targets = np.asarray(light.position, np.float64)[None]
+    seen = np.zeros(len(origins))
+    for target in targets:
+        delta = target - origins
+        dist = np.linalg.norm(delta, axis=1)
+        dirs = delta / np.maximum(dist, 1e-300)[:, None]
+        blocked = np.asarray(occluded(origins, dirs, 0.0, dist * (1.0 - LIGHT_END_REL)), bool)
+        seen += ~blocked
+    return seen / len(targets)
+
+
+# --- memory -------------------------------------------------------------------------------------
+
+
+def memory_estimate(patch_count: int, triangle_count: int, settings: RadiositySettings,
+                    solver: str) -> dict:
+    """Bytes each part of a solve needs, and their sum ("total").
+
+    dense_f: N^2 x 8 (Gauss-Seidel only); rows: the per-row temporaries of the estimator;
+    row_cache: progressive refinement's cached rows; quick_test: method B's pair tables;
+    bvh: about 200 bytes per triangle (nodes, leaves, prepared triangles); patches: ~400 B each.
+    """
+    n, t = patch_count, triangle_count
+    s = settings.samples_per_side ** 2
+    parts = {
+        "dense_f": n * n * 8 if solver == "gauss_seidel" else 0,
+        "rows": ROW_BYTES_PER_ELEMENT * s * n * (4 if settings.method == "raycast" else 1),
+        "row_cache": min(n * n * 8, settings.dense_memory_limit) if solver == "progressive" else 0,
+        "quick_test": quick_test_bytes(n, t) if quick_test_bytes(n, t) <= QUICK_TEST_BYTES else 0,
+        "bvh": 200 * (t + (n if settings.method == "hemicube" else 0)),
+        "patches": 400 * n,
+    }
+    if settings.method == "hemicube":
+        parts["rows"] += 3 * settings.hemicube_resolution ** 2 * s * 64
+    parts["total"] = int(sum(parts.values()))
+    return parts
+
+
+def quick_test_bytes(patch_count: int, triangle_count: int) -> int:
+    """Method B's quick unoccluded-pair test: two (T, N) bool tables and a (T, N, 3) float64."""
+    return triangle_count * patch_count * (2 + 24)
+
+
+def choose_solver(patch_count: int, settings: RadiositySettings) -> str:
+    if settings.solver != "auto":
+        return settings.solver
+    return "gauss_seidel" if patch_count ** 2 * 8 <= settings.dense_memory_limit else "progressive"
+
+
+# --- one level: form factors and solve ------------------------------------------------------------
+
+
+def _rows(scene: Scene, patches: patching.Patches, bvh, settings: RadiositySettings):
+    corners = patches.corners
+    if settings.method == "hemicube":
+        from .bvh import BVH
+
+        patch_bvh = BVH.build(corners.astype(np.float32))
+        hemi = HemicubeSettings(resolution=settings.hemicube_resolution,
+                                points_per_side=settings.samples_per_side, seed=settings.seed)
+        return HemicubeFormFactors(
+            corners, lambda o, d, t0, t1: patch_bvh.intersect(o, d, t0, t1),
+            np.arange(len(patches)), hemi)
+    ray = RayCastSettings(samples_per_side=settings.samples_per_side,
+                          visibility_samples_per_side=settings.visibility_samples_per_side,
+                          seed=settings.seed)
+    quick = quick_test_bytes(len(patches), scene.triangle_count) <= QUICK_TEST_BYTES
+    return RayCastFormFactors(
+        corners, lambda o, d, t0, t1: bvh.occluded(o, d, t0, t1),
+        triangles=scene.triangles if quick else None, settings=ray)
+
+
+def _solve_level(scene, patches, rho, sources, bvh, settings, stats) -> Iterator[float]:
+    """Form factors and solve of one level; yields progress, leaves B in stats["_b"]."""
+    count = len(patches)
+    solver = choose_solver(count, settings)
+    stats["solver"] = solver
+    stats["memory_estimate"] = memory_estimate(count, scene.triangle_count, settings, solver)
+    rows = _rows(scene, patches, bvh, settings)
+    start = time.perf_counter()
+    if solver == "gauss_seidel":
+        matrix = np.empty((count, count))
+        for p in iter_matrix(rows, matrix):
+            yield 0.9 * p
+        if settings.method == "hemicube":  # estimated rows: make the pairs agree
+            enforce_reciprocity(matrix, patches.areas, out=matrix)
+        stats["form_factor_seconds"] = time.perf_counter() - start
+        gs = GaussSeidelSolver(matrix, sources, rho,
+                               GaussSeidelSettings(tolerance=settings.tolerance))
+        for p in gs.run():
+            yield 0.9 + 0.1 * p
+        solution = gs.solution()
+    else:
+        # Keep as many rows as the memory limit allows: a patch is shot again and again when
+        # rho is high, and a row costs O(N) form factors with rays.
+        cache = int(min(count, settings.dense_memory_limit // (8 * count)))
+        prog = ProgressiveSolver(rows, sources, rho, patches.areas,
+                                 ProgressiveSettings(tolerance=settings.tolerance,
+                                                     row_cache=cache,
+                                                     max_shots=settings.max_shots or 1_000_000))
+        for p in prog.run():
+            yield max(p, prog.shots / settings.max_shots) if settings.max_shots else p
+        solution = prog.solution()
+    stats["solve_seconds"] = time.perf_counter() - start
+    stats["iterations"] = solution.iterations
+    stats["converged"] = bool(solution.converged)
+    stats["solver_error"] = float(solution.error)
+    stats["_b"] = solution.radiosity
+
+
+def refine_mask(patches: patching.Patches, radiosity: np.ndarray, corner: np.ndarray,
+                boundary: np.ndarray, emitted: np.ndarray, threshold: float) -> np.ndarray:
+    """(N,) bool: patches to split. A patch is split when a corner's smoothed value differs from
+    its own B by more than `threshold` x max(its luminance, REFINE_FLOOR_REL x the area-weighted
+    mean), or when it straddles a light's shadow boundary. Emitters are never split."""
+    y = radiosity @ LUMINANCE  # (N,)
+    yc = corner @ LUMINANCE  # (N, 3)
+    mean = float(np.sum(y * patches.areas) / max(patches.areas.sum(), 1e-300))
+    floor = np.maximum(y, REFINE_FLOOR_REL * mean)
+    deviation = np.abs(yc - y[:, None]).max(axis=1) / np.maximum(floor, 1e-300)
+    return ((deviation > threshold) | boundary) & ~np.any(emitted > 0.0, axis=1)
+
+
+def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySettings(),  # noqa: B008
+                    bvh=None) -> Iterator[float | RadiosityResult]:
+    """Solve the scene's radiosity; yields progress in [0, 1], then a `RadiosityResult`.
+
+    bvh: a `kernels.bvh.BVH` over `scene.triangles` (built here when None)."""
+    from .bvh import BVH
+
+    if scene.triangle_count == 0:
+        raise ValueError("the scene has no triangles")
+    t0 = time.perf_counter()
+    flat = scene.triangles.reshape(-1, 3).astype(np.float64)
+    scale = float(np.linalg.norm(flat.max(axis=0) - flat.min(axis=0)))
+    size = settings.patch_size or patching.auto_patch_size(scene, settings.patch_budget)
+    patches = patching.make_patches(scene, size)
+    if bvh is None:
+        bvh = BVH.build(scene.triangles)
+    yield 0.02
+    levels = settings.refine_levels + 1
+    stats: dict = {"patch_size_m": size, "levels": []}
+
+    def occluded(o, d, t_min, t_max):
+        return bvh.occluded(o, d, t_min, t_max)
+
+    for level in range(levels):
+        rho = patch_reflectance(scene, patches)
+        emitted = patch_emission(scene, patches)
+        direct, boundary = first_shot(scene, patches, occluded, settings, scale)
+        sources = emitted + rho * direct
+        level_stats: dict = {"patches": len(patches), "per_level": patches.level_counts()}
+        base = 0.02 + 0.96 * level / levels
+        for p in _solve_level(scene, patches, rho, sources, bvh, settings, level_stats):
+            yield base + 0.96 / levels * p
+        b = level_stats.pop("_b")
+        corner_b = patching.corner_values(patches, b, settings.smooth_angle, scale)
+        stats["levels"].append(level_stats)
+        if level == levels - 1:
+            break
+        mask = refine_mask(patches, b, corner_b, boundary, emitted, settings.refine_threshold)
+        room = max(settings.max_patches - len(patches), 0) // 3
+        if room < mask.sum():  # keep the strongest differences within the budget
+            y = b @ LUMINANCE
+            score = np.abs(corner_b @ LUMINANCE - y[:, None]).max(axis=1) / np.maximum(y, 1e-300)
+            score = np.where(mask, score, -np.inf)
+            keep = np.argsort(-score)[:room]
+            mask = np.zeros_like(mask)
+            mask[keep] = True
+        if not mask.any():
+            break
+        patches = patching.split(scene, patches, mask)
+    corner_e = patching.corner_values(patches, emitted, settings.smooth_angle, scale)
+    last = stats["levels"][-1]
+    stats.update(patches=len(patches), per_level=patches.level_counts(), solver=last["solver"],
+                 memory_estimate=last["memory_estimate"], method=settings.method,
+                 seconds=time.perf_counter() - t0)
+    yield 1.0
+    yield RadiosityResult(patches=patches, radiosity=b, emitted=emitted, direct=direct,
+                          reflectance=rho, corner_b=corner_b, corner_e=corner_e, stats=stats)
+
+
+def solve_radiosity(scene: Scene, settings: RadiositySettings = RadiositySettings(),  # noqa: B008
+                    bvh=None) -> RadiosityResult:
+    """`radiosity_steps` run to the end."""
+    result = None
+    for step in radiosity_steps(scene, settings, bvh):
+        result = step
+    return result
+
+
+# --- outputs: bake targets and the camera view -----------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class ObjectRadiosityBake:
+    """One object's baked outgoing radiance B / pi (W/(m^2 sr), linear RGB)."""
+
+    lightmap: np.ndarray | None  # (S, S, 3) float32, row 0 top, dilated over the padding
+    lightmap_mask: np.ndarray | None  # (S, S) bool: texels baked (before dilation)
+    corners: np.ndarray  # (T * 3, 3) float32, per triangle corner, scene corner order
+
+
+def bake_steps(scene: Scene, result: RadiosityResult, objects, lightmap_sizes: dict, padding: int
+               ) -> Iterator[float | dict]:
+    """Radiance B / pi of `objects` (indices into scene.objects) on their lightmap texels (when
+    the scene carries lightmap UVs; sizes {object index: texels per side}) and corners. Yields
+    progress, then {object index: ObjectRadiosityBake}."""
+    from .bake_targets import corner_targets, dilate, lightmap_targets
+
+    out = {}
+    for n, k in enumerate(objects):
+        lightmap = mask = None
+        if scene.lightmap_uv is not None and scene.objects[k].has_lightmap_uv:
+            targets = lightmap_targets(scene, k, lightmap_sizes[k])
+            values = result.radiance_at(targets.triangles, _bary_of(scene, targets))
+            mask = targets.mask
+            lightmap = dilate(targets.to_image(values), mask, padding)
+        corners = corner_targets(scene, k)
+        values = result.radiance_at(corners.triangles, np.tile(np.eye(3), (len(corners) // 3, 1)))
+        out[k] = ObjectRadiosityBake(lightmap, mask, values.astype(np.float32))
+        yield (n + 1) / max(len(objects), 1)
+    yield out
+
+
+def _bary_of(scene: Scene, targets) -> np.ndarray:
+    """Barycentric coordinates (N, 3) of bake target points in their triangles."""
+    tris = scene.triangles[targets.triangles].astype(np.float64)
+    return _point_bary(tris, targets.points)
+
+
+def _point_bary(tris: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Barycentrics (N, 3) of points (N, 3) lying in triangles (N, 3, 3), clamped and renormalised."""
+    a = tris[:, 0]
+    v0, v1, v2 = tris[:, 1] - a, tris[:, 2] - a, points - a
+    d00 = np.einsum("ij,ij->i", v0, v0)
+    d01 = np.einsum("ij,ij->i", v0, v1)
+    d11 = np.einsum("ij,ij->i", v1, v1)
+    d20 = np.einsum("ij,ij->i", v2, v0)
+    d21 = np.einsum("ij,ij->i", v2, v1)
+    denom = d00 * d11 - d01 * d01
+    safe = np.where(denom != 0.0, denom, 1.0)
+    v = (d11 * d20 - d01 * d21) / safe
+    w = (d00 * d21 - d01 * d20) / safe
+    bary = np.clip(np.stack([1.0 - v - w, v, w], 1), 0.0, 1.0)
+    return bary / np.maximum(bary.sum(1, keepdims=True), 1e-300)
+
+
+def render_steps(scene: Scene, result: RadiosityResult, resolution=None,
+                 out: np.ndarray | None = None) -> Iterator[float | np.ndarray]:
+    """The scene camera's view of the solution: outgoing radiance B / pi at the surface each
+    pixel centre sees (rasterised), the world colour elsewhere. Yields progress, then (H, W, 3)."""
+    from .camera import camera_rays
+    from .direct_light import camera_projection
+    from .raster import rasterize
+
+    camera = scene.camera
+    if camera is None:
+        raise ValueError("the scene has no camera")
+    width, height = resolution or camera.resolution
+    image = np.empty((height, width, 3), np.float32) if out is None else out
+    image[...] = scene.world_color
+    raster = rasterize(scene.triangles, camera_projection(camera), width, height,
+                       with_triangle_ids=True)
+    yield 0.5
+    rows, cols = np.nonzero(raster.triangle >= 0)
+    if len(rows):
+        tri = raster.triangle[rows, cols].astype(np.int64)
+        origins, dirs = camera_rays(camera, width, height)
+        o, d = origins[rows, cols], dirs[rows, cols]
+        tris = scene.triangles[tri].astype(np.float64)
+        # Where each pixel's ray meets its triangle's plane.
+        normal = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
+        denom = np.einsum("ij,ij->i", d, normal)
+        t = np.einsum("ij,ij->i", tris[:, 0] - o, normal) / np.where(denom != 0.0, denom, 1.0)
+        points = o + d * t[:, None]
+        image[rows, cols] = result.radiance_at(tri, _point_bary(tris, points))
+    yield image

@@ -1,0 +1,55 @@
+"""Radiosity bake: the diffuse global illumination of emitters and lights into lightmaps, a
+'Radiosity' corner colour attribute and the camera's view."""
+
+import bpy
+
+from ..addon.jobs import radiosity_bake_job
+from ..addon.settings import lightmap_uv_settings, radiosity_settings
+from .job import JobOperator
+
+
+class CLASSICBAKE_OT_radiosity(JobOperator, bpy.types.Operator):
+    """Solve radiosity and bake outgoing radiance into lightmaps and a 'Radiosity' colour attribute"""
+
+    bl_idname = "classic_bake.radiosity"
+    bl_label = "Bake Radiosity"
+    bl_options = {"REGISTER", "UNDO"}
+    job_label = "Radiosity"
+
+    @classmethod
+    def poll(cls, context):
+        scene = context.scene
+        if scene is None or not any(o.type == "MESH" for o in scene.objects):
+            cls.poll_message_set("The scene has no meshes")
+            return False
+        return True
+
+    def start(self, context):
+        props = context.scene.classic_bake
+        return self._job(context, radiosity_settings(props), props.lightmap_uv_name,
+                         lightmap_uv_settings(props), props.radiosity_wire)
+
+    def _job(self, context, settings, uv_name, uv_settings, wire):
+        summary = None
+        for step in radiosity_bake_job(context, settings, uv_name, uv_settings, wire=wire):
+            if isinstance(step, dict):
+                summary = step
+            else:
+                yield step
+        stats = summary["result"].stats
+        self.report({"INFO"}, f"Radiosity: {stats['patches']} patches ({stats['solver']}), "
+                              f"lightmaps on {len(summary['images'])} objects, colour attribute "
+                              f"'Radiosity' on {len(summary['attributes'])}")
+
+
+CLASSES = (CLASSICBAKE_OT_radiosity,)
+
+
+def register() -> None:
+    for cls in CLASSES:
+        bpy.utils.register_class(cls)
+
+
+def unregister() -> None:
+    for cls in reversed(CLASSES):
+        bpy.utils.unregister_class(cls)

@@ -1,0 +1,112 @@
+"""`radiosity`: diffuse global illumination solved on patches, baked into lightmaps and a
+'Radiosity' corner colour attribute (outgoing radiance B / pi), and the camera's view of the
+solution (render.exr)."""
+
+from __future__ import annotations
+
+from ..cli import Command, RunContext, command
+from ..outputs import UsageError
+
+# Defaults of the options, also used when another command (demo) runs this one without them.
+DEFAULTS = {"method": "raycast", "solver": "auto", "patches": 400, "patch_size": 0.0,
+            "refine": 1, "lightmap_size": 128, "padding": 2, "uv_name": "Lightmap", "wire": False}
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("--method", choices=("raycast", "hemicube"), default=DEFAULTS["method"],
+                        help="form factors: ray-cast point-to-polygon (default) or hemicube")
+    parser.add_argument("--solver", choices=("auto", "gauss_seidel", "progressive"),
+                        default=DEFAULTS["solver"],
+                        help="auto (default): Gauss-Seidel while the dense matrix fits in memory")
+    parser.add_argument("--patches", type=int, default=DEFAULTS["patches"], metavar="N",
+                        help="patches aimed at before refinement (default 400)")
+    parser.add_argument("--patch-size", type=float, default=DEFAULTS["patch_size"], metavar="M",
+                        help="longest patch edge in metres (default 0: from --patches)")
+    parser.add_argument("--refine", type=int, default=DEFAULTS["refine"], metavar="LEVELS",
+                        help="adaptive refinement levels (default 1)")
+    parser.add_argument("--lightmap-size", type=int, default=DEFAULTS["lightmap_size"],
+                        metavar="TEXELS", help="lightmap of the largest object (default 128)")
+    parser.add_argument("--padding", type=int, default=DEFAULTS["padding"], metavar="TEXELS",
+                        help="chart padding")
+    parser.add_argument("--uv-name", default=DEFAULTS["uv_name"],
+                        help="lightmap UV layer (created if missing)")
+    parser.add_argument("--wire", action="store_true",
+                        help="wire the 'Radiosity' attribute into the materials (with --save-blend)")
+
+
+def settings_from(args):
+    from ...kernels.lightmap_uv import LightmapUVSettings
+    from ...kernels.radiosity import RadiositySettings
+
+    value = {k: getattr(args, k, v) for k, v in DEFAULTS.items()}
+    try:
+        settings = RadiositySettings(method=value["method"], solver=value["solver"],
+                                     patch_budget=value["patches"], patch_size=value["patch_size"],
+                                     refine_levels=value["refine"])
+        uv = LightmapUVSettings(resolution=value["lightmap_size"], padding=value["padding"])
+    except ValueError as exc:
+        raise UsageError(f"radiosity: {exc}") from exc
+    return settings, uv, value
+
+
+def run(ctx: RunContext) -> None:
+    from dataclasses import asdict
+
+    import bpy
+
+    from ...addon import bridge
+    from ...addon.jobs import radiosity_bake_job
+    from ...kernels.exr import write_exr
+    from ..images import write_preview_png
+    from ..outputs import safe_name
+
+    settings, uv, value = settings_from(ctx.args)
+    summary = None
+    with ctx.phase("bake"):
+        try:
+            for step in radiosity_bake_job(bpy.context, settings, value["uv_name"], uv,
+                                           resolution=ctx.resolution, wire=value["wire"]):
+                if isinstance(step, dict):
+                    summary = step
+        except ValueError as exc:
+            raise UsageError(str(exc)) from exc
+    with ctx.phase("write"):
+        for name, (lightmap, _mask) in summary["lightmaps"].items():
+            write_exr(ctx.output(f"lightmaps/{safe_name(name)}_radiosity.exr"), lightmap)
+        if summary["render"] is None:
+            raise UsageError("radiosity: the scene has no camera, so there is no render.exr")
+        ctx.write_render(summary["render"])
+        write_preview_png(ctx.output("render.png"), summary["render"])
+        if getattr(ctx.args, "save_blend", False):
+            for image in summary["images"].values():
+                bridge.pack_image(image)
+    stats = summary["result"].stats
+    scene = summary["scene"]
+    ctx.record.settings = {**asdict(settings), "lightmap_size": uv.resolution,
+                           "padding": uv.padding, "uv_name": value["uv_name"]}
+    ctx.record.sizes = {
+        "patches": stats["patches"],
+        "patches_per_level": {str(k): v for k, v in stats["per_level"].items()},
+        "refinement_levels": len(stats["levels"]) - 1,
+        "triangles": scene.triangle_count, "lights": len(scene.lights),
+        "baked_texels": int(sum(int(m.sum()) for _, m in summary["lightmaps"].values())),
+        "memory_estimate_bytes": stats["memory_estimate"]["total"],
+    }
+    ctx.record.extra["radiosity"] = {
+        "solver": stats["solver"], "method": stats["method"], "patch_size_m": stats["patch_size_m"],
+        "memory_estimate": stats["memory_estimate"],
+        "levels": [{k: v for k, v in level.items() if k != "memory_estimate"}
+                   for level in stats["levels"]],
+    }
+    ctx.record.extra["skipped"] = summary["skipped"]
+    ctx.say(f"radiosity: {stats['patches']} patches (levels {stats['per_level']}), "
+            f"{stats['solver']} with {stats['method']} form factors in {stats['seconds']:.2f} s; "
+            f"lightmaps on {len(summary['lightmaps'])} objects, colour attribute 'Radiosity' on "
+            f"{len(summary['attributes'])}")
+    for why in summary["skipped"]:
+        ctx.say(f"  skipped: {why}")
+
+
+command(Command(name="radiosity", help="solve radiosity; bake lightmaps, colour attributes and "
+                "render the camera's view", run=run, add_arguments=add_arguments,
+                is_technique=True))

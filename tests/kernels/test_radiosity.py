@@ -1,0 +1,172 @@
+"""Radiosity end to end on hand-built scenes: patching, first shot, furnace, one bounce, refinement,
+the camera view and the refusal of reflectance >= 1."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scene_builder import build, ortho_camera, quad
+
+from classic_bake.kernels import patches as patching
+from classic_bake.kernels.form_factors import parallel_rectangles, sample_patches
+from classic_bake.kernels.lights import direct_irradiance
+from classic_bake.kernels.radiosity import (
+    RadiositySettings,
+    bake_steps,
+    first_shot,
+    render_steps,
+    solve_radiosity,
+)
+from classic_bake.kernels.scene import Light, Material, triangle_areas
+
+FAST = dict(samples_per_side=2, visibility_samples_per_side=2, hemicube_resolution=16)
+
+
+def inward_box(size=1.0):
+    """(12, 3, 3) triangles of a cube [0, size]^3 with normals pointing inside."""
+    v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0],
+                  [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]], float) * size
+    faces = [[0, 1, 2, 3], [4, 7, 6, 5], [0, 4, 5, 1], [1, 5, 6, 2], [2, 6, 7, 3], [3, 7, 4, 0]]
+    return np.concatenate([quad(v[f]) for f in faces])
+
+
+def grey(rho, emission=0.0, name="grey"):
+    return Material(name=name, base_color=np.full(3, rho, np.float32),
+                    emission=np.full(3, emission, np.float32))
+
+
+def floor_quad(z=0.0, lo=0.0, hi=1.0):
+    return quad([[lo, lo, z], [hi, lo, z], [hi, hi, z], [lo, hi, z]])
+
+
+def sun_down(strength=1.0):
+    return Light(name="Sun", kind="SUN", position=np.zeros(3), direction=np.array([0, 0, -1.0]),
+                 axis_x=np.array([1.0, 0, 0]), axis_y=np.array([0, 1.0, 0]),
+                 irradiance=np.full(3, strength))
+
+
+# --- patches -------------------------------------------------------------------------------------
+
+
+def test_patches_tile_the_surface_exactly_and_locate_points():
+    rng = np.random.default_rng(3)
+    sliver = np.array([[[0, 0, 2], [3, 0, 2], [3, 0.05, 2]]])
+    scene = build([(inward_box(), grey(0.5)), (sliver, grey(0.5))])
+    patches = patching.make_patches(scene, 0.3)
+    area = triangle_areas(scene.triangles).sum()
+    assert patches.areas.sum() == pytest.approx(area, rel=1e-12)
+    edges = np.linalg.norm(patches.corners - np.roll(patches.corners, -1, axis=1), axis=2)
+    assert edges.max() <= 0.3 + 1e-12
+    refined = patching.split(scene, patches, rng.random(len(patches)) < 0.3)
+    assert len(refined) > len(patches)
+    assert refined.areas.sum() == pytest.approx(area, rel=1e-12)
+    assert set(refined.level_counts()) == {0, 1}
+    # Random points of random triangles land in a patch that holds them.
+    tri = rng.integers(0, scene.triangle_count, 500)
+    bary = rng.dirichlet(np.ones(3), 500)
+    patch, local = patching.locate(refined, tri, bary)
+    assert np.all(patch >= 0) and np.all(refined.parent[patch] == tri)
+    world = np.einsum("mk,mkc->mc", bary, scene.triangles[tri].astype(np.float64))
+    again = np.einsum("mk,mkc->mc", local, refined.corners[patch])
+    np.testing.assert_allclose(again, world, atol=1e-9)
+
+
+# --- sources -------------------------------------------------------------------------------------
+
+
+def test_first_shot_is_the_direct_irradiance_and_shadow_rays_block_it():
+    point = Light(name="Point", kind="POINT", position=np.array([0.5, 0.5, 2.0]),
+                  direction=np.array([0, 0, -1.0]), axis_x=np.array([1.0, 0, 0]),
+                  axis_y=np.array([0, 1.0, 0]), intensity=np.full(3, 4.0))
+    scene = build([(floor_quad(), grey(0.5))], lights=(sun_down(3.0), point))
+    settings = RadiositySettings(light_samples_per_side=4)
+    patches = patching.make_patches(scene, 0.2)
+    never = lambda o, d, t0, t1: np.zeros(len(o), bool)  # noqa: E731
+    h, boundary = first_shot(scene, patches, never, settings, 1.0)
+    # Sun: exactly its strength on a facing floor; point light: the patch mean of I cos / d^2,
+    # checked against a fine midpoint rule of `direct_irradiance` (1e-3).
+    fine, w = sample_patches(patches.corners, 16, "midpoint")
+    normals = np.repeat(patches.normals, fine.shape[1], axis=0)
+    exact = np.einsum("ns,nsc->nc", w, direct_irradiance(point, fine.reshape(-1, 3), normals)
+                      .reshape(len(patches), -1, 3))
+    np.testing.assert_allclose(h, exact + 3.0, rtol=1e-3)
+    assert not boundary.any()
+    always = lambda o, d, t0, t1: np.ones(len(o), bool)  # noqa: E731
+    dark, _ = first_shot(scene, patches, always, settings, 1.0)
+    assert np.all(dark == 0.0)
+
+
+def test_refuses_reflectance_of_one():
+    scene = build([(inward_box(), grey(1.0, emission=1.0, name="Snow"))])
+    with pytest.raises(ValueError, match="Snow.*>= 1"):
+        solve_radiosity(scene, RadiositySettings(patch_budget=24, refine_levels=0))
+
+
+# --- solutions -------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("method,solver", [("raycast", "gauss_seidel"), ("raycast", "progressive"),
+                                           ("hemicube", "gauss_seidel")])
+def test_furnace_closed_box(method, solver):
+    """Every wall emits E = pi L and reflects rho: B = E / (1 - rho) everywhere (pbrt's furnace).
+    Tolerance 1% for ray-cast (quadrature near the edges), 2% for the 16^2 hemicube (pixel
+    aliasing: measured 1.1% at worst)."""
+    tol = 0.02 if method == "hemicube" else 0.01
+    rho, radiance = 0.5, 1.0
+    camera = ortho_camera([0.5, 0.5, 0.9], [0, 0, -1], [0, 1, 0], 0.5, (6, 6))
+    scene = build([(inward_box(), grey(rho, emission=radiance))], camera=camera)
+    settings = RadiositySettings(method=method, solver=solver, patch_budget=60, refine_levels=0,
+                                 tolerance=1e-6, **FAST)
+    result = solve_radiosity(scene, settings)
+    expected = np.pi * radiance / (1.0 - rho)
+    np.testing.assert_allclose(result.radiosity, expected, rtol=tol)
+    assert result.stats["solver"] == solver and result.stats["patches"] == len(result.patches)
+    # The camera sees outgoing radiance B / pi; corners of every object carry it too.
+    image = None
+    for step in render_steps(scene, result):
+        image = step
+    np.testing.assert_allclose(image, expected / np.pi, rtol=tol)
+    bakes = None
+    for step in bake_steps(scene, result, [0], {}, 2):
+        bakes = step
+    np.testing.assert_allclose(bakes[0].corners, expected / np.pi, rtol=tol)
+
+
+def test_auto_solver_goes_progressive_when_the_matrix_does_not_fit():
+    scene = build([(inward_box(), grey(0.3, emission=1.0))])
+    settings = RadiositySettings(patch_budget=40, refine_levels=0, dense_memory_limit=1000, **FAST)
+    result = solve_radiosity(scene, settings)
+    assert result.stats["solver"] == "progressive"
+    assert result.stats["memory_estimate"]["dense_f"] == 0
+    np.testing.assert_allclose(result.radiosity, np.pi / 0.7, rtol=0.01)
+
+
+def test_emitter_and_one_reflector_match_howell():
+    """Two opposed unit squares 1 m apart: a black emitter (L = 1) and a reflector (rho 0.5). The
+    reflector's mean B is rho pi L F12 with Howell's C-11 F12 = 0.1998 (1%)."""
+    top = quad([[0, 0, 1], [0, 1, 1], [1, 1, 1], [1, 0, 1]])  # faces down
+    scene = build([(floor_quad(), grey(0.5)), (top, grey(0.0, emission=1.0, name="Lamp"))])
+    result = solve_radiosity(scene, RadiositySettings(patch_budget=100, refine_levels=0, **FAST))
+    floor = result.patches.object_ids == 0
+    mean_b = np.average(result.radiosity[floor, 0], weights=result.patches.areas[floor])
+    assert mean_b == pytest.approx(0.5 * np.pi * float(parallel_rectangles(1, 1, 1)), rel=0.01)
+    lamp = result.radiosity[~floor]
+    np.testing.assert_allclose(lamp, np.pi, rtol=1e-12)
+
+
+def test_refinement_splits_only_at_the_shadow_boundary():
+    """A sun straight down over a floor: no occluder, no split. With a plate over the floor's
+    middle, the split patches are those crossing the plate's shadow edge."""
+    plain = build([(floor_quad(), grey(0.5))], lights=(sun_down(),))
+    settings = RadiositySettings(patch_budget=64, refine_levels=1, **FAST)
+    assert set(solve_radiosity(plain, settings).stats["per_level"]) == {0}
+    plate = floor_quad(z=0.5, lo=0.3, hi=0.7)
+    shaded = build([(floor_quad(), grey(0.5)), (plate, grey(0.5))], lights=(sun_down(),))
+    result = solve_radiosity(shaded, settings)
+    p = result.patches
+    split_floor = (p.level == 1) & (p.object_ids == 0)
+    assert split_floor.any()
+    size = result.stats["patch_size_m"]
+    centre = p.corners[split_floor].mean(axis=1)[:, :2]
+    to_edge = np.min(np.abs(np.concatenate([centre - 0.3, centre - 0.7], axis=1)), axis=1)
+    assert np.all(to_edge < size), to_edge.max()
