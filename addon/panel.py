@@ -4,10 +4,21 @@ string, so this module never imports `operators` (dependency direction: operator
 import bpy
 
 
-class CLASSICBAKE_PT_main(bpy.types.Panel):
+class _SidebarPanel:
+    """Where every Classic Bake panel lives: the 3D viewport's sidebar, tab "Classic Bake"."""
+
     bl_space_type = "VIEW_3D"
     bl_region_type = "UI"
     bl_category = "Classic Bake"
+
+
+class _TechniquePanel(_SidebarPanel):
+    """A section under the main panel."""
+
+    bl_parent_id = "CLASSICBAKE_PT_main"
+
+
+class CLASSICBAKE_PT_main(_SidebarPanel, bpy.types.Panel):
     bl_label = "Classic Bake"
 
     def draw(self, context):
@@ -18,12 +29,8 @@ class CLASSICBAKE_PT_main(bpy.types.Panel):
         layout.label(text=f"{meshes} meshes, {lights} lights", icon="SCENE_DATA")
 
 
-class CLASSICBAKE_PT_lightmap_uv(bpy.types.Panel):
-    bl_space_type = "VIEW_3D"
-    bl_region_type = "UI"
-    bl_category = "Classic Bake"
+class CLASSICBAKE_PT_lightmap_uv(_TechniquePanel, bpy.types.Panel):
     bl_label = "Lightmap UVs"
-    bl_parent_id = "CLASSICBAKE_PT_main"
 
     def draw(self, context):
         layout = self.layout
@@ -35,12 +42,8 @@ class CLASSICBAKE_PT_lightmap_uv(bpy.types.Panel):
         layout.operator("classic_bake.lightmap_uv", icon="UV")
 
 
-class CLASSICBAKE_PT_trace(bpy.types.Panel):
-    bl_space_type = "VIEW_3D"
-    bl_region_type = "UI"
-    bl_category = "Classic Bake"
+class CLASSICBAKE_PT_trace(_TechniquePanel, bpy.types.Panel):
     bl_label = "Ray Tracing"
-    bl_parent_id = "CLASSICBAKE_PT_main"
 
     def draw(self, context):
         layout = self.layout
@@ -52,12 +55,8 @@ class CLASSICBAKE_PT_trace(bpy.types.Panel):
         layout.operator("classic_bake.trace", icon="RENDER_STILL")
 
 
-class CLASSICBAKE_PT_shadowmap(bpy.types.Panel):
-    bl_space_type = "VIEW_3D"
-    bl_region_type = "UI"
-    bl_category = "Classic Bake"
+class CLASSICBAKE_PT_shadowmap(_TechniquePanel, bpy.types.Panel):
     bl_label = "Shadow Mapping"
-    bl_parent_id = "CLASSICBAKE_PT_main"
 
     def draw(self, context):
         layout = self.layout
@@ -72,12 +71,8 @@ class CLASSICBAKE_PT_shadowmap(bpy.types.Panel):
         layout.operator("classic_bake.shadowmap", icon="LIGHT_SUN")
 
 
-class CLASSICBAKE_PT_compare(bpy.types.Panel):
-    bl_space_type = "VIEW_3D"
-    bl_region_type = "UI"
-    bl_category = "Classic Bake"
+class CLASSICBAKE_PT_compare(_TechniquePanel, bpy.types.Panel):
     bl_label = "Compare with Cycles"
-    bl_parent_id = "CLASSICBAKE_PT_main"
     bl_options = {"DEFAULT_CLOSED"}
 
     def draw(self, context):
@@ -97,12 +92,8 @@ class CLASSICBAKE_PT_compare(bpy.types.Panel):
             box.label(text="Error image: 'Classic Bake Error'", icon="IMAGE_DATA")
 
 
-class CLASSICBAKE_PT_radiosity(bpy.types.Panel):
-    bl_space_type = "VIEW_3D"
-    bl_region_type = "UI"
-    bl_category = "Classic Bake"
+class CLASSICBAKE_PT_radiosity(_TechniquePanel, bpy.types.Panel):
     bl_label = "Radiosity"
-    bl_parent_id = "CLASSICBAKE_PT_main"
 
     def draw(self, context):
         layout = self.layout
@@ -120,11 +111,5 @@ CLASSES = (CLASSICBAKE_PT_main, CLASSICBAKE_PT_lightmap_uv, CLASSICBAKE_PT_trace
            CLASSICBAKE_PT_shadowmap, CLASSICBAKE_PT_radiosity, CLASSICBAKE_PT_compare)
 
 
-def register() -> None:
-    for cls in CLASSES:
-        bpy.utils.register_class(cls)
-
-
-def unregister() -> None:
-    for cls in reversed(CLASSES):
-        bpy.utils.unregister_class(cls)
+# Registered in order, unregistered in reverse.
+register, unregister = bpy.utils.register_classes_factory(CLASSES)

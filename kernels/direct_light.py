@@ -21,8 +21,7 @@ import numpy as np
 
 from . import lights as light_units
 from .bake_targets import BakeTargets
-from .camera import camera_rays
-from .raster import Projection, rasterize
+from .camera_view import camera_fragments
 from .scene import Scene, geometric_normals
 from .shadowmap import ShadowMapSettings, build_shadow_map, shadow_visibility
 from .textures import sample_texture
@@ -122,32 +121,6 @@ def albedo_at(scene: Scene, tri: np.ndarray, bary: np.ndarray) -> np.ndarray:
 # --- the camera view ------------------------------------------------------------------------------
 
 
-def camera_projection(camera) -> Projection:
-    """The kernel camera as a rasteriser projection (same image plane, clip range)."""
-    view = np.linalg.inv(camera.matrix_world)
-    extent = (camera.plane_min[0], camera.plane_max[0], camera.plane_min[1], camera.plane_max[1])
-    if camera.kind == "ORTHO":
-        return Projection.orthographic(view, extent, camera.clip_start, camera.clip_end)
-    return Projection("PERSP", view, tuple(float(e) for e in extent), max(camera.clip_start, 1e-6),
-                      camera.clip_end)
-
-
-def _ray_triangle_bary(origins, dirs, tris) -> tuple[np.ndarray, np.ndarray]:
-    """Barycentrics (N, 3) and distance (N,) where each ray meets its own triangle's plane."""
-    a, b, c = tris[:, 0], tris[:, 1], tris[:, 2]
-    e1, e2 = b - a, c - a
-    pvec = np.cross(dirs, e2)
-    det = np.einsum("ij,ij->i", e1, pvec)
-    inv = np.where(np.abs(det) > 1e-300, 1.0 / np.where(det == 0, 1.0, det), 0.0)
-    tvec = origins - a
-    u = np.einsum("ij,ij->i", tvec, pvec) * inv
-    qvec = np.cross(tvec, e1)
-    v = np.einsum("ij,ij->i", dirs, qvec) * inv
-    t = np.einsum("ij,ij->i", e2, qvec) * inv
-    bary = np.clip(np.stack([1 - u - v, u, v], 1), 0.0, 1.0)
-    return bary / np.maximum(bary.sum(1, keepdims=True), 1e-12), t
-
-
 def render_steps(scene: Scene, settings: DirectLightSettings, resolution=None,
                  out: np.ndarray | None = None) -> Iterator[float | np.ndarray]:
     """The camera's view of direct light with shadow-mapped shadows: the lecture's step 2, with
@@ -158,18 +131,12 @@ def render_steps(scene: Scene, settings: DirectLightSettings, resolution=None,
     width, height = resolution or camera.resolution
     image = np.empty((height, width, 3), np.float32) if out is None else out
     image[...] = scene.world_color
-    raster = rasterize(scene.triangles, camera_projection(camera), width, height,
-                       with_triangle_ids=True)
+    f = camera_fragments(scene, (width, height))
     yield 0.2
-    rows, cols = np.nonzero(raster.triangle >= 0)
-    if len(rows) == 0:
+    if len(f) == 0:
         yield image
         return
-    tri = raster.triangle[rows, cols].astype(np.int64)
-    origins, dirs = camera_rays(camera, width, height)
-    o, d = origins[rows, cols], dirs[rows, cols]
-    bary, t = _ray_triangle_bary(o, d, scene.triangles[tri].astype(np.float64))
-    points = o + d * t[:, None]
+    rows, cols, tri, bary, points, d, t = f.rows, f.cols, f.tri, f.bary, f.points, f.dirs, f.depth
     normals = np.einsum("nc,ncj->nj", bary, scene.normals[tri].astype(np.float64))
     normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
     geo = geometric_normals(scene.triangles[tri])

@@ -510,9 +510,7 @@ def render_steps(scene: Scene, result: RadiosityResult, resolution=None,
                  out: np.ndarray | None = None) -> Iterator[float | np.ndarray]:
     """The scene camera's view of the solution: outgoing radiance B / pi at the surface each
     pixel centre sees (rasterised), the world colour elsewhere. Yields progress, then (H, W, 3)."""
-    from .camera import camera_rays
-    from .direct_light import camera_projection
-    from .raster import rasterize
+    from .camera_view import camera_fragments
 
     camera = scene.camera
     if camera is None:
@@ -520,19 +518,8 @@ def render_steps(scene: Scene, result: RadiosityResult, resolution=None,
     width, height = resolution or camera.resolution
     image = np.empty((height, width, 3), np.float32) if out is None else out
     image[...] = scene.world_color
-    raster = rasterize(scene.triangles, camera_projection(camera), width, height,
-                       with_triangle_ids=True)
+    f = camera_fragments(scene, (width, height))
     yield 0.5
-    rows, cols = np.nonzero(raster.triangle >= 0)
-    if len(rows):
-        tri = raster.triangle[rows, cols].astype(np.int64)
-        origins, dirs = camera_rays(camera, width, height)
-        o, d = origins[rows, cols], dirs[rows, cols]
-        tris = scene.triangles[tri].astype(np.float64)
-        # Where each pixel's ray meets its triangle's plane.
-        normal = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
-        denom = np.einsum("ij,ij->i", d, normal)
-        t = np.einsum("ij,ij->i", tris[:, 0] - o, normal) / np.where(denom != 0.0, denom, 1.0)
-        points = o + d * t[:, None]
-        image[rows, cols] = result.radiance_at(tri, _point_bary(tris, points))
+    if len(f):
+        image[f.rows, f.cols] = result.radiance_at(f.tri, f.bary)
     yield image

@@ -77,11 +77,5 @@ class CLASSICBAKE_OT_lightmap_uv(JobOperator, bpy.types.Operator):
 CLASSES = (CLASSICBAKE_OT_lightmap_uv,)
 
 
-def register() -> None:
-    for cls in CLASSES:
-        bpy.utils.register_class(cls)
-
-
-def unregister() -> None:
-    for cls in reversed(CLASSES):
-        bpy.utils.unregister_class(cls)
+# Registered in order, unregistered in reverse.
+register, unregister = bpy.utils.register_classes_factory(CLASSES)

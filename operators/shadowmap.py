@@ -45,11 +45,5 @@ class CLASSICBAKE_OT_shadowmap(JobOperator, bpy.types.Operator):
 CLASSES = (CLASSICBAKE_OT_shadowmap,)
 
 
-def register() -> None:
-    for cls in CLASSES:
-        bpy.utils.register_class(cls)
-
-
-def unregister() -> None:
-    for cls in reversed(CLASSES):
-        bpy.utils.unregister_class(cls)
+# Registered in order, unregistered in reverse.
+register, unregister = bpy.utils.register_classes_factory(CLASSES)

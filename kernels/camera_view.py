@@ -1,0 +1,85 @@
+"""What the camera sees, by z-buffer: the fragments f of the lecture's step 2.
+
+The scene is rasterised from the camera (`raster.py`, top-left rule) with triangle ids; each covered
+pixel's centre ray is then intersected with its triangle's plane in float64, giving the exact point
+and barycentrics that the shading at that pixel uses. Shared by every kernel that renders the camera
+view of a baked or computed result (direct light with shadow maps, radiosity).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .camera import camera_rays
+from .raster import Projection, rasterize
+from .scene import Camera, Scene
+
+
+@dataclass(frozen=True, eq=False)
+class Fragments:
+    """Covered pixels (N of them) and the surface point each pixel centre sees.
+
+    rows, cols (N,) int   pixel indices, row 0 top
+    tri        (N,) int64 scene triangle
+    bary       (N, 3)     barycentric weights of the point in its triangle
+    points     (N, 3)     world, m
+    dirs       (N, 3)     unit view directions (camera to point)
+    depth      (N,)       distance along the ray from its origin, m
+    """
+
+    rows: np.ndarray
+    cols: np.ndarray
+    tri: np.ndarray
+    bary: np.ndarray
+    points: np.ndarray
+    dirs: np.ndarray
+    depth: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.rows.shape[0])
+
+
+def camera_projection(camera: Camera) -> Projection:
+    """The kernel camera as a rasteriser projection (same image plane, clip range)."""
+    view = np.linalg.inv(camera.matrix_world)
+    extent = (camera.plane_min[0], camera.plane_max[0], camera.plane_min[1], camera.plane_max[1])
+    if camera.kind == "ORTHO":
+        return Projection.orthographic(view, extent, camera.clip_start, camera.clip_end)
+    return Projection("PERSP", view, tuple(float(e) for e in extent), max(camera.clip_start, 1e-6),
+                      camera.clip_end)
+
+
+def ray_triangle_bary(origins, dirs, tris) -> tuple[np.ndarray, np.ndarray]:
+    """Barycentrics (N, 3) and distance (N,) where each ray meets its own triangle's plane
+    (Moller-Trumbore without the inside test: the rasteriser already chose the triangle)."""
+    a, b, c = tris[:, 0], tris[:, 1], tris[:, 2]
+    e1, e2 = b - a, c - a
+    pvec = np.cross(dirs, e2)
+    det = np.einsum("ij,ij->i", e1, pvec)
+    inv = np.where(np.abs(det) > 1e-300, 1.0 / np.where(det == 0, 1.0, det), 0.0)
+    tvec = origins - a
+    u = np.einsum("ij,ij->i", tvec, pvec) * inv
+    qvec = np.cross(tvec, e1)
+    v = np.einsum("ij,ij->i", dirs, qvec) * inv
+    t = np.einsum("ij,ij->i", e2, qvec) * inv
+    bary = np.clip(np.stack([1 - u - v, u, v], 1), 0.0, 1.0)
+    return bary / np.maximum(bary.sum(1, keepdims=True), 1e-12), t
+
+
+def camera_fragments(scene: Scene, resolution=None) -> Fragments:
+    """Rasterise the camera view of `scene` at `resolution` (W, H; default the camera's)."""
+    camera = scene.camera
+    if camera is None:
+        raise ValueError("the scene has no camera")
+    width, height = resolution or camera.resolution
+    raster = rasterize(scene.triangles, camera_projection(camera), width, height,
+                       with_triangle_ids=True)
+    rows, cols = np.nonzero(raster.triangle >= 0)
+    tri = raster.triangle[rows, cols].astype(np.int64)
+    origins, dirs = camera_rays(camera, width, height)
+    o, d = origins[rows, cols], dirs[rows, cols]
+    bary, t = ray_triangle_bary(o, d, scene.triangles[tri].astype(np.float64))
+    return Fragments(rows=rows, cols=cols, tri=tri, bary=bary, points=o + d * t[:, None], dirs=d,
+                     depth=t)
