@@ -1,0 +1,86 @@
+"""Shared helpers of the benchmarks: timing, versions, and the out/bench/NAME.json report.
+
+Every benchmark writes `{"bench": NAME, "ratios": {...}, "figures": {...}, "versions": {...}}`;
+each ratio is named for what it divides (e.g. `bvh_vs_bvhtree_rays_per_s/...`).
+"""
+
+from __future__ import annotations
+
+import json
+import platform
+import time
+from collections.abc import Callable
+from importlib import metadata
+from pathlib import Path
+
+import numpy as np
+
+OUT_DIR = Path(__file__).resolve().parents[1] / "out" / "bench"
+
+
+def best_of(fn: Callable[[], object], repeats: int = 3) -> float:
+    """The shortest wall-clock time of `repeats` calls of fn, seconds (noise only adds time)."""
+    best = float("inf")
+    for _ in range(repeats):
+        start = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - start)
+    return best
+
+
+def timed(fn: Callable[..., object], *args: object) -> float:
+    """Wall-clock seconds of one call fn(*args)."""
+    start = time.perf_counter()
+    fn(*args)
+    return time.perf_counter() - start
+
+
+def versions(*packages: str) -> dict[str, str]:
+    """Python, NumPy, the machine, and each named package's installed version (if any)."""
+    found = {
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "machine": f"{platform.machine()} {platform.processor() or ''}".strip(),
+    }
+    for name in packages:
+        try:
+            found[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            found[name] = "not installed"
+    return found
+
+
+def write_report(
+    name: str,
+    ratios: dict[str, float],
+    figures: dict[str, object],
+    versions_: dict[str, str],
+    out_dir: Path | None = None,
+) -> Path:
+    """Write out/bench/NAME.json and return its path."""
+    folder = out_dir or OUT_DIR
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / f"{name}.json"
+    report = {"bench": name, "ratios": ratios, "figures": figures, "versions": versions_}
+    path.write_text(json.dumps(report, indent=1, sort_keys=True, default=float) + "\n")
+    return path
+
+
+def format_table(header: list[str], rows: list[list[object]]) -> str:
+    """A plain-text table, columns right-aligned except the first."""
+    cells = [[str(c) for c in header]] + [
+        [f"{c:.3g}" if isinstance(c, float) else str(c) for c in row] for row in rows
+    ]
+    widths = [max(len(r[i]) for r in cells) for i in range(len(header))]
+    lines = []
+    for k, row in enumerate(cells):
+        first = row[0].ljust(widths[0])
+        rest = [c.rjust(w) for c, w in zip(row[1:], widths[1:], strict=True)]
+        lines.append("  ".join([first, *rest]))
+        if k == 0:
+            lines.append("  ".join("-" * w for w in widths))
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":
+    print("bench/_report.py is a helper module; run bench/rays.py")
