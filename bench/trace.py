@@ -46,6 +46,8 @@ def main() -> int:
     parser.add_argument("--scales", type=int, nargs="+", default=[1, 2],
                         help="resolution multipliers per side (2: 4x the pixels)")
     parser.add_argument("--quick", action="store_true", help="short ladders (smoke run)")
+    parser.add_argument("--max-ref-samples", type=int, default=1024,
+                        help="cap of the converged Cycles reference (default 1024)")
     args = parser.parse_args()
 
     import bpy
@@ -70,7 +72,7 @@ def main() -> int:
         depth = auto_settings(snap).max_depth
         model = cr.whitted(depth)
         ref = cr.reference(SCENE, model, "render", resolution=resolution,
-                           samples=128 if args.quick else None, max_samples=2048,
+                           samples=128 if args.quick else None, max_samples=args.max_ref_samples,
                            target_rel_mse=1e-4)
         reference = ref.image
         bpy.ops.wm.open_mainfile(filepath=str(SCENE), load_ui=False, use_scripts=False)
