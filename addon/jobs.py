@@ -68,6 +68,45 @@ def _remove_uv_layers(objects, uv_name):
             obj.data.uv_layers.remove(layer)
 
 
+def _progress(steps, start: float, span: float, is_result):
+    """Re-yield a kernel generator's progress mapped onto [start, start + span]; `yield from`
+    this returns the kernel's final value (the step for which `is_result` is true)."""
+    result = None
+    for step in steps:
+        if is_result(step):
+            result = step
+        else:
+            yield start + span * step
+    return result
+
+
+def _write_back(scene, bakes: dict, attribute: str, image_prefix: str, render_image,
+                render_name: str, wire: bool = False) -> dict:
+    """Write per-object bakes (objects with .lightmap, .lightmap_mask, .corners) as lightmap images
+    and CORNER colour attributes, and the camera render as an image. Returns the summary."""
+    summary = {"images": {}, "attributes": [], "render": render_image, "skipped": [],
+               "lightmaps": {}, "scene": scene}
+    for k, bake in bakes.items():
+        info = scene.objects[k]
+        obj = bpy.data.objects[info.source_name]
+        if bake.lightmap is not None:
+            name = f"{image_prefix} {info.source_name}"
+            summary["images"][info.source_name] = bridge.write_image(
+                name, bake.lightmap, image=bpy.data.images.get(name))
+            summary["lightmaps"][info.source_name] = (bake.lightmap, bake.lightmap_mask)
+        if info.topology_matches_original:
+            bridge.write_corner_values(obj.data, scene, k, bake.corners, attribute)
+            summary["attributes"].append(info.source_name)
+            if wire:
+                bridge.wire_baked_display(obj, attribute=attribute)
+        else:
+            summary["skipped"].append(f"{info.source_name}: modifiers change its topology, so the "
+                                      "colour attribute is not written (the lightmap is)")
+    if render_image is not None:
+        bridge.write_image(render_name, render_image, image=bpy.data.images.get(render_name))
+    return summary
+
+
 def shadow_bake_job(context, settings, uv_name: str, uv_settings, attribute: str = "Shadow",
                     image_prefix: str = "Shadow", render: bool = True, resolution=None):
     """Bake the shadow-map mask of every mesh into a lightmap image and a corner colour attribute,
@@ -86,46 +125,21 @@ def shadow_bake_job(context, settings, uv_name: str, uv_settings, attribute: str
         if not scene.lights:
             raise ValueError("the scene has no lights: nothing casts a shadow")
         targets = [k for k, o in enumerate(scene.objects) if not o.is_instance]
-        results = None
         sizes = {k: plan.get(scene.objects[k].source_name, uv_settings.resolution) for k in targets}
-        for step in direct_light.shadow_bake_steps(scene, targets, sizes, uv_settings.padding,
-                                                   settings):
-            if isinstance(step, dict):
-                results = step
-            else:
-                yield 0.8 * step
+        results = yield from _progress(
+            direct_light.shadow_bake_steps(scene, targets, sizes, uv_settings.padding, settings),
+            0.0, 0.8, lambda step: isinstance(step, dict))
         image = None
         if render and scene.camera is not None:
-            for step in direct_light.render_steps(scene, settings, resolution):
-                if isinstance(step, np.ndarray):
-                    image = step
-                else:
-                    yield 0.8 + 0.2 * step
+            image = yield from _progress(direct_light.render_steps(scene, settings, resolution),
+                                         0.8, 0.2, lambda step: isinstance(step, np.ndarray))
     except BaseException:
         _remove_uv_layers(created, uv_name)
         raise
     # --- write back: everything computed ---------------------------------------------------------
-    summary = {"images": {}, "attributes": [], "render": None, "skipped": [],
-               "lightmaps": {}, "per_light": {}, "scene": scene}
-    for k, bake in results.items():
-        info = scene.objects[k]
-        obj = bpy.data.objects[info.source_name]
-        if bake.lightmap is not None:
-            name = f"{image_prefix} {info.source_name}"
-            summary["images"][info.source_name] = bridge.write_image(
-                name, bake.lightmap, image=bpy.data.images.get(name))
-            summary["lightmaps"][info.source_name] = (bake.lightmap, bake.lightmap_mask)
-            summary["per_light"][info.source_name] = bake.per_light_lightmaps
-        if info.topology_matches_original:
-            bridge.write_corner_values(obj.data, scene, k, bake.corners, attribute)
-            summary["attributes"].append(info.source_name)
-        else:
-            summary["skipped"].append(f"{info.source_name}: modifiers change its topology, so the "
-                                      "colour attribute is not written (the lightmap is)")
-    if image is not None:
-        summary["render"] = image
-        name = "Classic Bake Shadows"
-        bridge.write_image(name, image, image=bpy.data.images.get(name))
+    summary = _write_back(scene, results, attribute, image_prefix, image, "Classic Bake Shadows")
+    summary["per_light"] = {scene.objects[k].source_name: bake.per_light_lightmaps
+                            for k, bake in results.items() if bake.lightmap is not None}
     yield summary
 
 
@@ -147,51 +161,22 @@ def radiosity_bake_job(context, settings, uv_name: str, uv_settings, attribute: 
     try:
         scene = bridge.snapshot(context, bridge.SnapshotRequest(lightmap_uv=uv_name, textures=True),
                                 resolution=resolution)
-        result = None
-        for step in radiosity.radiosity_steps(scene, settings):
-            if isinstance(step, radiosity.RadiosityResult):
-                result = step
-            else:
-                yield 0.85 * step
+        result = yield from _progress(radiosity.radiosity_steps(scene, settings), 0.0, 0.85,
+                                      lambda step: isinstance(step, radiosity.RadiosityResult))
         targets = [k for k, o in enumerate(scene.objects) if not o.is_instance]
         sizes = {k: plan.get(scene.objects[k].source_name, uv_settings.resolution) for k in targets}
-        bakes = None
-        for step in radiosity.bake_steps(scene, result, targets, sizes, uv_settings.padding):
-            if isinstance(step, dict):
-                bakes = step
-            else:
-                yield 0.85 + 0.1 * step
+        bakes = yield from _progress(
+            radiosity.bake_steps(scene, result, targets, sizes, uv_settings.padding), 0.85, 0.1,
+            lambda step: isinstance(step, dict))
         image = None
         if render and scene.camera is not None:
-            for step in radiosity.render_steps(scene, result, resolution):
-                if isinstance(step, np.ndarray):
-                    image = step
-                else:
-                    yield 0.95 + 0.05 * step
+            image = yield from _progress(radiosity.render_steps(scene, result, resolution), 0.95,
+                                         0.05, lambda step: isinstance(step, np.ndarray))
     except BaseException:
         _remove_uv_layers(created, uv_name)
         raise
     # --- write back: everything computed ---------------------------------------------------------
-    summary = {"images": {}, "attributes": [], "render": None, "skipped": [], "lightmaps": {},
-               "result": result, "scene": scene, "lightmap_sizes": plan}
-    for k, bake in bakes.items():
-        info = scene.objects[k]
-        obj = bpy.data.objects[info.source_name]
-        if bake.lightmap is not None:
-            name = f"{image_prefix} {info.source_name}"
-            summary["images"][info.source_name] = bridge.write_image(
-                name, bake.lightmap, image=bpy.data.images.get(name))
-            summary["lightmaps"][info.source_name] = (bake.lightmap, bake.lightmap_mask)
-        if info.topology_matches_original:
-            bridge.write_corner_values(obj.data, scene, k, bake.corners, attribute)
-            summary["attributes"].append(info.source_name)
-            if wire:
-                bridge.wire_baked_display(obj, attribute=attribute)
-        else:
-            summary["skipped"].append(f"{info.source_name}: modifiers change its topology, so the "
-                                      "colour attribute is not written (the lightmap is)")
-    if image is not None:
-        summary["render"] = image
-        name = "Classic Bake Radiosity"
-        bridge.write_image(name, image, image=bpy.data.images.get(name))
+    summary = _write_back(scene, bakes, attribute, image_prefix, image, "Classic Bake Radiosity",
+                          wire=wire)
+    summary.update(result=result, lightmap_sizes=plan)
     yield summary
