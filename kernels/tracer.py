@@ -40,6 +40,9 @@ DEFAULT_OFFSET_SCALE = 1e-5
 # Shading normals are renormalised; below this length (degenerate corner normals) the geometric
 # normal is used instead.
 MIN_NORMAL_LENGTH = 1e-8
+# Emitter samples handled together in area lighting: B x hits arrays stay a few MB per block for
+# a typical wavefront of ~100k hits.
+EMITTER_BLOCK = 8
 # Relative luminance contrast between neighbouring pixels that marks an edge for supersampling;
 # 1/16 is about the smallest step visible in an 8-bit display of the result.
 EDGE_CONTRAST = 1.0 / 16.0
@@ -304,23 +307,27 @@ class _Tracer:
         return out
 
     def _area_direct(self, origin, ns, brdf_d) -> np.ndarray:
+        """Light from area lights and emissive triangles: every emitter sample against every hit,
+        EMITTER_BLOCK samples at a time, with one batch of shadow rays per block."""
         em = self.emitters
         out = np.zeros_like(origin)
-        for s in range(len(em.area_points)):  # S samples, each vectorised over the hits
-            delta = em.area_points[s] - origin
-            d2 = np.einsum("ij,ij->i", delta, delta)
+        for first in range(0, len(em.area_points), EMITTER_BLOCK):
+            block = slice(first, first + EMITTER_BLOCK)
+            delta = em.area_points[block][:, None, :] - origin[None, :, :]  # (B, N, 3)
+            d2 = np.einsum("bnj,bnj->bn", delta, delta)
             dist = np.sqrt(d2)
-            to_l = delta / np.maximum(dist, 1e-12)[:, None]
-            cos_r = np.einsum("ij,ij->i", ns, to_l)
-            cos_e = -to_l @ em.area_normals[s]
-            if em.area_two_sided[s]:
-                cos_e = np.abs(cos_e)
+            to_l = delta / np.maximum(dist, 1e-12)[..., None]
+            cos_r = np.einsum("nj,bnj->bn", ns, to_l)
+            cos_e = -np.einsum("bnj,bj->bn", to_l, em.area_normals[block])
+            cos_e = np.where(em.area_two_sided[block][:, None], np.abs(cos_e), cos_e)
             g = np.clip(cos_r, 0, None) * np.clip(cos_e, 0, None) / np.maximum(d2, 1e-12)
-            sub = np.nonzero(g > 0)[0]
-            if len(sub) == 0:
+            b_idx, n_idx = np.nonzero(g > 0)
+            if len(n_idx) == 0:
                 continue
-            vis = self._visible(origin[sub], to_l[sub], dist[sub] * (1.0 - 1e-4) - self.offset)
-            out[sub] += brdf_d[sub] * (em.area_radiance_da[s] * (g[sub] * vis)[:, None])
+            vis = self._visible(origin[n_idx], to_l[b_idx, n_idx],
+                                dist[b_idx, n_idx] * (1.0 - 1e-4) - self.offset)
+            weight = em.area_radiance_da[block][b_idx] * (g[b_idx, n_idx] * vis)[:, None]
+            np.add.at(out, n_idx, brdf_d[n_idx] * weight)
         return out
 
     def hit_ids(self, tri: np.ndarray) -> np.ndarray:
