@@ -51,7 +51,7 @@ Ray callbacks (method A and B), R rays per call:
         t (R,) float (inf on a miss); tri (R,) int (-1 on a miss); both sides of a triangle hit.
 
 `kernels.bvh.BVH.intersect` fits `closest_hit` through a lambda returning its Hits.
-`kernels/_testing.py` has a brute-force tracer with both callbacks for the tests.
+`tests/support/radiosity_scenes.py` has a brute-force tracer with both callbacks for the tests.
 """
 
 from __future__ import annotations

@@ -3,7 +3,7 @@
 Ground truth: Howell's closed forms C-11, C-14, element-to-disk and disk-to-disk (checked against
 the reference file's numbers), numerical quadrature of the form factor kernel, and identities
 (reciprocity, summation to 1 in a closed box). Ray visibility comes from the brute-force tracer of
-`kernels/_testing.py`. Each tolerance is stated next to the error measured when it was written.
+`tests/support/radiosity_scenes.py`. Each tolerance is stated next to the error measured when it was written.
 """
 
 from __future__ import annotations
@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import radiosity_scenes as T
 
-from classic_bake.kernels import _testing as T
 from classic_bake.kernels import form_factors as ff
 
 REFERENCE = Path("/work/shared/reference/form_factors.json")

@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import radiosity_scenes as T
 
-from classic_bake.kernels import _testing as T
 from classic_bake.kernels import form_factors as ff
 from classic_bake.kernels import radiosity_solvers as rs
 
