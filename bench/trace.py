@@ -57,7 +57,7 @@ def main() -> int:
     from classic_bake.kernels.bvh import BVH
     from classic_bake.kernels.metrics import compare, rel_mse
     from classic_bake.kernels.tracer import auto_settings, trace
-    from classic_bake.pipeline.charts import speed_accuracy_chart
+    from classic_bake.pipeline.charts import speed_accuracy_chart, sweep_chart
     from classic_bake.pipeline.images import write_preview_png
 
     bpy.ops.wm.open_mainfile(filepath=str(SCENE), load_ui=False, use_scripts=False)
@@ -101,6 +101,22 @@ def main() -> int:
                                                   resolution=resolution)
                 cycles_rows.append({"samples": cycles_counts[step], "seconds": seconds,
                                     "rel_mse": rel_mse(image, reference)})
+        # Stability: the ray tree's depth limit, from camera rays only to deeper than needed.
+        sweep = {"depth": [], "rel_mse": [], "mean_radiance": [], "depth_limited": []}
+        for d in range(0, depth + 3):
+            result = trace(snap, auto_settings(snap, max_depth=d, adaptive=0), bvh=bvh,
+                           resolution=resolution)
+            sweep["depth"].append(d)
+            sweep["rel_mse"].append(rel_mse(result.image, reference))
+            sweep["mean_radiance"].append(float(result.image.mean()))
+            sweep["depth_limited"].append(result.stats.depth_limited)
+        sweep_chart(sweep["depth"], [
+            {"label": "relative MSE against Cycles", "values": sweep["rel_mse"],
+             "axis_label": "relative MSE (dimensionless)", "log": True},
+            {"label": "rays still alive at the depth limit", "values": sweep["depth_limited"],
+             "axis_label": "rays cut by the limit"}],
+            OUT_DIR / f"trace_depth_x{scale * scale}", x_label="maximum ray-tree depth",
+            title=f"Depth limit sweep (auto depth {depth})", marks={"auto": depth})
         for row in kernel_rows:
             reach = seconds_to_reach(row["rel_mse"], cycles_rows)
             row["cycles_seconds_to_same_error"] = reach
@@ -113,7 +129,7 @@ def main() -> int:
             "resolution": resolution, "depth": depth, "bvh_build_s": build_s,
             "reference": {"samples": ref.samples, "noise_rel_mse": ref.noise_rel_mse,
                           "seconds": ref.seconds, "cache_hit": ref.cache_hit},
-            "kernel": kernel_rows, "cycles": cycles_rows}
+            "kernel": kernel_rows, "cycles": cycles_rows, "depth_sweep": sweep}
         OUT_DIR.mkdir(parents=True, exist_ok=True)
         speed_accuracy_chart(kernel_rows, cycles_rows, OUT_DIR / f"trace_speed_x{scale * scale}",
                              title=f"Whitted tracer vs Cycles (whitted model), {resolution[0]}x"
