@@ -30,6 +30,7 @@ class BakeTargets:
     normals      (N, 3) float64  interpolated shading normals, unit
     geo_normals  (N, 3) float64  face normals of the triangles, unit
     triangles    (N,) int64      scene triangle of each point
+    bary         (N, 3) float64  barycentric weights of each point in its triangle
     Lightmaps: `mask` (H, W) bool marks the baked texels, `rows`/`cols` (N,) their indices.
     Corners: `corner_index` (N,) int64 = scene triangle * 3 + corner.
     """
@@ -38,6 +39,7 @@ class BakeTargets:
     normals: np.ndarray
     geo_normals: np.ndarray
     triangles: np.ndarray
+    bary: np.ndarray
     mask: np.ndarray | None = None
     rows: np.ndarray | None = None
     cols: np.ndarray | None = None
@@ -109,7 +111,8 @@ def _targets(scene: Scene, tri: np.ndarray, bary: np.ndarray, **where) -> BakeTa
     geo = geometric_normals(scene.triangles[tri])
     length = np.linalg.norm(normals, axis=1, keepdims=True)
     normals = np.where(length > 1e-12, normals / np.maximum(length, 1e-12), geo)
-    return BakeTargets(points=points, normals=normals, geo_normals=geo, triangles=tri, **where)
+    return BakeTargets(points=points, normals=normals, geo_normals=geo, triangles=tri, bary=bary,
+                       **where)
 
 
 def dilate(image: np.ndarray, mask: np.ndarray, texels: int, out: np.ndarray | None = None) -> np.ndarray:

@@ -83,3 +83,15 @@ def camera_fragments(scene: Scene, resolution=None) -> Fragments:
     bary, t = ray_triangle_bary(o, d, scene.triangles[tri].astype(np.float64))
     return Fragments(rows=rows, cols=cols, tri=tri, bary=bary, points=o + d * t[:, None], dirs=d,
                      depth=t)
+
+
+def background_and_fragments(scene: Scene, resolution=None, out: np.ndarray | None = None
+                             ) -> tuple[np.ndarray, Fragments]:
+    """The start of every camera render: an (H, W, 3) float32 image (or `out`) filled with the
+    world colour, which escaping pixel rays see, and the fragments to shade."""
+    if scene.camera is None:
+        raise ValueError("the scene has no camera")
+    width, height = resolution or scene.camera.resolution
+    image = np.empty((height, width, 3), np.float32) if out is None else out
+    image[...] = scene.world_color
+    return image, camera_fragments(scene, (width, height))

@@ -21,7 +21,7 @@ import numpy as np
 
 from . import lights as light_units
 from .bake_targets import BakeTargets
-from .camera_view import camera_fragments
+from .camera_view import background_and_fragments
 from .scene import Scene, geometric_normals
 from .shadowmap import ShadowMapSettings, build_shadow_map, shadow_visibility
 from .textures import sample_texture
@@ -125,13 +125,9 @@ def render_steps(scene: Scene, settings: DirectLightSettings, resolution=None,
                  out: np.ndarray | None = None) -> Iterator[float | np.ndarray]:
     """The camera's view of direct light with shadow-mapped shadows: the lecture's step 2, with
     the eye's own z-buffer giving the fragments f. Yields progress, then the (H, W, 3) image."""
+    image, f = background_and_fragments(scene, resolution, out)
     camera = scene.camera
-    if camera is None:
-        raise ValueError("the scene has no camera")
-    width, height = resolution or camera.resolution
-    image = np.empty((height, width, 3), np.float32) if out is None else out
-    image[...] = scene.world_color
-    f = camera_fragments(scene, (width, height))
+    width = image.shape[1]
     yield 0.2
     if len(f) == 0:
         yield image

@@ -473,7 +473,7 @@ def bake_steps(scene: Scene, result: RadiosityResult, objects, lightmap_sizes: d
         lightmap = mask = None
         if scene.lightmap_uv is not None and scene.objects[k].has_lightmap_uv:
             targets = lightmap_targets(scene, k, lightmap_sizes[k])
-            values = result.radiance_at(targets.triangles, _bary_of(scene, targets))
+            values = result.radiance_at(targets.triangles, targets.bary)
             mask = targets.mask
             lightmap = dilate(targets.to_image(values), mask, padding)
         corners = corner_targets(scene, k)
@@ -483,42 +483,13 @@ def bake_steps(scene: Scene, result: RadiosityResult, objects, lightmap_sizes: d
     yield out
 
 
-def _bary_of(scene: Scene, targets) -> np.ndarray:
-    """Barycentric coordinates (N, 3) of bake target points in their triangles."""
-    tris = scene.triangles[targets.triangles].astype(np.float64)
-    return _point_bary(tris, targets.points)
-
-
-def _point_bary(tris: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """Barycentrics (N, 3) of points (N, 3) lying in triangles (N, 3, 3), clamped and renormalised."""
-    a = tris[:, 0]
-    v0, v1, v2 = tris[:, 1] - a, tris[:, 2] - a, points - a
-    d00 = np.einsum("ij,ij->i", v0, v0)
-    d01 = np.einsum("ij,ij->i", v0, v1)
-    d11 = np.einsum("ij,ij->i", v1, v1)
-    d20 = np.einsum("ij,ij->i", v2, v0)
-    d21 = np.einsum("ij,ij->i", v2, v1)
-    denom = d00 * d11 - d01 * d01
-    safe = np.where(denom != 0.0, denom, 1.0)
-    v = (d11 * d20 - d01 * d21) / safe
-    w = (d00 * d21 - d01 * d20) / safe
-    bary = np.clip(np.stack([1.0 - v - w, v, w], 1), 0.0, 1.0)
-    return bary / np.maximum(bary.sum(1, keepdims=True), 1e-300)
-
-
 def render_steps(scene: Scene, result: RadiosityResult, resolution=None,
                  out: np.ndarray | None = None) -> Iterator[float | np.ndarray]:
     """The scene camera's view of the solution: outgoing radiance B / pi at the surface each
     pixel centre sees (rasterised), the world colour elsewhere. Yields progress, then (H, W, 3)."""
-    from .camera_view import camera_fragments
+    from .camera_view import background_and_fragments
 
-    camera = scene.camera
-    if camera is None:
-        raise ValueError("the scene has no camera")
-    width, height = resolution or camera.resolution
-    image = np.empty((height, width, 3), np.float32) if out is None else out
-    image[...] = scene.world_color
-    f = camera_fragments(scene, (width, height))
+    image, f = background_and_fragments(scene, resolution, out)
     yield 0.5
     if len(f):
         image[f.rows, f.cols] = result.radiance_at(f.tri, f.bary)
