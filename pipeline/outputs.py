@@ -82,6 +82,7 @@ class Staging:
 
     def __init__(self, out_dir: Path):
         self.out_dir = Path(out_dir)
+        self._made_out_dir = not self.out_dir.exists()  # a failed run removes it again if empty
         try:
             self.out_dir.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
@@ -129,7 +130,14 @@ class Staging:
         return moved
 
     def discard(self) -> None:
+        """Remove the staging folder, and the output folder too if this run made it and it is
+        still empty (a failed first run leaves nothing behind)."""
         shutil.rmtree(self.path, ignore_errors=True)
+        if self._made_out_dir:
+            try:
+                self.out_dir.rmdir()  # only succeeds when empty
+            except OSError:
+                pass
 
 
 class PhaseTimer:

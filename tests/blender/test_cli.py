@@ -61,6 +61,12 @@ def test_failed_run_leaves_earlier_outputs(tmp_path):
     assert after == before  # same files, same bytes, no staging folder left behind
 
 
+def test_failed_first_run_leaves_no_folder(tmp_path):
+    out = tmp_path / "new"
+    assert run_cli("lightmap-uv", CORNELL, "--out", out, "--lightmap-size", "4").returncode == 2
+    assert not out.exists()
+
+
 def test_the_scene_file_is_never_written(tmp_path):
     before = CORNELL.read_bytes()
     assert run_cli("lightmap-uv", CORNELL, "--out", tmp_path, "--save-blend").returncode == 0
