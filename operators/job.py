@@ -86,3 +86,14 @@ class JobOperator:
         wm.progress_end()
         if context.workspace is not None:
             context.workspace.status_text_set(None)
+
+
+class CameraPoll:
+    """Mixin: the operator renders the scene camera's view, so it needs a camera."""
+
+    @classmethod
+    def poll(cls, context):
+        if context.scene is None or context.scene.camera is None:
+            cls.poll_message_set("The scene needs a camera")
+            return False
+        return True
