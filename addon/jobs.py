@@ -68,7 +68,7 @@ def _remove_uv_layers(objects, uv_name):
             obj.data.uv_layers.remove(layer)
 
 
-def _progress(steps, start: float, span: float, is_result):
+def forward(steps, start: float = 0.0, span: float = 1.0, is_result=lambda step: isinstance(step, dict)):
     """Re-yield a kernel generator's progress mapped onto [start, start + span]; `yield from`
     this returns the kernel's final value (the step for which `is_result` is true)."""
     result = None
@@ -78,6 +78,25 @@ def _progress(steps, start: float, span: float, is_result):
         else:
             yield start + span * step
     return result
+
+
+def run_to_end(job) -> dict:
+    """Run a job generator to its end without reporting progress; returns its summary dict."""
+    summary = None
+    for step in job:
+        if isinstance(step, dict):
+            summary = step
+    return summary
+
+
+def _prepare_lightmaps(context, uv_name: str, uv_settings) -> tuple[dict, list]:
+    """Every renderable mesh's lightmap size at one texel density, and the lightmap UV layers
+    created for the meshes that lacked one (to remove again if the job stops early)."""
+    objects = mesh_objects(context)
+    if not objects:
+        raise ValueError("the scene has no mesh objects to bake")
+    plan = lightmap_plan(objects, uv_settings)
+    return plan, create_lightmap_uvs(objects, uv_name, uv_settings, plan)
 
 
 def _write_back(scene, bakes: dict, attribute: str, image_prefix: str, render_image,
@@ -114,11 +133,7 @@ def shadow_bake_job(context, settings, uv_name: str, uv_settings, attribute: str
     summary {"images": {...}, "attributes": [...], "render": image or None, "skipped": [...]}."""
     from ..kernels import direct_light
 
-    objects = mesh_objects(context)
-    if not objects:
-        raise ValueError("the scene has no mesh objects to bake")
-    plan = lightmap_plan(objects, uv_settings)
-    created = create_lightmap_uvs(objects, uv_name, uv_settings, plan)
+    plan, created = _prepare_lightmaps(context, uv_name, uv_settings)
     try:
         scene = bridge.snapshot(context, bridge.SnapshotRequest(lightmap_uv=uv_name, textures=render),
                                 resolution=resolution)
@@ -126,12 +141,12 @@ def shadow_bake_job(context, settings, uv_name: str, uv_settings, attribute: str
             raise ValueError("the scene has no lights: nothing casts a shadow")
         targets = [k for k, o in enumerate(scene.objects) if not o.is_instance]
         sizes = {k: plan.get(scene.objects[k].source_name, uv_settings.resolution) for k in targets}
-        results = yield from _progress(
+        results = yield from forward(
             direct_light.shadow_bake_steps(scene, targets, sizes, uv_settings.padding, settings),
             0.0, 0.8, lambda step: isinstance(step, dict))
         image = None
         if render and scene.camera is not None:
-            image = yield from _progress(direct_light.render_steps(scene, settings, resolution),
+            image = yield from forward(direct_light.render_steps(scene, settings, resolution),
                                          0.8, 0.2, lambda step: isinstance(step, np.ndarray))
     except BaseException:
         _remove_uv_layers(created, uv_name)
@@ -153,24 +168,20 @@ def radiosity_bake_job(context, settings, uv_name: str, uv_settings, attribute: 
     "result", "scene"}."""
     from ..kernels import radiosity
 
-    objects = mesh_objects(context)
-    if not objects:
-        raise ValueError("the scene has no mesh objects to bake")
-    plan = lightmap_plan(objects, uv_settings)
-    created = create_lightmap_uvs(objects, uv_name, uv_settings, plan)
+    plan, created = _prepare_lightmaps(context, uv_name, uv_settings)
     try:
         scene = bridge.snapshot(context, bridge.SnapshotRequest(lightmap_uv=uv_name, textures=True),
                                 resolution=resolution)
-        result = yield from _progress(radiosity.radiosity_steps(scene, settings), 0.0, 0.85,
+        result = yield from forward(radiosity.radiosity_steps(scene, settings), 0.0, 0.85,
                                       lambda step: isinstance(step, radiosity.RadiosityResult))
         targets = [k for k, o in enumerate(scene.objects) if not o.is_instance]
         sizes = {k: plan.get(scene.objects[k].source_name, uv_settings.resolution) for k in targets}
-        bakes = yield from _progress(
+        bakes = yield from forward(
             radiosity.bake_steps(scene, result, targets, sizes, uv_settings.padding), 0.85, 0.1,
             lambda step: isinstance(step, dict))
         image = None
         if render and scene.camera is not None:
-            image = yield from _progress(radiosity.render_steps(scene, result, resolution), 0.95,
+            image = yield from forward(radiosity.render_steps(scene, result, resolution), 0.95,
                                          0.05, lambda step: isinstance(step, np.ndarray))
     except BaseException:
         _remove_uv_layers(created, uv_name)

@@ -3,7 +3,7 @@
 
 import bpy
 
-from ..addon.jobs import radiosity_bake_job
+from ..addon.jobs import forward, radiosity_bake_job
 from ..addon.settings import lightmap_uv_settings, radiosity_settings
 from .job import JobOperator
 
@@ -30,12 +30,7 @@ class CLASSICBAKE_OT_radiosity(JobOperator, bpy.types.Operator):
                          lightmap_uv_settings(props), props.radiosity_wire)
 
     def _job(self, context, settings, uv_name, uv_settings, wire):
-        summary = None
-        for step in radiosity_bake_job(context, settings, uv_name, uv_settings, wire=wire):
-            if isinstance(step, dict):
-                summary = step
-            else:
-                yield step
+        summary = yield from forward(radiosity_bake_job(context, settings, uv_name, uv_settings, wire=wire))
         stats = summary["result"].stats
         self.report({"INFO"}, f"Radiosity: {stats['patches']} patches ({stats['solver']}), "
                               f"lightmaps on {len(summary['images'])} objects, colour attribute "

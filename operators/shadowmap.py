@@ -2,7 +2,7 @@
 
 import bpy
 
-from ..addon.jobs import shadow_bake_job
+from ..addon.jobs import forward, shadow_bake_job
 from ..addon.settings import direct_light_settings, lightmap_uv_settings
 from .job import JobOperator
 
@@ -32,12 +32,7 @@ class CLASSICBAKE_OT_shadowmap(JobOperator, bpy.types.Operator):
                          lightmap_uv_settings(props))
 
     def _job(self, context, settings, uv_name, uv_settings):
-        summary = None
-        for step in shadow_bake_job(context, settings, uv_name, uv_settings):
-            if isinstance(step, dict):
-                summary = step
-            else:
-                yield step
+        summary = yield from forward(shadow_bake_job(context, settings, uv_name, uv_settings))
         self.report({"INFO"}, f"Shadow masks on {len(summary['images'])} objects, colour "
                               f"attribute 'Shadow' on {len(summary['attributes'])}")
 

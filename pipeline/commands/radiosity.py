@@ -55,19 +55,16 @@ def run(ctx: RunContext) -> None:
     import bpy
 
     from ...addon import bridge
-    from ...addon.jobs import radiosity_bake_job
+    from ...addon.jobs import radiosity_bake_job, run_to_end
     from ...kernels.exr import write_exr
     from ..images import write_preview_png
     from ..outputs import safe_name
 
     settings, uv, value = settings_from(ctx.args)
-    summary = None
     with ctx.phase("bake"):
         try:
-            for step in radiosity_bake_job(bpy.context, settings, value["uv_name"], uv,
-                                           resolution=ctx.resolution, wire=value["wire"]):
-                if isinstance(step, dict):
-                    summary = step
+            summary = run_to_end(radiosity_bake_job(bpy.context, settings, value["uv_name"], uv,
+                                           resolution=ctx.resolution, wire=value["wire"]))
         except ValueError as exc:
             raise UsageError(str(exc)) from exc
     with ctx.phase("write"):

@@ -50,7 +50,7 @@ def run(ctx: RunContext) -> None:
     import numpy as np
 
     from ...addon import bridge
-    from ...addon.jobs import shadow_bake_job
+    from ...addon.jobs import run_to_end, shadow_bake_job
     from ...kernels.exr import write_exr
     from ..images import write_preview_png
     from ..outputs import safe_name
@@ -60,13 +60,10 @@ def run(ctx: RunContext) -> None:
         apply_target(ctx, "shadowmap", bridge.snapshot(request=bridge.SnapshotRequest(
             textures=False, uv=False), resolution=ctx.resolution))
     settings, uv = settings_from(ctx.args)
-    summary = None
     with ctx.phase("bake"):
         try:
-            for step in shadow_bake_job(bpy.context, settings, ctx.args.uv_name, uv,
-                                        resolution=ctx.resolution):
-                if isinstance(step, dict):
-                    summary = step
+            summary = run_to_end(shadow_bake_job(bpy.context, settings, ctx.args.uv_name, uv,
+                                        resolution=ctx.resolution))
         except ValueError as exc:
             raise UsageError(str(exc)) from exc
     with ctx.phase("write"):
