@@ -84,7 +84,25 @@ def camera_rays(
     """
     width = width or camera.resolution[0]
     height = height or camera.resolution[1]
-    xy = pixel_plane_coords(camera, width, height, offsets)
+    return _rays_through(camera, pixel_plane_coords(camera, width, height, offsets))
+
+
+def camera_rays_at(camera: Camera, width: int, height: int, x: np.ndarray, y: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """Rays through arbitrary image points: (N, 3) origins and unit directions, float64.
+
+    x, y (N,) are in pixels of a width x height image, x to the right from the left edge and y down
+    from the top edge (pixel (col, row) has its centre at (col + 0.5, row + 0.5)).
+    """
+    lo, hi = camera.plane_min, camera.plane_max
+    xy = np.empty((len(x), 2))
+    xy[:, 0] = lo[0] + np.asarray(x, np.float64) / width * (hi[0] - lo[0])
+    xy[:, 1] = hi[1] - np.asarray(y, np.float64) / height * (hi[1] - lo[1])
+    return _rays_through(camera, xy)
+
+
+def _rays_through(camera: Camera, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rays through image-plane points xy (..., 2): origins and unit directions (..., 3)."""
     rot = camera.matrix_world[:3, :3]
     eye = camera.matrix_world[:3, 3]
     forward = -rot[:, 2]  # the camera looks down its local -Z
@@ -93,7 +111,7 @@ def camera_rays(
         directions = np.broadcast_to(forward, origins.shape).copy()
         origins = origins + camera.clip_start * directions
         return origins, directions
-    local = np.concatenate([xy, -np.ones((height, width, 1))], axis=-1)  # camera space, z = -1
+    local = np.concatenate([xy, -np.ones(xy.shape[:-1] + (1,))], axis=-1)  # camera space, z = -1
     directions = local @ rot.T
     directions /= np.linalg.norm(directions, axis=-1, keepdims=True)
     # Blender clips along the view axis, so the start distance along a ray is clip_start / cos.

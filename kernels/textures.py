@@ -89,6 +89,46 @@ def checker(uv: np.ndarray, color1: np.ndarray, color2: np.ndarray, scale: float
                     np.asarray(color2, np.float32)[None]).astype(np.float32)
 
 
+# Below this width (in checker squares) a box is a point: its mean is the value at its centre.
+MIN_BOX_WIDTH = 1e-9
+
+
+def _square_wave_mean(x0: np.ndarray, x1: np.ndarray) -> np.ndarray:
+    """Mean of s(x) = (-1)^floor(x) over [x0, x1] (N,), via its integral, the triangle wave
+    S(x) = 1 - |(x mod 2) - 1| (S rises on [0, 1), falls on [1, 2))."""
+    def integral(x):
+        return 1.0 - np.abs(np.mod(x, 2.0) - 1.0)
+
+    width = x1 - x0
+    wide = width > MIN_BOX_WIDTH
+    point = np.where(np.mod(np.floor(0.5 * (x0 + x1)), 2.0) == 0.0, 1.0, -1.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = (integral(x1) - integral(x0)) / np.where(wide, width, 1.0)
+    return np.where(wide, mean, point)
+
+
+def checker_box(lo: np.ndarray, hi: np.ndarray, color1: np.ndarray, color2: np.ndarray,
+                scale: float) -> np.ndarray:
+    """Cycles' Checker Texture averaged over UV boxes [lo, hi] (N, 2) -> (N, 3) float64.
+
+    Exact: with s(x) = (-1)^floor(x), the parity sign is s(p_u) s(p_v) and its mean over a box is
+    the product of the two square waves' means (separable); colour 1 covers (1 - mean) / 2.
+    """
+    p0 = (np.asarray(lo, np.float64) * scale + CHECKER_NUDGE_ADD) * CHECKER_NUDGE_MUL
+    p1 = (np.asarray(hi, np.float64) * scale + CHECKER_NUDGE_ADD) * CHECKER_NUDGE_MUL
+    sign = _square_wave_mean(p0[:, 0], p1[:, 0]) * _square_wave_mean(p0[:, 1], p1[:, 1])
+    share1 = (0.5 * (1.0 - sign))[:, None]
+    return share1 * np.asarray(color1, np.float64) + (1.0 - share1) * np.asarray(color2, np.float64)
+
+
+def sample_texture_box(texture: Texture, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """RGB (N, 3) of a texture averaged over UV boxes [lo, hi] (N, 2): exact for the checker;
+    images are sampled (bilinear) at the box centre, which suits boxes up to about a texel."""
+    if texture.kind == "CHECKER":
+        return checker_box(lo, hi, texture.color1, texture.color2, texture.scale)
+    return sample_texture(texture, 0.5 * (np.asarray(lo) + np.asarray(hi))).astype(np.float64)
+
+
 def sample_texture(texture: Texture, uv: np.ndarray) -> np.ndarray:
     """RGB (N, 3) float32 of a kernel `Texture` at (N, 2) UVs."""
     if texture.kind == "CHECKER":

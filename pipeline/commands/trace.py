@@ -13,8 +13,8 @@ def add_arguments(parser) -> None:
                         help="N x N samples in every pixel (default 1: pixel centres)")
     parser.add_argument("--adaptive", type=int, default=4, metavar="N",
                         help="N x N samples again in pixels at edges (default 4, 0: off)")
-    parser.add_argument("--min-weight", type=float, default=1e-3,
-                        help="stop branches whose weight falls below this (default 1e-3)")
+    parser.add_argument("--min-weight", type=float, default=None,
+                        help="stop branches whose weight falls below this (default 1e-2)")
     parser.add_argument("--offset-scale", type=float, default=None,
                         help="ray offset as a fraction of the scene size (default 1e-5)")
     parser.add_argument("--target-error", type=float, default=None, metavar="REL_MSE",
@@ -25,8 +25,9 @@ def add_arguments(parser) -> None:
 def tracer_settings(scene, args):
     from ...kernels.tracer import auto_settings
 
-    overrides = {"supersample": args.supersample, "adaptive": args.adaptive,
-                 "min_weight": args.min_weight}
+    overrides = {"supersample": args.supersample, "adaptive": args.adaptive}
+    if args.min_weight is not None:
+        overrides["min_weight"] = args.min_weight
     if args.depth is not None:
         overrides["max_depth"] = args.depth
     if args.offset_scale is not None:

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from classic_bake.kernels.scene import Texture
-from classic_bake.kernels.textures import checker, sample_image, sample_texture
+from classic_bake.kernels.textures import checker, checker_box, sample_image, sample_texture
 
 
 def ramp(w=4, h=2):
@@ -70,3 +70,20 @@ def test_sample_texture_dispatches_on_kind():
     assert sample_texture(tex, np.array([[0.125, 0.25]])).shape == (1, 3)
     chk = Texture(kind="CHECKER", color1=np.ones(3, np.float32), color2=np.zeros(3, np.float32), scale=1)
     assert sample_texture(chk, np.array([[0.5, 0.5]]))[0, 0] == 0.0
+
+
+@pytest.mark.parametrize("lo, hi, scale", [
+    ((0.1, 0.2), (0.13, 0.21), 2.0),  # inside one square
+    ((0.2, 0.3), (0.9, 0.4), 2.0),  # across one edge
+    ((-1.3, 0.7), (2.9, 5.2), 3.0),  # many squares, negative coordinates
+    ((0.25, 0.25), (0.25, 0.75), 2.0),  # zero width: a line
+])
+def test_checker_box_is_the_mean_of_the_checker_over_the_box(lo, hi, scale):
+    c1, c2 = np.array([0.9, 0.2, 0.1]), np.array([0.1, 0.3, 0.8])
+    n = 801  # midpoint rule: error ~ squares crossed / n
+    u = lo[0] + (np.arange(n) + 0.5) / n * (hi[0] - lo[0])
+    v = lo[1] + (np.arange(n) + 0.5) / n * (hi[1] - lo[1])
+    uu, vv = np.meshgrid(u, v)
+    dense = checker(np.stack([uu.ravel(), vv.ravel()], 1), c1, c2, scale).mean(axis=0)
+    box = checker_box(np.array([lo]), np.array([hi]), c1, c2, scale)[0]
+    np.testing.assert_allclose(box, dense, atol=0.02)

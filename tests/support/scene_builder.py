@@ -71,3 +71,10 @@ def ortho_camera(position, forward, up, width_m, resolution=(8, 8)) -> Camera:
     half = np.array([width_m / 2, width_m / 2 * aspect])
     return Camera(kind="ORTHO", matrix_world=m, plane_min=-half, plane_max=half,
                   resolution=resolution, clip_start=0.0)
+
+
+def persp_camera(position, forward, up, fov_x_rad, resolution=(8, 8)) -> Camera:
+    """A perspective camera at `position` looking along `forward` with horizontal field `fov_x_rad`."""
+    cam = ortho_camera(position, forward, up, 2.0 * np.tan(fov_x_rad / 2), resolution)
+    return Camera(kind="PERSP", matrix_world=cam.matrix_world, plane_min=cam.plane_min,
+                  plane_max=cam.plane_max, resolution=resolution, clip_start=0.0)
