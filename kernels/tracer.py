@@ -74,8 +74,9 @@ class TracerSettings:
     | area_samples     | 1..16    | 4       | per side of an area light / emissive triangle grid   |
     | point_like_ratio | >= 0     | 0.05    | emitters smaller than this x distance act as points   |
     | mirror_roughness | 0..1     | 0.1     | rougher surfaces spawn no reflected/refracted ray    |
-    | texture_filter   | 1..16    | 4       | g: g x g texture look-ups per camera sample average  |
-    |                  |          |         | the base colour seen directly over its pixel (1: off) |
+    | texture_filter   | 1..16    | 4       | g: the base colour seen directly is averaged over    |
+    |                  |          |         | each sample's pixel cell in g/n x g/n boxes (>= 1);   |
+    |                  |          |         | 1: point sampling, no filter                          |
     """
 
     max_depth: int = 8
@@ -470,7 +471,7 @@ class _Tracer:
                 break
             h = _surface(self.scene, self.tri_normals, origins, dirs, hits)
             m = h.material
-            if depth == 0 and footprint is not None and footprint.grid > 1:
+            if depth == 0 and footprint is not None:
                 textured = self.textured[m]
                 if textured.any():
                     rows = np.nonzero(textured)[0]
@@ -594,7 +595,8 @@ def trace_steps(scene: Scene, settings: TracerSettings, bvh: BVH | None = None,
     grid = max(1, settings.texture_filter // n)
     for k, (ox, oy) in enumerate(_stratified_unit_square(n)):
         o, d = camera_rays(scene.camera, width, height, offsets=(ox, oy))
-        footprint = _Footprint(scene.camera, width, height, col + ox, row + oy, 1.0 / n, grid)
+        footprint = None if settings.texture_filter == 1 else _Footprint(
+            scene.camera, width, height, col + ox, row + oy, 1.0 / n, grid)
         acc += tracer.radiance(o.reshape(-1, 3), d.reshape(-1, 3), first_ids if k == 0 else None,
                                footprint=footprint, untextured=flat_k)
         flat += flat_k
