@@ -27,6 +27,7 @@ ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "sample_blends" / "raytrace.blend"
 # (supersample n, adaptive edge samples n): from plain pixel centres to dense edge sampling.
 LADDER = [(1, 0), (1, 2), (1, 4), (2, 4), (2, 8), (4, 8)]
+DEFAULT_SETTING = "1x1 + edges 4x4"  # TracerSettings() and the trace command's defaults
 
 
 def seconds_to_reach(error: float, ladder: list[dict]) -> float | None:
@@ -125,6 +126,10 @@ def main() -> int:
                    default=None)
         key = f"cycles_vs_tracer_seconds_to_same_rel_mse_x{scale * scale}_pixels"
         ratios[key] = None if best is None else best["ratio"]
+        default = next(r for r in kernel_rows if r["setting"] == DEFAULT_SETTING)
+        ratios[f"{key}_default_settings"] = default["ratio"]
+        reached = [r["ratio"] for r in kernel_rows if r["ratio"] is not None]
+        ratios[f"{key}_worst_setting"] = min(reached) if reached else None
         figures["scales"][f"x{scale * scale}"] = {
             "resolution": resolution, "depth": depth, "bvh_build_s": build_s,
             "reference": {"samples": ref.samples, "noise_rel_mse": ref.noise_rel_mse,
