@@ -23,8 +23,15 @@ from . import lights as light_units
 from .bake_targets import BakeTargets
 from .camera_view import background_and_fragments
 from .scene import Scene, geometric_normals
-from .shadowmap import ShadowMapSettings, build_shadow_map, shadow_visibility
+from .shadowmap import (
+    ShadowMapSettings,
+    build_shadow_map,
+    potential_casters,
+    shadow_visibility,
+    sun_map_span,
+)
 from .textures import sample_texture
+from .vec import bounds, row_norms
 
 MIN_MAP = 256  # below this a map cannot place even a coarse shadow edge
 MAX_MAP = 8192  # 256 MiB of float32 depth per face: the memory bound of one map
@@ -46,19 +53,28 @@ class DirectLightSettings:
     auto_resolution: bool = True
 
 
-def map_resolution(light, points: np.ndarray, spacing: float) -> int:
-    """Map texels (per side, per face) so that a texel is <= spacing / 2 at the receivers."""
+def map_resolution(light, points: np.ndarray, spacing: float,
+                   casters: np.ndarray | None = None) -> int:
+    """Map texels (per side, per face) so that a texel is <= spacing / 2 at the receivers.
+
+    A sun's map covers what `casters` (T, 3, 3) and the receivers make it cover (`sun_map_span`);
+    without them, the receivers' whole extent across the beam (an upper bound).
+    """
     spacing = max(spacing, 1e-9)
     target = spacing / TEXELS_PER_SPACING
     pts = np.asarray(points, np.float64)
     if light.kind == "SUN":
-        d = np.asarray(light.direction, np.float64)
-        # Extent of the receivers across the light's beam (an upper bound of the fitted frustum).
-        lateral = pts - np.outer(pts @ d, d)
-        extent = float(np.max(np.ptp(lateral, axis=0))) if len(pts) else 1.0
+        if casters is not None and len(pts):
+            extent = sun_map_span(casters, light, pts)
+        elif len(pts):
+            d = np.asarray(light.direction, np.float64)
+            lateral = pts - np.outer(pts @ d, d)
+            extent = float(np.subtract(*bounds(lateral)[::-1]).max())
+        else:
+            extent = 1.0
         res = extent / target
     else:
-        dist = np.linalg.norm(pts - light.position, axis=1)
+        dist = row_norms(pts - light.position)
         d = float(np.median(dist)) if len(pts) else 1.0
         angle = light.spot_size if light.kind == "SPOT" and light.spot_size < np.radians(120) else (
             np.pi / 2)
@@ -80,9 +96,10 @@ def light_visibility_steps(scene: Scene, points, geo_normals, spacing: float,
             out[k] = 1.0
             continue
         shadow = settings.shadow
+        casters = scene.triangles[potential_casters(scene.triangles, light, points)]
         if settings.auto_resolution:
-            shadow = replace(shadow, resolution=map_resolution(light, points, spacing))
-        shadow_map = build_shadow_map(scene.triangles, light, shadow, points)
+            shadow = replace(shadow, resolution=map_resolution(light, points, spacing, casters))
+        shadow_map = build_shadow_map(casters, light, shadow, points)
         shadow_visibility(shadow_map, points, geo_normals, out=out[k])
         yield (k + 1) / max(len(lights), 1)
 

@@ -63,6 +63,7 @@ import numpy as np
 from . import cubemap
 from .raster import Projection, look_at, project_points, rasterize_steps
 from .scene import Light
+from .vec import bounds, row_abs_max, row_dot, row_norms, unit_rows
 
 EpsMode = Literal["fixed", "auto"]
 MapKind = Literal["ORTHO", "PERSP", "CUBE"]
@@ -183,15 +184,32 @@ def _nearest_in_prism(tris: np.ndarray, rect: tuple[float, float, float, float])
     return float(nearest.min())
 
 
-def _plan_sun(tris: np.ndarray, receivers: np.ndarray, light: Light,
-              settings: ShadowMapSettings) -> ShadowMap:
+@dataclass(frozen=True)
+class _SunFit:
+    """A sun map's frustum in light space (x right, y up, depth along the light), metres."""
+
+    basis: np.ndarray  # (3, 3) rows: light-space x, y, depth in world coordinates
+    x0: float
+    x1: float
+    y0: float
+    y1: float
+    d0: float  # nearest caster that matters
+    d1: float  # farthest receiver
+    scene_size: float
+
+
+def _fit_sun(tris: np.ndarray, receivers: np.ndarray, light: Light) -> _SunFit:
     forward, up = _frame(light)
     right = np.cross(forward, up)
     basis = np.stack([right, up, forward])  # rows: light-space x, y, depth
     verts = tris.reshape(-1, 3).astype(np.float64) @ basis.T  # (3T, 3) light space, m
     recv = receivers @ basis.T  # (N, 3) light space, m
-    scene_size = float(np.ptp(np.concatenate([verts, recv]), axis=0).max()) if len(verts) else 0.0
-    r_lo, r_hi = recv.min(axis=0), recv.max(axis=0)
+    r_lo, r_hi = bounds(recv)
+    if len(verts):
+        v_lo, v_hi = bounds(verts)
+        scene_size = float((np.maximum(r_hi, v_hi) - np.minimum(r_lo, v_lo)).max())
+    else:
+        scene_size = 0.0
     # Casters that can shadow a receiver: inside the receivers' prism extruded towards the light.
     lo = verts.reshape(-1, 3, 3).min(axis=1)
     hi = verts.reshape(-1, 3, 3).max(axis=1)
@@ -204,7 +222,22 @@ def _plan_sun(tris: np.ndarray, receivers: np.ndarray, light: Light,
         d0 = _nearest_in_prism(verts.reshape(-1, 3, 3)[relevant], (x0, x1, y0, y1))
     else:  # nothing can shadow: an empty map over the receivers
         x0, x1, y0, y1, d0 = r_lo[0], r_hi[0], r_lo[1], r_hi[1], r_lo[2]
-    d1 = max(r_hi[2], d0)
+    return _SunFit(basis, x0, x1, y0, y1, d0, max(r_hi[2], d0), scene_size)
+
+
+def sun_map_span(triangles: np.ndarray, light: Light, receivers: np.ndarray) -> float:
+    """Longer side (m) of the sun map `plan_shadow_map` fits to these casters and receivers."""
+    tris = np.asarray(triangles, np.float32).reshape(-1, 3, 3)
+    fit = _fit_sun(tris, np.asarray(receivers, np.float64).reshape(-1, 3), light)
+    return max(fit.x1 - fit.x0, fit.y1 - fit.y0, 0.0)
+
+
+def _plan_sun(tris: np.ndarray, receivers: np.ndarray, light: Light,
+              settings: ShadowMapSettings) -> ShadowMap:
+    fit = _fit_sun(tris, receivers, light)
+    forward, up = _frame(light)
+    basis, x0, x1, y0, y1, d0, d1 = fit.basis, fit.x0, fit.x1, fit.y0, fit.y1, fit.d0, fit.d1
+    scene_size = fit.scene_size
     # Square texels: the longer side gets `resolution` texels minus a border for the PCF block and
     # the normal offset, plus one texel.
     pad = settings.pcf_size // 2 + int(np.ceil(settings.normal_offset)) + 1
@@ -228,7 +261,7 @@ def _plan_sun(tris: np.ndarray, receivers: np.ndarray, light: Light,
 def _far_from(position: np.ndarray, tris: np.ndarray, receivers: np.ndarray) -> float:
     """Farthest receiver (or vertex, without receivers) from the light, m, with a margin."""
     pts = receivers if len(receivers) else tris.reshape(-1, 3).astype(np.float64)
-    far = float(np.linalg.norm(pts - position, axis=1).max()) if len(pts) else 1.0
+    far = float(row_norms(pts - position).max()) if len(pts) else 1.0
     return far + _margin(0.0, far)
 
 
@@ -298,7 +331,7 @@ def potential_casters(triangles: np.ndarray, light: Light, receivers: np.ndarray
     if len(tris) == 0:
         return np.zeros(0, bool)
     pts = np.asarray(receivers, np.float64).reshape(-1, 3)
-    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    lo, hi = bounds(pts)
     corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
                         for z in (lo[2], hi[2])])  # (8, 3)
     n = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
@@ -342,10 +375,7 @@ def build_shadow_map(
 # --------------------------------------------------------------------------------------------
 
 
-def _unit(v: np.ndarray) -> np.ndarray:
-    """Rows of v scaled to unit length; zero rows stay zero."""
-    n = np.linalg.norm(v, axis=1, keepdims=True)
-    return np.divide(v, n, out=np.zeros_like(v), where=n > 0.0)
+_unit = unit_rows
 
 
 def _footprint(view: ShadowView, depth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -373,94 +403,110 @@ def depth_tolerance(
     if settings.eps_mode == "auto":
         scale = np.abs(depth)
         if points is not None:
-            scale = scale + np.abs(points).max(axis=1)
+            scale = scale + row_abs_max(points)
         eps = eps + settings.pcf_size * half_diag * tan_theta + DEPTH_PRECISION_REL * scale
     return eps
 
 
-def _perspective_slope(view: ShadowView, p: np.ndarray, n: np.ndarray, tan_t: np.ndarray) -> np.ndarray:
+def _perspective_slope(view: ShadowView, to_light: np.ndarray, n: np.ndarray, cos_t: np.ndarray,
+                       tan_t: np.ndarray) -> np.ndarray:
     """The depth slope that replaces tan(theta) in a perspective map, (N,).
 
     The map stores depth along the view axis a, not along the ray r, so within one texel a plane's
     stored depth changes by (half diagonal x d) x |n_perp| (r . a) / |n . r|, with n_perp the part of
     the normal across the axis. On the axis (r = a) this is tan(theta); off the axis it is not zero
     even for a surface facing the light, which is where a tilted spot showed acne without it.
+    to_light (N, 3) unit = -r, n (N, 3) unit or zero, cos_t = |n . r|.
     """
-    rot = view.projection.view[:3, :3]
-    axis = -rot[2]  # world direction of the view's -Z
-    eye = -rot.T @ view.projection.view[:3, 3]
-    r = _unit(p - eye)
-    nn = _unit(n)
-    n_perp = np.linalg.norm(nn - np.outer(nn @ axis, axis), axis=1)
-    cos_r = np.abs(np.einsum("ij,ij->i", nn, r))
+    axis = -view.projection.view[2, :3]  # world direction of the view's -Z
+    along = n @ axis
+    n_perp = np.sqrt(np.maximum(1.0 - along * along, 0.0))
     with np.errstate(divide="ignore", invalid="ignore"):
-        slope = n_perp * np.abs(r @ axis) / cos_r
-    slope = np.where(cos_r > 0.0, np.minimum(slope, TAN_THETA_MAX), TAN_THETA_MAX)
-    return np.where(np.abs(n).sum(axis=1) > 0.0, slope, tan_t)
+        slope = n_perp * np.abs(to_light @ axis) / cos_t
+    slope = np.where(cos_t > 0.0, np.minimum(slope, TAN_THETA_MAX), TAN_THETA_MAX)
+    return np.where(row_dot(n, n) > 0.0, slope, tan_t)
 
 
-def _view_of(shadow_map: ShadowMap, points: np.ndarray) -> np.ndarray:
-    """(N,) int64 view index of every point (its cube face for CUBE maps)."""
+def _by_view(shadow_map: ShadowMap, points: np.ndarray) -> tuple[np.ndarray | None, list]:
+    """Receivers grouped by the view they fall in: (order, [(view, slice of order)]).
+
+    One view: order None and one slice of everything. A cube map: `order` sorts the receivers by
+    cube face (a radix sort of small integers), so each face's receivers are one contiguous slice.
+    """
     if shadow_map.kind != "CUBE":
-        return np.zeros(len(points), np.int64)
-    face, _, _ = cubemap.direction_to_face(points - shadow_map.light_position)
-    return face
+        return None, [(0, slice(0, len(points)))]
+    face = cubemap.major_face(points - shadow_map.light_position).astype(np.int16)
+    order = np.argsort(face, kind="stable")
+    edges = np.searchsorted(face[order], np.arange(7))
+    return order, [(f, slice(edges[f], edges[f + 1])) for f in range(6) if edges[f + 1] > edges[f]]
 
 
 def _visibility_chunk(shadow_map: ShadowMap, p: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """(N,) float64 visibility of receivers p (N, 3) with unit (or zero) normals n."""
     s = shadow_map.settings
+    order, groups = _by_view(shadow_map, p)
+    if s.normal_offset > 0.0:  # move towards the light side of the surface, texel-sized
+        to_light = (np.broadcast_to(-shadow_map.light_direction, p.shape)
+                    if shadow_map.kind == "ORTHO" else shadow_map.light_position - p)
+        side = np.where(row_dot(n, to_light) < 0.0, -1.0, 1.0)
+        shift = np.zeros(len(p))
+        for v, part in groups:
+            rows = part if order is None else order[part]
+            view = shadow_map.views[v]
+            _, _, depth = project_points(p[rows], view.projection, *view.depth.shape[::-1])
+            shift[rows] = _footprint(view, depth)[0] * s.normal_offset * side[rows]
+        p = p + n * shift[:, None]
+        order, groups = _by_view(shadow_map, p)  # a moved receiver may change cube face
+    if order is not None:
+        p, n = p[order], n[order]
     if shadow_map.kind == "ORTHO":
         to_light = np.broadcast_to(-shadow_map.light_direction, p.shape)
+        nl = n @ -shadow_map.light_direction
     else:
-        to_light = _unit(shadow_map.light_position - p)
-    nl = np.einsum("ij,ij->i", n, to_light)  # cos(theta), signed
+        to_light = unit_rows(shadow_map.light_position - p)
+        nl = row_dot(n, to_light)  # cos(theta), signed
     cos_t = np.abs(nl)
     with np.errstate(divide="ignore", invalid="ignore"):
         tan_t = np.sqrt(np.maximum(1.0 - cos_t * cos_t, 0.0)) / cos_t
     tan_t = np.where(cos_t > 0.0, np.minimum(tan_t, TAN_THETA_MAX), TAN_THETA_MAX)
-    tan_t[~(np.abs(n).sum(axis=1) > 0.0)] = 0.0  # no normal given: no slope term
-
-    if s.normal_offset > 0.0:  # move towards the light side of the surface, texel-sized
-        view_idx = _view_of(shadow_map, p)
-        side = np.where(nl < 0.0, -1.0, 1.0)[:, None]
-        shift = np.zeros(len(p))
-        for v in np.unique(view_idx):
-            sel = view_idx == v
-            view = shadow_map.views[v]
-            _, _, depth = project_points(p[sel], view.projection, *view.depth.shape[::-1])
-            shift[sel] = _footprint(view, depth)[0] * s.normal_offset
-        p = p + side * n * shift[:, None]
+    tan_t[~(row_dot(n, n) > 0.0)] = 0.0  # no normal given: no slope term
 
     k = s.pcf_size
     offsets = np.arange(k) - k // 2
     vis = np.ones(len(p), np.float64)
-    view_idx = _view_of(shadow_map, p)
-    for v in np.unique(view_idx):
-        sel = np.nonzero(view_idx == v)[0]
+    for v, part in groups:
         view = shadow_map.views[v]
         height, width = view.depth.shape
-        col, row, z = project_points(p[sel], view.projection, width, height)
-        slope = tan_t[sel] if view.projection.kind == "ORTHO" else _perspective_slope(
-            view, p[sel], n[sel], tan_t[sel])
-        eps = depth_tolerance(view, s, z, slope, p[sel])
+        col, row, z = project_points(p[part], view.projection, width, height)
+        slope = tan_t[part] if view.projection.kind == "ORTHO" else _perspective_slope(
+            view, to_light[part], n[part], cos_t[part], tan_t[part])
+        eps = depth_tolerance(view, s, z, slope, p[part])
         if shadow_map.kind == "CUBE":  # its face was chosen for it: s = 1 or t = 0 is a last texel
             col, row = np.minimum(col, width - 0.5), np.minimum(row, height - 0.5)
         with np.errstate(invalid="ignore"):
             inside = (col >= 0) & (col < width) & (row >= 0) & (row < height)  # NaN: False
-        sel, z, eps = sel[inside], z[inside], eps[inside]
-        j = np.floor(col[inside]).astype(np.int64)  # the texel p holding f
-        i = np.floor(row[inside]).astype(np.int64)
-        lit = np.zeros(len(sel), np.float64)
+        idx = np.flatnonzero(inside) + part.start
+        z, eps = z[inside], eps[inside]
+        j = col[inside].astype(np.int64)  # the texel p holding f (col, row >= 0: floor)
+        i = row[inside].astype(np.int64)
+        depth = view.depth.reshape(-1)
+        lit = np.zeros(len(idx), np.float64)
         for di in offsets:
-            ii = np.clip(i + di, 0, height - 1)
+            ii = (i + di if k == 1 else np.clip(i + di, 0, height - 1)) * width
             for dj in offsets:
-                m = view.depth[ii, np.clip(j + dj, 0, width - 1)].astype(np.float64)  # M_p
-                # The lecture: case (b) "|z_f - M_p| <= eps" first, else "z_f <= M_p".
-                lit += (np.abs(z - m) <= eps) | (z <= m)
-        vis[sel] = lit / (k * k)
+                jj = j + dj if k == 1 else np.clip(j + dj, 0, width - 1)
+                m = depth[ii + jj]  # M_p
+                # The lecture: case (b) "|z_f - M_p| <= eps" first, else "z_f <= M_p"; with
+                # eps >= 0 the two together are z_f - M_p <= eps.
+                lit += z - m <= eps
+        vis[idx] = lit / (k * k)
     if s.shadow_back_faces:
         vis[nl < 0.0] = 0.0  # attached shadow: the surface itself stands between f and the light
-    return vis
+    if order is None:
+        return vis
+    out = np.empty_like(vis)
+    out[order] = vis
+    return out
 
 
 def shadow_visibility(
