@@ -343,10 +343,12 @@ def _contour_sum(rel: np.ndarray, n: np.ndarray) -> np.ndarray:
     """1/(2 pi) sum_k gamma_k n.(R_k+1 x R_k)/|R_k+1 x R_k| for (M, K, 3) corners relative to x."""
     nxt = np.roll(rel, -1, axis=1)
     c = np.cross(nxt, rel)  # (M, K, 3): positive n-component for a polygon facing x
-    sine = np.linalg.norm(c, axis=2)
+    # Lengths through einsum: NumPy reduces a 3-long last axis row by row (3x slower).
+    sine = np.sqrt(np.einsum("mkc,mkc->mk", c, c))
     cosine = np.einsum("mkc,mkc->mk", rel, nxt)
     gamma = np.arctan2(sine, cosine)
-    lengths = np.linalg.norm(rel, axis=2) * np.linalg.norm(nxt, axis=2)
+    length2 = np.einsum("mkc,mkc->mk", rel, rel)
+    lengths = np.sqrt(length2 * np.roll(length2, -1, axis=1))
     regular = sine > COLLINEAR_EPS * lengths
     projected = np.einsum("mkc,mc->mk", c, n)
     ratio = np.divide(projected, sine, out=np.zeros_like(sine), where=regular)
@@ -798,14 +800,14 @@ def _visible_fraction(
     # The kernel from the surface points themselves; the rays between lifted copies of them.
     tiny = np.finfo(np.float64).tiny
     between = y[None] - x[:, None, None, :]  # (S, J, M, 3)
-    dist = np.maximum(np.linalg.norm(between, axis=-1), tiny)
+    dist = np.maximum(np.sqrt(np.einsum("sjmc,sjmc->sjm", between, between)), tiny)
     cos_x = np.einsum("sjmc,sc->sjm", between, nx) / dist
     cos_y = -np.einsum("sjmc,jc->sjm", between, nj) / dist
     kernel = np.where((cos_x > 0.0) & (cos_y > 0.0), cos_x * cos_y / (dist * dist), 0.0)
     kernel *= wy[None]
     origin = x + ray_offset * nx  # (S, 3)
     seg = (y + ray_offset * nj[:, None, :])[None] - origin[:, None, None, :]  # (S, J, M, 3)
-    length = np.linalg.norm(seg, axis=-1)
+    length = np.sqrt(np.einsum("sjmc,sjmc->sjm", seg, seg))
     safe = np.maximum(length, tiny)
     rays = np.flatnonzero(kernel.ravel() > 0.0)
     blocked = np.zeros(kernel.size, bool)
