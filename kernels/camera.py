@@ -87,20 +87,6 @@ def camera_rays(
     return _rays_through(camera, pixel_plane_coords(camera, width, height, offsets))
 
 
-def camera_rays_at(camera: Camera, width: int, height: int, x: np.ndarray, y: np.ndarray
-                   ) -> tuple[np.ndarray, np.ndarray]:
-    """Rays through arbitrary image points: (N, 3) origins and unit directions, float64.
-
-    x, y (N,) are in pixels of a width x height image, x to the right from the left edge and y down
-    from the top edge (pixel (col, row) has its centre at (col + 0.5, row + 0.5)).
-    """
-    lo, hi = camera.plane_min, camera.plane_max
-    xy = np.empty((len(x), 2))
-    xy[:, 0] = lo[0] + np.asarray(x, np.float64) / width * (hi[0] - lo[0])
-    xy[:, 1] = hi[1] - np.asarray(y, np.float64) / height * (hi[1] - lo[1])
-    return _rays_through(camera, xy)
-
-
 def _rays_through(camera: Camera, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Rays through image-plane points xy (..., 2): origins and unit directions (..., 3)."""
     rot = camera.matrix_world[:3, :3]
@@ -118,3 +104,29 @@ def _rays_through(camera: Camera, xy: np.ndarray) -> tuple[np.ndarray, np.ndarra
     cos_axis = directions @ forward
     origins = eye + directions * (camera.clip_start / cos_axis)[..., None]
     return origins, directions
+
+
+def camera_ray_lines(camera: Camera, width: int, height: int, x: np.ndarray, y: np.ndarray):
+    """The lines of the camera rays through image points, and how they move across the image.
+
+    x, y (N,) in pixels of a width x height image, x to the right from the left edge and y down
+    from the top edge (pixel (col, row) has its centre at (col + 0.5, row + 0.5)).
+    Returns (o, d, o_x, o_y, d_x, d_y): the line o + s d (N, 3) float64 through each point, d
+    NOT normalised, and the (3,) changes of o and d per pixel to the right (x) and down (y). Both
+    are affine in (x, y): PERSP lines share the eye (o_x = o_y = 0), ORTHO lines the direction
+    (d_x = d_y = 0). Lines, not rays: the start at clip_start is left out, which moves no line.
+    """
+    lo, hi = camera.plane_min, camera.plane_max
+    rot = camera.matrix_world[:3, :3]
+    eye = camera.matrix_world[:3, 3]
+    px = lo[0] + np.asarray(x, np.float64) / width * (hi[0] - lo[0])  # image plane, camera space
+    py = hi[1] - np.asarray(y, np.float64) / height * (hi[1] - lo[1])
+    step_x = rot[:, 0] * (hi[0] - lo[0]) / width
+    step_y = -rot[:, 1] * (hi[1] - lo[1]) / height
+    zero = np.zeros(3)
+    if camera.kind == "ORTHO":
+        o = eye + px[:, None] * rot[:, 0] + py[:, None] * rot[:, 1]
+        d = np.broadcast_to(-rot[:, 2], o.shape)
+        return o, d, step_x, step_y, zero, zero
+    d = px[:, None] * rot[:, 0] + py[:, None] * rot[:, 1] - rot[:, 2]
+    return np.broadcast_to(eye, d.shape), d, zero, zero, step_x, step_y

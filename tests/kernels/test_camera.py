@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from classic_bake.kernels.camera import camera_rays, image_plane
+from classic_bake.kernels.camera import camera_ray_lines, camera_rays, image_plane
 from classic_bake.kernels.scene import Camera
 
 
@@ -62,3 +62,21 @@ def test_other_resolutions_keep_the_framing(size):
     _, edge = camera_rays(cam, size[0], size[1], offsets=(0.0, 0.0))
     np.testing.assert_allclose(edge[0, 0], camera_rays(cam, 4, 2, offsets=(0.0, 0.0))[1][0, 0])
     assert small.shape == (size[1], size[0], 3)
+
+
+@pytest.mark.parametrize("kind", ["PERSP", "ORTHO"])
+def test_ray_lines_are_the_camera_rays_and_move_affinely(kind):
+    cam = make_camera(kind, (6, 4))
+    o_px, d_px = camera_rays(cam, 6, 4, offsets=(0.25, 0.75))  # (H, W, 3)
+    row, col = np.divmod(np.arange(24), 6)
+    x, y = col + 0.25, row + 0.75
+    o, d, o_x, o_y, d_x, d_y = camera_ray_lines(cam, 6, 4, x, y)
+    # Same lines: the ray origins lie on them and the directions are parallel.
+    dn = d / np.linalg.norm(d, axis=1, keepdims=True)
+    np.testing.assert_allclose(dn, d_px.reshape(-1, 3), atol=1e-12)
+    off = o_px.reshape(-1, 3) - o
+    np.testing.assert_allclose(np.cross(off, dn), 0.0, atol=1e-12)
+    # Half a pixel to the right and down: the line through (x + 0.5, y + 0.5).
+    o2, d2, *_ = camera_ray_lines(cam, 6, 4, x + 0.5, y + 0.5)
+    np.testing.assert_allclose(o + 0.5 * (o_x + o_y), o2, atol=1e-12)
+    np.testing.assert_allclose(d + 0.5 * (d_x + d_y), d2, atol=1e-12)
