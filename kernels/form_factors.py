@@ -57,7 +57,7 @@ Ray callbacks (method A and B), R rays per call:
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Generator, Iterator
 from dataclasses import dataclass
 from typing import Any, Literal, Protocol
 
@@ -379,6 +379,58 @@ def _clip_above(rel: np.ndarray, height: np.ndarray) -> np.ndarray:
 # --- rows: the interface the solvers consume ---------------------------------------------------
 
 
+# One shadow-ray request of a generator estimator: (origins (R, 3), unit directions (R, 3),
+# t_max (R,)) with t_min 0; the answer sent back is (R,) bool, True where something is hit.
+RayRequest = tuple[np.ndarray, np.ndarray, np.ndarray]
+RayRequests = Generator[RayRequest, np.ndarray, Any]
+# Rays gathered from several rows into one ray-casting call: the BVH reaches its full rate from
+# about 50k rays a call (a few thousand rays run at a third of it).
+RAYS_PER_BATCH = 1 << 17
+
+
+def _cast(occluded: Occluded, request: RayRequest, per_call: int) -> np.ndarray:
+    origins, dirs, t_max = request
+    blocked = np.zeros(len(origins), bool)
+    for start in range(0, len(origins), per_call):
+        part = slice(start, start + per_call)
+        blocked[part] = np.asarray(occluded(origins[part], dirs[part], 0.0, t_max[part]), bool)
+    return blocked
+
+
+def answer_rays(steps: RayRequests, occluded: Occluded | None, per_call: int):
+    """Run a ray-requesting generator to its end, answering with `occluded`; its return value."""
+    try:
+        request = next(steps)
+        while True:
+            request = steps.send(_cast(occluded, request, per_call))
+    except StopIteration as stop:
+        return stop.value
+
+
+def answer_rays_together(steps: list, occluded: Occluded | None, per_call: int) -> list:
+    """Run several ray-requesting generators side by side, their pending requests answered by
+    one batch of `occluded` calls per round. Returns their return values."""
+    results: list = [None] * len(steps)
+    pending: dict[int, RayRequest] = {}
+    for k, gen in enumerate(steps):
+        try:
+            pending[k] = next(gen)
+        except StopIteration as stop:
+            results[k] = stop.value
+    while pending:
+        keys = list(pending)
+        sizes = np.cumsum([0] + [len(pending[k][0]) for k in keys])
+        merged = tuple(np.concatenate([pending[k][part] for k in keys]) for part in range(3))
+        blocked = _cast(occluded, merged, per_call)
+        for n, k in enumerate(keys):
+            try:
+                pending[k] = steps[k].send(blocked[sizes[n] : sizes[n + 1]])
+            except StopIteration as stop:
+                results[k] = stop.value
+                del pending[k]
+    return results
+
+
 class FormFactorRows(Protocol):
     """Anything that yields form factor rows F_i* on demand (methods A and B, a dense matrix)."""
 
@@ -405,11 +457,17 @@ class DenseRows:
 
 
 def iter_matrix(rows: FormFactorRows, out: np.ndarray) -> Iterator[float]:
-    """Fill caller-owned `out` (N, N) row by row from `rows`, yielding progress in (0, 1]."""
+    """Fill caller-owned `out` (N, N) from `rows`, yielding progress in (0, 1]: row by row, or
+    a batch of rows at a time where `rows` can share its ray casting between rows."""
     count = out.shape[0]
-    for i in range(count):
-        rows.row(i, out=out[i])
-        yield (i + 1) / count
+    batch = rows.rows_per_batch() if hasattr(rows, "rows") else 1
+    for first in range(0, count, batch):
+        last = min(first + batch, count)
+        if batch > 1:
+            rows.rows(range(first, last), out[first:last])
+        else:
+            rows.row(first, out=out[first])
+        yield last / count
 
 
 def form_factor_matrix(rows: FormFactorRows) -> np.ndarray:
@@ -750,6 +808,8 @@ def raycast_gather(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Method B from weighted receiver points to N polygons; F_j = unoccluded_j x visible_j.
 
+    (`raycast_gather_steps` is the same as a generator asking for its rays.)
+
     points (S, 3), normals (S, 3) or (3,) unit, weights (S,) summing to 1; corners (N, K, 3) and
     their unit normals (N, 3); occluded None: no rays (visible = 1); maybe_occluded (N,) bool:
     only these targets are ray-tested (None: every target with a nonzero factor);
@@ -757,6 +817,16 @@ def raycast_gather(
     drawn here with `rng`). Returns unoccluded (N,) sum_s w_s F(x_s -> j) and visible (N,) in
     [0, 1], the F-weighted visible share (module doc, `RayCastSettings`).
     """
+    steps = raycast_gather_steps(points, normals, weights, corners, corner_normals,
+                                 occluded is not None, settings, rng, ray_offset=ray_offset,
+                                 maybe_occluded=maybe_occluded, target_samples=target_samples)
+    return answer_rays(steps, occluded, settings.max_rays_per_call)
+
+
+def raycast_gather_steps(points, normals, weights, corners, corner_normals, trace: bool,
+                         settings: RayCastSettings, rng, *, ray_offset: float,
+                         maybe_occluded=None, target_samples=None) -> RayRequests:
+    """`raycast_gather` as a generator asking for its shadow rays; `trace` False: none."""
     normals = np.broadcast_to(np.asarray(normals, np.float64), points.shape)
     # (S, N) exact unoccluded factors from each receiver point to every polygon.
     factors = point_to_polygon(
@@ -764,7 +834,7 @@ def raycast_gather(
     )
     unoccluded = weights @ factors
     visible = np.ones(len(corners), np.float64)
-    if occluded is None:
+    if not trace:
         return unoccluded, visible
     candidates = unoccluded > 0.0
     if maybe_occluded is not None:
@@ -778,8 +848,8 @@ def raycast_gather(
             )
         else:
             y, wy = target_samples[0][targets], target_samples[1][targets]
-        share = _visible_fraction(
-            points, normals, y, wy, corner_normals[targets], occluded, settings, ray_offset
+        share = yield from _visible_fraction_steps(
+            points, normals, y, wy, corner_normals[targets], ray_offset
         )
         visible[targets] = (weights @ (factors[:, targets] * share)) / unoccluded[targets]
     return unoccluded, visible
@@ -797,6 +867,12 @@ def _visible_fraction(
 ) -> np.ndarray:
     """(S, J) kernel-weighted visible fraction of J polygons from S points x (normals nx);
     y (J, M, 3), wy (J, M): the polygons' visibility points and weights, nj (J, 3) normals."""
+    return answer_rays(_visible_fraction_steps(x, nx, y, wy, nj, ray_offset), occluded,
+                       settings.max_rays_per_call)
+
+
+def _visible_fraction_steps(x, nx, y, wy, nj, ray_offset: float) -> RayRequests:
+    """`_visible_fraction` as a generator that asks for its shadow rays (see `RayRequest`)."""
     # The kernel from the surface points themselves; the rays between lifted copies of them.
     tiny = np.finfo(np.float64).tiny
     between = y[None] - x[:, None, None, :]  # (S, J, M, 3)
@@ -811,12 +887,10 @@ def _visible_fraction(
     safe = np.maximum(length, tiny)
     rays = np.flatnonzero(kernel.ravel() > 0.0)
     blocked = np.zeros(kernel.size, bool)
-    dirs = (seg / safe[..., None]).reshape(-1, 3)
-    origins = np.broadcast_to(origin[:, None, None, :], seg.shape).reshape(-1, 3)
-    lengths = length.ravel() * (1.0 - SHADOW_END_REL)
-    for start in range(0, rays.size, settings.max_rays_per_call):
-        r = rays[start : start + settings.max_rays_per_call]
-        blocked[r] = np.asarray(occluded(origins[r], dirs[r], 0.0, lengths[r]), bool)
+    if rays.size:
+        dirs = (seg / safe[..., None]).reshape(-1, 3)[rays]
+        origins = np.broadcast_to(origin[:, None, None, :], seg.shape).reshape(-1, 3)[rays]
+        blocked[rays] = yield origins, dirs, length.ravel()[rays] * (1.0 - SHADOW_END_REL)
     total = kernel.sum(axis=2)
     seen = np.where(blocked.reshape(kernel.shape), 0.0, kernel).sum(axis=2)
     return np.divide(seen, total, out=np.zeros_like(total), where=total > 0.0)
@@ -875,6 +949,7 @@ class RayCastFormFactors:
         self._hi = self.corners.max(axis=1)
         self._size = np.linalg.norm(self._hi - self._lo, axis=1)  # (N,) box diagonals, m
         self._sides = None
+        self._fine: dict[int, tuple[np.ndarray, np.ndarray]] = {}  # near-field points per patch
         if occluded is not None and triangles is not None and s.quick_test:
             self._sides = _SideClassifier(self.corners, np.asarray(triangles, np.float64))
 
@@ -910,6 +985,22 @@ class RayCastFormFactors:
         return np.linalg.norm(gap, axis=1) < self.settings.near_field_distance * size
 
     def row(self, i: int, out: np.ndarray | None = None) -> np.ndarray:
+        return answer_rays(self._row_steps(i, out), self.occluded, self.settings.max_rays_per_call)
+
+    def rows(self, indices, out: np.ndarray) -> None:
+        """Rows `indices` into out (len(indices), N): their shadow rays go out together, a few
+        large ray-casting calls instead of one small call per row (each call costs milliseconds
+        of set-up in the BVH, whatever its size)."""
+        answer_rays_together([self._row_steps(int(i), out[k]) for k, i in enumerate(indices)],
+                             self.occluded, self.settings.max_rays_per_call)
+
+    def rows_per_batch(self) -> int:
+        """Rows whose rays make about RAYS_PER_BATCH rays (at least one)."""
+        s = self.settings
+        per_row = len(self.corners) * s.samples_per_side**2 * s.visibility_samples_per_side**2
+        return max(1, RAYS_PER_BATCH // max(per_row, 1))
+
+    def _row_steps(self, i: int, out: np.ndarray | None = None) -> RayRequests:
         g = self.geometry
         rays = self.maybe_occluded(i)
         reverse = self.integrated_over_target(i)
@@ -917,10 +1008,10 @@ class RayCastFormFactors:
         near[i] = False
         result = np.zeros(len(g.areas), np.float64) if out is None else out
         forward = np.flatnonzero(~reverse)
-        unoccluded, visible = raycast_gather(
+        unoccluded, visible = yield from raycast_gather_steps(
             self.points[i], g.normals[i], self.weights[i], self.corners[forward],
-            g.normals[forward], self.occluded, self.settings, None, ray_offset=self.ray_offset,
-            maybe_occluded=rays[forward],
+            g.normals[forward], self.occluded is not None, self.settings, None,
+            ray_offset=self.ray_offset, maybe_occluded=rays[forward],
             target_samples=(self.visibility_points[forward], self.visibility_weights[forward]),
         )
         refine = near[forward]
@@ -934,13 +1025,13 @@ class RayCastFormFactors:
         result[forward] = unoccluded * visible
         targets = np.flatnonzero(reverse)
         if targets.size:
-            result[targets] = self._reverse(i, targets, rays[targets], near[targets])
+            result[targets] = yield from self._reverse(i, targets, rays[targets], near[targets])
         result[i] = 0.0  # a flat patch does not see itself
         return result
 
     def _reverse(
         self, i: int, targets: np.ndarray, rays: np.ndarray, near: np.ndarray
-    ) -> np.ndarray:
+    ) -> RayRequests:
         """(J,) F_ij = A_j F_ji / A_i, F_ji integrated over the points of each target j."""
         g = self.geometry
         y = self.points[targets]  # (J, S, 3)
@@ -951,11 +1042,11 @@ class RayCastFormFactors:
         visible = np.ones(len(targets))
         traced = rays & (unoccluded > 0.0)  # rays is all False without `occluded`
         if traced.any():
-            share = _visible_fraction(
+            share = (yield from _visible_fraction_steps(
                 y[traced].reshape(-1, 3), ny[traced].reshape(-1, 3),
                 self.visibility_points[i : i + 1], self.visibility_weights[i : i + 1],
-                g.normals[i : i + 1], self.occluded, self.settings, self.ray_offset,
-            ).reshape(-1, y.shape[1])
+                g.normals[i : i + 1], self.ray_offset,
+            )).reshape(-1, y.shape[1])
             visible[traced] = np.einsum("js,js->j", wy[traced], factors[traced] * share)
             visible[traced] /= unoccluded[traced]
         if near.any() and self.settings.near_field_cells > 1:
@@ -973,11 +1064,13 @@ class RayCastFormFactors:
         if s.source_rule != "stratified":
             return sample_patches(corners, s.samples_per_side, s.source_rule, None,
                                   s.near_field_cells)
-        parts = [
-            sample_patches(corners[k : k + 1], s.samples_per_side, "stratified",
-                           np.random.default_rng([s.seed, 3, int(p)]), s.near_field_cells)
-            for k, p in enumerate(patches)
-        ]
+        parts = []
+        for k, p in enumerate(patches):
+            if int(p) not in self._fine:  # drawn once per patch: rows ask for the same points
+                self._fine[int(p)] = sample_patches(
+                    corners[k : k + 1], s.samples_per_side, "stratified",
+                    np.random.default_rng([s.seed, 3, int(p)]), s.near_field_cells)
+            parts.append(self._fine[int(p)])
         return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
 
 
