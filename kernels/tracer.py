@@ -270,10 +270,10 @@ def _filtered_albedo(scene: Scene, tri: np.ndarray, centre: np.ndarray, fp: _Foo
     g = fp.grid
     steps = (np.arange(g + 1) / g - 0.5) * fp.cell
     uv = np.empty((g + 1, g + 1, len(tri), 2))  # sub-cell corners in UV, [row, column]
+    rn, onx, ony, dn0, dnx, dny = coef["n"]
     for i, dy in enumerate(steps):
         for j, dx in enumerate(steps):
-            rn, onx, ony, dn_, dnx, dny = coef["n"]
-            dn = dn_ + dx * dnx + dy * dny
+            dn = dn0 + dx * dnx + dy * dny
             # Edge-on (|cos| below GRAZING_COS, with |d'| ~ |d| across a pixel) or behind: the
             # ray's own hit point.
             ok = np.abs(dn) > GRAZING_COS * n_len * speed
