@@ -33,8 +33,8 @@ see the module docstring of `intersect.py` for why no node holding the closest h
 Memory of a query: per thread, the pool's slots (about 56 + 8 * stack depth + 40 bytes each, the
 stack depth being (W - 1) * tree depth + 2, ~35 for a million triangles) and one step's
 temporaries: about 16 MB per thread at 16384 slots and 53 MB at the default 65536, measured with
-tracemalloc, for any number of rays. Larger pools pay: each NumPy call serves more rays, and two
-threads hold the GIL less (bench/rays.py, 1M-triangle camera rays: 0.66 M/s at 16384 slots, 0.81
+tracemalloc, for any number of rays. Larger pools pay: each NumPy call serves more rays, so fixed
+per-call costs weigh less (bench/rays.py, 1M-triangle camera rays: 0.66 M/s at 16384 slots, 0.81
 at 65536). The tree itself takes about 70 bytes per triangle (plus the 36-byte float32 copy of the
 triangles and their 24-byte boxes): 131 MB in all for a million triangles.
 """
