@@ -53,7 +53,9 @@ class CLASSICBAKE_PG_settings(bpy.types.PropertyGroup):
         items=[("auto", "Automatic", "Gauss-Seidel while the dense matrix fits in memory, else "
                 "progressive refinement"),
                ("gauss_seidel", "Gauss-Seidel", "Gathering on the dense form factor matrix"),
-               ("progressive", "Progressive", "Shooting, one row at a time, never N x N")],
+               ("progressive", "Progressive", "Shooting, one row at a time, never N x N"),
+               ("hierarchical", "Hierarchical", "Patches gather from a hierarchy of sources, "
+                "coarse where the form factor is small (links, not N x N)")],
         default="auto")
     radiosity_patches: IntProperty(
         name="Patches", description="Patches aimed at before refinement (sets the patch size)",

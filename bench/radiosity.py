@@ -118,9 +118,11 @@ def cornell(args) -> tuple[dict, dict, list]:
 
     rungs = [("raycast", "gauss_seidel", 50, 0), ("raycast", "gauss_seidel", 150, 0),
              ("raycast", "gauss_seidel", 300, 1), ("hemicube", "gauss_seidel", 150, 0),
-             ("raycast", "progressive", 150, 0)]
+             ("raycast", "progressive", 150, 0), ("raycast", "hierarchical", 150, 0),
+             ("raycast", "hierarchical", 600, 0)]
     if not args.quick:
         rungs.insert(3, ("raycast", "gauss_seidel", 600, 1))
+        rungs.append(("raycast", "hierarchical", 2000, 0))
     cycles_samples = [1, 4, 16, 64] if args.quick else [1, 4, 16, 64, 256]
     kernel, cycles, kernel_render, cycles_render = [], [], [], []
     best_image = None

@@ -101,6 +101,12 @@ class RadiositySettings:
     |                             |                     |          | shadow rays                |
     | smooth_angle                | [0, pi]             | 0.5236   | rad; corners average the   |
     |                             |                     |          | patches within this angle  |
+    | link_epsilon                | > 0                 | 0.01     | hierarchical: a link's     |
+    |                             |                     |          | source splits while its    |
+    |                             |                     |          | factor exceeds this        |
+    | max_depth                   | >= 0                | 3        | hierarchical: source levels|
+    |                             |                     |          | above the patches (roots:  |
+    |                             |                     |          | 2^max_depth x patch size)  |
     | max_shots                   | >= 0                | 0        | progressive: stop after    |
     |                             |                     |          | this many shots, the       |
     |                             |                     |          | ambient term covering the  |
@@ -109,7 +115,7 @@ class RadiositySettings:
     """
 
     method: Literal["raycast", "hemicube"] = "raycast"
-    solver: Literal["auto", "gauss_seidel", "progressive"] = "auto"
+    solver: Literal["auto", "gauss_seidel", "progressive", "hierarchical"] = "auto"
     patch_size: float = 0.0
     patch_budget: int = 400
     refine_levels: int = 1
@@ -123,14 +129,19 @@ class RadiositySettings:
     light_samples_per_side: int = 3
     area_light_samples_per_side: int = 4
     smooth_angle: float = math.radians(30.0)
+    link_epsilon: float = 0.01
+    max_depth: int = 3
     max_shots: int = 0
     seed: int = 0
 
     def __post_init__(self) -> None:
         if self.method not in ("raycast", "hemicube"):
             raise ValueError(f"method must be 'raycast' or 'hemicube', got {self.method!r}")
-        if self.solver not in ("auto", "gauss_seidel", "progressive"):
-            raise ValueError(f"solver must be auto, gauss_seidel or progressive, got {self.solver!r}")
+        if self.solver not in ("auto", "gauss_seidel", "progressive", "hierarchical"):
+            raise ValueError("solver must be auto, gauss_seidel, progressive or hierarchical, "
+                             f"got {self.solver!r}")
+        if not self.link_epsilon > 0.0 or self.max_depth < 0:
+            raise ValueError("link_epsilon must be > 0 and max_depth >= 0")
         if self.patch_size < 0.0 or self.patch_budget < 1 or self.max_patches < 1:
             raise ValueError("patch_size must be >= 0, patch_budget and max_patches >= 1")
         if self.refine_levels < 0 or not self.refine_threshold > 0.0:
@@ -394,9 +405,12 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
     flat = scene.triangles.reshape(-1, 3).astype(np.float64)
     scale = float(np.linalg.norm(flat.max(axis=0) - flat.min(axis=0)))
     size = settings.patch_size or patching.auto_patch_size(scene, settings.patch_budget)
-    patches = patching.make_patches(scene, size)
     if bvh is None:
         bvh = BVH.build(scene.triangles)
+    if settings.solver == "hierarchical":
+        yield from _hierarchical(scene, size, bvh, settings, scale, t0)
+        return
+    patches = patching.make_patches(scene, size)
     yield 0.02
     levels = settings.refine_levels + 1
     stats: dict = {"patch_size_m": size, "levels": []}
@@ -437,6 +451,41 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
                  seconds=time.perf_counter() - t0)
     yield 1.0
     yield RadiosityResult(patches=patches, radiosity=b, emitted=emitted, direct=direct,
+                          reflectance=rho, corner_b=corner_b, corner_e=corner_e, stats=stats)
+
+
+def _hierarchical(scene, size, bvh, settings, scale, t0) -> Iterator:
+    """`radiosity_steps` with the hierarchical solver (`hierarchical.py`): its patches are the
+    leaves of the hierarchy, about `size`; the patch-splitting levels of the other solvers do not
+    apply."""
+    from .hierarchical import hierarchical_steps
+
+    def occluded(o, d, t_min, t_max):
+        return bvh.occluded(o, d, t_min, t_max)
+
+    def lamps(leaves):
+        return first_shot(scene, leaves, occluded, settings, scale)
+
+    for step in hierarchical_steps(scene, size, occluded, settings, scale, lamps):
+        if isinstance(step, tuple):
+            leaves, b, emitted, rho, direct, hierarchy, info = step
+        else:
+            yield 0.02 + 0.96 * step
+    corner_b = patching.corner_values(leaves, b, settings.smooth_angle, scale)
+    corner_e = patching.corner_values(leaves, emitted, settings.smooth_angle, scale)
+    # Links are the memory: ids, factor (24 B) plus the elements (~500 B each).
+    memory = {"links": 24 * info["links"], "patches": 500 * info["elements"],
+              "bvh": 200 * scene.triangle_count}
+    memory["total"] = int(sum(memory.values()))
+    stats = {"patch_size_m": size, "patches": len(leaves), "per_level": leaves.level_counts(),
+             "solver": "hierarchical", "memory_estimate": memory, "method": "raycast",
+             "hierarchy": info, "levels": [{"patches": len(leaves), "solver": "hierarchical",
+                                            "iterations": info["iterations"],
+                                            "converged": info["converged"],
+                                            "solver_error": info["solver_error"]}],
+             "seconds": time.perf_counter() - t0}
+    yield 1.0
+    yield RadiosityResult(patches=leaves, radiosity=b, emitted=emitted, direct=direct,
                           reflectance=rho, corner_b=corner_b, corner_e=corner_e, stats=stats)
 
 

@@ -15,9 +15,10 @@ DEFAULTS = {"method": "raycast", "solver": "auto", "patches": 400, "patch_size":
 def add_arguments(parser) -> None:
     parser.add_argument("--method", choices=("raycast", "hemicube"), default=DEFAULTS["method"],
                         help="form factors: ray-cast point-to-polygon (default) or hemicube")
-    parser.add_argument("--solver", choices=("auto", "gauss_seidel", "progressive"),
+    parser.add_argument("--solver", choices=("auto", "gauss_seidel", "progressive", "hierarchical"),
                         default=DEFAULTS["solver"],
-                        help="auto (default): Gauss-Seidel while the dense matrix fits in memory")
+                        help="auto (default): Gauss-Seidel while the dense matrix fits in memory, "
+                             "else progressive; hierarchical: links to a hierarchy of sources")
     parser.add_argument("--patches", type=int, default=DEFAULTS["patches"], metavar="N",
                         help="patches aimed at before refinement (default 400)")
     parser.add_argument("--patch-size", type=float, default=DEFAULTS["patch_size"], metavar="M",
