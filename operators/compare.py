@@ -6,7 +6,7 @@ import bpy
 
 from ..addon import bridge, cycles_reference
 from ..addon.settings import direct_light_settings, tracer_settings
-from .job import CameraPoll, JobOperator
+from .job import JobOperator, ScenePoll
 
 ERROR_IMAGE = "Classic Bake Error"
 KERNEL_IMAGE = "Classic Bake Kernel View"
@@ -63,13 +63,14 @@ def compare_job(context, technique: str, samples: int, report):
                      f"kernel {kernel_seconds:.2f} s, Cycles {cycles_seconds:.2f} s")
 
 
-class CLASSICBAKE_OT_compare(CameraPoll, JobOperator, bpy.types.Operator):
+class CLASSICBAKE_OT_compare(ScenePoll, JobOperator, bpy.types.Operator):
     """Render the kernel's view and Cycles' view of the same model, and show their difference"""
 
     bl_idname = "classic_bake.compare"
     bl_label = "Compare with Cycles"
     bl_options = {"REGISTER"}
     job_label = "Comparing with Cycles"
+    needs = ("camera",)
 
     def start(self, context):
         props = context.scene.classic_bake

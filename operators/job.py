@@ -88,12 +88,28 @@ class JobOperator:
             context.workspace.status_text_set(None)
 
 
-class CameraPoll:
-    """Mixin: the operator renders the scene camera's view, so it needs a camera."""
+class ScenePoll:
+    """Mixin: the operator's poll checks what its scene must hold, named in `needs` (in the order
+    given): "camera", "light", "mesh". Each missing one is explained in the status bar."""
+
+    needs: tuple[str, ...] = ()
+    _NEEDS = {
+        "camera": (lambda scene: scene.camera is not None, "The scene needs a camera"),
+        "light": (lambda scene: any(o.type == "LIGHT" for o in scene.objects),
+                  "The scene needs a light"),
+        "mesh": (lambda scene: any(o.type == "MESH" for o in scene.objects),
+                 "The scene has no meshes"),
+    }
 
     @classmethod
     def poll(cls, context):
-        if context.scene is None or context.scene.camera is None:
-            cls.poll_message_set("The scene needs a camera")
+        scene = context.scene
+        if scene is None or not hasattr(scene, "classic_bake"):
+            cls.poll_message_set("No scene")
             return False
+        for need in cls.needs:
+            present, message = cls._NEEDS[need]
+            if not present(scene):
+                cls.poll_message_set(message)
+                return False
         return True

@@ -5,7 +5,7 @@ from bpy.props import BoolProperty
 
 from ..addon import bridge
 from ..addon.settings import lightmap_uv_settings
-from .job import JobOperator
+from .job import JobOperator, ScenePoll
 
 
 def _targets(context, all_objects: bool):
@@ -37,27 +37,18 @@ def unwrap_job(targets, name: str, settings, report):
     report({"WARNING"} if split else {"INFO"}, message)
 
 
-class CLASSICBAKE_OT_lightmap_uv(JobOperator, bpy.types.Operator):
+class CLASSICBAKE_OT_lightmap_uv(ScenePoll, JobOperator, bpy.types.Operator):
     """Unwrap and pack meshes into a new lightmap UV layer (xatlas); existing layers are kept"""
 
     bl_idname = "classic_bake.lightmap_uv"
     bl_label = "Create Lightmap UVs"
     bl_options = {"REGISTER", "UNDO"}
     job_label = "Lightmap UVs"
+    needs = ("mesh",)
 
     all_objects: BoolProperty(
         name="All Objects", description="Unwrap every mesh in the scene, not only the selection",
         default=False)
-
-    @classmethod
-    def poll(cls, context):
-        if context.scene is None or not hasattr(context.scene, "classic_bake"):
-            cls.poll_message_set("No scene")
-            return False
-        if not any(o.type == "MESH" for o in context.scene.objects):
-            cls.poll_message_set("The scene has no mesh objects")
-            return False
-        return True
 
     def start(self, context):
         settings = lightmap_uv_settings(context.scene.classic_bake)

@@ -5,24 +5,17 @@ import bpy
 
 from ..addon.jobs import forward, radiosity_bake_job
 from ..addon.settings import lightmap_uv_settings, radiosity_settings
-from .job import JobOperator
+from .job import JobOperator, ScenePoll
 
 
-class CLASSICBAKE_OT_radiosity(JobOperator, bpy.types.Operator):
+class CLASSICBAKE_OT_radiosity(ScenePoll, JobOperator, bpy.types.Operator):
     """Solve radiosity and bake outgoing radiance into lightmaps and a 'Radiosity' colour attribute"""
 
     bl_idname = "classic_bake.radiosity"
     bl_label = "Bake Radiosity"
     bl_options = {"REGISTER", "UNDO"}
     job_label = "Radiosity"
-
-    @classmethod
-    def poll(cls, context):
-        scene = context.scene
-        if scene is None or not any(o.type == "MESH" for o in scene.objects):
-            cls.poll_message_set("The scene has no meshes")
-            return False
-        return True
+    needs = ("mesh",)
 
     def start(self, context):
         props = context.scene.classic_bake

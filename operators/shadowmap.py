@@ -4,27 +4,17 @@ import bpy
 
 from ..addon.jobs import forward, shadow_bake_job
 from ..addon.settings import direct_light_settings, lightmap_uv_settings
-from .job import JobOperator
+from .job import JobOperator, ScenePoll
 
 
-class CLASSICBAKE_OT_shadowmap(JobOperator, bpy.types.Operator):
+class CLASSICBAKE_OT_shadowmap(ScenePoll, JobOperator, bpy.types.Operator):
     """Bake shadow-map shadows of every light into lightmaps and a 'Shadow' colour attribute"""
 
     bl_idname = "classic_bake.shadowmap"
     bl_label = "Bake Shadow Maps"
     bl_options = {"REGISTER", "UNDO"}
     job_label = "Shadow maps"
-
-    @classmethod
-    def poll(cls, context):
-        scene = context.scene
-        if scene is None or not any(o.type == "LIGHT" for o in scene.objects):
-            cls.poll_message_set("The scene needs a light")
-            return False
-        if not any(o.type == "MESH" for o in scene.objects):
-            cls.poll_message_set("The scene has no meshes")
-            return False
-        return True
+    needs = ("light", "mesh")
 
     def start(self, context):
         props = context.scene.classic_bake

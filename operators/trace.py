@@ -4,7 +4,7 @@ import bpy
 
 from ..addon import bridge
 from ..addon.settings import tracer_settings
-from .job import CameraPoll, JobOperator
+from .job import JobOperator, ScenePoll
 
 IMAGE_NAME = "Classic Bake Trace"
 
@@ -25,13 +25,14 @@ def trace_job(scene, settings, report):
                      f"{s.shadow_rays} shadow rays, {s.pruned_branches} branches pruned")
 
 
-class CLASSICBAKE_OT_trace(CameraPoll, JobOperator, bpy.types.Operator):
+class CLASSICBAKE_OT_trace(ScenePoll, JobOperator, bpy.types.Operator):
     """Ray trace the scene camera's view (Whitted: shadows, mirrors, glass) into a float image"""
 
     bl_idname = "classic_bake.trace"
     bl_label = "Trace Camera View"
     bl_options = {"REGISTER"}
     job_label = "Ray tracing"
+    needs = ("camera",)
 
     def start(self, context):
         scene = bridge.snapshot(context)
