@@ -29,7 +29,6 @@ below `tolerance` x the largest B. E: emission (pi L); H: the lamps' direct irra
 from __future__ import annotations
 
 from collections.abc import Iterator
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -53,28 +52,6 @@ LEAF_SLACK = 2.0
 MAX_ITERATIONS = 5000
 
 
-@dataclass(frozen=True, eq=False)
-class Hierarchy:
-    """The solved hierarchy (E elements, L links); see the module docstring.
-
-    bary (E, 3, 3), tri (E,), level (E,): elements as in `patches.Patches`, level below the root
-    up (E,) parent element (-1: a root); child (E,) first of its four children (-1: a leaf)
-    areas (E,) m^2; link_p, link_q (L,) and factor (L,): the links p <- q with F_pq
-    radiosity (E, 3): B of every element (inner elements: area-weighted means of their leaves)
-    """
-
-    bary: np.ndarray
-    tri: np.ndarray
-    level: np.ndarray
-    up: np.ndarray
-    child: np.ndarray
-    areas: np.ndarray
-    link_p: np.ndarray
-    link_q: np.ndarray
-    factor: np.ndarray
-    radiosity: np.ndarray
-
-
 class _Tree:
     """Element arrays, grown a level at a time; children always follow their parent."""
 
@@ -83,7 +60,6 @@ class _Tree:
         self.bary = roots.bary.copy()
         self.tri = roots.parent.astype(np.int64)
         self.level = np.zeros(len(roots), np.int32)
-        self.up = np.full(len(roots), -1, np.int64)
         self.child = np.full(len(roots), -1, np.int64)
         self.corners = roots.corners.copy()
         self.normals = roots.normals.copy()
@@ -94,19 +70,13 @@ class _Tree:
 
     def split(self, elements: np.ndarray) -> None:
         """Give `elements` (leaves) their four midpoint children."""
-        b = self.bary[elements]
-        m01, m12, m20 = (b[:, 0] + b[:, 1]) / 2, (b[:, 1] + b[:, 2]) / 2, (b[:, 2] + b[:, 0]) / 2
-        kids = np.stack([
-            np.stack([b[:, 0], m01, m20], 1), np.stack([m01, b[:, 1], m12], 1),
-            np.stack([m20, m12, b[:, 2]], 1), np.stack([m01, m12, m20], 1),
-        ], axis=1).reshape(-1, 3, 3)  # the rule of patches.split: each CCW like its parent
+        kids = patching.midpoint_children(self.bary[elements])  # patches.split's rule
         self.child[elements] = len(self) + 4 * np.arange(elements.size)
         tri = np.repeat(self.tri[elements], 4)
         corners = np.einsum("nkc,ncj->nkj", kids, self.tris[tri])
         self.bary = np.concatenate([self.bary, kids])
         self.tri = np.concatenate([self.tri, tri])
         self.level = np.concatenate([self.level, np.repeat(self.level[elements] + 1, 4)])
-        self.up = np.concatenate([self.up, np.repeat(elements, 4)])
         self.child = np.concatenate([self.child, np.full(4 * elements.size, -1, np.int64)])
         self.corners = np.concatenate([self.corners, corners])
         self.normals = np.concatenate([self.normals, geometric_normals(self.tris[tri])])
@@ -123,17 +93,23 @@ def _facing(tree: _Tree, p: np.ndarray, q: np.ndarray) -> np.ndarray:
     return (in_front_of_p > eps) & (in_front_of_q > eps)
 
 
-def _unoccluded(tree: _Tree, p: np.ndarray, q: np.ndarray, side: int) -> np.ndarray:
-    """(L,) F_pq without occlusion: side x side midpoint points of leaf p, exact over polygon q."""
-    out = np.empty(len(p))
+def _point_factors(tree: _Tree, p: np.ndarray, q: np.ndarray, side: int):
+    """side x side midpoint points (L, S, 3) of leaves p, their weights (L, S), and the exact
+    unoccluded factor (L, S) from each point to polygon q."""
+    points, weights = sample_patches(tree.corners[p], side, "midpoint")
+    f = np.empty(points.shape[:2])
     step = max(1, LINK_CHUNK // side**2)
     for a in range(0, len(p), step):
-        pp, qq = p[a : a + step], q[a : a + step]
-        points, weights = sample_patches(tree.corners[pp], side, "midpoint")  # (M, S, 3)
-        f = point_to_polygon(points, tree.normals[pp][:, None, :], tree.corners[qq][:, None],
-                             tree.normals[qq][:, None])
-        out[a : a + step] = np.einsum("ms,ms->m", weights, f)
-    return out
+        rows = slice(a, a + step)
+        f[rows] = point_to_polygon(points[rows], tree.normals[p[rows]][:, None, :],
+                                   tree.corners[q[rows]][:, None], tree.normals[q[rows]][:, None])
+    return points, weights, f
+
+
+def _unoccluded(tree: _Tree, p: np.ndarray, q: np.ndarray, side: int) -> np.ndarray:
+    """(L,) F_pq without occlusion: side x side midpoint points of leaf p, exact over polygon q."""
+    _, weights, f = _point_factors(tree, p, q, side)
+    return np.einsum("ls,ls->l", weights, f)
 
 
 def refine_links(tree: _Tree, p: np.ndarray, q: np.ndarray, epsilon: float, side: int
@@ -155,13 +131,7 @@ def _visible_share_steps(tree: _Tree, p: np.ndarray, q: np.ndarray, side: int,
                          ray_offset: float):
     """Generator (asks for shadow rays, see form_factors.RayRequest): (L,) the F-weighted share
     of side x side points of p that see the matching point of q."""
-    points, weights = sample_patches(tree.corners[p], side, "midpoint")  # (L, S, 3)
-    f = np.empty(points.shape[:2])
-    step = max(1, LINK_CHUNK // side**2)
-    for a in range(0, len(p), step):
-        rows = slice(a, a + step)
-        f[rows] = point_to_polygon(points[rows], tree.normals[p[rows]][:, None, :],
-                                   tree.corners[q[rows]][:, None], tree.normals[q[rows]][:, None])
+    points, weights, f = _point_factors(tree, p, q, side)
     targets, _ = sample_patches(tree.corners[q], side, "midpoint")
     start = points + ray_offset * tree.normals[p][:, None, :]
     seg = (targets + ray_offset * tree.normals[q][:, None, :] - start).reshape(-1, 3)
@@ -211,7 +181,7 @@ def solve_links(tree: _Tree, leaves: np.ndarray, p: np.ndarray, q: np.ndarray, f
 def hierarchical_steps(scene: Scene, patch_size: float, occluded, settings, scale: float,
                        lamp_irradiance) -> Iterator[float | tuple]:
     """Build, link, refine, solve. Yields progress, then (leaf Patches, B, emitted, reflectance,
-    direct irradiance of the leaves, Hierarchy, stats).
+    direct irradiance of the leaves, stats).
 
     occluded: the BVH callback or None; lamp_irradiance(leaf Patches) -> (H (N, 3), ...);
     settings: RadiositySettings (link_epsilon, max_depth, samples_per_side, tolerance).
@@ -264,11 +234,8 @@ def hierarchical_steps(scene: Scene, patch_size: float, occluded, settings, scal
     b, iterations, change = solve_links(tree, leaves, p, q, factor, emitted + rho * direct, rho,
                                         settings.tolerance, MAX_ITERATIONS)
     yield 1.0
-    hierarchy = Hierarchy(bary=tree.bary, tri=tree.tri, level=tree.level, up=tree.up,
-                          child=tree.child, areas=tree.areas, link_p=p, link_q=q, factor=factor,
-                          radiosity=b)
     stats = {"roots": len(roots), "elements": len(tree), "leaves": int(leaves.size),
              "links": int(len(p)), "all_pairs": int(leaves.size) ** 2,
              "near_field_links": int(near.sum()), "iterations": iterations,
              "solver_error": change, "converged": bool(change <= settings.tolerance)}
-    yield (leaf_patches, b[leaves], emitted[leaves], rho[leaves], direct[leaves], hierarchy, stats)
+    yield (leaf_patches, b[leaves], emitted[leaves], rho[leaves], direct[leaves], stats)

@@ -115,17 +115,23 @@ def split(scene: Scene, patches: Patches, mask: np.ndarray) -> Patches:
     mask = np.asarray(mask, bool)
     if not mask.any():
         return patches
-    b = patches.bary[mask]  # (M, 3, 3)
-    m01, m12, m20 = (b[:, 0] + b[:, 1]) / 2, (b[:, 1] + b[:, 2]) / 2, (b[:, 2] + b[:, 0]) / 2
-    children = np.stack([
-        np.stack([b[:, 0], m01, m20], 1), np.stack([m01, b[:, 1], m12], 1),
-        np.stack([m20, m12, b[:, 2]], 1), np.stack([m01, m12, m20], 1),
-    ], axis=1).reshape(-1, 3, 3)  # (4M, 3, 3), each CCW like its parent
+    children = midpoint_children(patches.bary[mask])
     parent = np.concatenate([patches.parent[~mask], np.repeat(patches.parent[mask], 4)])
     bary = np.concatenate([patches.bary[~mask], children])
     level = np.concatenate([patches.level[~mask], np.repeat(patches.level[mask] + 1, 4)])
     order = np.argsort(parent, kind="stable")
     return _assemble(scene, parent[order], bary[order], level[order].astype(np.int32))
+
+
+def midpoint_children(bary: np.ndarray) -> np.ndarray:
+    """(4M, 3, 3) barycentric corners of the four midpoint children of (M, 3, 3) triangles, the
+    four of each triangle consecutive and each counter-clockwise like its parent."""
+    b = np.asarray(bary, np.float64)
+    m01, m12, m20 = (b[:, 0] + b[:, 1]) / 2, (b[:, 1] + b[:, 2]) / 2, (b[:, 2] + b[:, 0]) / 2
+    return np.stack([
+        np.stack([b[:, 0], m01, m20], 1), np.stack([m01, b[:, 1], m12], 1),
+        np.stack([m20, m12, b[:, 2]], 1), np.stack([m01, m12, m20], 1),
+    ], axis=1).reshape(-1, 3, 3)
 
 
 def _assemble(scene: Scene, parent: np.ndarray, bary: np.ndarray, level: np.ndarray) -> Patches:

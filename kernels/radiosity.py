@@ -468,7 +468,7 @@ def _hierarchical(scene, size, bvh, settings, scale, t0) -> Iterator:
 
     for step in hierarchical_steps(scene, size, occluded, settings, scale, lamps):
         if isinstance(step, tuple):
-            leaves, b, emitted, rho, direct, hierarchy, info = step
+            leaves, b, emitted, rho, direct, info = step
         else:
             yield 0.02 + 0.96 * step
     corner_b = patching.corner_values(leaves, b, settings.smooth_angle, scale)

@@ -375,9 +375,6 @@ def build_shadow_map(
 # --------------------------------------------------------------------------------------------
 
 
-_unit = unit_rows
-
-
 def _footprint(view: ShadowView, depth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(texel side, half texel diagonal) in metres at view depth `depth` (N,)."""
     tw, th = view.texel_size
@@ -521,7 +518,7 @@ def shadow_visibility(
     drops the slope terms). PCF gives fractions k'/k^2. `out` (N,) float32 may be caller-owned.
     """
     pts = np.asarray(points, np.float64).reshape(-1, 3)
-    nrm = _unit(np.asarray(normals, np.float64).reshape(-1, 3))
+    nrm = unit_rows(np.asarray(normals, np.float64).reshape(-1, 3))
     if out is None:
         out = np.empty(len(pts), np.float32)
     for a in range(0, len(pts), RECEIVER_CHUNK):
