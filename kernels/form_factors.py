@@ -855,24 +855,10 @@ def raycast_gather_steps(points, normals, weights, corners, corner_normals, trac
     return unoccluded, visible
 
 
-def _visible_fraction(
-    x: np.ndarray,
-    nx: np.ndarray,
-    y: np.ndarray,
-    wy: np.ndarray,
-    nj: np.ndarray,
-    occluded: Occluded,
-    settings: RayCastSettings,
-    ray_offset: float,
-) -> np.ndarray:
-    """(S, J) kernel-weighted visible fraction of J polygons from S points x (normals nx);
-    y (J, M, 3), wy (J, M): the polygons' visibility points and weights, nj (J, 3) normals."""
-    return answer_rays(_visible_fraction_steps(x, nx, y, wy, nj, ray_offset), occluded,
-                       settings.max_rays_per_call)
-
-
 def _visible_fraction_steps(x, nx, y, wy, nj, ray_offset: float) -> RayRequests:
-    """`_visible_fraction` as a generator that asks for its shadow rays (see `RayRequest`)."""
+    """Generator asking for its shadow rays (see `RayRequest`); returns the (S, J) kernel-weighted
+    visible fraction of J polygons from S points x (normals nx); y (J, M, 3), wy (J, M): the
+    polygons' visibility points and weights, nj (J, 3) normals."""
     # The kernel from the surface points themselves; the rays between lifted copies of them.
     tiny = np.finfo(np.float64).tiny
     between = y[None] - x[:, None, None, :]  # (S, J, M, 3)
