@@ -38,7 +38,7 @@ def kernel_visibility(scene, targets, light, settings):
     sets = list(targets.items())
     points = np.concatenate([t.points for _, (t, _, _) in sets])
     geo = np.concatenate([t.geo_normals for _, (t, _, _) in sets])
-    spacing = float(np.median(np.concatenate([np.full(len(t), sp) for _, (t, sp, _) in sets])))
+    spacing = dl.median_spacing([sp for _, (_, sp, _) in sets], [len(t) for _, (t, _, _) in sets])
     vis = np.ones((1, len(points)), np.float32)
     for _ in dl.light_visibility_steps(one, points, geo, spacing, settings, vis):
         pass

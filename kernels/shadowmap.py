@@ -61,9 +61,9 @@ from typing import Literal
 import numpy as np
 
 from . import cubemap
-from .raster import Projection, look_at, project_points, rasterize_steps
+from .raster import Projection, look_at, rasterize_steps
 from .scene import Light
-from .vec import bounds, row_abs_max, row_dot, row_norms, unit_rows
+from .vec import bounds
 
 EpsMode = Literal["fixed", "auto"]
 MapKind = Literal["ORTHO", "PERSP", "CUBE"]
@@ -76,6 +76,8 @@ DEPTH_MARGIN_ABS = 1e-4  # m, the same for scenes of zero depth range
 NEAR_REL = 1e-6  # PERSP near plane as a fraction of far: linear depth loses no precision for it
 EDGE_ON_COS = 1e-3  # |cos| between a caster's normal and the light below this: seen edge-on
 MIN_EXTENT_REL = 1e-6  # a fitted sun map is at least this fraction of the scene size across
+TINY = np.float32(1e-30)  # guards divisions by cos(theta) = 0: far below any real cosine, and
+#                          the quotient is capped at TAN_THETA_MAX anyway
 RECEIVER_CHUNK = 1 << 16  # receivers per vectorised lookup step: ~20 MB of temporaries
 
 
@@ -185,7 +187,7 @@ def _nearest_in_prism(tris: np.ndarray, rect: tuple[float, float, float, float])
 
 
 @dataclass(frozen=True)
-class _SunFit:
+class SunFit:
     """A sun map's frustum in light space (x right, y up, depth along the light), metres."""
 
     basis: np.ndarray  # (3, 3) rows: light-space x, y, depth in world coordinates
@@ -197,8 +199,13 @@ class _SunFit:
     d1: float  # farthest receiver
     scene_size: float
 
+    @property
+    def span(self) -> float:
+        """The fitted map's longer side, m."""
+        return max(self.x1 - self.x0, self.y1 - self.y0, 0.0)
 
-def _fit_sun(tris: np.ndarray, receivers: np.ndarray, light: Light) -> _SunFit:
+
+def _fit_sun(tris: np.ndarray, receivers: np.ndarray, light: Light) -> SunFit:
     forward, up = _frame(light)
     right = np.cross(forward, up)
     basis = np.stack([right, up, forward])  # rows: light-space x, y, depth
@@ -222,19 +229,18 @@ def _fit_sun(tris: np.ndarray, receivers: np.ndarray, light: Light) -> _SunFit:
         d0 = _nearest_in_prism(verts.reshape(-1, 3, 3)[relevant], (x0, x1, y0, y1))
     else:  # nothing can shadow: an empty map over the receivers
         x0, x1, y0, y1, d0 = r_lo[0], r_hi[0], r_lo[1], r_hi[1], r_lo[2]
-    return _SunFit(basis, x0, x1, y0, y1, d0, max(r_hi[2], d0), scene_size)
+    return SunFit(basis, x0, x1, y0, y1, d0, max(r_hi[2], d0), scene_size)
 
 
-def sun_map_span(triangles: np.ndarray, light: Light, receivers: np.ndarray) -> float:
-    """Longer side (m) of the sun map `plan_shadow_map` fits to these casters and receivers."""
+def fit_sun(triangles: np.ndarray, light: Light, receivers: np.ndarray) -> SunFit:
+    """The frustum `plan_shadow_map` fits a sun's map to, for these casters and receivers (m)."""
     tris = np.asarray(triangles, np.float32).reshape(-1, 3, 3)
-    fit = _fit_sun(tris, np.asarray(receivers, np.float64).reshape(-1, 3), light)
-    return max(fit.x1 - fit.x0, fit.y1 - fit.y0, 0.0)
+    return _fit_sun(tris, np.asarray(receivers, np.float64).reshape(-1, 3), light)
 
 
 def _plan_sun(tris: np.ndarray, receivers: np.ndarray, light: Light,
-              settings: ShadowMapSettings) -> ShadowMap:
-    fit = _fit_sun(tris, receivers, light)
+              settings: ShadowMapSettings, fit: SunFit | None) -> ShadowMap:
+    fit = fit or _fit_sun(tris, receivers, light)
     forward, up = _frame(light)
     basis, x0, x1, y0, y1, d0, d1 = fit.basis, fit.x0, fit.x1, fit.y0, fit.y1, fit.d0, fit.d1
     scene_size = fit.scene_size
@@ -261,7 +267,12 @@ def _plan_sun(tris: np.ndarray, receivers: np.ndarray, light: Light,
 def _far_from(position: np.ndarray, tris: np.ndarray, receivers: np.ndarray) -> float:
     """Farthest receiver (or vertex, without receivers) from the light, m, with a margin."""
     pts = receivers if len(receivers) else tris.reshape(-1, 3).astype(np.float64)
-    far = float(row_norms(pts - position).max()) if len(pts) else 1.0
+    if len(pts) == 0:
+        return 1.0 + _margin(0.0, 1.0)
+    # The farthest corner of the points' box: at most its diagonal beyond the farthest point (the
+    # far plane only bounds the depth range), and O(N) column passes instead of N norms.
+    lo, hi = bounds(pts)
+    far = float(np.linalg.norm(np.maximum(np.abs(lo - position), np.abs(hi - position))))
     return far + _margin(0.0, far)
 
 
@@ -270,11 +281,13 @@ def plan_shadow_map(
     light: Light,
     settings: ShadowMapSettings | None = None,
     receivers: np.ndarray | None = None,
+    sun_fit: SunFit | None = None,
 ) -> ShadowMap:
     """Choose and fit the views of `light`'s shadow map; their depth buffers start at +inf.
 
     `receivers` (N, 3) world m are the points that will be looked up: the sun's map is fitted to
     them and every map's far plane stops behind them. Without them, the whole scene is covered.
+    `sun_fit`: `fit_sun` of the same triangles, light and receivers, when the caller has it.
     """
     settings = settings or ShadowMapSettings()
     tris = np.asarray(triangles, np.float32).reshape(-1, 3, 3)
@@ -285,7 +298,7 @@ def plan_shadow_map(
     if len(recv) == 0:
         recv = np.zeros((1, 3))
     if light.kind == "SUN":
-        return _plan_sun(tris, recv, light, settings)
+        return _plan_sun(tris, recv, light, settings, sun_fit)
     position = np.asarray(light.position, np.float64)
     forward, up = _frame(light)
     far = _far_from(position, tris, recv)
@@ -298,11 +311,9 @@ def plan_shadow_map(
         return ShadowMap("PERSP", (view,), position, forward, settings)
     if light.kind not in ("POINT", "SPOT", "AREA"):
         raise ValueError(f"unknown light kind {light.kind!r}")
-    views = tuple(
-        ShadowView(cubemap.face_projection(f, position, near, far),
-                   np.full((res, res), np.inf, np.float32))
-        for f in range(6)
-    )
+    faces = np.full((6, res, res), np.inf, np.float32)  # one array: lookups gather across faces
+    views = tuple(ShadowView(cubemap.face_projection(f, position, near, far), faces[f])
+                  for f in range(6))
     return ShadowMap("CUBE", views, position, forward, settings)
 
 
@@ -310,8 +321,28 @@ def render_shadow_map_steps(shadow_map: ShadowMap, triangles: np.ndarray) -> Ite
     """Step 1 of the lecture: z-buffer (T, 3, 3) world triangles into every view; yield progress."""
     n = len(shadow_map.views)
     for k, view in enumerate(shadow_map.views):
-        for progress in rasterize_steps(triangles, view.projection, view.depth):
+        tris = triangles
+        if shadow_map.kind == "CUBE":  # each face draws only what reaches into its frustum
+            tris = triangles[_reaches_face(triangles, shadow_map.light_position, k)]
+        for progress in rasterize_steps(tris, view.projection, view.depth):
             yield (k + progress) / n
+
+
+def _reaches_face(triangles: np.ndarray, position: np.ndarray, face: int) -> np.ndarray:
+    """(T,) bool: triangles not wholly outside one side plane of a cube face's 90-degree frustum.
+
+    Inside the frustum the major component ma = F . d is at least |U . d| and |V . d| (d = p - L);
+    a triangle whose three vertices all break the same one of these four half-spaces (or all lie
+    behind the eye) covers no texel of the face, and the rasteriser would only clip it away.
+    """
+    d = np.asarray(triangles, np.float64) - position  # (T, 3, 3) from the light, m
+    ma = d @ cubemap.FACE_FORWARD[face]  # (T, 3)
+    sc = d @ cubemap.FACE_U[face]
+    tc = d @ cubemap.FACE_V[face]
+    outside = (ma <= 0.0).all(axis=1)
+    for side in (ma - sc, ma + sc, ma - tc, ma + tc):
+        outside |= (side < 0.0).all(axis=1)
+    return ~outside
 
 
 # A receiver this close to a triangle's plane (relative to the scene's size) counts as on it, so
@@ -375,12 +406,10 @@ def build_shadow_map(
 # --------------------------------------------------------------------------------------------
 
 
-def _footprint(view: ShadowView, depth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(texel side, half texel diagonal) in metres at view depth `depth` (N,)."""
+def _texel_sides(view: ShadowView) -> tuple[float, float]:
+    """(texel side, half texel diagonal) of a view: metres (ORTHO) or at view depth 1 (PERSP)."""
     tw, th = view.texel_size
-    scale = depth if view.projection.kind == "PERSP" else np.ones_like(depth)
-    scale = np.abs(scale)
-    return max(tw, th) * scale, 0.5 * float(np.hypot(tw, th)) * scale
+    return max(tw, th), 0.5 * float(np.hypot(tw, th))
 
 
 def depth_tolerance(
@@ -388,122 +417,194 @@ def depth_tolerance(
     settings: ShadowMapSettings,
     depth: np.ndarray,
     tan_theta: np.ndarray,
-    points: np.ndarray | None = None,
+    position_size: np.ndarray | float | None = None,
 ) -> np.ndarray:
     """The lecture's eps for receivers at view `depth` (N,) m with slopes `tan_theta` (N,).
 
-    (N,) float64 metres, the formulas of the module docstring; `points` (N, 3) world m feed the
-    float32-position part of the precision term (omitted when None).
+    (N,) metres, the formulas of the module docstring, in the dtype of `tan_theta`;
+    `position_size` (N,) or scalar m, the receivers' largest |world coordinate| (or a bound on it),
+    feeds the float32-position part of the precision term (omitted when None).
     """
-    texel, half_diag = _footprint(view, depth)
-    eps = settings.eps + settings.slope_bias * texel * tan_theta
+    texel, half_diag = _texel_sides(view)
+    if view.projection.kind == "PERSP":  # a texel's footprint grows with the view depth
+        slope_depth = tan_theta * np.abs(depth)
+    else:
+        slope_depth = tan_theta
+    eps = settings.eps + (settings.slope_bias * texel) * slope_depth
     if settings.eps_mode == "auto":
         scale = np.abs(depth)
-        if points is not None:
-            scale = scale + row_abs_max(points)
-        eps = eps + settings.pcf_size * half_diag * tan_theta + DEPTH_PRECISION_REL * scale
+        if position_size is not None:
+            scale = scale + position_size
+        eps = eps + (settings.pcf_size * half_diag) * slope_depth + DEPTH_PRECISION_REL * scale
     return eps
 
 
-def _perspective_slope(view: ShadowView, to_light: np.ndarray, n: np.ndarray, cos_t: np.ndarray,
-                       tan_t: np.ndarray) -> np.ndarray:
+# The lookup works on columns: (3, N) arrays of x, y, z rows. On (N, 3) arrays NumPy loops over
+# rows of three, and adding a (3,) vector to 65,536 points took 1.8 ms against 0.1 ms for the
+# matrix product itself; each column operation costs ~20 us per 65,536 receivers.
+
+
+@dataclass(frozen=True)
+class _Lookup:
+    """Where receivers meet a shadow map: every array (N,), receivers in their given order."""
+
+    col: np.ndarray  # float64 continuous texel column in the receiver's view
+    row: np.ndarray  # float64 continuous texel row (row 0 at the top)
+    depth: np.ndarray  # float64 linear view depth z_f, m
+    inside: np.ndarray | None  # bool, in the view (single views; a cube face always holds f)
+    face: np.ndarray | None  # int64 cube face per receiver (CUBE), None for a single view
+    nl: np.ndarray  # float32 signed cos(theta): normal . unit direction to the light
+    slope: np.ndarray  # float32 depth slope standing in for tan(theta), capped at TAN_THETA_MAX
+
+
+def _tan_from_cos(cos_t: np.ndarray) -> np.ndarray:
+    """tan(theta) from |cos(theta)| (N,), capped at TAN_THETA_MAX (also where cos = 0)."""
+    sin_t = np.sqrt(np.maximum(1.0 - cos_t * cos_t, 0.0))
+    # sin <= 1, so sin / max(cos, 1 / cap) <= the cap unless cos is below 1 / cap: one min does
+    return np.minimum(sin_t / np.maximum(cos_t, TINY), TAN_THETA_MAX)
+
+
+def _perspective_slope(along: np.ndarray, r_dot_a: np.ndarray, cos_t: np.ndarray) -> np.ndarray:
     """The depth slope that replaces tan(theta) in a perspective map, (N,).
 
     The map stores depth along the view axis a, not along the ray r, so within one texel a plane's
     stored depth changes by (half diagonal x d) x |n_perp| (r . a) / |n . r|, with n_perp the part of
-    the normal across the axis. On the axis (r = a) this is tan(theta); off the axis it is not zero
-    even for a surface facing the light, which is where a tilted spot showed acne without it.
-    to_light (N, 3) unit = -r, n (N, 3) unit or zero, cos_t = |n . r|.
+    the normal across the axis (|n_perp|^2 = 1 - (n . a)^2 = 1 - along^2). On the axis (r = a) this
+    is tan(theta); off the axis it is not zero even for a surface facing the light, which is where a
+    tilted spot showed acne without it. cos_t = |n . r|.
     """
-    axis = -view.projection.view[2, :3]  # world direction of the view's -Z
-    along = n @ axis
     n_perp = np.sqrt(np.maximum(1.0 - along * along, 0.0))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        slope = n_perp * np.abs(to_light @ axis) / cos_t
-    slope = np.where(cos_t > 0.0, np.minimum(slope, TAN_THETA_MAX), TAN_THETA_MAX)
-    return np.where(row_dot(n, n) > 0.0, slope, tan_t)
+    return np.minimum(n_perp * r_dot_a / np.maximum(cos_t, TINY), TAN_THETA_MAX)
 
 
-def _by_view(shadow_map: ShadowMap, points: np.ndarray) -> tuple[np.ndarray | None, list]:
-    """Receivers grouped by the view they fall in: (order, [(view, slice of order)]).
+def _pixel_rows(view: ShadowView) -> np.ndarray:
+    """(3, 4) float64: world point (x, y, z, 1) -> (col w, row w, w) of `view`'s map, w = depth
+    (PERSP) or 1 (ORTHO), folding `project_points`' NDC-to-texel step into the clip matrix."""
+    height, width = view.depth.shape
+    clip = view.projection.clip_matrix
+    w = clip[3]
+    return np.stack([0.5 * width * (clip[0] + w), 0.5 * height * (w - clip[1]), clip[2]])
 
-    One view: order None and one slice of everything. A cube map: `order` sorts the receivers by
-    cube face (a radix sort of small integers), so each face's receivers are one contiguous slice.
+
+def _affine(rows: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """(K, N): rows (K, 4) applied to points p (3, N) as homogeneous (x, y, z, 1)."""
+    return rows[:, :3] @ p + rows[:, 3:4]
+
+
+def _look_up(shadow_map: ShadowMap, p: np.ndarray, n: np.ndarray,
+              no_normal: np.ndarray | None) -> _Lookup:
+    """Project receivers p (3, N) float64 with unit (or zero) normals n (3, N) float32 into their
+    view. `no_normal` (N,) bool marks the zero normals (None: there are none); they get no slope.
+
+    One pass over all receivers whatever the kind: a cube map's face comes from the OpenGL table in
+    closed form (sc, tc and ma are signed components of p - L), so receivers are never sorted.
+    Positions, texel coordinates and depth are float64; angles and slopes float32 (7 digits are
+    plenty for a tolerance, and each float32 pass costs half as much).
     """
-    if shadow_map.kind != "CUBE":
-        return None, [(0, slice(0, len(points)))]
-    face = cubemap.major_face(points - shadow_map.light_position).astype(np.int16)
-    order = np.argsort(face, kind="stable")
-    edges = np.searchsorted(face[order], np.arange(7))
-    return order, [(f, slice(edges[f], edges[f + 1])) for f in range(6) if edges[f + 1] > edges[f]]
-
-
-def _visibility_chunk(shadow_map: ShadowMap, p: np.ndarray, n: np.ndarray) -> np.ndarray:
-    """(N,) float64 visibility of receivers p (N, 3) with unit (or zero) normals n."""
-    s = shadow_map.settings
-    order, groups = _by_view(shadow_map, p)
-    if s.normal_offset > 0.0:  # move towards the light side of the surface, texel-sized
-        to_light = (np.broadcast_to(-shadow_map.light_direction, p.shape)
-                    if shadow_map.kind == "ORTHO" else shadow_map.light_position - p)
-        side = np.where(row_dot(n, to_light) < 0.0, -1.0, 1.0)
-        shift = np.zeros(len(p))
-        for v, part in groups:
-            rows = part if order is None else order[part]
-            view = shadow_map.views[v]
-            _, _, depth = project_points(p[rows], view.projection, *view.depth.shape[::-1])
-            shift[rows] = _footprint(view, depth)[0] * s.normal_offset * side[rows]
-        p = p + n * shift[:, None]
-        order, groups = _by_view(shadow_map, p)  # a moved receiver may change cube face
-    if order is not None:
-        p, n = p[order], n[order]
+    if shadow_map.kind == "CUBE":
+        x, y, z = p - shadow_map.light_position[:, None]  # from the light, m
+        ax, ay, az = np.abs(x), np.abs(y), np.abs(z)
+        x_wins = (ax >= ay) & (ax >= az)  # ties as cubemap.direction_to_face: X, then Y, then Z
+        y_wins = ~x_wins & (ay >= az)
+        z_wins = ~(x_wins | y_wins)
+        neg = (x_wins & (x < 0.0)) | (y_wins & (y < 0.0)) | (z_wins & (z < 0.0))
+        face = 2 * (y_wins + 2 * z_wins) + neg  # int64: 2 x axis + (major component < 0)
+        sign = 1.0 - 2.0 * neg  # of the major component
+        ma = np.maximum(np.maximum(ax, ay), az)  # |ma|: the face's view depth
+        # The table's (sc, tc): +-X: (-+z, -y); +-Y: (x, +-z); +-Z: (+-x, -y).
+        sc = x_wins * (-sign * z) + y_wins * x + z_wins * (sign * x)
+        tc = y_wins * (sign * z) - ~y_wins * y
+        height, width = shadow_map.views[0].depth.shape
+        inv = 1.0 / np.maximum(ma, 1e-300)  # the light's own position lands at a face's centre
+        # its face was chosen for it: s = 1 or t = 0 is the last texel, not outside
+        col = np.minimum((sc * inv + 1.0) * (0.5 * width), width - 0.5)
+        row = np.minimum((1.0 - tc * inv) * (0.5 * height), height - 0.5)
+        vx, vy, vz = (p - shadow_map.light_position[:, None]).astype(np.float32)
+        inv_dist = 1.0 / np.maximum(np.sqrt(vx * vx + vy * vy + vz * vz), TINY)
+        nl = -(n[0] * vx + n[1] * vy + n[2] * vz) * inv_dist  # to_light = -(p - L) / |p - L|
+        along = x_wins * n[0] + y_wins * n[1] + z_wins * n[2]  # n . face axis, up to sign
+        slope = _perspective_slope(along, ma.astype(np.float32) * inv_dist, np.abs(nl))
+        if no_normal is not None:
+            slope[no_normal] = 0.0
+        return _Lookup(col, row, ma, None, face, nl, slope)
+    view = shadow_map.views[0]
+    height, width = view.depth.shape
+    col, row, depth = _affine(_pixel_rows(view), p)  # ORTHO: col, row, depth; PERSP: x depth
     if shadow_map.kind == "ORTHO":
-        to_light = np.broadcast_to(-shadow_map.light_direction, p.shape)
-        nl = n @ -shadow_map.light_direction
+        nl = -shadow_map.light_direction.astype(np.float32) @ n
+        slope = _tan_from_cos(np.abs(nl))
+        ahead = None
     else:
-        to_light = unit_rows(shadow_map.light_position - p)
-        nl = row_dot(n, to_light)  # cos(theta), signed
-    cos_t = np.abs(nl)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        tan_t = np.sqrt(np.maximum(1.0 - cos_t * cos_t, 0.0)) / cos_t
-    tan_t = np.where(cos_t > 0.0, np.minimum(tan_t, TAN_THETA_MAX), TAN_THETA_MAX)
-    tan_t[~(row_dot(n, n) > 0.0)] = 0.0  # no normal given: no slope term
+        ahead = depth > 0.0  # behind the spot: outside its map
+        inv = 1.0 / np.where(ahead, depth, 1.0)
+        col, row = col * inv, row * inv
+        tx, ty, tz = (shadow_map.light_position[:, None] - p).astype(np.float32)
+        inv_dist = 1.0 / np.maximum(np.sqrt(tx * tx + ty * ty + tz * tz), TINY)
+        nl = (n[0] * tx + n[1] * ty + n[2] * tz) * inv_dist
+        axis = (-view.projection.view[2, :3]).astype(np.float32)  # world direction of view -Z
+        slope = _perspective_slope(axis @ n, np.abs(depth).astype(np.float32) * inv_dist,
+                                   np.abs(nl))
+    if no_normal is not None:
+        slope[no_normal] = 0.0
+    inside = (col >= 0.0) & (col < width) & (row >= 0.0) & (row < height)
+    if ahead is not None:
+        inside &= ahead
+    return _Lookup(col, row, depth, inside, None, nl, slope)
 
+
+def _stacked_depth(shadow_map: ShadowMap) -> np.ndarray:
+    """(V, H, W) float32 depth of every view, without a copy when the views share one array."""
+    first = shadow_map.views[0].depth
+    if len(shadow_map.views) == 1:
+        return first[None]
+    if first.base is not None and first.base.shape == (len(shadow_map.views), *first.shape):
+        return first.base
+    return np.stack([v.depth for v in shadow_map.views])
+
+
+def _visibility_chunk(shadow_map: ShadowMap, p: np.ndarray, n: np.ndarray,
+                      no_normal: np.ndarray | None, size: float) -> np.ndarray:
+    """(N,) float32 visibility of receivers p (3, N) float64 with unit (or zero) normals n (3, N)
+    float32 (`no_normal`: see `_look_up`); `size` m bounds every |coordinate| of the receivers."""
+    s = shadow_map.settings
+    view = shadow_map.views[0]  # every view of a map has the same size and texel (cube faces)
+    height, width = view.depth.shape
+    texel, _ = _texel_sides(view)
+    if s.normal_offset > 0.0:  # move towards the light side of the surface, texel-sized
+        at = _look_up(shadow_map, p, n, no_normal)
+        footprint = texel * (np.abs(at.depth) if view.projection.kind == "PERSP" else 1.0)
+        p = p + n * (footprint * s.normal_offset * np.where(at.nl < 0.0, -1.0, 1.0))
+        size += texel * s.normal_offset * (float(np.abs(at.depth).max(initial=0.0))
+                                           if view.projection.kind == "PERSP" else 1.0)
+    at = _look_up(shadow_map, p, n, no_normal)  # a moved receiver may change cube face
+    z = at.depth.astype(np.float32)  # the map's precision; the eps precision term covers it
+    eps = depth_tolerance(view, s, z, at.slope, np.float32(size))
+    # Receivers outside the map are lit (no caster was recorded); clamped indices keep the
+    # gathers in bounds and `inside` overrides what they read.
+    j = np.clip(at.col, 0, width - 1).astype(np.int64)
+    i = np.clip(at.row, 0, height - 1).astype(np.int64)
+    depth = _stacked_depth(shadow_map).reshape(-1)
+    base = 0 if at.face is None else at.face * (height * width)
     k = s.pcf_size
-    offsets = np.arange(k) - k // 2
-    vis = np.ones(len(p), np.float64)
-    for v, part in groups:
-        view = shadow_map.views[v]
-        height, width = view.depth.shape
-        col, row, z = project_points(p[part], view.projection, width, height)
-        slope = tan_t[part] if view.projection.kind == "ORTHO" else _perspective_slope(
-            view, to_light[part], n[part], cos_t[part], tan_t[part])
-        eps = depth_tolerance(view, s, z, slope, p[part])
-        if shadow_map.kind == "CUBE":  # its face was chosen for it: s = 1 or t = 0 is a last texel
-            col, row = np.minimum(col, width - 0.5), np.minimum(row, height - 0.5)
-        with np.errstate(invalid="ignore"):
-            inside = (col >= 0) & (col < width) & (row >= 0) & (row < height)  # NaN: False
-        idx = np.flatnonzero(inside) + part.start
-        z, eps = z[inside], eps[inside]
-        j = col[inside].astype(np.int64)  # the texel p holding f (col, row >= 0: floor)
-        i = row[inside].astype(np.int64)
-        depth = view.depth.reshape(-1)
-        lit = np.zeros(len(idx), np.float64)
-        for di in offsets:
-            ii = (i + di if k == 1 else np.clip(i + di, 0, height - 1)) * width
-            for dj in offsets:
-                jj = j + dj if k == 1 else np.clip(j + dj, 0, width - 1)
-                m = depth[ii + jj]  # M_p
-                # The lecture: case (b) "|z_f - M_p| <= eps" first, else "z_f <= M_p"; with
-                # eps >= 0 the two together are z_f - M_p <= eps.
-                lit += z - m <= eps
-        vis[idx] = lit / (k * k)
+    if k == 1:
+        # The lecture: case (b) "|z_f - M_p| <= eps" first, else "z_f <= M_p"; with eps >= 0 the
+        # two together are z_f - M_p <= eps.
+        lit = z - depth[base + i * width + j] <= eps
+        if at.inside is not None:
+            lit |= ~at.inside
+        vis = lit.astype(np.float32)
+    else:
+        lit = np.zeros(len(eps), np.float32)
+        for di in range(-(k // 2), k // 2 + 1):
+            ii = base + np.clip(i + di, 0, height - 1) * width  # neighbours clamped to the map
+            for dj in range(-(k // 2), k // 2 + 1):
+                lit += z - depth[ii + np.clip(j + dj, 0, width - 1)] <= eps
+        vis = lit / np.float32(k * k)
+        if at.inside is not None:
+            vis[~at.inside] = 1.0
     if s.shadow_back_faces:
-        vis[nl < 0.0] = 0.0  # attached shadow: the surface itself stands between f and the light
-    if order is None:
-        return vis
-    out = np.empty_like(vis)
-    out[order] = vis
-    return out
+        vis[at.nl < 0.0] = 0.0  # attached shadow: the surface itself stands between f and the light
+    return vis
 
 
 def shadow_visibility(
@@ -517,13 +618,23 @@ def shadow_visibility(
     `points` (N, 3) world m and their `normals` (N, 3) world (any length; zero: unknown, which
     drops the slope terms). PCF gives fractions k'/k^2. `out` (N,) float32 may be caller-owned.
     """
-    pts = np.asarray(points, np.float64).reshape(-1, 3)
-    nrm = unit_rows(np.asarray(normals, np.float64).reshape(-1, 3))
+    pts = np.asarray(points).reshape(-1, 3).T.astype(np.float64, order="C")  # (3, N) columns
+    nrm = np.asarray(normals).reshape(-1, 3).T.astype(np.float32, order="C")
+    length = np.sqrt(nrm[0] * nrm[0] + nrm[1] * nrm[1] + nrm[2] * nrm[2])
+    nrm *= 1.0 / np.maximum(length, TINY)  # zero normals stay zero
+    no_normal = length == 0.0
+    no_normal = no_normal if no_normal.any() else None
     if out is None:
-        out = np.empty(len(pts), np.float32)
-    for a in range(0, len(pts), RECEIVER_CHUNK):
+        out = np.empty(pts.shape[1], np.float32)
+    if pts.shape[1] == 0:
+        return out
+    # The float32-position precision term takes the largest |coordinate| of all the receivers
+    # (at most 2^-21 of the scene's size more tolerance than each receiver's own).
+    size = max(float(np.abs(pts.min(axis=1)).max()), float(np.abs(pts.max(axis=1)).max()))
+    for a in range(0, pts.shape[1], RECEIVER_CHUNK):
         b = a + RECEIVER_CHUNK
-        out[a:b] = _visibility_chunk(shadow_map, pts[a:b], nrm[a:b])
+        out[a:b] = _visibility_chunk(shadow_map, pts[:, a:b], nrm[:, a:b],
+                                     None if no_normal is None else no_normal[a:b], size)
     return out
 
 

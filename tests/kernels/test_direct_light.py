@@ -4,6 +4,8 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from scene_builder import build, ortho_camera, quad
 
 from classic_bake.kernels import direct_light as dl
@@ -123,3 +125,13 @@ def test_map_resolution_follows_the_receivers():
     fine = dl.map_resolution(light, pts, 0.005)
     coarse = dl.map_resolution(light, pts, 0.05)
     assert coarse < fine <= dl.MAX_MAP and coarse >= dl.MIN_MAP
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.tuples(st.floats(1e-4, 10.0), st.integers(0, 6)), min_size=1, max_size=6))
+def test_median_spacing_is_the_median_of_the_repeated_spacings(groups):
+    spacings, counts = zip(*groups, strict=True)
+    if sum(counts) == 0:
+        assert dl.median_spacing(spacings, counts) == 1.0
+        return
+    assert dl.median_spacing(spacings, counts) == pytest.approx(np.median(np.repeat(spacings, counts)))
