@@ -448,9 +448,9 @@ def depth_tolerance(
 class _Lookup:
     """Where receivers meet a shadow map: every array (N,), receivers in their given order."""
 
-    col: np.ndarray  # float64 continuous texel column in the receiver's view
-    row: np.ndarray  # float64 continuous texel row (row 0 at the top)
-    depth: np.ndarray  # float64 linear view depth z_f, m
+    col: np.ndarray  # continuous texel column in the receiver's view
+    row: np.ndarray  # continuous texel row (row 0 at the top)
+    depth: np.ndarray  # linear view depth z_f, m
     inside: np.ndarray | None  # bool, in the view (single views; a cube face always holds f)
     face: np.ndarray | None  # int64 cube face per receiver (CUBE), None for a single view
     nl: np.ndarray  # float32 signed cos(theta): normal . unit direction to the light
@@ -498,32 +498,33 @@ def _look_up(shadow_map: ShadowMap, p: np.ndarray, n: np.ndarray,
 
     One pass over all receivers whatever the kind: a cube map's face comes from the OpenGL table in
     closed form (sc, tc and ma are signed components of p - L), so receivers are never sorted.
-    Positions, texel coordinates and depth are float64; angles and slopes float32 (7 digits are
-    plenty for a tolerance, and each float32 pass costs half as much).
+    Single views project in float64 and cube maps in float32 (see there); angles and slopes are
+    float32 (7 digits are plenty for a tolerance, and each float32 pass costs half as much).
     """
     if shadow_map.kind == "CUBE":
-        x, y, z = p - shadow_map.light_position[:, None]  # from the light, m
+        # float32 throughout: rounding p - L to float32 moves |ma| by half an ulp, which the
+        # precision term of the tolerance covers, and texel coordinates by ~1e-4 texel.
+        x, y, z = (p - shadow_map.light_position[:, None]).astype(np.float32)  # from the light, m
         ax, ay, az = np.abs(x), np.abs(y), np.abs(z)
         x_wins = (ax >= ay) & (ax >= az)  # ties as cubemap.direction_to_face: X, then Y, then Z
         y_wins = ~x_wins & (ay >= az)
         z_wins = ~(x_wins | y_wins)
         neg = (x_wins & (x < 0.0)) | (y_wins & (y < 0.0)) | (z_wins & (z < 0.0))
         face = 2 * (y_wins + 2 * z_wins) + neg  # int64: 2 x axis + (major component < 0)
-        sign = 1.0 - 2.0 * neg  # of the major component
+        sign = np.float32(1.0) - np.float32(2.0) * neg  # of the major component
         ma = np.maximum(np.maximum(ax, ay), az)  # |ma|: the face's view depth
         # The table's (sc, tc): +-X: (-+z, -y); +-Y: (x, +-z); +-Z: (+-x, -y).
         sc = x_wins * (-sign * z) + y_wins * x + z_wins * (sign * x)
         tc = y_wins * (sign * z) - ~y_wins * y
         height, width = shadow_map.views[0].depth.shape
-        inv = 1.0 / np.maximum(ma, 1e-300)  # the light's own position lands at a face's centre
+        inv = 1.0 / np.maximum(ma, TINY)  # the light's own position lands at a face's centre
         # its face was chosen for it: s = 1 or t = 0 is the last texel, not outside
-        col = np.minimum((sc * inv + 1.0) * (0.5 * width), width - 0.5)
-        row = np.minimum((1.0 - tc * inv) * (0.5 * height), height - 0.5)
-        vx, vy, vz = (p - shadow_map.light_position[:, None]).astype(np.float32)
-        inv_dist = 1.0 / np.maximum(np.sqrt(vx * vx + vy * vy + vz * vz), TINY)
-        nl = -(n[0] * vx + n[1] * vy + n[2] * vz) * inv_dist  # to_light = -(p - L) / |p - L|
+        col = np.minimum((sc * inv + 1.0) * np.float32(0.5 * width), np.float32(width - 0.5))
+        row = np.minimum((1.0 - tc * inv) * np.float32(0.5 * height), np.float32(height - 0.5))
+        inv_dist = 1.0 / np.maximum(np.sqrt(x * x + y * y + z * z), TINY)
+        nl = -(n[0] * x + n[1] * y + n[2] * z) * inv_dist  # to_light = -(p - L) / |p - L|
         along = x_wins * n[0] + y_wins * n[1] + z_wins * n[2]  # n . face axis, up to sign
-        slope = _perspective_slope(along, ma.astype(np.float32) * inv_dist, np.abs(nl))
+        slope = _perspective_slope(along, ma * inv_dist, np.abs(nl))
         if no_normal is not None:
             slope[no_normal] = 0.0
         return _Lookup(col, row, ma, None, face, nl, slope)
@@ -577,7 +578,7 @@ def _visibility_chunk(shadow_map: ShadowMap, p: np.ndarray, n: np.ndarray,
         size += texel * s.normal_offset * (float(np.abs(at.depth).max(initial=0.0))
                                            if view.projection.kind == "PERSP" else 1.0)
     at = _look_up(shadow_map, p, n, no_normal)  # a moved receiver may change cube face
-    z = at.depth.astype(np.float32)  # the map's precision; the eps precision term covers it
+    z = at.depth.astype(np.float32, copy=False)  # the map's precision, covered by eps' precision term
     eps = depth_tolerance(view, s, z, at.slope, np.float32(size))
     # Receivers outside the map are lit (no caster was recorded); clamped indices keep the
     # gathers in bounds and `inside` overrides what they read.
