@@ -128,6 +128,7 @@ def main() -> int:
                       scene.lights[0], dl.DirectLightSettings())
 
     samples_ladder = [1, 4] if args.quick else [1, 4, 16]
+    repeats = 1 if args.quick else 3
     reference_samples = 16 if args.quick else 64
     map_ladder = [0, 512, 1024] if args.quick else [0, 512, 1024, 2048, 4096]
     eps_values = [0.0] + list(np.geomspace(1e-5, 0.3, 8 if args.quick else 14))
@@ -167,6 +168,13 @@ def main() -> int:
         light = replace(next(li for li in current.lights if li.name == source), name=label)
         _, reference = cycles_bake(source, reference_samples)
         targets = {n: (t, sp, compared_texels(t, light)) for n, (t, sp) in base_targets.items()}
+        # The headline pair, timed REPEATS times alternately; the fastest of each side counts (a
+        # 20 ms kernel call varies by +-40% on this shared 2-core machine between single runs).
+        auto_settings = dl.DirectLightSettings()
+        best_kernel = best_cycles = float("inf")
+        for _ in range(repeats):
+            best_kernel = min(best_kernel, kernel_visibility(scene, targets, light, auto_settings)[0])
+            best_cycles = min(best_cycles, cycles_bake(source, 1)[0])
         kernel_ladder, cycles_ladder = [], []
         for step in range(max(len(map_ladder), len(samples_ladder))):  # alternate the two sides
             if step < len(map_ladder):
@@ -198,10 +206,11 @@ def main() -> int:
             sun.rotation_euler = saved
         auto = kernel_ladder[0]
         figures["lights"][label] = {"kind": light.kind, "kernel": kernel_ladder,
+                                    "auto_fastest_s": best_kernel, "cycles_1spp_fastest_s": best_cycles,
                                     "cycles": cycles_ladder, "reference_samples": reference_samples}
-        totals["kernel_auto_s"] += auto["seconds"]
-        totals["cycles_1spp_s"] += cycles_ladder[0]["seconds"]
-        rows.append((label, auto["disagree"], auto["seconds"], cycles_ladder[0]["seconds"],
+        totals["kernel_auto_s"] += best_kernel
+        totals["cycles_1spp_s"] += best_cycles
+        rows.append((label, auto["disagree"], best_kernel, best_cycles,
                      auto_acne, auto_leak))
         stem = OUT_DIR / f"shadowmap_{light.kind.lower()}{'_grazing' if elevation else ''}"
         OUT_DIR.mkdir(parents=True, exist_ok=True)

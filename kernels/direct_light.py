@@ -113,17 +113,20 @@ def light_visibility_steps(scene: Scene, points, geo_normals, spacing: float,
                            settings: DirectLightSettings, out: np.ndarray) -> Iterator[float]:
     """Fill out (L, N) float32 with each light's shadow-map visibility; yields progress."""
     lights = scene.lights
+    # Culling and planning read the receivers only through their bounding box (the sun's fit reads
+    # them all): its two corners stand in for them there, one O(N) pass for every light.
+    box = np.stack(bounds(np.asarray(points, np.float64).reshape(-1, 3))) if len(points) else points
     for k, light in enumerate(lights):
         if not light.cast_shadow or scene.triangle_count == 0:
             out[k] = 1.0
             continue
         shadow = settings.shadow
-        casters = scene.triangles[potential_casters(scene.triangles, light, points)]
+        casters = scene.triangles[potential_casters(scene.triangles, light, box)]
         fit = fit_sun(casters, light, points) if light.kind == "SUN" else None
         if settings.auto_resolution:
             shadow = replace(shadow, resolution=map_resolution(
                 light, points, spacing, fit.span if fit is not None else None))
-        shadow_map = plan_shadow_map(casters, light, shadow, points, fit)  # casters: culled above
+        shadow_map = plan_shadow_map(casters, light, shadow, box, fit)  # casters: culled above
         for _ in render_shadow_map_steps(shadow_map, casters):
             pass
         shadow_visibility(shadow_map, points, geo_normals, out=out[k])

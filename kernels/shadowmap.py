@@ -287,7 +287,8 @@ def plan_shadow_map(
 
     `receivers` (N, 3) world m are the points that will be looked up: the sun's map is fitted to
     them and every map's far plane stops behind them. Without them, the whole scene is covered.
-    `sun_fit`: `fit_sun` of the same triangles, light and receivers, when the caller has it.
+    `sun_fit`: `fit_sun` of the same triangles, light and receivers, when the caller has it;
+    with it, only the receivers' bounding box matters (its two corners may stand in for them).
     """
     settings = settings or ShadowMapSettings()
     tris = np.asarray(triangles, np.float32).reshape(-1, 3, 3)
