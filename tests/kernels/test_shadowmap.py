@@ -442,3 +442,47 @@ def test_progress_and_debug_image():
     assert image.shape == (16, 96, 1) and image.dtype == np.float32
     assert image.min() == 0.0 and image.max() == 1.0
     assert np.all(image[:, 16 * 5 : 16 * 6] < 1.0)  # -Z face: all ground
+
+
+def test_cube_faces_draw_only_what_reaches_them_and_miss_nothing():
+    """Each cube face rasterises only the triangles that reach into its frustum: the six depth
+    buffers equal those drawn from every triangle (random triangles all around the light)."""
+    from classic_bake.kernels.raster import rasterize
+
+    rng = np.random.default_rng(7)
+    centres = rng.normal(size=(300, 1, 3)) * 2.0
+    tris = (centres + rng.normal(size=(300, 3, 3)) * 0.3).astype(np.float32)
+    light = _light("POINT", position=(0.05, -0.1, 0.2))
+    smap = plan_shadow_map(tris, light, ShadowMapSettings(resolution=64))
+    list(render_shadow_map_steps(smap, tris))
+    for view in smap.views:
+        full = rasterize(tris, view.projection, 64, 64).depth
+        assert np.array_equal(view.depth, full)
+        assert np.isfinite(full).any()  # every face sees something
+
+
+def test_prepared_receivers_plan_and_look_up_as_the_arrays_do():
+    """Receivers prepared once (columns, unit normals, bounds) give the sun the same fit and every
+    light the same visibility as the (N, 3) arrays, and their box corners plan the same maps."""
+    from classic_bake.kernels.shadowmap import Receivers, fit_sun, receivers_visibility
+
+    tris = np.concatenate([_quad((-2, -2, 0), (4, 0, 0), (0, 4, 0)),
+                           _quad((-0.3, -0.2, 0.9), (0.5, 0, 0), (0, 0.6, 0.1))])
+    pts, nrm = _ground_grid(1.5, 0.05)
+    nrm = nrm * 3.0  # any length
+    nrm[::7] = 0.0  # unknown normals
+    prepared = Receivers.of(pts, nrm)
+    assert np.array_equal(prepared.box, np.stack([pts.min(axis=0), pts.max(axis=0)]))
+    sun = _sun(30.0, 20.0)
+    a, b = fit_sun(tris, sun, prepared), fit_sun(tris, sun, pts)
+    assert np.array_equal(a.basis, b.basis)
+    assert [a.x0, a.x1, a.y0, a.y1, a.d0, a.d1] == pytest.approx([b.x0, b.x1, b.y0, b.y1, b.d0, b.d1],
+                                                                abs=1e-12)
+    for light in (sun, _light("SPOT", position=(0.2, 0.1, 3.0)), _light("POINT", position=(0, 0, 2))):
+        smap = build_shadow_map(tris, light, ShadowMapSettings(resolution=128), pts)
+        boxed = plan_shadow_map(tris, light, ShadowMapSettings(resolution=128), prepared.box,
+                                fit_sun(tris, light, prepared) if light.kind == "SUN" else None)
+        assert boxed.views[0].projection.far == smap.views[0].projection.far
+        vis = shadow_visibility(smap, pts, nrm)
+        assert np.array_equal(receivers_visibility(smap, prepared), vis)
+        assert 0.0 < vis.mean() < 1.0  # a shadow falls
