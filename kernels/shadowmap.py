@@ -325,12 +325,16 @@ def plan_shadow_map(
 
 
 def render_shadow_map_steps(shadow_map: ShadowMap, triangles: np.ndarray) -> Iterator[float]:
-    """Step 1 of the lecture: z-buffer (T, 3, 3) world triangles into every view; yield progress."""
+    """Step 1 of the lecture: z-buffer (T, 3, 3) world triangles into every view; yield progress.
+
+    Draws into the planned buffers as they are (a fresh plan holds +inf): rendering more
+    triangles into the same map depth-tests them against what is there."""
     n = len(shadow_map.views)
     reach = _reaches_faces(triangles, shadow_map.light_position) if shadow_map.kind == "CUBE" else None
     for k, view in enumerate(shadow_map.views):
         tris = triangles if reach is None else triangles[reach[k]]  # a face draws what reaches it
-        for progress in rasterize_steps(tris, view.projection, view.depth):
+        # The planned buffers start at +inf: no second clearing pass over the map.
+        for progress in rasterize_steps(tris, view.projection, view.depth, clear=False):
             yield (k + progress) / n
 
 
