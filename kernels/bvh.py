@@ -75,6 +75,7 @@ TRANSPOSE_BLOCK = 512
 # (ray, triangle) pairs tested at once by a one-leaf (brute force) BVH: keeps the (3, S, M)
 # temporaries of the test in the core's L2 cache.
 BRUTE_FORCE_PAIRS = 1 << 14
+QUERY_BYTES_PER_SLOT = 810  # a pool slot's stack, state and one step's temporaries (measured)
 # Rays handed to a worker at a time (the unit of work sharing between threads).
 QUEUE_BATCH = 4096
 # A pool refills its answered slots once this fraction of them is free.
@@ -125,6 +126,12 @@ class BVHSettings:
     @property
     def thread_count(self) -> int:
         return self.threads or os.cpu_count() or 1
+
+    @property
+    def query_bytes(self) -> int:
+        """Memory of one query in flight, all threads: ~810 B per pool slot (53 MB per thread at
+        65536 slots, measured with tracemalloc; see the module docstring)."""
+        return self.thread_count * self.chunk_size * QUERY_BYTES_PER_SLOT
 
 
 # --------------------------------------------------------------------------------------------

@@ -50,6 +50,40 @@ RAYS_PER_CALL = 1 << 18
 LEAF_SLACK = 2.0
 # Jacobi sweeps at most: the error shrinks by about rho_max per sweep (rho = 0.95 to 1e-6: 270).
 MAX_ITERATIONS = 5000
+# Memory per link: (p, q, factor) 24 B kept, 24 B more while the chunks are joined, and a Jacobi
+# sweep's gathered source B and product (2 x 24 B).
+LINK_BYTES = 96
+ELEMENT_BYTES = 500  # corners, barycentrics, normals, area, tree indices of one element
+# Working memory per link of a chunk (LINK_CHUNK links at a time): sample points, shadow-ray
+# origins, directions and lengths of side x side rays, factors (~1 kB at side 2; per point pair).
+WORK_BYTES_PER_POINT_PAIR = 300
+
+
+def hierarchy_roots(scene: Scene, patch_size: float, max_depth: int) -> tuple[patching.Patches, int]:
+    """(roots, depth): the deepest hierarchy (at most max_depth) whose leaves are not much finer
+    than the patches asked for; a small scene's roots cannot be coarser than its triangles."""
+    wanted = len(patching.make_patches(scene, patch_size))
+    for depth in range(max_depth, -1, -1):
+        roots = patching.make_patches(scene, patch_size * 2.0**depth)
+        if len(roots) * 4**depth <= LEAF_SLACK * wanted:
+            break
+    return roots, depth
+
+
+def memory_bound(root_count: int, depth: int, link_epsilon: float, side: int = 2) -> dict:
+    """Bytes of links and elements, bounded before any link is made.
+
+    Each leaf starts linked to at most every root; a link splits only while its factor exceeds
+    epsilon, and the factors from one leaf to disjoint elements of one level sum to at most 1,
+    so each of the `depth` levels adds at most 4 / epsilon links per leaf:
+    links <= leaves x (roots + 4 depth / epsilon).
+    """
+    leaves = root_count * 4**depth
+    elements = root_count * sum(4**k for k in range(depth + 1))
+    links = min(leaves * (root_count + 4.0 * depth / link_epsilon), float(leaves) * elements)
+    work = LINK_CHUNK * side**2 * WORK_BYTES_PER_POINT_PAIR
+    return {"links": int(links * LINK_BYTES), "elements": int(elements * ELEMENT_BYTES),
+            "work": int(work), "link_bound": int(links)}
 
 
 class _Tree:
@@ -188,13 +222,7 @@ def hierarchical_steps(scene: Scene, patch_size: float, occluded, settings, scal
     """
     from .radiosity import patch_emission, patch_reflectance
 
-    # The deepest hierarchy (at most max_depth) whose leaves are not much finer than the patches
-    # asked for: a small scene's roots cannot be coarser than its triangles.
-    wanted = len(patching.make_patches(scene, patch_size))
-    for depth in range(settings.max_depth, -1, -1):
-        roots = patching.make_patches(scene, patch_size * 2.0**depth)
-        if len(roots) * 4**depth <= LEAF_SLACK * wanted:
-            break
+    roots, depth = hierarchy_roots(scene, patch_size, settings.max_depth)
     tree = _Tree(scene, roots)
     for _ in range(depth):
         tree.split(np.flatnonzero(tree.child < 0))
@@ -216,9 +244,12 @@ def hierarchical_steps(scene: Scene, patch_size: float, occluded, settings, scal
     near = (factor > settings.link_epsilon) & (tree.child[q] < 0)
     if near.any():
         factor[near] = _unoccluded(tree, p[near], q[near], NEAR_FIELD_SIDE * side)
-    if occluded is not None:
-        factor *= answer_rays(_visible_share_steps(tree, p, q, side, RAY_OFFSET_REL * scale),
-                              occluded, RAYS_PER_CALL)
+    if occluded is not None:  # a chunk of links at a time: ~1 kB of rays and points per link
+        for a in range(0, len(p), LINK_CHUNK):
+            b = a + LINK_CHUNK
+            factor[a:b] *= answer_rays(_visible_share_steps(tree, p[a:b], q[a:b], side,
+                                                            RAY_OFFSET_REL * scale),
+                                       occluded, RAYS_PER_CALL)
     yield 0.8
     elements = patching.Patches(corners=tree.corners, parent=tree.tri, bary=tree.bary,
                                 level=tree.level, normals=tree.normals, areas=tree.areas,
@@ -234,7 +265,7 @@ def hierarchical_steps(scene: Scene, patch_size: float, occluded, settings, scal
     b, iterations, change = solve_links(tree, leaves, p, q, factor, emitted + rho * direct, rho,
                                         settings.tolerance, MAX_ITERATIONS)
     yield 1.0
-    stats = {"roots": len(roots), "elements": len(tree), "leaves": int(leaves.size),
+    stats = {"roots": len(roots), "depth": depth, "elements": len(tree), "leaves": int(leaves.size),
              "links": int(len(p)), "all_pairs": int(leaves.size) ** 2,
              "near_field_links": int(near.sum()), "iterations": iterations,
              "solver_error": change, "converged": bool(change <= settings.tolerance)}

@@ -51,6 +51,7 @@ from .form_factors import (
     iter_matrix,
     sample_patches,
 )
+from .hierarchical import memory_bound
 from .radiosity_solvers import (
     GaussSeidelSettings,
     GaussSeidelSolver,
@@ -473,10 +474,13 @@ def _hierarchical(scene, size, bvh, settings, scale, t0) -> Iterator:
             yield 0.02 + 0.96 * step
     corner_b = patching.corner_values(leaves, b, settings.smooth_angle, scale)
     corner_e = patching.corner_values(leaves, emitted, settings.smooth_angle, scale)
-    # Links are the memory: ids, factor (24 B) plus the elements (~500 B each).
-    memory = {"links": 24 * info["links"], "patches": 500 * info["elements"],
-              "bvh": 200 * scene.triangle_count}
+    # Bounded before any link was made (`hierarchical.memory_bound`), with the links made.
+    bound = memory_bound(info["roots"], info["depth"], settings.link_epsilon,
+                         settings.samples_per_side)
+    memory = {"links": bound["links"], "patches": bound["elements"], "work": bound["work"],
+              "bvh": 200 * scene.triangle_count, "bvh_queries": bvh.settings.query_bytes}
     memory["total"] = int(sum(memory.values()))
+    memory.update(link_bound=bound["link_bound"], links_made=info["links"])
     stats = {"patch_size_m": size, "patches": len(leaves), "per_level": leaves.level_counts(),
              "solver": "hierarchical", "memory_estimate": memory, "method": "raycast",
              "hierarchy": info, "levels": [{"patches": len(leaves), "solver": "hierarchical",

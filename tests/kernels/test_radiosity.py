@@ -144,6 +144,30 @@ def test_auto_solver_goes_progressive_when_the_matrix_does_not_fit():
     np.testing.assert_allclose(result.radiosity, np.pi / 0.7, rtol=0.01)
 
 
+def test_hierarchical_memory_is_bounded_before_linking():
+    """The hierarchical solver's memory estimate is fixed before any link is made (leaves x
+    (roots + 4 depth / epsilon) links); the links it then makes stay under that bound and the
+    solve's peak (tracemalloc) under the estimate."""
+    import tracemalloc
+
+    from classic_bake.kernels.hierarchical import LINK_BYTES
+
+    scene = build([(inward_box(), grey(0.3, emission=1.0))])
+    tracemalloc.start()
+    try:
+        result = solve_radiosity(scene, RadiositySettings(solver="hierarchical", patch_budget=400,
+                                                          **FAST))
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    memory, tree = result.stats["memory_estimate"], result.stats["hierarchy"]
+    assert peak <= memory["total"]
+    assert 0 < memory["links_made"] == tree["links"] <= memory["link_bound"]
+    assert memory["links"] == memory["link_bound"] * LINK_BYTES
+    assert memory["link_bound"] <= tree["leaves"] * (tree["roots"] + 4 * tree["depth"] / 0.01)
+    np.testing.assert_allclose(result.radiosity, np.pi / 0.7, rtol=0.01)
+
+
 def test_emitter_and_one_reflector_match_howell():
     """Two opposed unit squares 1 m apart: a black emitter (L = 1) and a reflector (rho 0.5). The
     reflector's mean B is rho pi L F12 with Howell's C-11 F12 = 0.1998 (1%)."""
@@ -205,7 +229,8 @@ def test_hierarchical_agrees_with_gauss_seidel_where_a_block_shadows():
     plate = quad([[0.35, 0.35, 0.5], [0.35, 0.65, 0.5], [0.65, 0.65, 0.5], [0.65, 0.35, 0.5]])
     scene = build([(floor_quad(), grey(0.5)), (top, grey(0.0, emission=1.0, name="Lamp")),
                    (np.concatenate([plate, plate[:, ::-1]]), grey(0.2, name="Plate"))])
-    fine = solve_radiosity(scene, RadiositySettings(patch_budget=800, refine_levels=0, **FAST))
+    fine = solve_radiosity(scene, RadiositySettings(solver="gauss_seidel", patch_budget=800,
+                                                    refine_levels=0, **FAST))
     tree = solve_radiosity(scene, RadiositySettings(solver="hierarchical", patch_budget=30,
                                                     **FAST))
     centre, edge = np.array([[0.5, 0.5, 0.0]]), np.array([[0.05, 0.05, 0.0]])
