@@ -52,18 +52,6 @@ FACE_V = np.array(
 _AXIS = np.array([0, 0, 1, 1, 2, 2])  # the major axis index of each face
 
 
-def major_face(directions: np.ndarray) -> np.ndarray:
-    """(N,) int64 face of (N, 3) directions: `direction_to_face`'s face alone, column by column."""
-    r = np.asarray(directions, np.float64).reshape(-1, 3)
-    x, y, z = r[:, 0], r[:, 1], r[:, 2]
-    ax, ay, az = np.abs(x), np.abs(y), np.abs(z)
-    x_wins = (ax >= ay) & (ax >= az)
-    y_wins = ~x_wins & (ay >= az)
-    z_wins = ~x_wins & ~y_wins
-    return (np.where(x_wins, 0, np.where(y_wins, 2, 4))
-            + ((x_wins & (x < 0.0)) | (y_wins & (y < 0.0)) | (z_wins & (z < 0.0)))).astype(np.int64)
-
-
 def direction_to_face(directions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(N, 3) directions (any length) -> face (N,) int64, s (N,) float64, t (N,) float64.
 
