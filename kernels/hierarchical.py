@@ -54,9 +54,10 @@ MAX_ITERATIONS = 5000
 # sweep's gathered source B and product (2 x 24 B).
 LINK_BYTES = 96
 ELEMENT_BYTES = 500  # corners, barycentrics, normals, area, tree indices of one element
-# Working memory per link of a chunk (LINK_CHUNK links at a time): sample points, shadow-ray
-# origins, directions and lengths of side x side rays, factors (~1 kB at side 2; per point pair).
+# Working memory per point pair of a chunk: kernels, shadow-ray origins, directions, lengths.
 WORK_BYTES_PER_POINT_PAIR = 300
+# Shadow rays per chunk of links (side^4 each): ~40 MB of pairs, and BVH calls at full rate.
+VISIBILITY_RAYS = 1 << 17
 
 
 def hierarchy_roots(scene: Scene, patch_size: float, max_depth: int) -> tuple[patching.Patches, int]:
@@ -81,7 +82,7 @@ def memory_bound(root_count: int, depth: int, link_epsilon: float, side: int = 2
     leaves = root_count * 4**depth
     elements = root_count * sum(4**k for k in range(depth + 1))
     links = min(leaves * (root_count + 4.0 * depth / link_epsilon), float(leaves) * elements)
-    work = LINK_CHUNK * side**2 * WORK_BYTES_PER_POINT_PAIR
+    work = max(LINK_CHUNK * side**2, VISIBILITY_RAYS) * WORK_BYTES_PER_POINT_PAIR
     return {"links": int(links * LINK_BYTES), "elements": int(elements * ELEMENT_BYTES),
             "work": int(work), "link_bound": int(links)}
 
@@ -163,20 +164,38 @@ def refine_links(tree: _Tree, p: np.ndarray, q: np.ndarray, epsilon: float, side
 
 def _visible_share_steps(tree: _Tree, p: np.ndarray, q: np.ndarray, side: int,
                          ray_offset: float):
-    """Generator (asks for shadow rays, see form_factors.RayRequest): (L,) the F-weighted share
-    of side x side points of p that see the matching point of q."""
-    points, weights, f = _point_factors(tree, p, q, side)
-    targets, _ = sample_patches(tree.corners[q], side, "midpoint")
-    start = points + ray_offset * tree.normals[p][:, None, :]
-    seg = (targets + ray_offset * tree.normals[q][:, None, :] - start).reshape(-1, 3)
+    """Generator (asks for shadow rays, see form_factors.RayRequest): (L,) the visible share of
+    q's projected solid angle seen from leaf p, from rays between every one of side x side points
+    of p and every one of side x side points of q.
+
+    Each ray counts with the point-to-point kernel w_x w_y cos_x cos_y / d^2, as the matrix
+    solvers' estimator weights its rays (form_factors.RayCastSettings): a target behind the
+    point's horizon (a floor element running under the block it meets) carries no weight instead
+    of counting as blocked. Every pair: pairing only matching points (a thin, aligned slice of
+    p x q) left the Cornell box 2-5% too dark against Cycles, and one randomly paired target per
+    point (a quarter of the rays) is unbiased but too noisy for a link's share (a plate's shadow
+    came out 7% too bright at 4 rays a link). Links where no ray has weight keep their factor.
+    """
+    points, weights = sample_patches(tree.corners[p], side, "midpoint")  # (L, S, 3), (L, S)
+    targets, target_weights = sample_patches(tree.corners[q], side, "midpoint")
+    between = targets[:, None, :, :] - points[:, :, None, :]  # (L, S, M, 3)
+    dist2 = np.maximum(np.einsum("lsmc,lsmc->lsm", between, between), np.finfo(np.float64).tiny)
+    cos_x = np.einsum("lsmc,lc->lsm", between, tree.normals[p])
+    cos_y = -np.einsum("lsmc,lc->lsm", between, tree.normals[q])
+    kernel = np.where((cos_x > 0.0) & (cos_y > 0.0), cos_x * cos_y / (dist2 * dist2), 0.0)
+    kernel *= weights[:, :, None] * target_weights[:, None, :]
+    start = points + ray_offset * tree.normals[p][:, None, :]  # (L, S, 3)
+    seg = (targets + ray_offset * tree.normals[q][:, None, :])[:, None] - start[:, :, None]
+    seg = seg.reshape(-1, 3)
     length = np.sqrt(np.einsum("ij,ij->i", seg, seg))
-    rays = np.flatnonzero((f.ravel() > 0.0) & (length > 0.0))
+    rays = np.flatnonzero((kernel.ravel() > 0.0) & (length > 0.0))
     blocked = np.zeros(seg.shape[0], bool)
     if rays.size:
-        blocked[rays] = yield (start.reshape(-1, 3)[rays], seg[rays] / length[rays, None],
+        origins = np.broadcast_to(start[:, :, None, :], kernel.shape + (3,)).reshape(-1, 3)
+        blocked[rays] = yield (origins[rays], seg[rays] / length[rays, None],
                                length[rays] * (1.0 - SHADOW_END_REL))
-    total = np.einsum("ls,ls->l", weights, f)
-    seen = np.einsum("ls,ls->l", weights, f * ~blocked.reshape(f.shape))
+    total = kernel.sum(axis=(1, 2))
+    seen = np.where(blocked.reshape(kernel.shape), 0.0, kernel).sum(axis=(1, 2))
     return np.divide(seen, total, out=np.ones_like(total), where=total > 0.0)
 
 
@@ -193,23 +212,36 @@ def solve_links(tree: _Tree, leaves: np.ndarray, p: np.ndarray, q: np.ndarray, f
                 source: np.ndarray, reflectance: np.ndarray, tolerance: float,
                 max_iterations: int) -> tuple[np.ndarray, int, float]:
     """Jacobi iteration on the leaves with pull. source, reflectance (E, 3) per element (used on
-    the leaves). Returns (B (E, 3), iterations, last relative change)."""
+    the leaves). Returns (B (E, 3), iterations, last error bound relative to the reflected light).
+
+    Stopping rule (radiosity_solvers' bound): the sweep contracts by c = max rho_p sum_q F_pq < 1
+    in the max norm, so after a sweep that changed B by d the remaining error is at most
+    c / (1 - c) d. It stops when that is at most `tolerance` x the largest reflected radiosity
+    max |B - source| + the largest source on a reflecting leaf: measured against an emitter's B
+    instead (30x brighter in the Cornell box), the walls stopped 1-2% short.
+    """
     levels = [np.flatnonzero(tree.level == k) for k in range(int(tree.level.max()) + 1)]
     b = np.zeros((len(tree), 3))
     b[leaves] = source[leaves]
     _pull(tree, b, levels)
-    change = np.inf
+    row_sums = np.bincount(p, factor, minlength=len(tree))[leaves]
+    contraction = float((reflectance[leaves] * row_sums[:, None]).max(initial=0.0))
+    if contraction >= 1.0:
+        raise ValueError(f"the links reflect more than they receive (rho x row sum {contraction:.3f})")
+    fallback = max(float(np.abs(source).max(initial=0.0)), 1e-300)  # nothing reflects yet
+    bound = np.inf
     for iteration in range(1, max_iterations + 1):
         gathered = np.stack([np.bincount(p, factor * b[q, c], minlength=len(tree))
                              for c in range(3)], axis=1)
         new = np.zeros_like(b)
         new[leaves] = source[leaves] + reflectance[leaves] * gathered[leaves]
         _pull(tree, new, levels)
-        change = float(np.abs(new - b).max() / max(np.abs(new).max(), 1e-300))
+        scale = float(np.abs(new[leaves] - source[leaves]).max()) or fallback
+        bound = contraction / (1.0 - contraction) * float(np.abs(new - b).max()) / scale
         b = new
-        if change <= tolerance:
-            return b, iteration, change
-    return b, max_iterations, change
+        if bound <= tolerance:
+            return b, iteration, bound
+    return b, max_iterations, bound
 
 
 def hierarchical_steps(scene: Scene, patch_size: float, occluded, settings, scale: float,
@@ -244,9 +276,10 @@ def hierarchical_steps(scene: Scene, patch_size: float, occluded, settings, scal
     near = (factor > settings.link_epsilon) & (tree.child[q] < 0)
     if near.any():
         factor[near] = _unoccluded(tree, p[near], q[near], NEAR_FIELD_SIDE * side)
-    if occluded is not None:  # a chunk of links at a time: ~1 kB of rays and points per link
-        for a in range(0, len(p), LINK_CHUNK):
-            b = a + LINK_CHUNK
+    if occluded is not None:  # a chunk of links at a time: side^4 rays and kernels per link
+        chunk = max(1, VISIBILITY_RAYS // side**4)
+        for a in range(0, len(p), chunk):
+            b = a + chunk
             factor[a:b] *= answer_rays(_visible_share_steps(tree, p[a:b], q[a:b], side,
                                                             RAY_OFFSET_REL * scale),
                                        occluded, RAYS_PER_CALL)

@@ -222,6 +222,38 @@ def test_hierarchical_furnace_at_high_reflectance():
     assert result.stats["hierarchy"]["converged"]
 
 
+def _outward_box(lo, hi):
+    """Five faces (no bottom) of a block standing on z = lo[2], normals out."""
+    (x0, y0, z0), (x1, y1, z1) = lo, hi
+    faces = [[[x0, y0, z1], [x1, y0, z1], [x1, y1, z1], [x0, y1, z1]],
+             [[x0, y0, z0], [x0, y0, z1], [x0, y1, z1], [x0, y1, z0]],
+             [[x1, y0, z0], [x1, y1, z0], [x1, y1, z1], [x1, y0, z1]],
+             [[x0, y0, z0], [x1, y0, z0], [x1, y0, z1], [x0, y0, z1]],
+             [[x0, y1, z0], [x0, y1, z1], [x1, y1, z1], [x1, y1, z0]]]
+    return np.concatenate([quad(f) for f in faces])
+
+
+def test_hierarchical_keeps_the_energy_of_a_block_on_the_floor():
+    """A room lit by a ceiling lamp with a block standing on the floor: the hierarchical solution's
+    area means match a fine Gauss-Seidel solution within 1.5% on the room and the block. Its
+    visibility once paired only matching points of two elements and counted rays to targets
+    behind the receiver's horizon (floor under the block) as blocked: block 3.8%, room 2.3% dark.
+    """
+    lamp = quad([[0.4, 0.4, 0.999], [0.4, 0.6, 0.999], [0.6, 0.6, 0.999], [0.6, 0.4, 0.999]])
+    scene = build([(inward_box(), grey(0.6)), (lamp, grey(0.0, emission=10.0, name="Lamp")),
+                   (_outward_box((0.3, 0.3, 0.0), (0.6, 0.6, 0.4)), grey(0.6, name="Block"))])
+
+    def means(result):
+        ids, area = result.patches.object_ids, result.patches.areas
+        return [np.average(result.radiosity[ids == k, 0], weights=area[ids == k]) for k in (0, 2)]
+
+    fine = means(solve_radiosity(scene, RadiositySettings(solver="gauss_seidel", patch_budget=600,
+                                                          refine_levels=0, **FAST)))
+    tree = means(solve_radiosity(scene, RadiositySettings(solver="hierarchical", patch_budget=300,
+                                                          **FAST)))
+    np.testing.assert_allclose(tree, fine, rtol=0.015)
+
+
 def test_hierarchical_agrees_with_gauss_seidel_where_a_block_shadows():
     """A lamp square over a floor with a block between: the hierarchical solution and a fine
     Gauss-Seidel solution agree on the floor (area-weighted means within 2%, and the shadow)."""
@@ -231,7 +263,9 @@ def test_hierarchical_agrees_with_gauss_seidel_where_a_block_shadows():
                    (np.concatenate([plate, plate[:, ::-1]]), grey(0.2, name="Plate"))])
     fine = solve_radiosity(scene, RadiositySettings(solver="gauss_seidel", patch_budget=800,
                                                     refine_levels=0, **FAST))
-    tree = solve_radiosity(scene, RadiositySettings(solver="hierarchical", patch_budget=30,
+    # 120 patches, not 30: with 30 the floor's corner point is interpolated over a few large
+    # leaves and lands 5-6% off whatever the solver does (the area means agree within 1% there).
+    tree = solve_radiosity(scene, RadiositySettings(solver="hierarchical", patch_budget=120,
                                                     **FAST))
     centre, edge = np.array([[0.5, 0.5, 0.0]]), np.array([[0.05, 0.05, 0.0]])
 
