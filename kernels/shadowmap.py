@@ -512,33 +512,43 @@ def _look_up(shadow_map: ShadowMap, p: np.ndarray, n: np.ndarray,
     Single views project in float64 and cube maps in float32 (see there); angles and slopes are
     float32 (7 digits are plenty for a tolerance, and each float32 pass costs half as much).
     """
-    if shadow_map.kind == "CUBE":
-        # float32 throughout: rounding p - L to float32 moves |ma| by half an ulp, which the
-        # precision term of the tolerance covers, and texel coordinates by ~1e-4 texel.
-        x, y, z = (p - shadow_map.light_position[:, None]).astype(np.float32)  # from the light, m
-        ax, ay, az = np.abs(x), np.abs(y), np.abs(z)
-        x_wins = (ax >= ay) & (ax >= az)  # ties as cubemap.direction_to_face: X, then Y, then Z
-        y_wins = ~x_wins & (ay >= az)
-        z_wins = ~(x_wins | y_wins)
-        neg = (x_wins & (x < 0.0)) | (y_wins & (y < 0.0)) | (z_wins & (z < 0.0))
-        face = 2 * (y_wins + 2 * z_wins) + neg  # int64: 2 x axis + (major component < 0)
-        sign = np.float32(1.0) - np.float32(2.0) * neg  # of the major component
-        ma = np.maximum(np.maximum(ax, ay), az)  # |ma|: the face's view depth
-        # The table's (sc, tc): +-X: (-+z, -y); +-Y: (x, +-z); +-Z: (+-x, -y).
-        sc = x_wins * (-sign * z) + y_wins * x + z_wins * (sign * x)
-        tc = y_wins * (sign * z) - ~y_wins * y
-        height, width = shadow_map.views[0].depth.shape
-        inv = 1.0 / np.maximum(ma, TINY)  # the light's own position lands at a face's centre
-        # its face was chosen for it: s = 1 or t = 0 is the last texel, not outside
-        col = np.minimum((sc * inv + 1.0) * np.float32(0.5 * width), np.float32(width - 0.5))
-        row = np.minimum((1.0 - tc * inv) * np.float32(0.5 * height), np.float32(height - 0.5))
-        inv_dist = 1.0 / np.maximum(np.sqrt(x * x + y * y + z * z), TINY)
-        nl = -(n[0] * x + n[1] * y + n[2] * z) * inv_dist  # to_light = -(p - L) / |p - L|
-        along = x_wins * n[0] + y_wins * n[1] + z_wins * n[2]  # n . face axis, up to sign
-        slope = _perspective_slope(along, ma * inv_dist, np.abs(nl))
-        if no_normal is not None:
-            slope[no_normal] = 0.0
-        return _Lookup(col, row, ma, None, face, nl, slope)
+    return (_look_up_cube if shadow_map.kind == "CUBE" else _look_up_view)(shadow_map, p, n, no_normal)
+
+
+def _look_up_cube(shadow_map: ShadowMap, p: np.ndarray, n: np.ndarray,
+                  no_normal: np.ndarray | None) -> _Lookup:
+    """`_look_up` for the six faces of a cube map, all in float32: rounding p - L to float32
+    moves |ma| by half an ulp, which the tolerance's precision term covers, and texel
+    coordinates by ~1e-4 texel."""
+    x, y, z = (p - shadow_map.light_position[:, None]).astype(np.float32)  # from the light, m
+    ax, ay, az = np.abs(x), np.abs(y), np.abs(z)
+    x_wins = (ax >= ay) & (ax >= az)  # ties as cubemap.direction_to_face: X, then Y, then Z
+    y_wins = ~x_wins & (ay >= az)
+    z_wins = ~(x_wins | y_wins)
+    neg = (x_wins & (x < 0.0)) | (y_wins & (y < 0.0)) | (z_wins & (z < 0.0))
+    face = 2 * (y_wins + 2 * z_wins) + neg  # int64: 2 x axis + (major component < 0)
+    sign = np.float32(1.0) - np.float32(2.0) * neg  # of the major component
+    ma = np.maximum(np.maximum(ax, ay), az)  # |ma|: the face's view depth
+    # The table's (sc, tc): +-X: (-+z, -y); +-Y: (x, +-z); +-Z: (+-x, -y).
+    sc = x_wins * (-sign * z) + y_wins * x + z_wins * (sign * x)
+    tc = y_wins * (sign * z) - ~y_wins * y
+    height, width = shadow_map.views[0].depth.shape
+    inv = 1.0 / np.maximum(ma, TINY)  # the light's own position lands at a face's centre
+    # its face was chosen for it: s = 1 or t = 0 is the last texel, not outside
+    col = np.minimum((sc * inv + 1.0) * np.float32(0.5 * width), np.float32(width - 0.5))
+    row = np.minimum((1.0 - tc * inv) * np.float32(0.5 * height), np.float32(height - 0.5))
+    inv_dist = 1.0 / np.maximum(np.sqrt(x * x + y * y + z * z), TINY)
+    nl = -(n[0] * x + n[1] * y + n[2] * z) * inv_dist  # to_light = -(p - L) / |p - L|
+    along = x_wins * n[0] + y_wins * n[1] + z_wins * n[2]  # n . face axis, up to sign
+    slope = _perspective_slope(along, ma * inv_dist, np.abs(nl))
+    if no_normal is not None:
+        slope[no_normal] = 0.0
+    return _Lookup(col, row, ma, None, face, nl, slope)
+
+
+def _look_up_view(shadow_map: ShadowMap, p: np.ndarray, n: np.ndarray,
+                  no_normal: np.ndarray | None) -> _Lookup:
+    """`_look_up` for a single orthographic or perspective view: positions in float64."""
     view = shadow_map.views[0]
     height, width = view.depth.shape
     col, row, depth = _affine(_pixel_rows(view), p)  # ORTHO: col, row, depth; PERSP: x depth
