@@ -123,6 +123,7 @@ def cornell(args) -> tuple[dict, dict, list]:
     if not args.quick:
         rungs.insert(3, ("raycast", "gauss_seidel", 600, 1))
         rungs.append(("raycast", "hierarchical", 2000, 0))
+        rungs.append(("raycast", "hierarchical", 300, 1))  # auto's choice at 300, leaves refined
     cycles_samples = [1, 4, 16, 64] if args.quick else [1, 4, 16, 64, 256]
     kernel, cycles, kernel_render, cycles_render = [], [], [], []
     best_image = None

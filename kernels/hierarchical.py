@@ -71,17 +71,21 @@ def hierarchy_roots(scene: Scene, patch_size: float, max_depth: int) -> tuple[pa
     return roots, depth
 
 
-def memory_bound(root_count: int, depth: int, link_epsilon: float, side: int = 2) -> dict:
+def memory_bound(root_count: int, depth: int, link_epsilon: float, side: int = 2,
+                 refine_levels: int = 0, max_patches: int = 0) -> dict:
     """Bytes of links and elements, bounded before any link is made.
 
     Each leaf starts linked to at most every root; a link splits only while its factor exceeds
     epsilon, and the factors from one leaf to disjoint elements of one level sum to at most 1,
-    so each of the `depth` levels adds at most 4 / epsilon links per leaf:
-    links <= leaves x (roots + 4 depth / epsilon).
+    so each level of sources adds at most 4 / epsilon links per leaf:
+    links <= leaves x (roots + 4 levels / epsilon), with levels = depth + refine_levels and, when
+    leaves are refined, leaves <= max(the first leaves, max_patches).
     """
-    leaves = root_count * 4**depth
-    elements = root_count * sum(4**k for k in range(depth + 1))
-    links = min(leaves * (root_count + 4.0 * depth / link_epsilon), float(leaves) * elements)
+    first = root_count * 4**depth
+    leaves = max(first, max_patches) if refine_levels else first
+    elements = root_count * sum(4**k for k in range(depth + 1)) + (leaves - first) * 4 // 3
+    levels = depth + refine_levels
+    links = min(leaves * (root_count + 4.0 * levels / link_epsilon), float(leaves) * elements)
     work = max(LINK_CHUNK * side**2, VISIBILITY_RAYS) * WORK_BYTES_PER_POINT_PAIR
     return {"links": int(links * LINK_BYTES), "elements": int(elements * ELEMENT_BYTES),
             "work": int(work), "link_bound": int(links)}
@@ -208,6 +212,7 @@ def _pull(tree: _Tree, b: np.ndarray, levels: list) -> None:
     """Inner elements' B as the area-weighted mean of their four children's, bottom-up, in place
     (a parent's area is its children's sum: midpoint splits tile it)."""
     for e in levels[-2::-1]:
+        e = e[tree.child[e] >= 0]  # refined leaves sit on any level
         kids = tree.child[e][:, None] + np.arange(4)  # (M, 4)
         area = tree.areas[kids]
         b[e] = np.einsum("mk,mkc->mc", area, b[kids]) / area.sum(axis=1)[:, None]
@@ -254,27 +259,82 @@ def hierarchical_steps(scene: Scene, patch_size: float, occluded, settings, scal
     """Build, link, refine, solve. Yields progress, then (leaf Patches, B, emitted, reflectance,
     direct irradiance of the leaves, stats).
 
-    occluded: the BVH callback or None; lamp_irradiance(leaf Patches) -> (H (N, 3), ...);
-    settings: RadiositySettings (link_epsilon, max_depth, samples_per_side, tolerance).
+    occluded: the BVH callback or None; lamp_irradiance(leaf Patches) -> (H (N, 3), shadow
+    boundary (N,) bool); settings: RadiositySettings (link_epsilon, max_depth, samples_per_side,
+    tolerance, refine_levels, refine_threshold, max_patches, smooth_angle).
+
+    Leaves are refined as the matrix solvers refine their patches (`radiosity.refine_mask`: a
+    corner value far from the leaf's own B, or a lamp's shadow edge across it), up to
+    `refine_levels` times within `max_patches`; every level links and solves afresh.
     """
-    from .radiosity import patch_emission, patch_reflectance
+    from .radiosity import patch_emission, patch_reflectance, refine_mask, within_budget
 
     roots, depth = hierarchy_roots(scene, patch_size, settings.max_depth)
     tree = _Tree(scene, roots)
     for _ in range(depth):
         tree.split(np.flatnonzero(tree.child < 0))
-    leaves = np.flatnonzero(tree.child < 0)
-    leaves = leaves[np.argsort(tree.tri[leaves], kind="stable")]  # patches order: by parent
-    yield 0.05
+    levels = settings.refine_levels + 1
+    per_level = []
+    for level in range(levels):
+        leaves = np.flatnonzero(tree.child < 0)
+        leaves = leaves[np.argsort(tree.tri[leaves], kind="stable")]  # patches order: by parent
+        elements = patching.Patches(corners=tree.corners, parent=tree.tri, bary=tree.bary,
+                                    level=tree.level, normals=tree.normals, areas=tree.areas,
+                                    object_ids=scene.object_ids[tree.tri].astype(np.int32))
+        leaf_patches = patching.Patches(
+            corners=tree.corners[leaves], parent=tree.tri[leaves], bary=tree.bary[leaves],
+            level=tree.level[leaves], normals=tree.normals[leaves], areas=tree.areas[leaves],
+            object_ids=elements.object_ids[leaves])
+        emitted = patch_emission(scene, elements)
+        rho = patch_reflectance(scene, elements)
+        direct = np.zeros((len(tree), 3))
+        direct[leaves], boundary = lamp_irradiance(leaf_patches)
+        base, span = level / levels, 1.0 / levels
+        links = None
+        for step in _link(tree, len(roots), leaves, occluded, settings, scale):
+            if isinstance(step, tuple):
+                links = step
+            else:
+                yield base + span * 0.9 * step
+        p, q, factor, near = links
+        b, iterations, change = solve_links(tree, leaves, p, q, factor,
+                                            emitted + rho * direct, rho, settings.tolerance,
+                                            MAX_ITERATIONS)
+        per_level.append({"leaves": int(leaves.size), "links": int(len(p)),
+                          "near_field_links": int(near.sum()), "iterations": iterations,
+                          "solver_error": change})
+        yield base + span
+        if level == levels - 1:
+            break
+        corner = patching.corner_values(leaf_patches, b[leaves], settings.smooth_angle, scale)
+        mask = within_budget(refine_mask(leaf_patches, b[leaves], corner, boundary,
+                                         emitted[leaves], settings.refine_threshold),
+                             b[leaves], corner, settings.max_patches)
+        if not mask.any():
+            break
+        tree.split(leaves[mask])
+    last = per_level[-1]
+    stats = {"roots": len(roots), "depth": depth, "elements": len(tree), "leaves": last["leaves"],
+             "links": last["links"], "all_pairs": last["leaves"] ** 2,
+             "near_field_links": last["near_field_links"], "iterations": last["iterations"],
+             "solver_error": last["solver_error"],
+             "converged": bool(last["solver_error"] <= settings.tolerance),
+             "refinement_levels": len(per_level) - 1, "per_refinement": per_level}
+    yield (leaf_patches, b[leaves], emitted[leaves], rho[leaves], direct[leaves], stats)
+
+
+def _link(tree: _Tree, root_count: int, leaves: np.ndarray, occluded, settings, scale: float):
+    """Link every leaf to the roots and refine the links; yields progress in [0, 1], then
+    (p, q, factor with visibility, near-field mask)."""
     side = settings.samples_per_side
     settled = []
-    step = max(1, LINK_CHUNK // max(len(roots), 1))
+    step = max(1, LINK_CHUNK // max(root_count, 1))
     for a in range(0, len(leaves), step):  # every leaf to every root that faces it
-        pp = np.repeat(leaves[a : a + step], len(roots))
-        qq = np.tile(np.arange(len(roots)), len(leaves[a : a + step]))
+        pp = np.repeat(leaves[a : a + step], root_count)
+        qq = np.tile(np.arange(root_count), len(leaves[a : a + step]))
         alive = _facing(tree, pp, qq)
         settled.extend(refine_links(tree, pp[alive], qq[alive], settings.link_epsilon, side))
-        yield 0.05 + 0.35 * min(a + step, len(leaves)) / len(leaves)
+        yield 0.5 * min(a + step, len(leaves)) / len(leaves)
     p = np.concatenate([s[0] for s in settled])
     q = np.concatenate([s[1] for s in settled])
     factor = np.concatenate([s[2] for s in settled])
@@ -289,23 +349,5 @@ def hierarchical_steps(scene: Scene, patch_size: float, occluded, settings, scal
             factor[a:b] *= answer_rays(_visible_share_steps(tree, p[a:b], q[a:b], side,
                                                             RAY_OFFSET_REL * scale, shift[a:b]),
                                        occluded, RAYS_PER_CALL)
-    yield 0.8
-    elements = patching.Patches(corners=tree.corners, parent=tree.tri, bary=tree.bary,
-                                level=tree.level, normals=tree.normals, areas=tree.areas,
-                                object_ids=scene.object_ids[tree.tri].astype(np.int32))
-    emitted = patch_emission(scene, elements)
-    rho = patch_reflectance(scene, elements)
-    leaf_patches = patching.Patches(
-        corners=tree.corners[leaves], parent=tree.tri[leaves], bary=tree.bary[leaves],
-        level=tree.level[leaves], normals=tree.normals[leaves], areas=tree.areas[leaves],
-        object_ids=elements.object_ids[leaves])
-    direct = np.zeros((len(tree), 3))
-    direct[leaves] = lamp_irradiance(leaf_patches)[0]
-    b, iterations, change = solve_links(tree, leaves, p, q, factor, emitted + rho * direct, rho,
-                                        settings.tolerance, MAX_ITERATIONS)
-    yield 1.0
-    stats = {"roots": len(roots), "depth": depth, "elements": len(tree), "leaves": int(leaves.size),
-             "links": int(len(p)), "all_pairs": int(leaves.size) ** 2,
-             "near_field_links": int(near.sum()), "iterations": iterations,
-             "solver_error": change, "converged": bool(change <= settings.tolerance)}
-    yield (leaf_patches, b[leaves], emitted[leaves], rho[leaves], direct[leaves], stats)
+            yield 0.5 + 0.5 * min(b, len(p)) / len(p)
+    yield (p, q, factor, near)

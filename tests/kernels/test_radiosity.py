@@ -144,19 +144,40 @@ def test_auto_solver_goes_progressive_when_the_matrix_does_not_fit():
     np.testing.assert_allclose(result.radiosity, np.pi / 0.7, rtol=0.01)
 
 
-def test_hierarchical_memory_is_bounded_before_linking():
+def test_auto_solver_goes_hierarchical_beyond_small_scenes_within_its_bound():
+    """auto: more than AUTO_DENSE_PATCHES patches go to the hierarchical solver when its up-front
+    bound fits the memory limit (the furnace holds); a limit below the bound sends the same scene
+    to the matrix solvers, and small scenes stay with Gauss-Seidel."""
+    from classic_bake.kernels.radiosity import AUTO_DENSE_PATCHES
+
+    scene = build([(inward_box(), grey(0.3, emission=1.0))])
+    settings = RadiositySettings(patch_budget=2 * AUTO_DENSE_PATCHES, refine_levels=0, **FAST)
+    result = solve_radiosity(scene, settings)
+    assert result.stats["solver"] == "hierarchical" and result.stats["patches"] > AUTO_DENSE_PATCHES
+    np.testing.assert_allclose(result.radiosity, np.pi / 0.7, rtol=0.01)
+    bound = result.stats["memory_estimate"]["total"]
+    tight = RadiositySettings(patch_budget=2 * AUTO_DENSE_PATCHES, refine_levels=0,
+                              dense_memory_limit=bound - 1, **FAST)
+    assert solve_radiosity(scene, tight).stats["solver"] in ("gauss_seidel", "progressive")
+    small = RadiositySettings(patch_budget=AUTO_DENSE_PATCHES // 4, refine_levels=0, **FAST)
+    assert solve_radiosity(scene, small).stats["solver"] == "gauss_seidel"
+
+
+@pytest.mark.parametrize("refine_levels", [0, 1])
+def test_hierarchical_memory_is_bounded_before_linking(refine_levels):
     """The hierarchical solver's memory estimate is fixed before any link is made (leaves x
-    (roots + 4 depth / epsilon) links); the links it then makes stay under that bound and the
-    solve's peak (tracemalloc) under the estimate."""
+    (roots + 4 source levels / epsilon) links); the links it then makes stay under that bound and
+    the solve's peak (tracemalloc) under the estimate, with and without refined leaves."""
     import tracemalloc
 
     from classic_bake.kernels.hierarchical import LINK_BYTES
 
     scene = build([(inward_box(), grey(0.3, emission=1.0))])
+    settings = RadiositySettings(solver="hierarchical", patch_budget=400,
+                                 refine_levels=refine_levels, **FAST)
     tracemalloc.start()
     try:
-        result = solve_radiosity(scene, RadiositySettings(solver="hierarchical", patch_budget=400,
-                                                          **FAST))
+        result = solve_radiosity(scene, settings)
         peak = tracemalloc.get_traced_memory()[1]
     finally:
         tracemalloc.stop()
@@ -164,7 +185,8 @@ def test_hierarchical_memory_is_bounded_before_linking():
     assert peak <= memory["total"]
     assert 0 < memory["links_made"] == tree["links"] <= memory["link_bound"]
     assert memory["links"] == memory["link_bound"] * LINK_BYTES
-    assert memory["link_bound"] <= tree["leaves"] * (tree["roots"] + 4 * tree["depth"] / 0.01)
+    if refine_levels == 0:
+        assert memory["link_bound"] <= tree["leaves"] * (tree["roots"] + 4 * tree["depth"] / 0.01)
     np.testing.assert_allclose(result.radiosity, np.pi / 0.7, rtol=0.01)
 
 
