@@ -50,8 +50,8 @@ class CLASSICBAKE_PG_settings(bpy.types.PropertyGroup):
         default="raycast")
     radiosity_solver: EnumProperty(
         name="Solver", description="How the radiosity system is solved",
-        items=[("auto", "Automatic", "Gauss-Seidel while the dense matrix fits in memory, else "
-                "progressive refinement"),
+        items=[("auto", "Automatic", "Gauss-Seidel up to 200 patches; above, hierarchical when "
+                "its memory bound fits, else Gauss-Seidel or progressive refinement"),
                ("gauss_seidel", "Gauss-Seidel", "Gathering on the dense form factor matrix"),
                ("progressive", "Progressive", "Shooting, one row at a time, never N x N"),
                ("hierarchical", "Hierarchical", "Patches gather from a hierarchy of sources, "

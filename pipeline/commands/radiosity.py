@@ -17,8 +17,9 @@ def add_arguments(parser) -> None:
                         help="form factors: ray-cast point-to-polygon (default) or hemicube")
     parser.add_argument("--solver", choices=("auto", "gauss_seidel", "progressive", "hierarchical"),
                         default=DEFAULTS["solver"],
-                        help="auto (default): Gauss-Seidel while the dense matrix fits in memory, "
-                             "else progressive; hierarchical: links to a hierarchy of sources")
+                        help="auto (default): Gauss-Seidel up to 200 patches, above that "
+                             "hierarchical (links to a hierarchy of sources) when its memory bound "
+                             "fits, else Gauss-Seidel while the dense matrix fits, else progressive")
     parser.add_argument("--patches", type=int, default=DEFAULTS["patches"], metavar="N",
                         help="patches aimed at before refinement (default 400)")
     parser.add_argument("--patch-size", type=float, default=DEFAULTS["patch_size"], metavar="M",
