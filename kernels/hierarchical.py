@@ -12,18 +12,24 @@ exact over its source polygon, and only the radiosity of a coarse source is aver
 
 Elements. The roots are `patches.make_patches` at 2^max_depth times the patch size; each is split
 max_depth times into midpoint children (`patches.split`'s rule), and the leaves, about the patch
-size, are the patches of the result.
+size, are the patches of the result. After a solve, leaves are split again where the matrix
+solvers would split their patches (`radiosity.refine_mask`), up to `refine_levels` times, and
+everything is linked and solved again.
 
 Links (p <- q: leaf p gathers from element q). Every leaf starts linked to every root that faces
 it. A link is refined while it carries more than `link_epsilon`, F_pq > epsilon, by linking p to
 q's four children instead; leaf sources stay. F_pq is exact over q's polygon from n x n midpoint
-points of p (`point_to_polygon`), times the visible share of shadow rays from those points to
-the matching points of q. Pairs that share an edge (still above the bound at the leaves) take
+points of p (`point_to_polygon`), times the visible share of q seen from p: shadow rays from those
+points to randomly paired points of q, each weighted by the point-to-point kernel (see
+`_visible_share_steps`). Pairs that share an edge (still above the bound at the leaves) take
 NEAR_FIELD_SIDE times the points per side.
 
 Solve: Jacobi iteration of B_p = E_p + rho_p H_p + rho_p sum_{p <- q} F_pq B_q on the leaves,
-each inner element's B the area-weighted mean of its leaves (pull), until the largest change is
-below `tolerance` x the largest B. E: emission (pi L); H: the lamps' direct irradiance.
+each inner element's B the area-weighted mean of its children (pull), until the contraction
+bound on the remaining error is below `tolerance` x the largest reflected radiosity (see
+`solve_links`). E: emission (pi L); H: the lamps' direct irradiance.
+
+Memory is bounded before any link is made (`memory_bound`).
 """
 
 from __future__ import annotations
