@@ -66,15 +66,17 @@ WORK_BYTES_PER_POINT_PAIR = 300
 VISIBILITY_RAYS = 1 << 17
 
 
-def hierarchy_roots(scene: Scene, patch_size: float, max_depth: int) -> tuple[patching.Patches, int]:
-    """(roots, depth): the deepest hierarchy (at most max_depth) whose leaves are not much finer
-    than the patches asked for; a small scene's roots cannot be coarser than its triangles."""
+def hierarchy_roots(scene: Scene, patch_size: float, max_depth: int
+                    ) -> tuple[patching.Patches, int, int]:
+    """(roots, depth, patches asked for): the deepest hierarchy (at most max_depth) whose leaves
+    are not much finer than the patches of `patch_size`; a small scene's roots cannot be coarser
+    than its triangles."""
     wanted = len(patching.make_patches(scene, patch_size))
     for depth in range(max_depth, -1, -1):
         roots = patching.make_patches(scene, patch_size * 2.0**depth)
         if len(roots) * 4**depth <= LEAF_SLACK * wanted:
             break
-    return roots, depth
+    return roots, depth, wanted
 
 
 def memory_bound(root_count: int, depth: int, link_epsilon: float, side: int = 2,
@@ -233,8 +235,8 @@ def solve_links(tree: _Tree, leaves: np.ndarray, p: np.ndarray, q: np.ndarray, f
     Stopping rule (radiosity_solvers' bound): the sweep contracts by c = max rho_p sum_q F_pq < 1
     in the max norm, so after a sweep that changed B by d the remaining error is at most
     c / (1 - c) d. It stops when that is at most `tolerance` x the largest reflected radiosity
-    max |B - source| + the largest source on a reflecting leaf: measured against an emitter's B
-    instead (30x brighter in the Cornell box), the walls stopped 1-2% short.
+    max |B - source|: measured against an emitter's B instead (30x brighter in the Cornell box),
+    the walls stopped 1-2% short.
     """
     levels = [np.flatnonzero(tree.level == k) for k in range(int(tree.level.max()) + 1)]
     b = np.zeros((len(tree), 3))
@@ -260,10 +262,12 @@ def solve_links(tree: _Tree, leaves: np.ndarray, p: np.ndarray, q: np.ndarray, f
     return b, max_iterations, bound
 
 
-def hierarchical_steps(scene: Scene, patch_size: float, occluded, settings, scale: float,
-                       lamp_irradiance) -> Iterator[float | tuple]:
+def hierarchical_steps(scene: Scene, roots: patching.Patches, depth: int, occluded, settings,
+                       scale: float, lamp_irradiance) -> Iterator[float | tuple]:
     """Build, link, refine, solve. Yields progress, then (leaf Patches, B, emitted, reflectance,
     direct irradiance of the leaves, stats).
+
+    roots, depth: `hierarchy_roots` of the scene at the patch size asked for.
 
     occluded: the BVH callback or None; lamp_irradiance(leaf Patches) -> (H (N, 3), shadow
     boundary (N,) bool); settings: RadiositySettings (link_epsilon, max_depth, samples_per_side,
@@ -275,7 +279,6 @@ def hierarchical_steps(scene: Scene, patch_size: float, occluded, settings, scal
     """
     from .radiosity import patch_emission, patch_reflectance, refine_mask, within_budget
 
-    roots, depth = hierarchy_roots(scene, patch_size, settings.max_depth)
     tree = _Tree(scene, roots)
     for _ in range(depth):
         tree.split(np.flatnonzero(tree.child < 0))

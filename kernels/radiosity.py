@@ -406,9 +406,10 @@ def refine_mask(patches: patching.Patches, radiosity: np.ndarray, corner: np.nda
     return ((deviation > threshold) | boundary) & ~np.any(emitted > 0.0, axis=1)
 
 
-def hierarchical_memory(scene: Scene, size: float, bvh, settings: RadiositySettings) -> dict:
-    """The hierarchical solver's memory (bytes by part, "total"), bounded before it links."""
-    roots, depth = hierarchy_roots(scene, size, settings.max_depth)
+def hierarchical_memory(scene: Scene, roots: patching.Patches, depth: int, bvh,
+                        settings: RadiositySettings) -> dict:
+    """The hierarchical solver's memory (bytes by part, "total") over `hierarchy_roots`' roots
+    and depth, bounded before it links."""
     bound = memory_bound(len(roots), depth, settings.link_epsilon, settings.samples_per_side,
                          settings.refine_levels, settings.max_patches)
     memory = {"links": bound["links"], "patches": bound["elements"], "work": bound["work"],
@@ -418,18 +419,21 @@ def hierarchical_memory(scene: Scene, size: float, bvh, settings: RadiositySetti
     return memory
 
 
-def _hierarchical_plan(scene: Scene, size: float, bvh, settings: RadiositySettings) -> dict | None:
-    """The hierarchical solver's memory when it is the one to run, else None. auto picks it for
-    all but small scenes (more than AUTO_DENSE_PATCHES patches) when its bound fits
-    `dense_memory_limit` and factors are ray-cast."""
-    if settings.solver == "hierarchical":
-        return hierarchical_memory(scene, size, bvh, settings)
-    if settings.solver != "auto" or settings.method != "raycast":
+def _hierarchical_plan(scene: Scene, size: float, bvh, settings: RadiositySettings
+                       ) -> tuple[patching.Patches, int, dict] | None:
+    """(roots, depth, memory) of the hierarchical solver when it is the one to run, else None.
+    auto picks it for all but small scenes (more than AUTO_DENSE_PATCHES patches) when its bound
+    fits `dense_memory_limit` and factors are ray-cast."""
+    if settings.solver not in ("hierarchical", "auto"):
         return None
-    if len(patching.make_patches(scene, size)) <= AUTO_DENSE_PATCHES:
+    if settings.solver == "auto" and settings.method != "raycast":
         return None
-    memory = hierarchical_memory(scene, size, bvh, settings)
-    return memory if memory["total"] <= settings.dense_memory_limit else None
+    roots, depth, wanted = hierarchy_roots(scene, size, settings.max_depth)
+    memory = hierarchical_memory(scene, roots, depth, bvh, settings)
+    if settings.solver == "auto" and (wanted <= AUTO_DENSE_PATCHES
+                                      or memory["total"] > settings.dense_memory_limit):
+        return None
+    return roots, depth, memory
 
 
 def within_budget(mask: np.ndarray, radiosity: np.ndarray, corner: np.ndarray,
@@ -462,9 +466,9 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
     size = settings.patch_size or patching.auto_patch_size(scene, settings.patch_budget)
     if bvh is None:
         bvh = BVH.build(scene.triangles)
-    memory = _hierarchical_plan(scene, size, bvh, settings)
-    if memory is not None:
-        yield from _hierarchical(scene, size, bvh, settings, scale, t0, memory)
+    plan = _hierarchical_plan(scene, size, bvh, settings)
+    if plan is not None:
+        yield from _hierarchical(scene, size, bvh, settings, scale, t0, *plan)
         return
     patches = patching.make_patches(scene, size)
     yield 0.02
@@ -504,7 +508,7 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
                           reflectance=rho, corner_b=corner_b, corner_e=corner_e, stats=stats)
 
 
-def _hierarchical(scene, size, bvh, settings, scale, t0, memory: dict) -> Iterator:
+def _hierarchical(scene, size, bvh, settings, scale, t0, roots, depth, memory: dict) -> Iterator:
     """`radiosity_steps` with the hierarchical solver (`hierarchical.py`): its patches are the
     leaves of the hierarchy, about `size`, refined as the other solvers refine theirs."""
     from .hierarchical import hierarchical_steps
@@ -515,7 +519,7 @@ def _hierarchical(scene, size, bvh, settings, scale, t0, memory: dict) -> Iterat
     def lamps(leaves):
         return first_shot(scene, leaves, occluded, settings, scale)
 
-    for step in hierarchical_steps(scene, size, occluded, settings, scale, lamps):
+    for step in hierarchical_steps(scene, roots, depth, occluded, settings, scale, lamps):
         if isinstance(step, tuple):
             leaves, b, emitted, rho, direct, info = step
         else:

@@ -584,10 +584,11 @@ def _stacked_depth(shadow_map: ShadowMap) -> np.ndarray:
     return np.stack([v.depth for v in shadow_map.views])
 
 
-def _visibility_chunk(shadow_map: ShadowMap, p: np.ndarray, n: np.ndarray,
+def _visibility_chunk(shadow_map: ShadowMap, depth: np.ndarray, p: np.ndarray, n: np.ndarray,
                       no_normal: np.ndarray | None, size: float) -> np.ndarray:
     """(N,) float32 visibility of receivers p (3, N) float64 with unit (or zero) normals n (3, N)
-    float32 (`no_normal`: see `_look_up`); `size` m bounds every |coordinate| of the receivers."""
+    float32 (`no_normal`: see `_look_up`); `depth`: every view's map, flat (`_stacked_depth`);
+    `size` m bounds every |coordinate| of the receivers."""
     s = shadow_map.settings
     view = shadow_map.views[0]  # every view of a map has the same size and texel (cube faces)
     height, width = view.depth.shape
@@ -605,7 +606,6 @@ def _visibility_chunk(shadow_map: ShadowMap, p: np.ndarray, n: np.ndarray,
     # gathers in bounds and `inside` overrides what they read.
     j = np.clip(at.col, 0, width - 1).astype(np.int64)
     i = np.clip(at.row, 0, height - 1).astype(np.int64)
-    depth = _stacked_depth(shadow_map).reshape(-1)
     base = 0 if at.face is None else at.face * (height * width)
     k = s.pcf_size
     if k == 1:
@@ -681,10 +681,11 @@ def receivers_visibility(shadow_map: ShadowMap, receivers: Receivers,
     # The float32-position precision term takes the largest |coordinate| of all the receivers
     # (at most 2^-21 of the scene's size more tolerance than each receiver's own).
     size = receivers.size
+    depth = _stacked_depth(shadow_map).reshape(-1)  # every view's map, flat, gathered per chunk
     pts, nrm, zero = receivers.positions, receivers.normals, receivers.no_normal
     for a in range(0, len(receivers), RECEIVER_CHUNK):
         b = a + RECEIVER_CHUNK
-        out[a:b] = _visibility_chunk(shadow_map, pts[:, a:b], nrm[:, a:b],
+        out[a:b] = _visibility_chunk(shadow_map, depth, pts[:, a:b], nrm[:, a:b],
                                      None if zero is None else zero[a:b], size)
     return out
 
