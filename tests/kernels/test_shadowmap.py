@@ -486,3 +486,22 @@ def test_prepared_receivers_plan_and_look_up_as_the_arrays_do():
         vis = shadow_visibility(smap, pts, nrm)
         assert np.array_equal(receivers_visibility(smap, prepared), vis)
         assert 0.0 < vis.mean() < 1.0  # a shadow falls
+
+
+def test_prepared_normals_are_unit_or_zero():
+    """Receivers.of rescales normals of any length to unit, keeps unit normals bit for bit (they
+    are not rescaled) and zero normals zero (flagged as unknown)."""
+    from classic_bake.kernels.shadowmap import Receivers
+
+    rng = np.random.default_rng(5)
+    unit = rng.normal(size=(50, 3))
+    unit /= np.linalg.norm(unit, axis=1, keepdims=True)
+    prepared = Receivers.of(np.zeros((50, 3)), unit)
+    assert prepared.no_normal is None
+    assert np.array_equal(prepared.normals, unit.T.astype(np.float32))
+    scaled = unit * rng.uniform(0.1, 10.0, size=(50, 1))
+    scaled[3] = 0.0
+    prepared = Receivers.of(np.zeros((50, 3)), scaled)
+    length = np.linalg.norm(prepared.normals.astype(np.float64), axis=0)
+    assert length[3] == 0.0 and prepared.no_normal[3] and prepared.no_normal.sum() == 1
+    assert np.delete(length, 3) == pytest.approx(1.0, abs=1e-6)
