@@ -63,6 +63,13 @@ class CLASSICBAKE_PG_settings(bpy.types.PropertyGroup):
     radiosity_refine: IntProperty(
         name="Refinement", description="Adaptive refinement levels (patches split where the "
         "solution varies strongly or a shadow boundary crosses)", default=1, min=0, max=4)
+    radiosity_final_gather: BoolProperty(
+        name="Final Gather", description="Read the solution out with exact direct light (and "
+        "its shadows) at every texel, pixel and corner; the patches carry only the indirect light",
+        default=True)
+    radiosity_gather_rays: IntProperty(
+        name="Gather Rays", description="Final gather: shadow rays per receiver to the emissive "
+        "surfaces (more: smoother penumbrae)", default=16, min=1, soft_max=256)
     radiosity_wire: BoolProperty(
         name="Show in Materials", description="Wire the 'Radiosity' attribute into the materials "
         "(Emission) so viewport and renders show the bake", default=False)

@@ -42,8 +42,10 @@ from typing import Literal
 
 import numpy as np
 
+from . import final_gather
 from . import lights as light_units
 from . import patches as patching
+from .final_gather import FinalGather, FinalGatherSettings
 from .form_factors import (
     RAY_OFFSET_REL,
     HemicubeFormFactors,
@@ -119,6 +121,12 @@ class RadiositySettings:
     |                             |                     |          | this many shots, the       |
     |                             |                     |          | ambient term covering the  |
     |                             |                     |          | rest (0: until tolerance)  |
+    | final_gather                | bool                | True     | read the solution out with |
+    |                             |                     |          | exact direct light at each |
+    |                             |                     |          | receiver (final_gather.py) |
+    | gather_rays                 | >= 1                | 16       | final gather: shadow rays  |
+    |                             |                     |          | per receiver to emissive   |
+    |                             |                     |          | triangles                  |
     | seed                        | int                 | 0        | RNG seed of the estimators |
     """
 
@@ -140,6 +148,8 @@ class RadiositySettings:
     link_epsilon: float = 0.01
     max_depth: int = 3
     max_shots: int = 0
+    final_gather: bool = True
+    gather_rays: int = 16
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -159,6 +169,8 @@ class RadiositySettings:
         if min(self.samples_per_side, self.visibility_samples_per_side,
                self.light_samples_per_side, self.area_light_samples_per_side) < 1:
             raise ValueError("sample counts must be >= 1")
+        if self.gather_rays < 1:
+            raise ValueError(f"gather_rays must be >= 1, got {self.gather_rays}")
         if self.max_shots < 0:
             raise ValueError(f"max_shots must be >= 0, got {self.max_shots}")
         if self.hemicube_resolution < 2 or self.hemicube_resolution % 2:
@@ -177,6 +189,7 @@ class RadiosityResult:
     corner_b    (N, 3, 3)       B at each patch corner, smoothed within objects
     corner_e    (N, 3, 3)       the same for `emitted`
     stats       dict            patch counts per level, solver, memory estimate, seconds
+    gather      FinalGather     what the final gather reads at receivers; None: interpolate B
     """
 
     patches: patching.Patches
@@ -187,21 +200,26 @@ class RadiosityResult:
     corner_b: np.ndarray
     corner_e: np.ndarray
     stats: dict = field(default_factory=dict)
+    gather: FinalGather | None = None
 
-    def exitance_at(self, tri: np.ndarray, bary: np.ndarray, reflected_only: bool = False
-                    ) -> np.ndarray:
-        """(M, 3) interpolated B at points given as scene triangles (M,) and barycentrics (M, 3);
-        `reflected_only`: B minus the emission (what Cycles' DIFFUSE bake sees, times pi)."""
+    def exitance_at(self, tri: np.ndarray, bary: np.ndarray, reflected_only: bool = False,
+                    interpolated: bool = False) -> np.ndarray:
+        """(M, 3) B at points given as scene triangles (M,) and barycentrics (M, 3): the final
+        gather's when the result has one (`final_gather.py`), else (or with `interpolated`) B
+        interpolated from the patch corners. `reflected_only`: B minus the emission (what Cycles'
+        DIFFUSE bake sees, times pi)."""
+        if self.gather is not None and not interpolated:
+            return final_gather.exitance(self.gather, self.patches, tri, bary, reflected_only)
         patch, local = patching.locate(self.patches, tri, bary)
         values = patching.interpolate(self.corner_b, patch, local)
         if reflected_only:
             values -= patching.interpolate(self.corner_e, patch, local)
         return values
 
-    def radiance_at(self, tri: np.ndarray, bary: np.ndarray, reflected_only: bool = False
-                    ) -> np.ndarray:
-        """(M, 3) outgoing radiance B / pi, W/(m^2 sr)."""
-        return self.exitance_at(tri, bary, reflected_only) / np.pi
+    def radiance_at(self, tri: np.ndarray, bary: np.ndarray, reflected_only: bool = False,
+                    interpolated: bool = False) -> np.ndarray:
+        """(M, 3) outgoing radiance B / pi, W/(m^2 sr) (see `exitance_at`)."""
+        return self.exitance_at(tri, bary, reflected_only, interpolated) / np.pi
 
 
 # --- sources ------------------------------------------------------------------------------------
@@ -258,7 +276,8 @@ def first_shot(scene: Scene, patches: patching.Patches, occluded, settings: Radi
         lit = np.flatnonzero(e.max(axis=1) > 0.0)
         vis = np.ones(len(flat))
         if occluded is not None and light.cast_shadow and lit.size:
-            vis[lit] = _light_visibility(light, origins[lit], occluded, settings)
+            vis[lit] = light_visibility(light, origins[lit], occluded,
+                                        settings.area_light_samples_per_side)
         e *= vis[:, None]
         irradiance += np.einsum("ns,nsc->nc", weights, e.reshape(count, samples, 3))
         v = vis.reshape(count, samples)
@@ -269,13 +288,13 @@ def first_shot(scene: Scene, patches: patching.Patches, occluded, settings: Radi
     return irradiance, boundary
 
 
-def _light_visibility(light, origins: np.ndarray, occluded, settings) -> np.ndarray:
-    """(R,) visible fraction of `light` from `origins` (area lights: over an emitter grid)."""
+def light_visibility(light, origins: np.ndarray, occluded, area_samples_per_side: int) -> np.ndarray:
+    """(R,) visible fraction of `light` from `origins` (area lights: over an n x n emitter grid)."""
     if light.kind == "SUN":
         dirs = np.broadcast_to(-np.asarray(light.direction, np.float64), origins.shape)
         return 1.0 - np.asarray(occluded(origins, np.ascontiguousarray(dirs), 0.0, np.inf), float)
     if light.kind == "AREA":
-        targets = light_units.area_light_samples(light, settings.area_light_samples_per_side)
+        targets = light_units.area_light_samples(light, area_samples_per_side)
     else:
         targets = np.asarray(light.position, np.float64)[None]
     seen = np.zeros(len(origins))
@@ -501,11 +520,32 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
     corner_e = patching.corner_values(patches, emitted, settings.smooth_angle, scale)
     last = stats["levels"][-1]
     stats.update(patches=len(patches), per_level=patches.level_counts(), solver=last["solver"],
-                 memory_estimate=last["memory_estimate"], method=settings.method,
-                 seconds=time.perf_counter() - t0)
+                 memory_estimate=last["memory_estimate"], method=settings.method)
+    gather = _prepare_gather(scene, patches, b, emitted, rho, direct, bvh, settings, stats)
+    stats["seconds"] = time.perf_counter() - t0
     yield 1.0
     yield RadiosityResult(patches=patches, radiosity=b, emitted=emitted, direct=direct,
-                          reflectance=rho, corner_b=corner_b, corner_e=corner_e, stats=stats)
+                          reflectance=rho, corner_b=corner_b, corner_e=corner_e, stats=stats,
+                          gather=gather)
+
+
+def _prepare_gather(scene, patches, b, emitted, rho, direct, bvh, settings: RadiositySettings,
+                    stats: dict) -> FinalGather | None:
+    """The final gather's patch-level half, when the settings ask for it (stats: its figures)."""
+    if not settings.final_gather:
+        return None
+    start = time.perf_counter()
+    gather = final_gather.prepare(
+        scene, patches, b, emitted, rho, direct, bvh, settings.smooth_angle,
+        settings.area_light_samples_per_side,
+        FinalGatherSettings(
+            emitter_rays=settings.gather_rays, seed=settings.seed,
+            # The solver's own points per patch (ray-cast rows: Gauss; the hierarchy's leaves:
+            # midpoints), so the direct part subtracted matches the one it integrated.
+            patch_samples=settings.samples_per_side,
+            patch_rule="midpoint" if stats.get("solver") == "hierarchical" else "gauss"))
+    stats["final_gather"] = {**gather.stats, "prepare_seconds": time.perf_counter() - start}
+    return gather
 
 
 def _hierarchical(scene, size, bvh, settings, scale, t0, roots, depth, memory: dict) -> Iterator:
@@ -533,11 +573,13 @@ def _hierarchical(scene, size, bvh, settings, scale, t0, roots, depth, memory: d
              "levels": [{"patches": level["leaves"], "solver": "hierarchical",
                          "iterations": level["iterations"], "solver_error": level["solver_error"],
                          "converged": bool(level["solver_error"] <= settings.tolerance)}
-                        for level in info["per_refinement"]],
-             "seconds": time.perf_counter() - t0}
+                        for level in info["per_refinement"]]}
+    gather = _prepare_gather(scene, leaves, b, emitted, rho, direct, bvh, settings, stats)
+    stats["seconds"] = time.perf_counter() - t0
     yield 1.0
     yield RadiosityResult(patches=leaves, radiosity=b, emitted=emitted, direct=direct,
-                          reflectance=rho, corner_b=corner_b, corner_e=corner_e, stats=stats)
+                          reflectance=rho, corner_b=corner_b, corner_e=corner_e, stats=stats,
+                          gather=gather)
 
 
 def solve_radiosity(scene: Scene, settings: RadiositySettings = RadiositySettings(),  # noqa: B008

@@ -9,7 +9,8 @@ from ..outputs import UsageError
 
 # Defaults of the options, also used when another command (demo) runs this one without them.
 DEFAULTS = {"method": "raycast", "solver": "auto", "patches": 400, "patch_size": 0.0,
-            "refine": 1, "lightmap_size": 128, "padding": 2, "uv_name": "Lightmap", "wire": False}
+            "refine": 1, "final_gather": True, "gather_rays": 16, "lightmap_size": 128,
+            "padding": 2, "uv_name": "Lightmap", "wire": False}
 
 
 def add_arguments(parser) -> None:
@@ -26,6 +27,12 @@ def add_arguments(parser) -> None:
                         help="longest patch edge in metres (default 0: from --patches)")
     parser.add_argument("--refine", type=int, default=DEFAULTS["refine"], metavar="LEVELS",
                         help="adaptive refinement levels (default 1)")
+    parser.add_argument("--no-final-gather", dest="final_gather", action="store_false",
+                        help="interpolate the patch solution instead of gathering direct light "
+                             "at every texel, pixel and corner")
+    parser.add_argument("--gather-rays", type=int, default=DEFAULTS["gather_rays"], metavar="N",
+                        help="final gather: shadow rays per receiver to emissive surfaces "
+                             "(default 16)")
     parser.add_argument("--lightmap-size", type=int, default=DEFAULTS["lightmap_size"],
                         metavar="TEXELS", help="lightmap of the largest object (default 128)")
     parser.add_argument("--padding", type=int, default=DEFAULTS["padding"], metavar="TEXELS",
@@ -44,7 +51,9 @@ def settings_from(args):
     try:
         settings = RadiositySettings(method=value["method"], solver=value["solver"],
                                      patch_budget=value["patches"], patch_size=value["patch_size"],
-                                     refine_levels=value["refine"])
+                                     refine_levels=value["refine"],
+                                     final_gather=value["final_gather"],
+                                     gather_rays=value["gather_rays"])
         uv = LightmapUVSettings(resolution=value["lightmap_size"], padding=value["padding"])
     except ValueError as exc:
         raise UsageError(f"radiosity: {exc}") from exc

@@ -1,0 +1,329 @@
+"""Final gather: the radiosity solution read out at every receiver with exact direct light.
+
+A patch solution holds B constant (or smoothly interpolated) over each patch, so everything that
+changes faster than a patch is lost: the sharp fall-off next to a light, a block's shadow on the
+floor, the floor inside a closed block. Most of that detail is DIRECT light. The final gather
+(the "one-bounce final gather" of Lischinski, Tampieri and Greenberg 1992; Cohen and Wallace,
+"Radiosity and Realistic Image Synthesis", ch. 9) splits a receiver x's irradiance in two:
+
+    B(x) = E(x) + rho(x) (H_direct(x) + H_indirect(x))
+
+* H_direct(x), evaluated AT x: the lamps' irradiance times their shadow-ray visibility (as the
+  first shot), plus every emissive triangle j's exact unoccluded point-to-polygon factor times
+  its kernel-weighted visible share:
+      H_j(x) = pi L_j F(x -> j) V_j(x),   V_j(x) = sum_s k_s v_s / sum_s k_s,
+      k_s = cos(theta_x) cos(theta_s) / d_s^2   at stratified points s of triangle j,
+  v_s one shadow ray each (the ratio estimator of `form_factors._visible_fraction_steps`: exact
+  when nothing blocks, and its noise stays in penumbrae).
+* H_indirect(x), interpolated from the patches: what the solution says arrives at patch i,
+  (B_i - E_i) / rho_i, less the direct part the same estimator finds at the patch's sample points.
+  It is smooth wherever the patches are, so patch-sized interpolation loses little.
+
+Enclosure. A floor texel inside a closed block sees only the block's inside (back faces) and
+receives nothing; the patch that straddles the block's edge averages its open and enclosed parts.
+`enclosed` probes each receiver with rays (along the normal, and if that hits a back face, four
+more at 45 degrees): a receiver all of whose probes hit back faces is inside a solid and gets no
+reflected light. Patches scale their indirect irradiance by 1 / (open fraction of their sample
+points), and corners average only the open parts, so the open side of a straddling patch keeps
+what the solver found for it.
+
+Measured on the sample Cornell box (bench lightmaps of 21k texels, 296 patches, hierarchical):
+relative MSE against a 1024-sample Cycles bake 0.087 -> 0.011 with the direct gather, 0.0062
+with the enclosure probes as well, for 0.6 s of gathering on top of a 0.6 s solve.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from . import lights as light_units
+from . import patches as patching
+from .form_factors import RAY_OFFSET_REL, point_to_polygon, sample_patches, tangent_frames
+from .scene import Scene, geometric_normals
+
+# Shadow rays to points ON an emitter stop this fraction short of it; the target itself is lifted
+# off the emitter by the ray offset along its normal (the BVH's float32 hit distances differ from
+# the float64 length by up to ~4e-6 relative, so ending the ray at the surface would hit it).
+SHADOW_END_REL = 1e-6
+# A patch this little open (fraction of its sample points outside every solid) is not rescaled
+# further: its indirect irradiance rests on too few points to be stretched over the rest.
+MIN_OPEN_FRACTION = 0.25
+# Receivers gathered at once: (receivers x visibility rays) temporaries of ~100 B per ray.
+GATHER_CHUNK = 1 << 14
+# Receivers are pulled this fraction of the way to their triangle's centroid before the gather:
+# the point-to-polygon factor is 0 for a point ON a polygon's plane, so a mesh corner shared with
+# a perpendicular wall would see nothing of that wall; 1e-4 of a triangle is far above the
+# factor's PLANE_EPS (1e-10) and far below any detail a texel or a vertex colour shows.
+RECEIVER_INSET = 1e-4
+# Probe rays at 45 degrees (after the normal ray): their tangent-frame directions.
+_PROBE_TILTS = ((1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0))
+
+
+@dataclass(frozen=True)
+class FinalGatherSettings:
+    """| field            | range    | default | meaning                                          |
+    |------------------|----------|---------|--------------------------------------------------|
+    | emitter_rays     | >= 1     | 16      | shadow rays per receiver over all emissive       |
+    |                  |          |         | triangles (split by their power, >= 1 each)      |
+    | max_emitters     | >= 0     | 256     | emissive triangles gathered per receiver; beyond |
+    |                  |          |         | this the patch solution carries emitted light    |
+    | enclosure_probes | bool     | True    | receivers inside closed solids get no light      |
+    | patch_samples    | >= 1     | 2       | n x n points per patch for its direct part       |
+    | patch_rule       | gauss /  | gauss   | their placement: the solver's own source points, |
+    |                  | midpoint |         | so that its direct part and this one match       |
+    | seed             | int      | 0       | RNG seed of the stratified emitter points        |
+    """
+
+    emitter_rays: int = 16
+    max_emitters: int = 256
+    enclosure_probes: bool = True
+    patch_samples: int = 2
+    patch_rule: Literal["gauss", "midpoint"] = "gauss"
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.emitter_rays < 1 or self.patch_samples < 1 or self.max_emitters < 0:
+            raise ValueError("emitter_rays and patch_samples must be >= 1, max_emitters >= 0")
+        if self.patch_rule not in ("gauss", "midpoint"):
+            raise ValueError(f"patch_rule must be 'gauss' or 'midpoint', got {self.patch_rule!r}")
+
+
+@dataclass(frozen=True, eq=False)
+class Emitters:
+    """The emissive triangles gathered per receiver."""
+
+    triangles: np.ndarray  # (K, 3, 3) float64 world m
+    normals: np.ndarray  # (K, 3) float64 unit front normals
+    radiance: np.ndarray  # (K, 3) float64 emitted radiance L_e, W/(m^2 sr)
+    per_side: np.ndarray  # (K,) int64 n: n x n stratified visibility points each
+
+
+def emitters_of(scene: Scene, settings: FinalGatherSettings) -> Emitters:
+    """Emissive triangles with their share of `emitter_rays` (by power: area x luminance of L_e);
+    none when there are more than `max_emitters`."""
+    table = np.array([np.asarray(m.emission, np.float64) for m in scene.materials]).reshape(-1, 3)
+    radiance = table[scene.material_ids]
+    tris = scene.triangles.astype(np.float64)
+    normals = geometric_normals(scene.triangles)
+    area = 0.5 * np.linalg.norm(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]), axis=1)
+    power = area * (radiance @ np.array([0.2126, 0.7152, 0.0722]))
+    keep = np.flatnonzero((power > 0.0) & (np.linalg.norm(normals, axis=1) > 0.0))
+    if len(keep) > settings.max_emitters:
+        keep = keep[:0]
+    share = power[keep] / max(float(power[keep].sum()), 1e-300)
+    per_side = np.maximum(1, np.rint(np.sqrt(settings.emitter_rays * share))).astype(np.int64)
+    return Emitters(tris[keep], normals[keep], radiance[keep], per_side)
+
+
+def _kernel_sums(points: np.ndarray, normals: np.ndarray, poly: np.ndarray, nj: np.ndarray,
+                 n: int, occluded, offset: float, rng: np.random.Generator
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """(seen, total) (m,): sums of the point-to-point kernel k_s over n x n stratified points s of
+    triangle `poly` (normal nj), over the visible ones and over all, for each receiver."""
+    y, _ = sample_patches(np.broadcast_to(poly, (len(points), 3, 3)), n, "stratified", rng)
+    between = y - points[:, None, :]  # (m, S, 3)
+    dist2 = np.einsum("msc,msc->ms", between, between)
+    cos_x = np.einsum("msc,mc->ms", between, normals)
+    cos_y = -(between @ nj)
+    kernel = np.where((cos_x > 0.0) & (cos_y > 0.0),
+                      cos_x * cos_y / np.maximum(dist2 * dist2, 1e-300), 0.0)
+    rays = kernel > 0.0
+    seen = kernel.copy()
+    if rays.any():
+        origins = points + offset * normals
+        seg = ((y + offset * nj) - origins[:, None, :])[rays]  # (R, 3)
+        length = np.sqrt(np.einsum("rc,rc->r", seg, seg))
+        dirs = seg / np.maximum(length, 1e-300)[:, None]
+        start = np.broadcast_to(origins[:, None, :], y.shape)[rays]
+        blocked = np.asarray(occluded(np.ascontiguousarray(start), np.ascontiguousarray(dirs),
+                                      0.0, length * (1.0 - SHADOW_END_REL)), bool)
+        seen[rays] = np.where(blocked, 0.0, kernel[rays])
+    return seen.sum(axis=1), kernel.sum(axis=1)
+
+
+def emitter_irradiance(emitters: Emitters, points: np.ndarray, normals: np.ndarray, occluded,
+                       offset: float, rng: np.random.Generator) -> np.ndarray:
+    """(M, 3) irradiance W/m^2 at points (M, 3) m with unit normals (M, 3) from the emitters,
+    shadowed: pi L_j F(x -> j) V_j(x) summed over j (module docstring).
+
+    occluded(origins, directions, t_min, t_max) -> (R,) bool is the BVH's shadow-ray query;
+    `offset` m lifts ray ends off both surfaces. Adaptive: a pilot of (n - 1)^2 rays per triangle
+    first; only receivers that find the triangle partly hidden (a penumbra) get the n x n rays
+    as well, so fully lit and fully shadowed receivers cost about half the rays. The pilot can
+    miss an occluder thinner than its point spacing seen from the receiver: it takes the light
+    as unblocked there.
+    """
+    out = np.zeros((len(points), 3))
+    for j in range(len(emitters.triangles)):
+        poly, nj = emitters.triangles[j], emitters.normals[j]
+        factor = point_to_polygon(points, normals, poly[None], nj[None])  # (M,) exact, unoccluded
+        live = np.flatnonzero(factor > 0.0)
+        if live.size == 0:
+            continue
+        n = int(emitters.per_side[j])
+        pilot = max(1, n - 1) if n > 1 else n
+        seen, total = _kernel_sums(points[live], normals[live], poly, nj, pilot, occluded, offset,
+                                   rng)
+        if pilot < n:
+            mixed = np.flatnonzero((seen > 0.0) & (seen < total))
+            if mixed.size:
+                more_seen, more_total = _kernel_sums(points[live[mixed]], normals[live[mixed]],
+                                                     poly, nj, n, occluded, offset, rng)
+                seen[mixed] += more_seen
+                total[mixed] += more_total
+        share = np.divide(seen, total, out=np.zeros_like(total), where=total > 0.0)
+        out[live] += (np.pi * factor[live] * share)[:, None] * emitters.radiance[j]
+    return out
+
+
+def lamp_irradiance(scene: Scene, points: np.ndarray, normals: np.ndarray, occluded, offset: float,
+                    area_samples_per_side: int) -> np.ndarray:
+    """(M, 3) irradiance W/m^2 of the scene's lamps (point, spot, sun, area) with shadow rays, as
+    the radiosity first shot computes it for patch points."""
+    from .radiosity import light_visibility
+
+    out = np.zeros((len(points), 3))
+    origins = points + offset * normals
+    for light in scene.lights:
+        e = light_units.direct_irradiance(light, points, normals)
+        lit = np.flatnonzero(e.max(axis=1) > 0.0)
+        if light.cast_shadow and lit.size:
+            vis = light_visibility(light, origins[lit], occluded, area_samples_per_side)
+            e[lit] *= vis[:, None]
+        out += e
+    return out
+
+
+def enclosed(points: np.ndarray, normals: np.ndarray, intersect, triangle_normals: np.ndarray,
+             offset: float) -> np.ndarray:
+    """(M,) bool: receivers inside a closed solid, every probe ray hitting a back face.
+
+    intersect(origins, directions) -> hits with `.tri` (-1: miss) is the BVH's closest-hit
+    query; triangle_normals (T, 3) the scene's front normals. The normal's ray decides for most
+    receivers (a miss or a front face: open); those it sends into a back face are probed four more
+    times at 45 degrees, so a single-sided sheet above a floor does not enclose it."""
+    def backs(rows: np.ndarray, dirs: np.ndarray) -> np.ndarray:
+        origins = points[rows] + offset * normals[rows]
+        hits = intersect(np.ascontiguousarray(origins), np.ascontiguousarray(dirs))
+        tri = np.asarray(hits.tri)
+        out = tri >= 0
+        out[out] = np.einsum("ij,ij->i", triangle_normals[tri[out]], dirs[out]) > 0.0
+        return out
+
+    inside = np.zeros(len(points), bool)
+    if len(points) == 0:
+        return inside
+    rows = np.flatnonzero(backs(np.arange(len(points)), normals))
+    if rows.size:
+        t1, t2 = tangent_frames(normals[rows])
+        keep = np.ones(rows.size, bool)
+        for a, b in _PROBE_TILTS:
+            keep &= backs(rows, (normals[rows] + a * t1 + b * t2) / np.sqrt(2.0))
+        inside[rows[keep]] = True
+    return inside
+
+
+@dataclass(frozen=True, eq=False)
+class FinalGather:
+    """Everything the gather reads at receivers, prepared once per solution (`prepare`)."""
+
+    scene: Scene
+    bvh: object  # kernels.bvh.BVH over scene.triangles
+    emitters: Emitters
+    corner_indirect: np.ndarray  # (N, 3, 3) indirect irradiance at patch corners, W/m^2
+    triangle_normals: np.ndarray  # (T, 3) float64
+    emission: np.ndarray  # (T, 3) float64 pi L_e per scene triangle, W/m^2
+    offset: float  # m, ray offset off surfaces
+    area_samples_per_side: int
+    settings: FinalGatherSettings
+    stats: dict
+
+
+def _occluded(bvh):
+    return lambda o, d, t0, t1: bvh.occluded(o, d, t0, t1)
+
+
+def prepare(scene: Scene, patches: patching.Patches, radiosity: np.ndarray, emitted: np.ndarray,
+            reflectance: np.ndarray, lamp_direct: np.ndarray, bvh, smooth_angle: float,
+            area_samples_per_side: int, settings: FinalGatherSettings) -> FinalGather:
+    """The patch-level half: each patch's indirect irradiance (W/m^2, RGB) and its corners.
+
+    radiosity, emitted, reflectance, lamp_direct (N, 3): the solution B, pi L_e, rho and the
+    lamps' first-shot irradiance of `patches`."""
+    flat = scene.triangles.reshape(-1, 3).astype(np.float64)
+    scale = float(np.linalg.norm(flat.max(axis=0) - flat.min(axis=0))) if len(flat) else 1.0
+    offset = RAY_OFFSET_REL * scale
+    rng = np.random.default_rng(settings.seed)
+    emitters = emitters_of(scene, settings)
+    tri_normals = geometric_normals(scene.triangles)
+    count = len(patches)
+    points, weights = sample_patches(patches.corners, settings.patch_samples, settings.patch_rule)
+    samples = points.shape[1]
+    pts = points.reshape(-1, 3)
+    nrm = np.repeat(patches.normals, samples, axis=0)
+    occluded = _occluded(bvh)
+    direct = np.einsum("ns,nsc->nc", weights, emitter_irradiance(
+        emitters, pts, nrm, occluded, offset, rng).reshape(count, samples, 3))
+    arrived = np.divide(radiosity - emitted, reflectance, out=np.zeros_like(radiosity),
+                        where=reflectance > 0.0)
+    # Where the solver and this estimator disagree on the direct part (two samplings of the same
+    # visibility), the difference lands here with either sign; clamping it per patch would turn
+    # that noise into a bias, so only the receivers' sums are clamped (`exitance`).
+    indirect = arrived - lamp_direct - direct
+    weight_areas = patches.areas
+    open_fraction = np.ones(count)
+    if settings.enclosure_probes:
+        inside = enclosed(pts, nrm, bvh.intersect, tri_normals, offset).reshape(count, samples)
+        open_fraction = np.where(inside.any(axis=1), np.einsum("ns,ns->n", weights, ~inside), 1.0)
+        # The solver averaged each patch over its enclosed part too, which receives nothing.
+        indirect /= np.maximum(open_fraction, MIN_OPEN_FRACTION)[:, None]
+        weight_areas = patches.areas * np.maximum(open_fraction, 1e-9)
+    from dataclasses import replace
+
+    corner = patching.corner_values(replace(patches, areas=weight_areas), indirect, smooth_angle,
+                                    scale)
+    table = np.array([np.asarray(m.emission, np.float64) for m in scene.materials]).reshape(-1, 3)
+    stats = {"emitter_triangles": int(len(emitters.triangles)),
+             "emitter_rays_per_receiver": int((emitters.per_side ** 2).sum()),
+             "enclosed_patches": int((open_fraction == 0.0).sum()),
+             "straddling_patches": int(((open_fraction > 0.0) & (open_fraction < 1.0)).sum())}
+    return FinalGather(scene, bvh, emitters, corner, tri_normals,
+                       np.pi * table[scene.material_ids], offset, area_samples_per_side,
+                       settings, stats)
+
+
+def exitance(gather: FinalGather, patches: patching.Patches, tri: np.ndarray, bary: np.ndarray,
+             reflected_only: bool = False) -> np.ndarray:
+    """(M, 3) exitance B(x) W/m^2 at receivers given as scene triangles (M,) and barycentric
+    coordinates (M, 3): E + rho (H_direct + H_indirect), or without E (`reflected_only`)."""
+    from .direct_light import albedo_at
+
+    scene = gather.scene
+    tri = np.asarray(tri, np.int64)
+    bary = np.asarray(bary, np.float64)
+    out = np.zeros((len(tri), 3))
+    occluded = _occluded(gather.bvh)
+    # A seed per call keeps repeated evaluations of the same receivers identical.
+    rng = np.random.default_rng(gather.settings.seed + 1)
+    for a in range(0, len(tri), GATHER_CHUNK):
+        t, b = tri[a:a + GATHER_CHUNK], bary[a:a + GATHER_CHUNK]
+        inset = (1.0 - RECEIVER_INSET) * b + RECEIVER_INSET / 3.0
+        points = np.einsum("mk,mkc->mc", inset, scene.triangles[t].astype(np.float64))
+        normals = gather.triangle_normals[t]
+        h = emitter_irradiance(gather.emitters, points, normals, occluded, gather.offset, rng)
+        h += lamp_irradiance(scene, points, normals, occluded, gather.offset,
+                             gather.area_samples_per_side)
+        patch, local = patching.locate(patches, t, b)
+        h += patching.interpolate(gather.corner_indirect, patch, local)
+        np.maximum(h, 0.0, out=h)
+        if gather.settings.enclosure_probes:
+            h[enclosed(points, normals, gather.bvh.intersect, gather.triangle_normals,
+                       gather.offset)] = 0.0
+        value = albedo_at(scene, t, b) * h
+        if not reflected_only:
+            value += gather.emission[t]
+        out[a:a + GATHER_CHUNK] = value
+    return out
