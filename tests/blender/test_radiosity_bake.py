@@ -84,7 +84,9 @@ def test_lightmaps_agree_with_cycles_diffuse_bake(open_sample):
     """The baked radiance B / pi against Cycles' DIFFUSE bake with colour (rho E / pi) of the same
     32^2 texels, diffuse bounces 32, 128 samples. Bound: mean relative error (sum |ours - Cycles|
     / sum Cycles over texels both bake, every object but the emitter, whose DIFFUSE bake leaves
-    out its emission) under 12%; the per-object mean within 5%. Measured: see the printout."""
+    out its emission) under 8%; the per-object mean within 5%. Measured with the final gather
+    (the default): 6.0%, objects 0.973-0.999 (interpolated patches: 9.1%; Cycles' own 128-sample
+    noise is part of either)."""
     open_sample("cornell_box")
     summary = None
     settings = RadiositySettings(patch_budget=300, refine_levels=1)
@@ -109,4 +111,4 @@ def test_lightmaps_agree_with_cycles_diffuse_bake(open_sample):
             assert abs(ratio - 1.0) < 0.05, (name, ratio)
     error = total_err / total_ref
     print(f"mean relative error {error:.3f}")
-    assert error < 0.12
+    assert error < 0.08
