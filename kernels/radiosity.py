@@ -23,10 +23,13 @@ Pipeline (`radiosity_steps`):
    points see the light, others do not), are split in four and the system is solved again, up
    to `refine_levels` times and `max_patches` patches.
 
-Display: `RadiosityResult.exitance_at(tri, bary)` interpolates B smoothly inside objects
-(`patches.corner_values`, `interpolate`); outgoing radiance is B / pi, what Cycles' DIFFUSE bake
-(with colour) gives plus the emission. `bake_steps` evaluates lightmap texels and mesh corners,
-`render_steps` the scene camera's view.
+Display: `RadiosityResult.exitance_at(tri, bary)` gives B anywhere on the surface. With
+`final_gather` (the default, `final_gather.py`) each receiver gets its exact direct light (lamps
+and emissive triangles, with shadow rays) and the indirect part interpolated from the patches;
+without it, B itself is interpolated smoothly inside objects (`patches.corner_values`,
+`interpolate`). Outgoing radiance is B / pi, what Cycles' DIFFUSE bake (with colour) gives plus
+the emission. `bake_steps` evaluates lightmap texels and mesh corners, `render_steps` the scene
+camera's view.
 
 Materials: every surface is treated as Lambertian with its base colour (textures sampled at the
 patch centre); metallic, glossy and transmissive parts are not modelled (listed in `ignored`).
