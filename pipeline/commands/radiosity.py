@@ -105,6 +105,7 @@ def run(ctx: RunContext) -> None:
         "memory_estimate": stats["memory_estimate"],
         "levels": [{k: v for k, v in level.items() if k != "memory_estimate"}
                    for level in stats["levels"]],
+        "final_gather": stats.get("final_gather"),  # None when switched off
     }
     ctx.record.extra["skipped"] = summary["skipped"]
     ctx.say(f"radiosity: {stats['patches']} patches (levels {stats['per_level']}), "

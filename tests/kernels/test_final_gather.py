@@ -136,3 +136,31 @@ def test_the_gather_draws_the_shadow_that_coarse_patches_blur():
                          lamp[:, [0, 1, 2]], np.tile([0.0, 0.0, -1.0], (2, 1))).sum()
     assert gathered[1] == pytest.approx(np.full(3, 0.5 * np.pi * 5.0 * f), rel=5e-3)
     assert result.stats["final_gather"]["emitter_triangles"] == 2
+
+
+@pytest.mark.parametrize("max_emitters", [0, 256])
+def test_furnace_through_the_gather_with_and_without_emitters(max_emitters):
+    """A closed box whose walls all emit E = pi L and reflect rho: B = E / (1 - rho) at every
+    receiver, whether the walls' light is gathered per receiver (12 emissive triangles) or, past
+    `max_emitters`, left to the patches (then it all arrives as interpolated 'indirect')."""
+    from classic_bake.kernels.radiosity import first_shot
+
+    v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0],
+                  [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]], float)
+    faces = [[0, 1, 2, 3], [4, 7, 6, 5], [0, 4, 5, 1], [1, 5, 6, 2], [2, 6, 7, 3], [3, 7, 4, 0]]
+    box = np.concatenate([quad(v[f]) for f in faces])  # inward normals
+    scene = build([(box, grey(0.6, emission=1.0))])
+    settings = RadiositySettings(patch_budget=60, refine_levels=0, tolerance=1e-6,
+                                 solver="gauss_seidel", final_gather=False)
+    result = solve_radiosity(scene, settings)
+    bvh = BVH.build(scene.triangles)
+    direct, _ = first_shot(scene, result.patches, None, settings, 1.0)
+    gather = fg.prepare(scene, result.patches, result.radiosity, result.emitted,
+                        result.reflectance, direct, bvh, settings.smooth_angle, 4,
+                        fg.FinalGatherSettings(max_emitters=max_emitters))
+    assert gather.stats["emitter_triangles"] == (12 if max_emitters else 0)
+    rng = np.random.default_rng(2)
+    tri = rng.integers(0, 12, 200)
+    bary = rng.dirichlet(np.ones(3), 200)
+    b = fg.exitance(gather, result.patches, tri, bary)
+    np.testing.assert_allclose(b, np.pi / (1.0 - 0.6), rtol=0.01)
