@@ -42,7 +42,8 @@ import numpy as np
 from . import lights as light_units
 from . import patches as patching
 from .form_factors import RAY_OFFSET_REL, point_to_polygon, sample_patches, tangent_frames
-from .scene import Scene, geometric_normals
+from .metrics import REC709_LUMINANCE
+from .scene import Scene, geometric_normals, triangle_areas, triangle_emission
 
 # Shadow rays to points ON an emitter stop this fraction short of it; the target itself is lifted
 # off the emitter by the ray offset along its normal (the BVH's float32 hit distances differ from
@@ -104,12 +105,10 @@ class Emitters:
 def emitters_of(scene: Scene, settings: FinalGatherSettings) -> Emitters:
     """Emissive triangles with their share of `emitter_rays` (by power: area x luminance of L_e);
     none when there are more than `max_emitters`."""
-    table = np.array([np.asarray(m.emission, np.float64) for m in scene.materials]).reshape(-1, 3)
-    radiance = table[scene.material_ids]
+    radiance = triangle_emission(scene)
     tris = scene.triangles.astype(np.float64)
     normals = geometric_normals(scene.triangles)
-    area = 0.5 * np.linalg.norm(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]), axis=1)
-    power = area * (radiance @ np.array([0.2126, 0.7152, 0.0722]))
+    power = triangle_areas(scene.triangles) * (radiance @ np.array(REC709_LUMINANCE))
     keep = np.flatnonzero((power > 0.0) & (np.linalg.norm(normals, axis=1) > 0.0))
     if len(keep) > settings.max_emitters:
         keep = keep[:0]
@@ -285,13 +284,12 @@ def prepare(scene: Scene, patches: patching.Patches, radiosity: np.ndarray, emit
 
     corner = patching.corner_values(replace(patches, areas=weight_areas), indirect, smooth_angle,
                                     scale)
-    table = np.array([np.asarray(m.emission, np.float64) for m in scene.materials]).reshape(-1, 3)
     stats = {"emitter_triangles": int(len(emitters.triangles)),
              "emitter_rays_per_receiver": int((emitters.per_side ** 2).sum()),
              "enclosed_patches": int((open_fraction == 0.0).sum()),
              "straddling_patches": int(((open_fraction > 0.0) & (open_fraction < 1.0)).sum())}
     return FinalGather(scene, bvh, emitters, corner, tri_normals,
-                       np.pi * table[scene.material_ids], offset, area_samples_per_side,
+                       np.pi * triangle_emission(scene), offset, area_samples_per_side,
                        settings, stats)
 
 

@@ -66,7 +66,7 @@ from .radiosity_solvers import (
     ProgressiveSettings,
     ProgressiveSolver,
 )
-from .scene import Scene
+from .scene import Scene, triangle_emission
 
 # Below this luminance fraction of the scene's mean radiosity a patch counts as dark: relative
 # differences are measured against it, so noise in black corners does not trigger refinement.
@@ -250,8 +250,7 @@ def patch_reflectance(scene: Scene, patches: patching.Patches) -> np.ndarray:
 
 def patch_emission(scene: Scene, patches: patching.Patches) -> np.ndarray:
     """(N, 3) emitted radiosity pi L_e, W/m^2 (front face)."""
-    table = np.array([np.asarray(m.emission, np.float64) for m in scene.materials]).reshape(-1, 3)
-    return np.pi * table[scene.material_ids[patches.parent]]
+    return np.pi * triangle_emission(scene)[patches.parent]
 
 
 def first_shot(scene: Scene, patches: patching.Patches, occluded, settings: RadiositySettings,

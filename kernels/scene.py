@@ -215,6 +215,12 @@ class Scene:
         return slice(info.tri_start, info.tri_start + info.tri_count)
 
 
+def triangle_emission(scene: Scene) -> np.ndarray:
+    """(T, 3) float64 emitted radiance L_e of each triangle's material, W/(m^2 sr)."""
+    table = np.array([np.asarray(m.emission, np.float64) for m in scene.materials]).reshape(-1, 3)
+    return table[scene.material_ids]
+
+
 def triangle_areas(triangles: np.ndarray) -> np.ndarray:
     """Areas of (T, 3, 3) triangles, m^2, computed in float64. Returns (T,) float64."""
     t = triangles.astype(np.float64, copy=False)
