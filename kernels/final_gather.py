@@ -70,8 +70,11 @@ class FinalGatherSettings:
     |------------------|----------|---------|--------------------------------------------------|
     | emitter_rays     | >= 1     | 16      | shadow rays per receiver over all emissive       |
     |                  |          |         | triangles (split by their power, >= 1 each)      |
-    | max_emitters     | >= 0     | 256     | emissive triangles gathered per receiver; beyond |
+    | max_emitters     | >= 0     | 32      | emissive triangles gathered per receiver; beyond |
     |                  |          |         | this the patch solution carries emitted light    |
+    |                  |          |         | (each costs every receiver an exact factor and   |
+    |                  |          |         | at least one ray: an emissive sphere of 500      |
+    |                  |          |         | triangles would cost 500 rays a texel)           |
     | enclosure_probes | bool     | True    | receivers inside closed solids get no light      |
     | patch_samples    | >= 1     | 2       | n x n points per patch for its direct part       |
     | patch_rule       | gauss /  | gauss   | their placement: the solver's own source points, |
@@ -80,7 +83,7 @@ class FinalGatherSettings:
     """
 
     emitter_rays: int = 16
-    max_emitters: int = 256
+    max_emitters: int = 32
     enclosure_probes: bool = True
     patch_samples: int = 2
     patch_rule: Literal["gauss", "midpoint"] = "gauss"
