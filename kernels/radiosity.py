@@ -519,16 +519,24 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
         if not mask.any():
             break
         patches = patching.split(scene, patches, mask)
-    corner_e = patching.corner_values(patches, emitted, settings.smooth_angle, scale)
     last = stats["levels"][-1]
     stats.update(patches=len(patches), per_level=patches.level_counts(), solver=last["solver"],
                  memory_estimate=last["memory_estimate"], method=settings.method)
+    result = _result(scene, patches, b, emitted, rho, direct, corner_b, bvh, settings, scale,
+                     stats, t0)
+    yield 1.0
+    yield result
+
+
+def _result(scene, patches, b, emitted, rho, direct, corner_b, bvh, settings: RadiositySettings,
+            scale: float, stats: dict, t0: float) -> RadiosityResult:
+    """The solved scene, with the final gather prepared when the settings ask for it."""
+    corner_e = patching.corner_values(patches, emitted, settings.smooth_angle, scale)
     gather = _prepare_gather(scene, patches, b, emitted, rho, direct, bvh, settings, stats)
     stats["seconds"] = time.perf_counter() - t0
-    yield 1.0
-    yield RadiosityResult(patches=patches, radiosity=b, emitted=emitted, direct=direct,
-                          reflectance=rho, corner_b=corner_b, corner_e=corner_e, stats=stats,
-                          gather=gather)
+    return RadiosityResult(patches=patches, radiosity=b, emitted=emitted, direct=direct,
+                           reflectance=rho, corner_b=corner_b, corner_e=corner_e, stats=stats,
+                           gather=gather)
 
 
 def _prepare_gather(scene, patches, b, emitted, rho, direct, bvh, settings: RadiositySettings,
@@ -567,7 +575,6 @@ def _hierarchical(scene, size, bvh, settings, scale, t0, roots, depth, memory: d
         else:
             yield 0.02 + 0.96 * step
     corner_b = patching.corner_values(leaves, b, settings.smooth_angle, scale)
-    corner_e = patching.corner_values(leaves, emitted, settings.smooth_angle, scale)
     memory = {**memory, "links_made": info["links"]}  # bounded before linking, and as made
     stats = {"patch_size_m": size, "patches": len(leaves), "per_level": leaves.level_counts(),
              "solver": "hierarchical", "memory_estimate": memory, "method": "raycast",
@@ -576,12 +583,10 @@ def _hierarchical(scene, size, bvh, settings, scale, t0, roots, depth, memory: d
                          "iterations": level["iterations"], "solver_error": level["solver_error"],
                          "converged": bool(level["solver_error"] <= settings.tolerance)}
                         for level in info["per_refinement"]]}
-    gather = _prepare_gather(scene, leaves, b, emitted, rho, direct, bvh, settings, stats)
-    stats["seconds"] = time.perf_counter() - t0
+    result = _result(scene, leaves, b, emitted, rho, direct, corner_b, bvh, settings, scale, stats,
+                     t0)
     yield 1.0
-    yield RadiosityResult(patches=leaves, radiosity=b, emitted=emitted, direct=direct,
-                          reflectance=rho, corner_b=corner_b, corner_e=corner_e, stats=stats,
-                          gather=gather)
+    yield result
 
 
 def solve_radiosity(scene: Scene, settings: RadiositySettings = RadiositySettings(),  # noqa: B008
