@@ -172,7 +172,12 @@ def _to_clip(points: np.ndarray, matrix: np.ndarray) -> np.ndarray:
     """
     p = points.astype(np.float64, copy=False)
     x, y, z = p[..., 0], p[..., 1], p[..., 2]
-    rows = [matrix[r, 0] * x + matrix[r, 1] * y + matrix[r, 2] * z + matrix[r, 3] for r in range(4)]
+    if matrix.ndim == 3:  # (T, 4, 4): one matrix per triangle of (T, 3, 3) points, same bits
+        m = matrix[:, :, :, None]  # each entry (T, 1) against the (T, 3) corners
+        rows = [m[:, r, 0] * x + m[:, r, 1] * y + m[:, r, 2] * z + m[:, r, 3] for r in range(4)]
+    else:
+        rows = [matrix[r, 0] * x + matrix[r, 1] * y + matrix[r, 2] * z + matrix[r, 3]
+                for r in range(4)]
     return np.stack(rows, axis=-1)
 
 
@@ -292,14 +297,20 @@ class _Setup:
     #                    its range [p3, p4] over the vertices
     box: np.ndarray  # (T', 4) int64, inclusive pixel ranges (j0, j1, i0, i1)
     perspective: bool  # the attribute is 1 / depth (PERSP) or the depth itself (ORTHO)
+    base: np.ndarray | None = None  # (T',) int64 first pixel of each one's view (views batched)
 
 
 def _setup(tris: np.ndarray, first: int, projection: Projection, width: int, height: int,
-           cull: CullMode) -> _Setup:
-    """Clip, project, snap, cull and wind (T, 3, 3) world triangles numbered from `first`."""
+           cull: CullMode, views: tuple[np.ndarray, np.ndarray] | None = None) -> _Setup:
+    """Clip, project, snap, cull and wind (T, 3, 3) world triangles numbered from `first`.
+
+    `views`: (clip matrices (V, 4, 4), view of each triangle (T,)) to draw triangles into several
+    views of one size, near and far at once (`projection` gives those); `base` then holds each
+    triangle's first pixel in the (V, H, W) buffer."""
     finite = np.isfinite(tris).all(axis=(1, 2))
     ids = np.nonzero(finite)[0].astype(np.int64) + first
-    clip = _to_clip(tris[finite], projection.clip_matrix)  # (T, 3, 4) float64
+    matrix = projection.clip_matrix if views is None else views[0][views[1][finite]]
+    clip = _to_clip(tris[finite], matrix)  # (T, 3, 4) float64
     clip, ids = _clip_triangles(clip, ids, projection, width, height)
     # Screen space: col to the right, row downwards, in pixels (float64), then fixed point.
     w = clip[..., 3]
@@ -354,8 +365,9 @@ def _setup(tris: np.ndarray, first: int, projection: Projection, width: int, hei
     box = np.stack([np.maximum(j0, 0), np.minimum(j1, width - 1),
                     np.maximum(i0, 0), np.minimum(i1, height - 1)], axis=1)
     ok = (box[:, 1] >= box[:, 0]) & (box[:, 3] >= box[:, 2])
+    base = None if views is None else views[1][ids[ok] - first] * (width * height)
     return _Setup(ids[ok], edge_a[ok], edge_b[ok], edge_c[ok], plane[ok], box[ok],
-                  projection.kind == "PERSP")
+                  projection.kind == "PERSP", base)
 
 
 # --------------------------------------------------------------------------------------------
@@ -463,9 +475,17 @@ def iter_fragments(
     tris = np.asarray(triangles)
     if tris.ndim != 3 or tris.shape[1:] != (3, 3):
         raise ValueError(f"triangles must be (T, 3, 3), got {tris.shape}")
+    yield from _fragments(tris, projection, width, height, cull, None)
+
+
+def _fragments(tris: np.ndarray, projection: Projection, width: int, height: int, cull: CullMode,
+               views: tuple[np.ndarray, np.ndarray] | None) -> Iterator[tuple[Fragments, float]]:
+    """`iter_fragments`, optionally into several views at once (see `_setup`)."""
     batches = range(0, len(tris), TRIANGLE_CHUNK)
     for b, first in enumerate(batches):
-        s = _setup(tris[first : first + TRIANGLE_CHUNK], first, projection, width, height, cull)
+        part = slice(first, first + TRIANGLE_CHUNK)
+        s = _setup(tris[part], first, projection, width, height, cull,
+                   None if views is None else (views[0], views[1][part]))
         classes = list(_work_classes(s))
         total = sum(gh * gw * len(r) for gh, gw, r, _ in classes)
         done = 0
@@ -517,6 +537,8 @@ def _window_fragments(s: _Setup, r: np.ndarray, origin: np.ndarray, jj: np.ndarr
     attr = np.minimum(np.maximum(attr, lowest), highest)
     depth = 1.0 / attr if s.perspective else attr
     pixel = ((rows * width)[:, :, None] + cols[:, None, :])[mask]
+    if s.base is not None:
+        pixel += np.repeat(s.base[r], counts)
     return Fragments(pixel, depth, np.repeat(s.tri[r], counts))
 
 
@@ -574,6 +596,34 @@ def rasterize_steps(
                 win = depth == flat[frags.pixel]
                 ids[frags.pixel[win & (depth < before)]] = np.iinfo(np.int64).max
                 np.minimum.at(ids, frags.pixel[win], frags.triangle[win])
+        yield progress
+
+
+def rasterize_views_steps(triangles: np.ndarray, view_of: np.ndarray,
+                          projections: tuple[Projection, ...], depth_out: np.ndarray
+                          ) -> Iterator[float]:
+    """Z-buffer (T, 3, 3) world triangles, triangle k into view view_of[k], into the (V, H, W)
+    float32 `depth_out` (depth-tested against what it holds); yield progress in [0, 1].
+
+    One set-up and one pass of window classes for all views (a cube map's faces: the same size,
+    near and far, only the rotation differs) instead of one per view; every pixel gets the same
+    bits as `rasterize_steps` of each view's own triangles would give it.
+    """
+    count, height, width = depth_out.shape
+    if depth_out.dtype != np.float32 or len(projections) != count:
+        raise ValueError("depth_out must be (V, H, W) float32 with one projection per view")
+    first = projections[0]
+    if any((p.kind, p.near, p.far) != (first.kind, first.near, first.far) for p in projections):
+        raise ValueError("batched views must share their projection kind, near and far")
+    flat = depth_out.reshape(-1)
+    if not np.may_share_memory(flat, depth_out):
+        raise ValueError("depth_out must be C-contiguous")
+    matrices = np.stack([p.clip_matrix for p in projections])
+    tris = np.asarray(triangles)
+    view_of = np.asarray(view_of, np.int64)
+    for frags, progress in _fragments(tris, first, width, height, "NONE", (matrices, view_of)):
+        if len(frags.pixel):
+            np.minimum.at(flat, frags.pixel, frags.depth.astype(np.float32))
         yield progress
 
 

@@ -61,7 +61,7 @@ from typing import Literal
 import numpy as np
 
 from . import cubemap
-from .raster import Projection, look_at, rasterize_steps
+from .raster import Projection, look_at, rasterize_steps, rasterize_views_steps
 from .scene import Light
 from .vec import bounds
 
@@ -331,13 +331,24 @@ def render_shadow_map_steps(shadow_map: ShadowMap, triangles: np.ndarray) -> Ite
 
     Draws into the planned buffers as they are (a fresh plan holds +inf): rendering more
     triangles into the same map depth-tests them against what is there."""
-    n = len(shadow_map.views)
-    reach = _reaches_faces(triangles, shadow_map.light_position) if shadow_map.kind == "CUBE" else None
+    # The planned buffers start at +inf: no second clearing pass over the map.
+    if shadow_map.kind != "CUBE":
+        yield from rasterize_steps(triangles, shadow_map.views[0].projection,
+                                   shadow_map.views[0].depth, clear=False)
+        return
+    reach = _reaches_faces(triangles, shadow_map.light_position)  # (6, T): a face draws these
+    stacked = _stacked_depth(shadow_map)
+    if np.shares_memory(stacked, shadow_map.views[0].depth):  # planned: faces share one array
+        # All faces in one batch: one set-up and one pass of window classes (point light of the
+        # bench: 3 faces drawn, 14 -> 10.5 ms, bit for bit the same maps).
+        face, tri = np.nonzero(reach)
+        yield from rasterize_views_steps(triangles[tri], face,
+                                         tuple(v.projection for v in shadow_map.views), stacked)
+        return
     for k, view in enumerate(shadow_map.views):
-        tris = triangles if reach is None else triangles[reach[k]]  # a face draws what reaches it
-        # The planned buffers start at +inf: no second clearing pass over the map.
-        for progress in rasterize_steps(tris, view.projection, view.depth, clear=False):
-            yield (k + progress) / n
+        for progress in rasterize_steps(triangles[reach[k]], view.projection, view.depth,
+                                        clear=False):
+            yield (k + progress) / len(shadow_map.views)
 
 
 def _reaches_faces(triangles: np.ndarray, position: np.ndarray) -> np.ndarray:
