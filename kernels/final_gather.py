@@ -40,7 +40,6 @@ from typing import Literal
 
 import numpy as np
 
-from . import lights as light_units
 from . import patches as patching
 from .form_factors import RAY_OFFSET_REL, point_to_polygon, sample_patches, tangent_frames
 from .metrics import REC709_LUMINANCE
@@ -186,17 +185,13 @@ def lamp_irradiance(scene: Scene, points: np.ndarray, normals: np.ndarray, occlu
                     area_samples_per_side: int) -> np.ndarray:
     """(M, 3) irradiance W/m^2 of the scene's lamps (point, spot, sun, area) with shadow rays, as
     the radiosity first shot computes it for patch points."""
-    from .radiosity import light_visibility
+    from .radiosity import shadowed_irradiance
 
     out = np.zeros((len(points), 3))
     origins = points + offset * normals
     for light in scene.lights:
-        e = light_units.direct_irradiance(light, points, normals)
-        lit = np.flatnonzero(e.max(axis=1) > 0.0)
-        if light.cast_shadow and lit.size:
-            vis = light_visibility(light, origins[lit], occluded, area_samples_per_side)
-            e[lit] *= vis[:, None]
-        out += e
+        out += shadowed_irradiance(light, points, normals, origins, occluded,
+                                   area_samples_per_side)[0]
     return out
 
 

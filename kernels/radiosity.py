@@ -274,13 +274,8 @@ def first_shot(scene: Scene, patches: patching.Patches, occluded, settings: Radi
     offset = RAY_OFFSET_REL * scale
     origins = flat + offset * normals
     for light in scene.lights:
-        e = light_units.direct_irradiance(light, flat, normals)  # (N S, 3)
-        lit = np.flatnonzero(e.max(axis=1) > 0.0)
-        vis = np.ones(len(flat))
-        if occluded is not None and light.cast_shadow and lit.size:
-            vis[lit] = light_visibility(light, origins[lit], occluded,
-                                        settings.area_light_samples_per_side)
-        e *= vis[:, None]
+        e, vis = shadowed_irradiance(light, flat, normals, origins, occluded,
+                                     settings.area_light_samples_per_side)  # (N S, 3), (N S,)
         irradiance += np.einsum("ns,nsc->nc", weights, e.reshape(count, samples, 3))
         v = vis.reshape(count, samples)
         reached = (e.max(axis=1) > 0.0).reshape(count, samples) | (v < 1.0)
@@ -288,6 +283,20 @@ def first_shot(scene: Scene, patches: patching.Patches, occluded, settings: Radi
         some_dark = np.any(reached & (v < 1.0), axis=1)
         boundary |= some_lit & some_dark
     return irradiance, boundary
+
+
+def shadowed_irradiance(light, points: np.ndarray, normals: np.ndarray, origins: np.ndarray,
+                        occluded, area_samples_per_side: int) -> tuple[np.ndarray, np.ndarray]:
+    """(M, 3) direct irradiance W/m^2 of `light` at points with unit normals, times its visible
+    fraction from `origins` (the points lifted off their surface), and that fraction (M,): 1 where
+    the light does not reach, casts no shadow, or `occluded` is None (no shadows)."""
+    e = light_units.direct_irradiance(light, points, normals)
+    lit = np.flatnonzero(e.max(axis=1) > 0.0)
+    vis = np.ones(len(points))
+    if occluded is not None and light.cast_shadow and lit.size:
+        vis[lit] = light_visibility(light, origins[lit], occluded, area_samples_per_side)
+    e *= vis[:, None]
+    return e, vis
 
 
 def light_visibility(light, origins: np.ndarray, occluded, area_samples_per_side: int) -> np.ndarray:

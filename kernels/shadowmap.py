@@ -337,8 +337,8 @@ def render_shadow_map_steps(shadow_map: ShadowMap, triangles: np.ndarray) -> Ite
                                    shadow_map.views[0].depth, clear=False)
         return
     reach = _reaches_faces(triangles, shadow_map.light_position)  # (6, T): a face draws these
-    stacked = _stacked_depth(shadow_map)
-    if np.shares_memory(stacked, shadow_map.views[0].depth):  # planned: faces share one array
+    stacked = _shared_depth(shadow_map)  # planned maps: the faces share one (6, H, W) array
+    if stacked is not None:
         # All faces in one batch: one set-up and one pass of window classes (point light of the
         # bench: 3 faces drawn, 14 -> 10.5 ms, bit for bit the same maps).
         face, tri = np.nonzero(reach)
@@ -591,12 +591,20 @@ def _look_up_view(shadow_map: ShadowMap, p: np.ndarray, n: np.ndarray,
 
 def _stacked_depth(shadow_map: ShadowMap) -> np.ndarray:
     """(V, H, W) float32 depth of every view, without a copy when the views share one array."""
-    first = shadow_map.views[0].depth
     if len(shadow_map.views) == 1:
-        return first[None]
-    if first.base is not None and first.base.shape == (len(shadow_map.views), *first.shape):
-        return first.base
-    return np.stack([v.depth for v in shadow_map.views])
+        return shadow_map.views[0].depth[None]
+    shared = _shared_depth(shadow_map)
+    return shared if shared is not None else np.stack([v.depth for v in shadow_map.views])
+
+
+def _shared_depth(shadow_map: ShadowMap) -> np.ndarray | None:
+    """The (V, H, W) array whose slices the views' depth buffers are (a planned cube map), or
+    None."""
+    first = shadow_map.views[0].depth
+    base = first.base
+    if base is None or base.shape != (len(shadow_map.views), *first.shape):
+        return None
+    return base if all(np.shares_memory(v.depth, base) for v in shadow_map.views) else None
 
 
 def _visibility_chunk(shadow_map: ShadowMap, depth: np.ndarray, p: np.ndarray, n: np.ndarray,
