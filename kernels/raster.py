@@ -71,9 +71,10 @@ GUARD_PIXELS = 2.0  # side clip planes this far outside the viewport: clip-made 
 TILE = 32  # px: bounding boxes larger than this are split into TILE x TILE work items
 CHUNK_CANDIDATES = 1 << 19  # candidate pixel tests per vectorised step: ~75 B each if covered
 TRIANGLE_CHUNK = 1 << 15  # triangles set up at once: ~1 kB each while clipping
-# Window classes with fewer triangles than this share one larger window: a vectorised call costs
-# ~80 us however few its pixels (measured: 1x1 to 16x2 windows of 1-7 triangles, 75-100 us each).
-SPARSE_CLASS = 16
+# A vectorised call costs ~100 us however few its pixels, a candidate pixel ~6 ns (measured on the
+# shadow maps of bench/shadowmap.py, 1x2 to 32x32 windows): a window class keeps its own call only
+# when moving it into a larger class would add more candidates than this.
+CALL_COST_CANDIDATES = 1 << 14
 MAX_TILE_ITEMS = 1 << 16  # tile work items built at once for large triangles: bounds index memory
 MAX_RESOLUTION = 1 << 15  # px per side: keeps fixed-point edge products below 2^53, far from 2^63
 _FAR_OUT = -(1 << 60)  # edge value forced onto candidates outside a triangle's box: always rejected
@@ -383,6 +384,23 @@ def _pow2_ceil(n: np.ndarray) -> np.ndarray:
     return np.left_shift(1, np.ceil(np.log2(np.maximum(n, 1))).astype(np.int64))
 
 
+def _merged_windows(windows: dict[tuple[int, int], list[np.ndarray]]
+                    ) -> dict[tuple[int, int], list[np.ndarray]]:
+    """Merge window classes {(height, width): [rows, ...]} whose own call costs more than their
+    candidates would in the cheapest larger class (one holding both sides), smallest first."""
+    for key in sorted(windows, key=lambda k: k[0] * k[1]):
+        count = sum(len(r) for r in windows[key])
+        best, extra = None, CALL_COST_CANDIDATES
+        for other in windows:
+            if other != key and other[0] >= key[0] and other[1] >= key[1]:
+                cost = count * (other[0] * other[1] - key[0] * key[1])
+                if cost <= extra:
+                    best, extra = other, cost
+        if best is not None:
+            windows[best] += windows.pop(key)
+    return windows
+
+
 def _work_classes(s: _Setup) -> Iterator[tuple[int, int, np.ndarray, np.ndarray]]:
     """Yield (window height, window width, setup rows, window origins (n, 2) = (j0, i0))."""
     bw = s.box[:, 1] - s.box[:, 0] + 1
@@ -395,18 +413,10 @@ def _work_classes(s: _Setup) -> Iterator[tuple[int, int, np.ndarray, np.ndarray]
         order = np.argsort(cls, kind="stable")
         rows, cls = rows[order], cls[order]
         starts = np.r_[0, np.nonzero(np.diff(cls))[0] + 1, len(cls)]
-        sparse = []  # classes of a few triangles: one call each would cost more than their pixels
-        for a, b in zip(starts[:-1], starts[1:], strict=False):
-            if b - a < SPARSE_CLASS:
-                sparse.append((a, b))
-                continue
-            r = rows[a:b]
-            origin = np.stack([s.box[r, 0], s.box[r, 2]], axis=1)
-            yield int(cls[a] // (2 * TILE)), int(cls[a] % (2 * TILE)), r, origin
-        if sparse:  # one window that holds each of their boxes
-            r = np.concatenate([rows[a:b] for a, b in sparse])
-            gh = max(int(cls[a] // (2 * TILE)) for a, _ in sparse)
-            gw = max(int(cls[a] % (2 * TILE)) for a, _ in sparse)
+        windows = {(int(cls[a] // (2 * TILE)), int(cls[a] % (2 * TILE))): [rows[a:b]]
+                   for a, b in zip(starts[:-1], starts[1:], strict=False)}
+        for (gh, gw), parts in _merged_windows(windows).items():
+            r = np.concatenate(parts)
             yield gh, gw, r, np.stack([s.box[r, 0], s.box[r, 2]], axis=1)
     big = np.nonzero(~small)[0]
     if len(big) == 0:

@@ -285,6 +285,26 @@ def test_chunking_does_not_change_the_result(monkeypatch):
     assert np.isfinite(whole.depth).mean() > 0.5
 
 
+def test_merged_window_classes_do_not_change_the_result(monkeypatch):
+    """Window classes merged into larger ones (every class that can be, or none) give the same
+    buffers bit for bit: a larger window only adds candidates its triangle does not cover."""
+    from classic_bake.kernels import raster
+
+    rng = np.random.default_rng(RNG_SEED)
+    centres = rng.uniform(-1.5, 1.5, (2000, 1, 3)) + np.array([0.0, 0.0, -4.0])
+    scale = rng.choice([0.002, 0.01, 0.05, 0.3], size=(2000, 1, 1))  # 1 to 100 px boxes
+    tris = (centres + scale * rng.normal(size=(2000, 3, 3))).astype(np.float32)
+    proj = Projection.perspective(np.eye(4), np.radians(60.0), 0.1, 10.0)
+    monkeypatch.setattr(raster, "CALL_COST_CANDIDATES", 0)
+    unmerged = rasterize(tris, proj, 300, 200, with_triangle_ids=True)
+    monkeypatch.setattr(raster, "CALL_COST_CANDIDATES", 1 << 40)
+    merged = rasterize(tris, proj, 300, 200, with_triangle_ids=True)
+    np.testing.assert_array_equal(merged.depth, unmerged.depth)
+    np.testing.assert_array_equal(merged.triangle, unmerged.triangle)
+    windows = {(1, 2): [np.arange(3)], (2, 2): [np.arange(3, 5)], (4, 1): [np.arange(5, 9)]}
+    assert sorted(raster._merged_windows(windows)) == [(2, 2), (4, 1)]  # (4, 1) holds no (1, 2)
+
+
 def test_slivers_stay_within_their_vertex_depths():
     """Nearly edge-on triangles (a shadow map's walls seen along the light) project to slivers; the
     depth they write must stay between their vertices' depths."""

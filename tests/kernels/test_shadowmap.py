@@ -512,3 +512,29 @@ def test_prepared_normals_are_unit_or_zero():
     length = np.linalg.norm(prepared.normals.astype(np.float64), axis=0)
     assert length[3] == 0.0 and prepared.no_normal[3] and prepared.no_normal.sum() == 1
     assert np.delete(length, 3) == pytest.approx(1.0, abs=1e-6)
+
+
+def test_threaded_lookup_matches_one_thread():
+    """The lookup split over threads (equal shares of the receivers, any chunking) gives the same
+    visibility as one thread, bit for bit, on every kind of map."""
+    from classic_bake.kernels import shadowmap
+
+    tris = np.concatenate([_quad((-2, -2, 0), (4, 0, 0), (0, 4, 0)),
+                           _quad((-0.3, -0.2, 0.9), (0.5, 0, 0), (0, 0.6, 0.1))])
+    pts, nrm = _ground_grid(1.5, 0.01)  # 90k receivers: shares of more than MIN_THREAD_RECEIVERS
+    assert len(pts) >= 2 * shadowmap.MIN_THREAD_RECEIVERS
+    for light in (_sun(30.0, 20.0), _light("SPOT", position=(0.2, 0.1, 3.0)),
+                  _light("POINT", position=(0, 0, 2))):
+        one = build_shadow_map(tris, light, ShadowMapSettings(resolution=128, threads=1), pts)
+        vis = shadow_visibility(one, pts, nrm)
+        for threads, chunk in ((2, 1 << 16), (3, 1 << 12)):
+            many = dataclasses.replace(one, settings=ShadowMapSettings(resolution=128, threads=threads))
+            shadowmap_chunk = shadowmap.RECEIVER_CHUNK
+            try:
+                shadowmap.RECEIVER_CHUNK = chunk
+                assert np.array_equal(shadow_visibility(many, pts, nrm), vis)
+            finally:
+                shadowmap.RECEIVER_CHUNK = shadowmap_chunk
+        assert 0.0 < vis.mean() < 1.0
+    with pytest.raises(ValueError, match="threads"):
+        ShadowMapSettings(threads=-1)
