@@ -353,7 +353,7 @@ def render_shadow_map_steps(shadow_map: ShadowMap, triangles: np.ndarray) -> Ite
     reach = _reaches_faces(triangles, shadow_map.light_position)  # (6, T): a face draws these
     stacked = _shared_depth(shadow_map)  # planned maps: the faces share one (6, H, W) array
     if stacked is not None:
-        # All faces in one batch: one set-up and one pass of window classes (point light of the
+        # All faces in one batch: one set-up and one pass of spans (point light of the
         # bench: 3 faces drawn, 14 -> 10.5 ms, bit for bit the same maps).
         face, tri = np.nonzero(reach)
         yield from rasterize_views_steps(triangles[tri], face,

@@ -268,7 +268,7 @@ def test_nearest_triangle_wins_and_steps_accumulate():
 
 
 def test_chunking_does_not_change_the_result(monkeypatch):
-    """Tiny triangle batches, candidate chunks and tile groups give bit-identical buffers."""
+    """Tiny triangle batches, span groups and fragment chunks give bit-identical buffers."""
     from classic_bake.kernels import raster
 
     rng = np.random.default_rng(RNG_SEED)
@@ -277,32 +277,46 @@ def test_chunking_does_not_change_the_result(monkeypatch):
     proj = Projection.perspective(np.eye(4), np.radians(60.0), 0.1, 10.0)
     whole = rasterize(tris, proj, 120, 100, with_triangle_ids=True)
     monkeypatch.setattr(raster, "TRIANGLE_CHUNK", 7)
-    monkeypatch.setattr(raster, "CHUNK_CANDIDATES", 100)
-    monkeypatch.setattr(raster, "MAX_TILE_ITEMS", 3)
+    monkeypatch.setattr(raster, "CHUNK_FRAGMENTS", 100)
+    monkeypatch.setattr(raster, "MAX_SPANS", 3)
     parts = rasterize(tris, proj, 120, 100, with_triangle_ids=True)
     np.testing.assert_array_equal(parts.depth, whole.depth)
     np.testing.assert_array_equal(parts.triangle, whole.triangle)
     assert np.isfinite(whole.depth).mean() > 0.5
 
 
-def test_merged_window_classes_do_not_change_the_result(monkeypatch):
-    """Window classes merged into larger ones (every class that can be, or none) give the same
-    buffers bit for bit: a larger window only adds candidates its triangle does not cover."""
+def test_spans_are_the_centres_every_edge_function_admits():
+    """The spans solved from the edge functions hold exactly the pixel centres where all three
+    integer edge functions are >= 0 (tested one by one over each box), for triangles of 1 to 100
+    pixels, edge-on ones and ones with horizontal or vertical edges."""
     from classic_bake.kernels import raster
 
     rng = np.random.default_rng(RNG_SEED)
-    centres = rng.uniform(-1.5, 1.5, (2000, 1, 3)) + np.array([0.0, 0.0, -4.0])
-    scale = rng.choice([0.002, 0.01, 0.05, 0.3], size=(2000, 1, 1))  # 1 to 100 px boxes
-    tris = (centres + scale * rng.normal(size=(2000, 3, 3))).astype(np.float32)
+    centres = rng.uniform(-1.5, 1.5, (400, 1, 3)) + np.array([0.0, 0.0, -4.0])
+    scale = rng.choice([0.002, 0.01, 0.05, 0.3], size=(400, 1, 1))
+    tris = centres + scale * rng.normal(size=(400, 3, 3))
+    tris[:40, 1, 1] = tris[:40, 0, 1]  # a horizontal edge (same y, same depth: same row)
+    tris[:40, 1, 2] = tris[:40, 0, 2]
+    tris[40:80, 1, 0] = tris[40:80, 0, 0]  # a vertical edge
+    tris[40:80, 1, 2] = tris[40:80, 0, 2]
+    tris[80:100, 2] = tris[80:100, 0] + 0.5 * (tris[80:100, 1] - tris[80:100, 0])  # degenerate
     proj = Projection.perspective(np.eye(4), np.radians(60.0), 0.1, 10.0)
-    monkeypatch.setattr(raster, "CALL_COST_CANDIDATES", 0)
-    unmerged = rasterize(tris, proj, 300, 200, with_triangle_ids=True)
-    monkeypatch.setattr(raster, "CALL_COST_CANDIDATES", 1 << 40)
-    merged = rasterize(tris, proj, 300, 200, with_triangle_ids=True)
-    np.testing.assert_array_equal(merged.depth, unmerged.depth)
-    np.testing.assert_array_equal(merged.triangle, unmerged.triangle)
-    windows = {(1, 2): [np.arange(3)], (2, 2): [np.arange(3, 5)], (4, 1): [np.arange(5, 9)]}
-    assert sorted(raster._merged_windows(windows)) == [(2, 2), (4, 1)]  # (4, 1) holds no (1, 2)
+    s = raster._setup(tris, 0, proj, 300, 200, "NONE")
+    sp = raster._spans(s, 0, len(s.tri))
+    got = set(zip(sp.row.repeat(sp.count).tolist(),
+                  (np.arange(sp.count.sum()) + np.repeat(sp.lo - (np.cumsum(sp.count) - sp.count),
+                                                         sp.count)).tolist(),
+                  sp.i.repeat(sp.count).tolist(), strict=True))
+    want = set()
+    for t in range(len(s.tri)):
+        j0, j1, i0, i1 = s.box[t]
+        jj, ii = np.meshgrid(np.arange(j0, j1 + 1), np.arange(i0, i1 + 1))
+        px, py = jj * raster._ONE + raster._HALF, ii * raster._ONE + raster._HALF
+        e = s.edge_a[t][:, None, None] * px + s.edge_b[t][:, None, None] * py + s.edge_c[t][:, None, None]
+        inside = (e >= 0).all(axis=0)
+        want |= {(t, j, i) for j, i in zip(jj[inside].tolist(), ii[inside].tolist(), strict=True)}
+    assert got == want
+    assert len(want) > 10_000 and (sp.count >= 1).all()
 
 
 def test_slivers_stay_within_their_vertex_depths():
