@@ -64,6 +64,8 @@ from typing import Literal
 
 import numpy as np
 
+from .vec import cross3
+
 ProjectionKind = Literal["PERSP", "ORTHO"]
 CullMode = Literal["NONE", "BACK", "FRONT"]
 
@@ -90,12 +92,12 @@ def look_at(eye: np.ndarray, forward: np.ndarray, up: np.ndarray) -> np.ndarray:
     """
     f = np.asarray(forward, np.float64)
     f = f / np.linalg.norm(f)
-    right = np.cross(f, np.asarray(up, np.float64))
+    right = cross3(f, up)
     norm = np.linalg.norm(right)
     if norm == 0.0:
         raise ValueError("look_at: `up` is parallel to `forward`")
     right /= norm
-    true_up = np.cross(right, f)
+    true_up = cross3(right, f)
     view = np.eye(4)
     view[0, :3], view[1, :3], view[2, :3] = right, true_up, -f
     view[:3, 3] = -view[:3, :3] @ np.asarray(eye, np.float64)

@@ -65,7 +65,7 @@ import numpy as np
 from . import cubemap
 from .raster import Projection, look_at, rasterize_steps, rasterize_views_steps
 from .scene import Light
-from .vec import bounds
+from .vec import bounds, cross3
 
 EpsMode = Literal["fixed", "auto"]
 MapKind = Literal["ORTHO", "PERSP", "CUBE"]
@@ -172,7 +172,7 @@ def _frame(light: Light) -> tuple[np.ndarray, np.ndarray]:
     up = np.asarray(light.axis_y, np.float64)
     up = up - forward * (up @ forward)
     if np.linalg.norm(up) < 1e-6:  # a broken axis_y: any perpendicular will do
-        up = np.cross(forward, [1.0, 0.0, 0.0] if abs(forward[0]) < 0.9 else [0.0, 1.0, 0.0])
+        up = cross3(forward, [1.0, 0.0, 0.0] if abs(forward[0]) < 0.9 else [0.0, 1.0, 0.0])
     return forward, up / np.linalg.norm(up)
 
 
@@ -223,7 +223,7 @@ class SunFit:
 
 def _fit_sun(tris: np.ndarray, receivers: np.ndarray | Receivers, light: Light) -> SunFit:
     forward, up = _frame(light)
-    right = np.cross(forward, up)
+    right = cross3(forward, up)
     basis = np.stack([right, up, forward])  # rows: light-space x, y, depth
     verts = tris.reshape(-1, 3).astype(np.float64) @ basis.T  # (3T, 3) light space, m
     if isinstance(receivers, Receivers):  # light space of (3, N) columns: contiguous reductions
@@ -468,12 +468,17 @@ def depth_tolerance(
         slope_depth = tan_theta * np.abs(depth)
     else:
         slope_depth = tan_theta
-    eps = settings.eps + (settings.slope_bias * texel) * slope_depth
-    if settings.eps_mode == "auto":
+    auto = settings.eps_mode == "auto"
+    # One product for both slope terms (the automatic one: PCF's reach of half texel diagonals);
+    # a constant eps of 0, the default, costs no pass.
+    eps = (settings.slope_bias * texel + (settings.pcf_size * half_diag if auto else 0.0)) * slope_depth
+    if settings.eps:
+        eps += settings.eps
+    if auto:
         scale = np.abs(depth)
         if position_size is not None:
             scale = scale + position_size
-        eps = eps + (settings.pcf_size * half_diag) * slope_depth + DEPTH_PRECISION_REL * scale
+        eps += DEPTH_PRECISION_REL * scale
     return eps
 
 
@@ -486,10 +491,10 @@ def depth_tolerance(
 class _Lookup:
     """Where receivers meet a shadow map: every array (N,), receivers in their given order."""
 
-    col: np.ndarray  # continuous texel column in the receiver's view
+    col: np.ndarray  # float32 continuous texel column in the receiver's view
     row: np.ndarray  # continuous texel row (row 0 at the top)
-    depth: np.ndarray  # linear view depth z_f, m
-    inside: np.ndarray | None  # bool, in the view (single views; a cube face always holds f)
+    depth: np.ndarray  # float32 linear view depth z_f, m
+    inside: np.ndarray | None  # bool, ahead of a perspective view (None: ORTHO and cube faces)
     face: np.ndarray | None  # int64 cube face per receiver (CUBE), None for a single view
     nl: np.ndarray  # float32 signed cos(theta): normal . unit direction to the light
     slope: np.ndarray  # float32 depth slope standing in for tan(theta), capped at TAN_THETA_MAX
@@ -524,34 +529,28 @@ def _pixel_rows(view: ShadowView) -> np.ndarray:
     return np.stack([0.5 * width * (clip[0] + w), 0.5 * height * (w - clip[1]), clip[2]])
 
 
-def _affine(rows: np.ndarray, p: np.ndarray) -> np.ndarray:
-    """(K, N): rows (K, 4) applied to points p (3, N) as homogeneous (x, y, z, 1)."""
-    # A contiguous copy of the 3 x 3 part: matmul with the strided slice fell off its fast path
-    # for contiguous points (1.9 ms against 0.18 ms for 65,536 of them).
-    # einsum, not matmul: BLAS would start threads of its own, which fight the lookup's threads
-    # for the same cores (2 lookup threads: no gain with matmul, 1.4-2.7 ms per light with einsum).
-    return np.einsum("ij,jn->in", rows[:, :3], p) + rows[:, 3:4]
-
-
-def _look_up(shadow_map: ShadowMap, p: np.ndarray, n: np.ndarray,
+def _look_up(shadow_map: ShadowMap, p: np.ndarray, centre: np.ndarray, n: np.ndarray,
               no_normal: np.ndarray | None) -> _Lookup:
-    """Project receivers p (3, N) float64 with unit (or zero) normals n (3, N) float32 into their
-    view. `no_normal` (N,) bool marks the zero normals (None: there are none); they get no slope.
+    """Project receivers at centre + p (p: (3, N) float32, m; centre (3,) float64, world m) with
+    unit (or zero) normals n (3, N) float32 into their view. `no_normal` (N,) bool marks the zero
+    normals (None: there are none); they get no slope.
 
+    All in float32 (7 digits are plenty for a tolerance, and each pass costs half as much as in
+    float64): positions are relative to the receivers' centre, so rounding them is relative to
+    the receivers' extent, not to their distance from the world origin, and the depth tolerance's
+    precision term (DEPTH_PRECISION_REL of |z| plus the largest |coordinate|) covers it.
     One pass over all receivers whatever the kind: a cube map's face comes from the OpenGL table in
     closed form (sc, tc and ma are signed components of p - L), so receivers are never sorted.
-    Single views project in float64 and cube maps in float32 (see there); angles and slopes are
-    float32 (7 digits are plenty for a tolerance, and each float32 pass costs half as much).
     """
-    return (_look_up_cube if shadow_map.kind == "CUBE" else _look_up_view)(shadow_map, p, n, no_normal)
+    look = _look_up_cube if shadow_map.kind == "CUBE" else _look_up_view
+    return look(shadow_map, p, centre, n, no_normal)
 
 
-def _look_up_cube(shadow_map: ShadowMap, p: np.ndarray, n: np.ndarray,
+def _look_up_cube(shadow_map: ShadowMap, p: np.ndarray, centre: np.ndarray, n: np.ndarray,
                   no_normal: np.ndarray | None) -> _Lookup:
-    """`_look_up` for the six faces of a cube map, all in float32: rounding p - L to float32
-    moves |ma| by half an ulp, which the tolerance's precision term covers, and texel
-    coordinates by ~1e-4 texel."""
-    x, y, z = (p - shadow_map.light_position[:, None]).astype(np.float32)  # from the light, m
+    """`_look_up` for the six faces of a cube map: texel coordinates move by ~1e-4 texel."""
+    light = (shadow_map.light_position - centre).astype(np.float32)
+    x, y, z = p - light[:, None]  # from the light, m
     ax, ay, az = np.abs(x), np.abs(y), np.abs(z)
     x_wins = (ax >= ay) & (ax >= az)  # ties as cubemap.direction_to_face: X, then Y, then Z
     y_wins = ~x_wins & (ay >= az)
@@ -577,32 +576,34 @@ def _look_up_cube(shadow_map: ShadowMap, p: np.ndarray, n: np.ndarray,
     return _Lookup(col, row, ma, None, face, nl, slope)
 
 
-def _look_up_view(shadow_map: ShadowMap, p: np.ndarray, n: np.ndarray,
+def _look_up_view(shadow_map: ShadowMap, p: np.ndarray, centre: np.ndarray, n: np.ndarray,
                   no_normal: np.ndarray | None) -> _Lookup:
-    """`_look_up` for a single orthographic or perspective view: positions in float64."""
+    """`_look_up` for a single orthographic or perspective view."""
     view = shadow_map.views[0]
-    height, width = view.depth.shape
-    col, row, depth = _affine(_pixel_rows(view), p)  # ORTHO: col, row, depth; PERSP: x depth
+    rows = _pixel_rows(view)  # (3, 4) float64, world (x, y, z, 1) -> (col, row, depth) x w
+    offset = (rows[:, :3] @ centre + rows[:, 3]).astype(np.float32)  # the centre's image
+    # einsum, not matmul: BLAS would start threads of its own, which fight the lookup's threads
+    # for the same cores (2 lookup threads: no gain with matmul, 1.4-2.7 ms per light with einsum).
+    col, row, depth = np.einsum("ij,jn->in", rows[:, :3].astype(np.float32), p) + offset[:, None]
     if shadow_map.kind == "ORTHO":
         nl = -np.einsum("j,jn->n", shadow_map.light_direction.astype(np.float32), n)
         slope = _tan_from_cos(np.abs(nl))
         ahead = None
     else:
         ahead = depth > 0.0  # behind the spot: outside its map
-        inv = 1.0 / np.where(ahead, depth, 1.0)
-        col, row = col * inv, row * inv
-        tx, ty, tz = (shadow_map.light_position[:, None] - p).astype(np.float32)
+        inv = 1.0 / np.where(ahead, depth, np.float32(1.0))
+        col *= inv
+        row *= inv
+        light = (shadow_map.light_position - centre).astype(np.float32)
+        tx, ty, tz = light[:, None] - p
         inv_dist = 1.0 / np.maximum(np.sqrt(tx * tx + ty * ty + tz * tz), TINY)
         nl = (n[0] * tx + n[1] * ty + n[2] * tz) * inv_dist
         axis = (-view.projection.view[2, :3]).astype(np.float32)  # world direction of view -Z
-        slope = _perspective_slope(np.einsum("j,jn->n", axis, n), np.abs(depth).astype(np.float32) * inv_dist,
+        slope = _perspective_slope(np.einsum("j,jn->n", axis, n), np.abs(depth) * inv_dist,
                                    np.abs(nl))
     if no_normal is not None:
         slope[no_normal] = 0.0
-    inside = (col >= 0.0) & (col < width) & (row >= 0.0) & (row < height)
-    if ahead is not None:
-        inside &= ahead
-    return _Lookup(col, row, depth, inside, None, nl, slope)
+    return _Lookup(col, row, depth, ahead, None, nl, slope)
 
 
 def _stacked_depth(shadow_map: ShadowMap) -> np.ndarray:
@@ -623,46 +624,65 @@ def _shared_depth(shadow_map: ShadowMap) -> np.ndarray | None:
     return base if all(np.shares_memory(v.depth, base) for v in shadow_map.views) else None
 
 
-def _visibility_chunk(shadow_map: ShadowMap, depth: np.ndarray, p: np.ndarray, n: np.ndarray,
-                      no_normal: np.ndarray | None, size: float) -> np.ndarray:
-    """(N,) float32 visibility of receivers p (3, N) float64 with unit (or zero) normals n (3, N)
-    float32 (`no_normal`: see `_look_up`); `depth`: every view's map, flat (`_stacked_depth`);
-    `size` m bounds every |coordinate| of the receivers."""
+def _texels(at: _Lookup, height: int, width: int) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """(column, row) int64 texel of each receiver, clamped into the map, and whether it lies in the
+    view (None: all do, cube faces)."""
+    if at.face is not None:  # 0 <= col, row < size by construction (truncation is the floor)
+        return at.col.astype(np.int64), at.row.astype(np.int64), None
+    # Out of the map in either direction in one test: a negative texel is a huge unsigned one.
+    j = np.floor(at.col).astype(np.int64).view(np.uint64)
+    i = np.floor(at.row).astype(np.int64).view(np.uint64)
+    inside = (j < width) & (i < height)
+    if at.inside is not None:
+        inside &= at.inside  # `inside` holds a perspective view's "ahead" until here
+    # Receivers outside the map are lit (no caster was recorded); indices clamped into the map
+    # keep the gathers in bounds and `inside` overrides what they read.
+    j = np.minimum(j, width - 1).view(np.int64)
+    i = np.minimum(i, height - 1).view(np.int64)
+    return j, i, inside
+
+
+def _visibility_chunk(shadow_map: ShadowMap, depth: np.ndarray, p: np.ndarray, centre: np.ndarray,
+                      n: np.ndarray, no_normal: np.ndarray | None, size: float) -> np.ndarray:
+    """(N,) float32 visibility of receivers centre + p (see `_look_up`) with unit (or zero)
+    normals n (3, N) float32 (`no_normal`: see there); `depth`: every view's map, flat
+    (`_stacked_depth`); `size` m bounds every |world coordinate| of the receivers."""
     s = shadow_map.settings
     view = shadow_map.views[0]  # every view of a map has the same size and texel (cube faces)
     height, width = view.depth.shape
     texel, _ = _texel_sides(view)
     if s.normal_offset > 0.0:  # move towards the light side of the surface, texel-sized
-        at = _look_up(shadow_map, p, n, no_normal)
-        footprint = texel * (np.abs(at.depth) if view.projection.kind == "PERSP" else 1.0)
-        p = p + n * (footprint * s.normal_offset * np.where(at.nl < 0.0, -1.0, 1.0))
+        at = _look_up(shadow_map, p, centre, n, no_normal)
+        footprint = texel * (np.abs(at.depth) if view.projection.kind == "PERSP" else np.float32(1.0))
+        side = np.where(at.nl < 0.0, np.float32(-1.0), np.float32(1.0))
+        p = p + n * (footprint * s.normal_offset * side)
         size += texel * s.normal_offset * (float(np.abs(at.depth).max(initial=0.0))
                                            if view.projection.kind == "PERSP" else 1.0)
-    at = _look_up(shadow_map, p, n, no_normal)  # a moved receiver may change cube face
-    z = at.depth.astype(np.float32, copy=False)  # the map's precision, covered by eps' precision term
+    at = _look_up(shadow_map, p, centre, n, no_normal)  # a moved receiver may change cube face
+    z = at.depth  # float32: the map's precision, covered by eps' precision term
     eps = depth_tolerance(view, s, z, at.slope, np.float32(size))
-    # Receivers outside the map are lit (no caster was recorded); clamped indices keep the
-    # gathers in bounds and `inside` overrides what they read.
-    j = np.clip(at.col, 0, width - 1).astype(np.int64)
-    i = np.clip(at.row, 0, height - 1).astype(np.int64)
-    base = 0 if at.face is None else at.face * (height * width)
+    j, i, inside = _texels(at, height, width)
+    index = i * width + j
+    if at.face is not None:
+        index += at.face * (height * width)
     k = s.pcf_size
     if k == 1:
         # The lecture: case (b) "|z_f - M_p| <= eps" first, else "z_f <= M_p"; with eps >= 0 the
         # two together are z_f - M_p <= eps.
-        lit = z - depth[base + i * width + j] <= eps
-        if at.inside is not None:
-            lit |= ~at.inside
+        lit = z - depth[index] <= eps
+        if inside is not None:
+            lit |= ~inside
         vis = lit.astype(np.float32)
     else:
+        base = index - i * width - j  # the receiver's view
         lit = np.zeros(len(eps), np.float32)
         for di in range(-(k // 2), k // 2 + 1):
             ii = base + np.clip(i + di, 0, height - 1) * width  # neighbours clamped to the map
             for dj in range(-(k // 2), k // 2 + 1):
                 lit += z - depth[ii + np.clip(j + dj, 0, width - 1)] <= eps
         vis = lit / np.float32(k * k)
-        if at.inside is not None:
-            vis[~at.inside] = 1.0
+        if inside is not None:
+            vis[~inside] = 1.0
     if s.shadow_back_faces:
         vis[at.nl < 0.0] = 0.0  # attached shadow: the surface itself stands between f and the light
     return vis
@@ -672,11 +692,14 @@ def _visibility_chunk(shadow_map: ShadowMap, depth: np.ndarray, p: np.ndarray, n
 class Receivers:
     """Receivers prepared once for any number of lights: columns, unit normals and bounds.
 
-    The lookup works on (3, N) columns (see `_look_up`); transposing, normalising and bounding
-    255k receivers costs ~2 ms, paid once per bake instead of once per light.
+    The lookup works on (3, N) float32 columns relative to the receivers' centre (see
+    `_look_up`); transposing, centring, normalising and bounding 255k receivers costs ~2 ms, paid
+    once per bake instead of once per light.
     """
 
-    positions: np.ndarray  # (3, N) float64, world m
+    positions: np.ndarray  # (3, N) float64, world m (planning)
+    local: np.ndarray  # (3, N) float32, world position - centre, m (the lookup)
+    centre: np.ndarray  # (3,) float64, the bounding box's centre, world m
     normals: np.ndarray  # (3, N) float32, world unit; zero where unknown
     no_normal: np.ndarray | None  # (N,) bool, the zero normals; None when there are none
     lo: np.ndarray  # (3,) float64, bounding box, world m
@@ -689,6 +712,13 @@ class Receivers:
         normals = np.asarray(normals).reshape(-1, 3)
         pts = np.empty((3, len(points)), np.float64)
         np.copyto(pts, points.T)  # into a fresh C array: faster than astype(order="C")
+        if pts.shape[1]:
+            lo, hi = pts.min(axis=1), pts.max(axis=1)  # contiguous rows: fast reductions
+        else:
+            lo = hi = np.zeros(3)
+        centre = 0.5 * (lo + hi)
+        local = np.empty(pts.shape, np.float32)
+        np.subtract(pts, centre[:, None], out=local, casting="same_kind")
         nrm = np.empty((3, len(normals)), np.float32)
         np.copyto(nrm, normals.T, casting="same_kind")
         length2 = nrm[0] * nrm[0] + nrm[1] * nrm[1] + nrm[2] * nrm[2]
@@ -696,14 +726,10 @@ class Receivers:
         # Bake targets pass unit normals: rescaling them would change nothing but cost 0.5 ms.
         if not (np.abs(length2 - 1.0) <= UNIT_LENGTH2_TOL).all():
             nrm *= 1.0 / np.sqrt(np.maximum(length2, TINY))  # zero normals stay zero
-        if pts.shape[1]:
-            lo, hi = pts.min(axis=1), pts.max(axis=1)  # contiguous rows: fast reductions
-        else:
-            lo = hi = np.zeros(3)
-        return cls(pts, nrm, zero if zero.any() else None, lo, hi)
+        return cls(pts, local, centre, nrm, zero if zero.any() else None, lo, hi)
 
     def __len__(self) -> int:
-        return self.positions.shape[1]
+        return self.local.shape[1]
 
     @property
     def box(self) -> np.ndarray:
@@ -727,10 +753,10 @@ def receivers_visibility(shadow_map: ShadowMap, receivers: Receivers,
     # (at most 2^-21 of the scene's size more tolerance than each receiver's own).
     size = receivers.size
     depth = _stacked_depth(shadow_map).reshape(-1)  # every view's map, flat, gathered per chunk
-    pts, nrm, zero = receivers.positions, receivers.normals, receivers.no_normal
+    pts, nrm, zero = receivers.local, receivers.normals, receivers.no_normal
 
     def look_up(a: int, b: int) -> None:
-        out[a:b] = _visibility_chunk(shadow_map, depth, pts[:, a:b], nrm[:, a:b],
+        out[a:b] = _visibility_chunk(shadow_map, depth, pts[:, a:b], receivers.centre, nrm[:, a:b],
                                      None if zero is None else zero[a:b], size)
 
     count = len(receivers)
