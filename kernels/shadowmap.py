@@ -65,7 +65,7 @@ import numpy as np
 from . import cubemap
 from .raster import Projection, look_at, rasterize_steps, rasterize_views_steps
 from .scene import Light
-from .vec import bounds, cross3
+from .vec import bounds, cross3, row_norms
 
 EpsMode = Literal["fixed", "auto"]
 MapKind = Literal["ORTHO", "PERSP", "CUBE"]
@@ -187,9 +187,9 @@ def _nearest_in_prism(tris: np.ndarray, rect: tuple[float, float, float, float])
     rectangle's corners (depth is affine over the rectangle): a huge ground plane seen slantwise
     contributes the depth it has above the receivers, not the depth of its far corners.
     """
-    nearest = tris[..., 2].min(axis=1)
+    nearest = np.minimum(np.minimum(tris[:, 0, 2], tris[:, 1, 2]), tris[:, 2, 2])
     n = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])  # (T, 3) light space
-    slanted = np.abs(n[:, 2]) > EDGE_ON_COS * np.linalg.norm(n, axis=1)
+    slanted = np.abs(n[:, 2]) > EDGE_ON_COS * row_norms(n)
     if slanted.any():
         x0, x1, y0, y1 = rect
         corners = np.array([[x0, y0], [x1, y0], [x0, y1], [x1, y1]])  # (4, 2)
@@ -198,7 +198,8 @@ def _nearest_in_prism(tris: np.ndarray, rect: tuple[float, float, float, float])
         dx = corners[None, :, 0] - v0[:, 0:1]
         dy = corners[None, :, 1] - v0[:, 1:2]
         plane = v0[:, 2:3] - (ns[:, 0:1] * dx + ns[:, 1:2] * dy) / ns[:, 2:3]  # (T', 4)
-        nearest[slanted] = np.maximum(nearest[slanted], plane.min(axis=1))
+        lowest = np.minimum(np.minimum(plane[:, 0], plane[:, 1]), np.minimum(plane[:, 2], plane[:, 3]))
+        nearest[slanted] = np.maximum(nearest[slanted], lowest)
     return float(nearest.min())
 
 
@@ -237,15 +238,17 @@ def _fit_sun(tris: np.ndarray, receivers: np.ndarray | Receivers, light: Light) 
     else:
         scene_size = 0.0
     # Casters that can shadow a receiver: inside the receivers' prism extruded towards the light.
-    lo = verts.reshape(-1, 3, 3).min(axis=1)
-    hi = verts.reshape(-1, 3, 3).max(axis=1)
+    corners = verts.reshape(-1, 3, 3)
+    # Pairwise over the three vertices: a reduction over a short middle axis is many times slower.
+    lo = np.minimum(np.minimum(corners[:, 0], corners[:, 1]), corners[:, 2])  # (T, 3)
+    hi = np.maximum(np.maximum(corners[:, 0], corners[:, 1]), corners[:, 2])
     relevant = ((hi[:, 0] >= r_lo[0]) & (lo[:, 0] <= r_hi[0]) & (hi[:, 1] >= r_lo[1])
                 & (lo[:, 1] <= r_hi[1]) & (lo[:, 2] <= r_hi[2]))
     if relevant.any():
-        c_lo, c_hi = lo[relevant].min(axis=0), hi[relevant].max(axis=0)
+        c_lo, c_hi = bounds(lo[relevant])[0], bounds(hi[relevant])[1]
         x0, x1 = max(r_lo[0], c_lo[0]), min(r_hi[0], c_hi[0])
         y0, y1 = max(r_lo[1], c_lo[1]), min(r_hi[1], c_hi[1])
-        d0 = _nearest_in_prism(verts.reshape(-1, 3, 3)[relevant], (x0, x1, y0, y1))
+        d0 = _nearest_in_prism(corners[relevant], (x0, x1, y0, y1))
     else:  # nothing can shadow: an empty map over the receivers
         x0, x1, y0, y1, d0 = r_lo[0], r_hi[0], r_lo[1], r_hi[1], r_lo[2]
     return SunFit(basis, x0, x1, y0, y1, d0, max(r_hi[2], d0), scene_size)
@@ -377,9 +380,12 @@ def _reaches_faces(triangles: np.ndarray, position: np.ndarray) -> np.ndarray:
     ma = d @ cubemap.FACE_FORWARD.T  # (T, 3, 6): per vertex, per face
     sc = d @ cubemap.FACE_U.T
     tc = d @ cubemap.FACE_V.T
-    outside = (ma <= 0.0).all(axis=1)  # (T, 6)
+    def all_three(c: np.ndarray) -> np.ndarray:  # (T, 3, 6) -> (T, 6); .all(axis=1) is slower
+        return c[:, 0] & c[:, 1] & c[:, 2]
+
+    outside = all_three(ma <= 0.0)  # (T, 6)
     for side in (ma - sc, ma + sc, ma - tc, ma + tc):
-        outside |= (side < 0.0).all(axis=1)
+        outside |= all_three(side < 0.0)
     return ~outside.T
 
 
