@@ -84,8 +84,10 @@ UNIT_LENGTH2_TOL = 1e-6  # |n|^2 this close to 1 is unit for the tolerance's slo
 #                          error of 5e-7 in cos(theta), below float32 rounding of the products
 RECEIVER_CHUNK = 1 << 16  # receivers per vectorised lookup step: ~20 MB of temporaries (per thread)
 # Fewer receivers than this per thread are looked up on one: a thread's share must outweigh the
-# GIL hand-offs of its NumPy calls (measured: 2 threads over 255k receivers gained 1.4-2.7 ms per
-# light with one share each, nothing with 32k-receiver shares).
+# GIL hand-offs of its NumPy calls. On this 2-core machine, 255k receivers: 2 threads gained 1.3-2.7
+# ms per light on a map looked up again and again, nothing with 32k-receiver shares, and inside a
+# whole light (after its raster, 15 runs each, interleaved) the median got 0.5-1.2 ms worse: hence
+# one thread by default.
 MIN_THREAD_RECEIVERS = 1 << 15
 
 
@@ -105,7 +107,8 @@ class ShadowMapSettings:
     | shadow_back_  | bool            | True    | receivers whose normal faces away from the light|
     |   faces       |                 |         | (N.L < 0) are shadowed, as N.L shading and      |
     |               |                 |         | Cycles' SHADOW bake have it; False: tested      |
-    | threads       | >= 0            | 0       | lookup threads; 0: one per CPU core             |
+    | threads       | >= 0            | 1       | lookup threads; 0: one per CPU core (see        |
+    |               |                 |         | MIN_THREAD_RECEIVERS for when they pay)         |
     """
 
     resolution: int = 2048
@@ -115,7 +118,7 @@ class ShadowMapSettings:
     normal_offset: float = 0.0
     pcf_size: int = 1
     shadow_back_faces: bool = True
-    threads: int = 0
+    threads: int = 1
 
     def __post_init__(self) -> None:
         if not 8 <= self.resolution <= 16384:
@@ -728,11 +731,13 @@ class Receivers:
         nrm = np.empty((3, len(normals)), np.float32)
         np.copyto(nrm, normals.T, casting="same_kind")
         length2 = nrm[0] * nrm[0] + nrm[1] * nrm[1] + nrm[2] * nrm[2]
-        zero = length2 == 0.0
+        shortest = float(length2.min(initial=1.0))
+        zero = length2 == 0.0 if shortest == 0.0 else None
         # Bake targets pass unit normals: rescaling them would change nothing but cost 0.5 ms.
-        if not (np.abs(length2 - 1.0) <= UNIT_LENGTH2_TOL).all():
+        longest = float(length2.max(initial=1.0))
+        if not 1.0 - UNIT_LENGTH2_TOL <= shortest <= longest <= 1.0 + UNIT_LENGTH2_TOL:
             nrm *= 1.0 / np.sqrt(np.maximum(length2, TINY))  # zero normals stay zero
-        return cls(pts, local, centre, nrm, zero if zero.any() else None, lo, hi)
+        return cls(pts, local, centre, nrm, zero, lo, hi)
 
     def __len__(self) -> int:
         return self.local.shape[1]
