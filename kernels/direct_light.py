@@ -87,13 +87,20 @@ def map_resolution(light, points: np.ndarray, spacing: float, sun_span: float | 
     else:
         # A perspective texel grows with distance: size it for the farther receivers too, so that
         # it is no larger than their spacing at DISTANCE_QUANTILE of them.
-        sample = pts[:: max(1, len(pts) // DISTANCE_SAMPLES)]
-        d = float(np.quantile(row_norms(sample - light.position), DISTANCE_QUANTILE)) if len(
-            pts) else 1.0
+        d = _distance_quantile(pts, light.position) if len(pts) else 1.0
         angle = light.spot_size if light.kind == "SPOT" and light.spot_size < np.radians(120) else (
             np.pi / 2)
         res = 2.0 * d * np.tan(0.5 * angle) / target
     return int(np.clip(MAP_STEP * np.ceil(res / MAP_STEP), MIN_MAP, MAX_MAP))
+
+
+def _distance_quantile(points: np.ndarray, position) -> float:
+    """The DISTANCE_QUANTILE-th distance (m) of an even stride of DISTANCE_SAMPLES receivers from
+    `position`: an order statistic by partition (np.quantile sorts and interpolates, ~5x the time)."""
+    sample = points[:: max(1, len(points) // DISTANCE_SAMPLES)]
+    d = row_norms(sample - np.asarray(position, np.float64))
+    k = min(len(d) - 1, int(np.ceil(DISTANCE_QUANTILE * (len(d) - 1))))
+    return float(np.partition(d, k)[k])
 
 
 def receiver_spacing(targets: BakeTargets, area_m2: float) -> float:

@@ -413,7 +413,7 @@ def potential_casters(triangles: np.ndarray, light: Light, receivers: np.ndarray
     corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
                         for z in (lo[2], hi[2])])  # (8, 3)
     n = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
-    length = np.linalg.norm(n, axis=1)
+    length = row_norms(n)
     keep = length > 0.0
     n = n / np.where(length > 0.0, length, 1.0)[:, None]
     if light.kind == "SUN":
