@@ -569,8 +569,8 @@ def _look_up_cube(shadow_map: ShadowMap, p: np.ndarray, centre: np.ndarray, n: n
     sign = np.float32(1.0) - np.float32(2.0) * neg  # of the major component
     ma = np.maximum(np.maximum(ax, ay), az)  # |ma|: the face's view depth
     # The table's (sc, tc): +-X: (-+z, -y); +-Y: (x, +-z); +-Z: (+-x, -y).
-    sc = x_wins * (-sign * z) + y_wins * x + z_wins * (sign * x)
-    tc = y_wins * (sign * z) - ~y_wins * y
+    sc = np.where(x_wins, -sign * z, np.where(y_wins, x, sign * x))
+    tc = np.where(y_wins, sign * z, -y)
     height, width = shadow_map.views[0].depth.shape
     inv = 1.0 / np.maximum(ma, TINY)  # the light's own position lands at a face's centre
     # its face was chosen for it: s = 1 or t = 0 is the last texel, not outside
@@ -578,7 +578,7 @@ def _look_up_cube(shadow_map: ShadowMap, p: np.ndarray, centre: np.ndarray, n: n
     row = np.minimum((1.0 - tc * inv) * np.float32(0.5 * height), np.float32(height - 0.5))
     inv_dist = 1.0 / np.maximum(np.sqrt(x * x + y * y + z * z), TINY)
     nl = -(n[0] * x + n[1] * y + n[2] * z) * inv_dist  # to_light = -(p - L) / |p - L|
-    along = x_wins * n[0] + y_wins * n[1] + z_wins * n[2]  # n . face axis, up to sign
+    along = np.where(x_wins, n[0], np.where(y_wins, n[1], n[2]))  # n . face axis, up to sign
     slope = _perspective_slope(along, ma * inv_dist, np.abs(nl))
     if no_normal is not None:
         slope[no_normal] = 0.0
