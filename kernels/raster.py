@@ -64,7 +64,7 @@ from typing import Literal
 
 import numpy as np
 
-from .vec import cross3
+from .vec import cross3, max_of_three, min_of_three
 
 ProjectionKind = Literal["PERSP", "ORTHO"]
 CullMode = Literal["NONE", "BACK", "FRONT"]
@@ -303,16 +303,6 @@ class _Setup:
     base: np.ndarray | None = None  # (T',) int64 first pixel of each one's view (views batched)
 
 
-def _min3(v: np.ndarray) -> np.ndarray:
-    """(T,) smallest of each row of (T, 3): pairwise, as a reduction over a short axis is slower."""
-    return np.minimum(np.minimum(v[:, 0], v[:, 1]), v[:, 2])
-
-
-def _max3(v: np.ndarray) -> np.ndarray:
-    """(T,) largest of each row of (T, 3)."""
-    return np.maximum(np.maximum(v[:, 0], v[:, 1]), v[:, 2])
-
-
 def _setup(tris: np.ndarray, first: int, projection: Projection, width: int, height: int,
            cull: CullMode, views: tuple[np.ndarray, np.ndarray] | None = None) -> _Setup:
     """Clip, project, snap, cull and wind (T, 3, 3) world triangles numbered from `first`.
@@ -368,13 +358,13 @@ def _setup(tris: np.ndarray, first: int, projection: Projection, width: int, hei
     pc = (da1 * e2r - da2 * e1r) / det
     pr = (da2 * e1c - da1 * e2c) / det
     plane = np.stack([pc, pr, attr[:, 0] - pc * col[:, 0] - pr * row[:, 0],
-                      _min3(attr), _max3(attr)], axis=1)
+                      min_of_three(attr), max_of_three(attr)], axis=1)
 
     # Pixel-centre bounding boxes: centre j + 1/2 in [min col, max col].
-    j0 = -((-(_min3(fx) - _HALF)) // _ONE)
-    j1 = (_max3(fx) - _HALF) // _ONE
-    i0 = -((-(_min3(fy) - _HALF)) // _ONE)
-    i1 = (_max3(fy) - _HALF) // _ONE
+    j0 = -((-(min_of_three(fx) - _HALF)) // _ONE)
+    j1 = (max_of_three(fx) - _HALF) // _ONE
+    i0 = -((-(min_of_three(fy) - _HALF)) // _ONE)
+    i1 = (max_of_three(fy) - _HALF) // _ONE
     box = np.stack([np.maximum(j0, 0), np.minimum(j1, width - 1),
                     np.maximum(i0, 0), np.minimum(i1, height - 1)], axis=1)
     ok = (box[:, 1] >= box[:, 0]) & (box[:, 3] >= box[:, 2])

@@ -65,7 +65,7 @@ import numpy as np
 from . import cubemap
 from .raster import Projection, look_at, rasterize_steps, rasterize_views_steps
 from .scene import Light
-from .vec import bounds, cross3, row_norms
+from .vec import bounds, cross3, max_of_three, min_of_three, row_norms
 
 EpsMode = Literal["fixed", "auto"]
 MapKind = Literal["ORTHO", "PERSP", "CUBE"]
@@ -190,7 +190,7 @@ def _nearest_in_prism(tris: np.ndarray, rect: tuple[float, float, float, float])
     rectangle's corners (depth is affine over the rectangle): a huge ground plane seen slantwise
     contributes the depth it has above the receivers, not the depth of its far corners.
     """
-    nearest = np.minimum(np.minimum(tris[:, 0, 2], tris[:, 1, 2]), tris[:, 2, 2])
+    nearest = min_of_three(tris[..., 2])
     n = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])  # (T, 3) light space
     slanted = np.abs(n[:, 2]) > EDGE_ON_COS * row_norms(n)
     if slanted.any():
@@ -242,9 +242,7 @@ def _fit_sun(tris: np.ndarray, receivers: np.ndarray | Receivers, light: Light) 
         scene_size = 0.0
     # Casters that can shadow a receiver: inside the receivers' prism extruded towards the light.
     corners = verts.reshape(-1, 3, 3)
-    # Pairwise over the three vertices: a reduction over a short middle axis is many times slower.
-    lo = np.minimum(np.minimum(corners[:, 0], corners[:, 1]), corners[:, 2])  # (T, 3)
-    hi = np.maximum(np.maximum(corners[:, 0], corners[:, 1]), corners[:, 2])
+    lo, hi = min_of_three(corners), max_of_three(corners)  # (T, 3)
     relevant = ((hi[:, 0] >= r_lo[0]) & (lo[:, 0] <= r_hi[0]) & (hi[:, 1] >= r_lo[1])
                 & (lo[:, 1] <= r_hi[1]) & (lo[:, 2] <= r_hi[2]))
     if relevant.any():
@@ -383,12 +381,9 @@ def _reaches_faces(triangles: np.ndarray, position: np.ndarray) -> np.ndarray:
     ma = d @ cubemap.FACE_FORWARD.T  # (T, 3, 6): per vertex, per face
     sc = d @ cubemap.FACE_U.T
     tc = d @ cubemap.FACE_V.T
-    def all_three(c: np.ndarray) -> np.ndarray:  # (T, 3, 6) -> (T, 6); .all(axis=1) is slower
-        return c[:, 0] & c[:, 1] & c[:, 2]
-
-    outside = all_three(ma <= 0.0)  # (T, 6)
+    outside = min_of_three(ma <= 0.0)  # (T, 6): all three corners (the minimum of booleans)
     for side in (ma - sc, ma + sc, ma - tc, ma + tc):
-        outside |= all_three(side < 0.0)
+        outside |= min_of_three(side < 0.0)
     return ~outside.T
 
 
