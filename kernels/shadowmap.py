@@ -498,7 +498,7 @@ class _Lookup:
     col: np.ndarray  # float32 continuous texel column in the receiver's view
     row: np.ndarray  # continuous texel row (row 0 at the top)
     depth: np.ndarray  # float32 linear view depth z_f, m
-    inside: np.ndarray | None  # bool, ahead of a perspective view (None: ORTHO and cube faces)
+    ahead: np.ndarray | None  # bool, in front of a perspective view's eye (None: ORTHO, cube)
     face: np.ndarray | None  # int64 cube face per receiver (CUBE), None for a single view
     nl: np.ndarray  # float32 signed cos(theta): normal . unit direction to the light
     slope: np.ndarray  # float32 depth slope standing in for tan(theta), capped at TAN_THETA_MAX
@@ -637,8 +637,8 @@ def _texels(at: _Lookup, height: int, width: int) -> tuple[np.ndarray, np.ndarra
     j = np.floor(at.col).astype(np.int64).view(np.uint64)
     i = np.floor(at.row).astype(np.int64).view(np.uint64)
     inside = (j < width) & (i < height)
-    if at.inside is not None:
-        inside &= at.inside  # `inside` holds a perspective view's "ahead" until here
+    if at.ahead is not None:
+        inside &= at.ahead
     # Receivers outside the map are lit (no caster was recorded); indices clamped into the map
     # keep the gathers in bounds and `inside` overrides what they read.
     j = np.minimum(j, width - 1).view(np.int64)

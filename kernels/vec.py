@@ -18,25 +18,9 @@ def bounds(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return lo, hi
 
 
-def row_dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(N,) dot products of the rows of two (N, 3) arrays."""
-    return np.einsum("ij,ij->i", a, b)
-
-
 def row_norms(v: np.ndarray) -> np.ndarray:
     """(N,) Euclidean lengths of the rows of (N, 3)."""
     return np.sqrt(np.einsum("ij,ij->i", v, v))
-
-
-def unit_rows(v: np.ndarray) -> np.ndarray:
-    """Rows of (N, 3) scaled to unit length; zero rows stay zero."""
-    n = row_norms(v)
-    return v * np.divide(1.0, n, out=np.zeros_like(n), where=n > 0.0)[:, None]
-
-
-def row_abs_max(v: np.ndarray) -> np.ndarray:
-    """(N,) largest |component| of each row of (N, 3)."""
-    return np.maximum(np.maximum(np.abs(v[:, 0]), np.abs(v[:, 1])), np.abs(v[:, 2]))
 
 
 def cross3(a, b) -> np.ndarray:
