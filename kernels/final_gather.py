@@ -12,12 +12,14 @@ floor, the floor inside a closed block. Most of that detail is DIRECT light. The
   first shot), plus every emissive triangle j's exact unoccluded point-to-polygon factor times
   its kernel-weighted visible share:
       H_j(x) = pi L_j F(x -> j) V_j(x),   V_j(x) = sum_s k_s v_s / sum_s k_s,
-      k_s = cos(theta_x) cos(theta_s) / d_s^2   at stratified points s of triangle j,
+      k_s = cos(theta_x) cos(theta_s) / d_s^2   at stratified points s of triangle j
+  (`stratified_triangle_points`: equal areas),
   v_s one shadow ray each (the ratio estimator of `form_factors._visible_fraction_steps`: exact
   when nothing blocks, and its noise stays in penumbrae).
 * H_indirect(x), interpolated from the patches: what the solution says arrives at patch i,
-  (B_i - E_i) / rho_i, less the direct part the same estimator finds at the patch's sample points.
-  It is smooth wherever the patches are, so patch-sized interpolation loses little.
+  (B_i - E_i) / rho_i, less the first shot H_direct(i), which the solver took from this same
+  estimator at the patch's points (`radiosity.first_shot`) and did not carry again. It is smooth
+  wherever the patches are, so patch-sized interpolation loses little.
 
 Enclosure. A floor texel inside a closed block sees only the block's inside (back faces) and
 receives nothing; the patch that straddles the block's edge averages its open and enclosed parts.
@@ -36,7 +38,6 @@ of a 0.6 s solve (bench/README.md has the steps).
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import Literal
 
 import numpy as np
 
@@ -61,6 +62,7 @@ GATHER_CHUNK = 1 << 14
 RECEIVER_INSET = 1e-4
 # Probe rays at 45 degrees (after the normal ray): their tangent-frame directions.
 _PROBE_TILTS = ((1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0))
+LUMINANCE = np.array(REC709_LUMINANCE)
 
 
 @dataclass(frozen=True)
@@ -75,9 +77,7 @@ class FinalGatherSettings:
     |                  |          |         | at least one ray: an emissive sphere of 500      |
     |                  |          |         | triangles would cost 500 rays a texel)           |
     | enclosure_probes | bool     | True    | receivers inside closed solids get no light      |
-    | patch_samples    | >= 1     | 2       | n x n points per patch for its direct part       |
-    | patch_rule       | gauss /  | gauss   | their placement: the solver's own source points, |
-    |                  | midpoint |         | so that its direct part and this one match       |
+    | patch_samples    | >= 1     | 2       | n x n enclosure probes per patch (midpoints)     |
     | seed             | int      | 0       | RNG seed of the stratified emitter points        |
     """
 
@@ -85,20 +85,18 @@ class FinalGatherSettings:
     max_emitters: int = 32
     enclosure_probes: bool = True
     patch_samples: int = 2
-    patch_rule: Literal["gauss", "midpoint"] = "gauss"
     seed: int = 0
 
     def __post_init__(self) -> None:
         if self.emitter_rays < 1 or self.patch_samples < 1 or self.max_emitters < 0:
             raise ValueError("emitter_rays and patch_samples must be >= 1, max_emitters >= 0")
-        if self.patch_rule not in ("gauss", "midpoint"):
-            raise ValueError(f"patch_rule must be 'gauss' or 'midpoint', got {self.patch_rule!r}")
 
 
 @dataclass(frozen=True, eq=False)
 class Emitters:
     """The emissive triangles gathered per receiver."""
 
+    index: np.ndarray  # (K,) int64 scene triangle indices
     triangles: np.ndarray  # (K, 3, 3) float64 world m
     normals: np.ndarray  # (K, 3) float64 unit front normals
     radiance: np.ndarray  # (K, 3) float64 emitted radiance L_e, W/(m^2 sr)
@@ -111,13 +109,26 @@ def emitters_of(scene: Scene, settings: FinalGatherSettings) -> Emitters:
     radiance = triangle_emission(scene)
     tris = scene.triangles.astype(np.float64)
     normals = geometric_normals(scene.triangles)
-    power = triangle_areas(scene.triangles) * (radiance @ np.array(REC709_LUMINANCE))
+    power = triangle_areas(scene.triangles) * (radiance @ LUMINANCE)
     keep = np.flatnonzero((power > 0.0) & (np.linalg.norm(normals, axis=1) > 0.0))
     if len(keep) > settings.max_emitters:
         keep = keep[:0]
     share = power[keep] / max(float(power[keep].sum()), 1e-300)
     per_side = np.maximum(1, np.rint(np.sqrt(settings.emitter_rays * share))).astype(np.int64)
-    return Emitters(tris[keep], normals[keep], radiance[keep], per_side)
+    return Emitters(keep, tris[keep], normals[keep], radiance[keep], per_side)
+
+
+def stratified_triangle_points(poly: np.ndarray, m: int, n: int, rng: np.random.Generator
+                               ) -> np.ndarray:
+    """(m, n^2, 3) points on triangle `poly` (3, 3): m independent sets, one uniform point in each
+    cell of an n x n grid on the unit square, mapped by the area-preserving
+    (u, v) -> (1 - sqrt u) p0 + sqrt u (1 - v) p1 + sqrt u v p2 (Shirley; every cell maps to an
+    equal area, so the points weigh the same and stay stratified)."""
+    cell = np.arange(n * n)
+    u = (cell // n + rng.random((m, n * n))) / n
+    v = (cell % n + rng.random((m, n * n))) / n
+    root = np.sqrt(u)[..., None]
+    return (1.0 - root) * poly[0] + root * (1.0 - v[..., None]) * poly[1] + root * v[..., None] * poly[2]
 
 
 def _kernel_sums(points: np.ndarray, normals: np.ndarray, poly: np.ndarray, nj: np.ndarray,
@@ -125,7 +136,7 @@ def _kernel_sums(points: np.ndarray, normals: np.ndarray, poly: np.ndarray, nj: 
                  ) -> tuple[np.ndarray, np.ndarray]:
     """(seen, total) (m,): sums of the point-to-point kernel k_s over n x n stratified points s of
     triangle `poly` (normal nj), over the visible ones and over all, for each receiver."""
-    y, _ = sample_patches(np.broadcast_to(poly, (len(points), 3, 3)), n, "stratified", rng)
+    y = stratified_triangle_points(poly, len(points), n, rng)
     between = y - points[:, None, :]  # (m, S, 3)
     dist2 = np.einsum("msc,msc->ms", between, between)
     cos_x = np.einsum("msc,mc->ms", between, normals)
@@ -147,9 +158,12 @@ def _kernel_sums(points: np.ndarray, normals: np.ndarray, poly: np.ndarray, nj: 
 
 
 def emitter_irradiance(emitters: Emitters, points: np.ndarray, normals: np.ndarray, occluded,
-                       offset: float, rng: np.random.Generator) -> np.ndarray:
+                       offset: float, rng: np.random.Generator,
+                       share_out: np.ndarray | None = None) -> np.ndarray:
     """(M, 3) irradiance W/m^2 at points (M, 3) m with unit normals (M, 3) from the emitters,
-    shadowed: pi L_j F(x -> j) V_j(x) summed over j (module docstring).
+    shadowed: pi L_j F(x -> j) V_j(x) summed over j (module docstring). share_out (M,), when
+    given, receives the visible share of the unshadowed irradiance (luminance; 1 where none
+    arrives), from which the first shot finds the patches across an emitter's shadow edge.
 
     occluded(origins, directions, t_min, t_max) -> (R,) bool is the BVH's shadow-ray query;
     `offset` m lifts ray ends off both surfaces. Adaptive: a pilot of (n - 1)^2 rays per triangle
@@ -159,6 +173,7 @@ def emitter_irradiance(emitters: Emitters, points: np.ndarray, normals: np.ndarr
     as unblocked there.
     """
     out = np.zeros((len(points), 3))
+    unshadowed = np.zeros(len(points)) if share_out is not None else None
     for j in range(len(emitters.triangles)):
         poly, nj = emitters.triangles[j], emitters.normals[j]
         factor = point_to_polygon(points, normals, poly[None], nj[None])  # (M,) exact, unoccluded
@@ -178,6 +193,11 @@ def emitter_irradiance(emitters: Emitters, points: np.ndarray, normals: np.ndarr
                 total[mixed] += more_total
         share = np.divide(seen, total, out=np.zeros_like(total), where=total > 0.0)
         out[live] += (np.pi * factor[live] * share)[:, None] * emitters.radiance[j]
+        if unshadowed is not None:
+            unshadowed[live] += np.pi * factor[live] * (emitters.radiance[j] @ LUMINANCE)
+    if share_out is not None:
+        np.divide(out @ LUMINANCE, unshadowed, out=share_out, where=unshadowed > 0.0)
+        share_out[unshadowed <= 0.0] = 1.0
     return out
 
 
@@ -245,32 +265,29 @@ def _occluded(bvh):
 
 
 def prepare(scene: Scene, patches: patching.Patches, radiosity: np.ndarray, emitted: np.ndarray,
-            reflectance: np.ndarray, lamp_direct: np.ndarray, bvh, smooth_angle: float,
-            area_samples_per_side: int, settings: FinalGatherSettings) -> FinalGather:
+            reflectance: np.ndarray, direct: np.ndarray, emitters: Emitters, bvh,
+            smooth_angle: float, area_samples_per_side: int,
+            settings: FinalGatherSettings) -> FinalGather:
     """The patch-level half: each patch's indirect irradiance (W/m^2, RGB) and its corners.
 
-    radiosity, emitted, reflectance, lamp_direct (N, 3): the solution B, pi L_e, rho and the
-    lamps' first-shot irradiance of `patches`."""
+    radiosity, emitted, reflectance, direct (N, 3): the solution B, pi L_e, rho and the first
+    shot's irradiance of `patches` (lamps and `emitters`, which the solver did not carry again:
+    `radiosity.first_shot`). What arrived at a patch less that first shot is what the solver
+    carried between patches, the same numbers it solved with, so no sampling noise of the direct
+    light leaks into the indirect part."""
     flat = scene.triangles.reshape(-1, 3).astype(np.float64)
     scale = float(np.linalg.norm(flat.max(axis=0) - flat.min(axis=0))) if len(flat) else 1.0
     offset = RAY_OFFSET_REL * scale
-    rng = np.random.default_rng(settings.seed)
-    emitters = emitters_of(scene, settings)
     tri_normals = geometric_normals(scene.triangles)
     count = len(patches)
-    points, weights = sample_patches(patches.corners, settings.patch_samples, settings.patch_rule)
+    points, weights = sample_patches(patches.corners, settings.patch_samples, "midpoint")
     samples = points.shape[1]
     pts = points.reshape(-1, 3)
     nrm = np.repeat(patches.normals, samples, axis=0)
-    occluded = _occluded(bvh)
-    direct = np.einsum("ns,nsc->nc", weights, emitter_irradiance(
-        emitters, pts, nrm, occluded, offset, rng).reshape(count, samples, 3))
     arrived = np.divide(radiosity - emitted, reflectance, out=np.zeros_like(radiosity),
                         where=reflectance > 0.0)
-    # Where the solver and this estimator disagree on the direct part (two samplings of the same
-    # visibility), the difference lands here with either sign; clamping it per patch would turn
-    # that noise into a bias, so only the receivers' sums are clamped (`exitance`).
-    indirect = arrived - lamp_direct - direct
+    # Negative only by the solver's tolerance; the receivers' sums are clamped (`exitance`).
+    indirect = arrived - direct
     weight_areas = patches.areas
     open_fraction = np.ones(count)
     if settings.enclosure_probes:

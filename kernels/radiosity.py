@@ -253,18 +253,40 @@ def patch_emission(scene: Scene, patches: patching.Patches) -> np.ndarray:
     return np.pi * triangle_emission(scene)[patches.parent]
 
 
+def shot_emitters(scene: Scene, settings: RadiositySettings) -> final_gather.Emitters:
+    """The emissive triangles that shoot their light first, as lamps do (`first_shot`): the ones
+    the final gather reads per receiver (`final_gather.emitters_of`; none past its
+    `max_emitters`, whose light the solver then carries as emission)."""
+    return final_gather.emitters_of(scene, FinalGatherSettings(emitter_rays=settings.gather_rays,
+                                                               seed=settings.seed))
+
+
+def shot_emission(scene: Scene, patches: patching.Patches,
+                  emitters: final_gather.Emitters) -> np.ndarray:
+    """(N, 3) the part of `patch_emission` that `emitters` shoot in the first shot, W/m^2: the
+    solver must not carry it a second time."""
+    shot = np.zeros(scene.triangle_count, bool)
+    shot[emitters.index] = True
+    return patch_emission(scene, patches) * shot[patches.parent][:, None]
+
+
 def first_shot(scene: Scene, patches: patching.Patches, occluded, settings: RadiositySettings,
-               scale: float) -> tuple[np.ndarray, np.ndarray]:
-    """Direct irradiance of the scene's lights on every patch, with shadows.
+               scale: float, emitters: final_gather.Emitters | None = None
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """Direct irradiance of the scene's lights, and of `emitters` (`shot_emitters`: exact
+    point-to-polygon factors times the visible share, `final_gather.emitter_irradiance`), on
+    every patch, with shadows.
 
     occluded: the BVH callback (origins, directions, t_min, t_max) -> (R,) bool, or None (no
     shadows). Returns H (N, 3) W/m^2, the mean over n x n midpoint samples of each patch, and
-    boundary (N,) bool: patches with some samples lit and some shadowed by one light.
+    boundary (N,) bool: patches with some samples lit and some shadowed by one light (or by the
+    emitters together).
     """
     count = len(patches)
     irradiance = np.zeros((count, 3))
     boundary = np.zeros(count, bool)
-    if not scene.lights or count == 0:
+    shooting = emitters is not None and len(emitters.triangles) > 0
+    if not (scene.lights or shooting) or count == 0:
         return irradiance, boundary
     n = settings.light_samples_per_side
     points, weights = sample_patches(patches.corners, n, "midpoint")  # (N, S, 3), (N, S)
@@ -273,16 +295,30 @@ def first_shot(scene: Scene, patches: patching.Patches, occluded, settings: Radi
     normals = np.repeat(patches.normals, samples, axis=0)
     offset = RAY_OFFSET_REL * scale
     origins = flat + offset * normals
-    for light in scene.lights:
-        e, vis = shadowed_irradiance(light, flat, normals, origins, occluded,
-                                     settings.area_light_samples_per_side)  # (N S, 3), (N S,)
-        irradiance += np.einsum("ns,nsc->nc", weights, e.reshape(count, samples, 3))
+
+    def add(e: np.ndarray, vis: np.ndarray) -> None:
+        nonlocal boundary
+        irradiance[:] += np.einsum("ns,nsc->nc", weights, e.reshape(count, samples, 3))
         v = vis.reshape(count, samples)
         reached = (e.max(axis=1) > 0.0).reshape(count, samples) | (v < 1.0)
         some_lit = np.any(reached & (v > 0.0), axis=1)
         some_dark = np.any(reached & (v < 1.0), axis=1)
         boundary |= some_lit & some_dark
+
+    for light in scene.lights:
+        add(*shadowed_irradiance(light, flat, normals, origins, occluded,
+                                 settings.area_light_samples_per_side))  # (N S, 3), (N S,)
+    if shooting:
+        share = np.ones(len(flat))
+        e = final_gather.emitter_irradiance(
+            emitters, flat, normals, occluded or _never_occluded, offset,
+            np.random.default_rng(settings.seed + 2), share_out=share)
+        add(e, share)
     return irradiance, boundary
+
+
+def _never_occluded(origins, directions, t_min, t_max) -> np.ndarray:
+    return np.zeros(len(origins), bool)
 
 
 def shadowed_irradiance(light, points: np.ndarray, normals: np.ndarray, origins: np.ndarray,
@@ -508,16 +544,18 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
     def occluded(o, d, t_min, t_max):
         return bvh.occluded(o, d, t_min, t_max)
 
+    emitters = shot_emitters(scene, settings)
     for level in range(levels):
         rho = patch_reflectance(scene, patches)
         emitted = patch_emission(scene, patches)
-        direct, boundary = first_shot(scene, patches, occluded, settings, scale)
-        sources = emitted + rho * direct
+        shot = shot_emission(scene, patches, emitters)
+        direct, boundary = first_shot(scene, patches, occluded, settings, scale, emitters)
+        sources = emitted - shot + rho * direct
         level_stats: dict = {"patches": len(patches), "per_level": patches.level_counts()}
         base = 0.02 + 0.96 * level / levels
         for p in _solve_level(scene, patches, rho, sources, bvh, settings, level_stats):
             yield base + 0.96 / levels * p
-        b = level_stats.pop("_b")
+        b = level_stats.pop("_b") + shot
         corner_b = patching.corner_values(patches, b, settings.smooth_angle, scale)
         stats["levels"].append(level_stats)
         if level == levels - 1:
@@ -532,37 +570,34 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
     stats.update(patches=len(patches), per_level=patches.level_counts(), solver=last["solver"],
                  memory_estimate=last["memory_estimate"], method=settings.method)
     result = _result(scene, patches, b, emitted, rho, direct, corner_b, bvh, settings, scale,
-                     stats, t0)
+                     stats, t0, emitters)
     yield 1.0
     yield result
 
 
 def _result(scene, patches, b, emitted, rho, direct, corner_b, bvh, settings: RadiositySettings,
-            scale: float, stats: dict, t0: float) -> RadiosityResult:
+            scale: float, stats: dict, t0: float, emitters) -> RadiosityResult:
     """The solved scene, with the final gather prepared when the settings ask for it."""
     corner_e = patching.corner_values(patches, emitted, settings.smooth_angle, scale)
-    gather = _prepare_gather(scene, patches, b, emitted, rho, direct, bvh, settings, stats)
+    gather = _prepare_gather(scene, patches, b, emitted, rho, direct, emitters, bvh, settings,
+                             stats)
     stats["seconds"] = time.perf_counter() - t0
     return RadiosityResult(patches=patches, radiosity=b, emitted=emitted, direct=direct,
                            reflectance=rho, corner_b=corner_b, corner_e=corner_e, stats=stats,
                            gather=gather)
 
 
-def _prepare_gather(scene, patches, b, emitted, rho, direct, bvh, settings: RadiositySettings,
-                    stats: dict) -> FinalGather | None:
+def _prepare_gather(scene, patches, b, emitted, rho, direct, emitters, bvh,
+                    settings: RadiositySettings, stats: dict) -> FinalGather | None:
     """The final gather's patch-level half, when the settings ask for it (stats: its figures)."""
     if not settings.final_gather:
         return None
     start = time.perf_counter()
     gather = final_gather.prepare(
-        scene, patches, b, emitted, rho, direct, bvh, settings.smooth_angle,
+        scene, patches, b, emitted, rho, direct, emitters, bvh, settings.smooth_angle,
         settings.area_light_samples_per_side,
-        FinalGatherSettings(
-            emitter_rays=settings.gather_rays, seed=settings.seed,
-            # The solver's own points per patch (ray-cast rows: Gauss; the hierarchy's leaves:
-            # midpoints), so the direct part subtracted matches the one it integrated.
-            patch_samples=settings.samples_per_side,
-            patch_rule="midpoint" if stats.get("solver") == "hierarchical" else "gauss"))
+        FinalGatherSettings(emitter_rays=settings.gather_rays, seed=settings.seed,
+                            patch_samples=settings.samples_per_side))
     stats["final_gather"] = {**gather.stats, "prepare_seconds": time.perf_counter() - start}
     return gather
 
@@ -575,10 +610,13 @@ def _hierarchical(scene, size, bvh, settings, scale, t0, roots, depth, memory: d
     def occluded(o, d, t_min, t_max):
         return bvh.occluded(o, d, t_min, t_max)
 
-    def lamps(leaves):
-        return first_shot(scene, leaves, occluded, settings, scale)
+    emitters = shot_emitters(scene, settings)
 
-    for step in hierarchical_steps(scene, roots, depth, occluded, settings, scale, lamps):
+    def lamps(leaves):
+        return first_shot(scene, leaves, occluded, settings, scale, emitters)
+
+    for step in hierarchical_steps(scene, roots, depth, occluded, settings, scale, lamps,
+                                   emitters.index):
         if isinstance(step, tuple):
             leaves, b, emitted, rho, direct, info = step
         else:
@@ -593,7 +631,7 @@ def _hierarchical(scene, size, bvh, settings, scale, t0, roots, depth, memory: d
                          "converged": bool(level["solver_error"] <= settings.tolerance)}
                         for level in info["per_refinement"]]}
     result = _result(scene, leaves, b, emitted, rho, direct, corner_b, bvh, settings, scale, stats,
-                     t0)
+                     t0, emitters)
     yield 1.0
     yield result
 

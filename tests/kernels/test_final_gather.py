@@ -138,29 +138,37 @@ def test_the_gather_draws_the_shadow_that_coarse_patches_blur():
     assert result.stats["final_gather"]["emitter_triangles"] == 2
 
 
-@pytest.mark.parametrize("max_emitters", [0, 32])
-def test_furnace_through_the_gather_with_and_without_emitters(max_emitters):
-    """A closed box whose walls all emit E = pi L and reflect rho: B = E / (1 - rho) at every
-    receiver, whether the walls' light is gathered per receiver (12 emissive triangles) or, past
-    `max_emitters`, left to the patches (then it all arrives as interpolated 'indirect')."""
-    from classic_bake.kernels.radiosity import first_shot
-
+def grid_box(cells: int) -> np.ndarray:
+    """The unit cube's six faces, inward normals, each cut into cells x cells quads."""
     v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0],
                   [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]], float)
     faces = [[0, 1, 2, 3], [4, 7, 6, 5], [0, 4, 5, 1], [1, 5, 6, 2], [2, 6, 7, 3], [3, 7, 4, 0]]
-    box = np.concatenate([quad(v[f]) for f in faces])  # inward normals
-    scene = build([(box, grey(0.6, emission=1.0))])
+    out = []
+    t = np.linspace(0.0, 1.0, cells + 1)
+    for f in faces:
+        a, b, d = v[f[0]], v[f[1]], v[f[3]]
+        for i in range(cells):
+            for j in range(cells):
+                p = [a + (b - a) * t[i + di] + (d - a) * t[j + dj]
+                     for di, dj in ((0, 0), (1, 0), (1, 1), (0, 1))]
+                out.append(quad(p))
+    return np.concatenate(out)
+
+
+@pytest.mark.parametrize("cells", [1, 3])
+def test_furnace_through_the_gather_with_and_without_shot_emitters(cells):
+    """A closed box whose walls all emit E = pi L and reflect rho: B = E / (1 - rho) at every
+    receiver, whether the walls' light is shot first and gathered per receiver (12 emissive
+    triangles) or, past `max_emitters` (108 triangles), carried by the patches (then it all
+    arrives as interpolated 'indirect')."""
+    scene = build([(grid_box(cells), grey(0.6, emission=1.0))])
     settings = RadiositySettings(patch_budget=60, refine_levels=0, tolerance=1e-6,
-                                 solver="gauss_seidel", final_gather=False)
+                                 solver="gauss_seidel")
     result = solve_radiosity(scene, settings)
-    bvh = BVH.build(scene.triangles)
-    direct, _ = first_shot(scene, result.patches, None, settings, 1.0)
-    gather = fg.prepare(scene, result.patches, result.radiosity, result.emitted,
-                        result.reflectance, direct, bvh, settings.smooth_angle, 4,
-                        fg.FinalGatherSettings(max_emitters=max_emitters))
-    assert gather.stats["emitter_triangles"] == (12 if max_emitters else 0)
+    assert result.stats["final_gather"]["emitter_triangles"] == (12 if cells == 1 else 0)
     rng = np.random.default_rng(2)
-    tri = rng.integers(0, 12, 200)
+    tri = rng.integers(0, scene.triangle_count, 200)
     bary = rng.dirichlet(np.ones(3), 200)
-    b = fg.exitance(gather, result.patches, tri, bary)
-    np.testing.assert_allclose(b, np.pi / (1.0 - 0.6), rtol=0.01)
+    np.testing.assert_allclose(result.exitance_at(tri, bary), np.pi / (1.0 - 0.6), rtol=0.01)
+    # The patches themselves, shot or carried.
+    np.testing.assert_allclose(result.radiosity, np.pi / (1.0 - 0.6), rtol=0.01)
