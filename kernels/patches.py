@@ -31,6 +31,9 @@ WELD_REL = 1e-7
 # A point is inside a patch when its smallest local barycentric coordinate is at least this
 # (negative: rounding slack on shared edges). The best-scoring patch wins anyway.
 INSIDE_EPS = -1e-9
+# `locate`'s grid cells take every patch whose barycentric box comes this close to them, so a
+# point on a shared edge or corner finds all its patches despite rounding.
+CELL_SLACK = 1e-9
 # (point, candidate patch) pairs tested at once by `locate`: bounds its temporaries (~100 MB).
 LOCATE_PAIRS = 1 << 20
 
@@ -156,19 +159,51 @@ def _local_bary(tri2: np.ndarray, p2: np.ndarray) -> np.ndarray:
     return np.stack([1.0 - s - t, s, t], axis=1)
 
 
+def _cell_members(patches: Patches, triangle_count: int) -> tuple[np.ndarray, np.ndarray,
+                                                                    np.ndarray, np.ndarray]:
+    """Patches bucketed by a G x G grid over their parent's barycentric (b1, b2) square, G =
+    ceil(sqrt(patches of the parent)), so a cell meets a few patches whatever the count.
+
+    Returns members (P,) patch indices sorted by cell, cell_start (C + 1,) their ranges, and per
+    parent triangle its grid size G (T,) and first cell (T,)."""
+    per_parent = np.bincount(patches.parent, minlength=triangle_count)
+    grid = np.maximum(1, np.ceil(np.sqrt(per_parent))).astype(np.int64)  # (T,)
+    first_cell = np.concatenate([[0], np.cumsum(grid * grid)])
+    g = grid[patches.parent]  # (N,)
+    uv = patches.bary[:, :, 1:]  # (N, 3, 2): corners' (b1, b2)
+    lo = np.clip(np.floor((uv.min(axis=1) - CELL_SLACK) * g[:, None]), 0, g[:, None] - 1)
+    hi = np.clip(np.floor((uv.max(axis=1) + CELL_SLACK) * g[:, None]), 0, g[:, None] - 1)
+    lo, span = lo.astype(np.int64), (hi - lo).astype(np.int64) + 1  # (N, 2)
+    cells = span[:, 0] * span[:, 1]
+    owner = np.repeat(np.arange(len(patches)), cells)
+    k = np.arange(int(cells.sum())) - np.repeat(np.cumsum(cells) - cells, cells)
+    i = lo[owner, 0] + k // span[owner, 1]
+    j = lo[owner, 1] + k % span[owner, 1]
+    key = first_cell[patches.parent[owner]] + i * g[owner] + j
+    order = np.argsort(key, kind="stable")
+    cell_start = np.searchsorted(key[order], np.arange(first_cell[-1] + 1))
+    return owner[order], cell_start, grid, first_cell[:-1]
+
+
 def locate(patches: Patches, tri: np.ndarray, bary: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The patch holding each point and the point's barycentric coordinates in it.
 
     tri (M,) scene triangles, bary (M, 3) barycentric coordinates in them. Returns patch (M,)
     int64 (-1 where the triangle has no patch: zero area) and local (M, 3) float64.
-    Every patch of the point's triangle is tested (in the parent's barycentric plane); the one
-    whose smallest local coordinate is largest wins, so points on shared edges land once.
+    The patches whose barycentric boxes meet the point's cell of its triangle's grid
+    (`_cell_members`) are tested (in the parent's barycentric plane); the one whose smallest
+    local coordinate is largest wins, so points on shared edges land once.
     """
     tri = np.asarray(tri, np.int64)
     bary = np.asarray(bary, np.float64)
     count = len(tri)
-    start = np.searchsorted(patches.parent, np.arange(int(tri.max(initial=-1)) + 2))
-    first, number = start[tri], start[tri + 1] - start[tri]
+    members, cell_start, grid, first_cell = _cell_members(
+        patches, max(int(tri.max(initial=-1)), int(patches.parent.max(initial=-1))) + 1)
+    g = grid[tri]
+    i = np.clip(np.floor(bary[:, 1] * g), 0, g - 1).astype(np.int64)
+    j = np.clip(np.floor(bary[:, 2] * g), 0, g - 1).astype(np.int64)
+    cell = first_cell[tri] + i * g + j
+    first, number = cell_start[cell], cell_start[cell + 1] - cell_start[cell]
     patch = np.full(count, -1, np.int64)
     local = np.zeros((count, 3))
     has = np.flatnonzero(number > 0)
@@ -183,7 +218,7 @@ def locate(patches: Patches, tri: np.ndarray, bary: np.ndarray) -> tuple[np.ndar
         pts = has[s:e]
         k = per_point[s:e]
         offsets = np.arange(int(k.sum())) - np.repeat(bounds[s:e] - bounds[s], k)
-        cand = np.repeat(first[pts], k) + offsets  # (P,) candidate patches
+        cand = members[np.repeat(first[pts], k) + offsets]  # (P,) candidate patches
         owner = np.repeat(pts, k)  # (P,) point of each pair
         coords = _local_bary(patches.bary[cand][:, :, 1:], bary[owner][:, 1:])
         score = coords.min(axis=1)
