@@ -172,3 +172,20 @@ def test_furnace_through_the_gather_with_and_without_shot_emitters(cells):
     np.testing.assert_allclose(result.exitance_at(tri, bary), np.pi / (1.0 - 0.6), rtol=0.01)
     # The patches themselves, shot or carried.
     np.testing.assert_allclose(result.radiosity, np.pi / (1.0 - 0.6), rtol=0.01)
+
+
+def test_emitter_points_are_uniform_and_stratified_over_the_triangle():
+    """The visibility estimator weighs its points alike, so they must be spread by area: each of
+    the four midpoint sub-triangles (a quarter of the area) gets a quarter of the points, and
+    every point set keeps one point per cell (no two sets of the same cell differ in count)."""
+    tri = np.array([[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    y = fg.stratified_triangle_points(tri, 4000, 4, np.random.default_rng(3))  # (4000, 16, 3)
+    b1, b2 = y[..., 0] / 2.0, y[..., 1]
+    b0 = 1.0 - b1 - b2
+    assert np.all((b0 >= -1e-12) & (b1 >= -1e-12) & (b2 >= -1e-12))
+    corners = [b0 > 0.5, b1 > 0.5, b2 > 0.5]
+    for near in corners:
+        assert near.mean() == pytest.approx(0.25, abs=0.005)
+    # Stratified: every set has exactly 16 / 4 points in the corner sub-triangle of corner 0
+    # (b0 > 0.5 is sqrt(u) < 0.5, the first quarter of the cells' rows: 4 whole cells).
+    assert np.all(corners[0].sum(axis=1) == 4)
