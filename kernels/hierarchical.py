@@ -263,27 +263,31 @@ def solve_links(tree: _Tree, leaves: np.ndarray, p: np.ndarray, q: np.ndarray, f
 
 
 def hierarchical_steps(scene: Scene, roots: patching.Patches, depth: int, occluded, settings,
-                       scale: float, lamp_irradiance, shot_triangles=()) -> Iterator[float | tuple]:
+                       scale: float, lamp_irradiance, emitters=None) -> Iterator[float | tuple]:
     """Build, link, refine, solve. Yields progress, then (leaf Patches, B, emitted, reflectance,
     direct irradiance of the leaves, stats).
 
     roots, depth: `hierarchy_roots` of the scene at the patch size asked for.
 
     occluded: the BVH callback or None; lamp_irradiance(leaf Patches) -> (H (N, 3), shadow
-    boundary (N,) bool), the first shot; shot_triangles: indices of the emissive triangles whose
-    light it includes, so that their emission is not carried again (`radiosity.first_shot`);
-    settings: RadiositySettings (link_epsilon, max_depth, samples_per_side,
-    tolerance, refine_levels, refine_threshold, max_patches, smooth_angle).
+    boundary (N,) bool), the first shot; emitters: the emissive triangles whose light it
+    includes (`radiosity.shot_emitters`), whose emission is not carried again; settings:
+    RadiositySettings (link_epsilon, max_depth, samples_per_side, tolerance, refine_levels,
+    refine_threshold, max_patches, smooth_angle).
 
     Leaves are refined as the matrix solvers refine their patches (`radiosity.refine_mask`: a
     corner value far from the leaf's own B, or a lamp's shadow edge across it), up to
     `refine_levels` times within `max_patches`; every level links and solves afresh.
     """
-    from .radiosity import patch_emission, patch_reflectance, refine_mask, within_budget
+    from .radiosity import (
+        patch_emission,
+        patch_reflectance,
+        refine_mask,
+        shot_emission,
+        within_budget,
+    )
 
     tree = _Tree(scene, roots)
-    shot = np.zeros(scene.triangle_count, bool)
-    shot[np.asarray(shot_triangles, np.int64)] = True
     for _ in range(depth):
         tree.split(np.flatnonzero(tree.child < 0))
     levels = settings.refine_levels + 1
@@ -299,7 +303,7 @@ def hierarchical_steps(scene: Scene, roots: patching.Patches, depth: int, occlud
             level=tree.level[leaves], normals=tree.normals[leaves], areas=tree.areas[leaves],
             object_ids=elements.object_ids[leaves])
         emitted = patch_emission(scene, elements)
-        carried = emitted * ~shot[tree.tri][:, None]
+        shot = shot_emission(scene, elements, emitters) if emitters is not None else 0.0
         rho = patch_reflectance(scene, elements)
         direct = np.zeros((len(tree), 3))
         direct[leaves], boundary = lamp_irradiance(leaf_patches)
@@ -312,9 +316,9 @@ def hierarchical_steps(scene: Scene, roots: patching.Patches, depth: int, occlud
                 yield base + span * 0.9 * step
         p, q, factor, near = links
         b, iterations, change = solve_links(tree, leaves, p, q, factor,
-                                            carried + rho * direct, rho, settings.tolerance,
-                                            MAX_ITERATIONS)
-        b += emitted - carried
+                                            emitted - shot + rho * direct, rho,
+                                            settings.tolerance, MAX_ITERATIONS)
+        b += shot
         per_level.append({"leaves": int(leaves.size), "links": int(len(p)),
                           "near_field_links": int(near.sum()), "iterations": iterations,
                           "solver_error": change})

@@ -10,6 +10,9 @@ Pipeline (`radiosity_steps`):
    lights (`lights.direct_irradiance`) averaged over n x n points of the patch, each point's
    contribution multiplied by its visibility (BVH shadow rays; area lights: the visible fraction
    of a grid of points on the emitter). Area lights are not geometry: they only shoot.
+   Emissive triangles (up to the final gather's `max_emitters`) shoot first too (`first_shot`:
+   exact point-to-polygon factor times the gather's visible share); the solver then carries
+   B - E_shot only, and adds E_shot back, so their light is not counted twice.
 3. Form factors, one row at a time (`form_factors.py`): "raycast" (exact point-to-polygon factor
    times the visible share by BVH shadow rays over the scene's triangles) or "hemicube" (rays
    from hemicubes through a BVH over the patches).
@@ -297,13 +300,12 @@ def first_shot(scene: Scene, patches: patching.Patches, occluded, settings: Radi
     origins = flat + offset * normals
 
     def add(e: np.ndarray, vis: np.ndarray) -> None:
-        nonlocal boundary
         irradiance[:] += np.einsum("ns,nsc->nc", weights, e.reshape(count, samples, 3))
         v = vis.reshape(count, samples)
         reached = (e.max(axis=1) > 0.0).reshape(count, samples) | (v < 1.0)
         some_lit = np.any(reached & (v > 0.0), axis=1)
         some_dark = np.any(reached & (v < 1.0), axis=1)
-        boundary |= some_lit & some_dark
+        boundary[:] |= some_lit & some_dark
 
     for light in scene.lights:
         add(*shadowed_irradiance(light, flat, normals, origins, occluded,
@@ -616,7 +618,7 @@ def _hierarchical(scene, size, bvh, settings, scale, t0, roots, depth, memory: d
         return first_shot(scene, leaves, occluded, settings, scale, emitters)
 
     for step in hierarchical_steps(scene, roots, depth, occluded, settings, scale, lamps,
-                                   emitters.index):
+                                   emitters):
         if isinstance(step, tuple):
             leaves, b, emitted, rho, direct, info = step
         else:
