@@ -260,8 +260,13 @@ def shot_emitters(scene: Scene, settings: RadiositySettings) -> final_gather.Emi
     """The emissive triangles that shoot their light first, as lamps do (`first_shot`): the ones
     the final gather reads per receiver (`final_gather.emitters_of`; none past its
     `max_emitters`, whose light the solver then carries as emission)."""
-    return final_gather.emitters_of(scene, FinalGatherSettings(emitter_rays=settings.gather_rays,
-                                                               seed=settings.seed))
+    return final_gather.emitters_of(scene, gather_settings(settings))
+
+
+def gather_settings(settings: RadiositySettings) -> FinalGatherSettings:
+    """The final gather's settings, and the shot emitters', from the radiosity settings."""
+    return FinalGatherSettings(emitter_rays=settings.gather_rays, seed=settings.seed,
+                               patch_samples=settings.samples_per_side)
 
 
 def shot_emission(scene: Scene, patches: patching.Patches,
@@ -597,9 +602,7 @@ def _prepare_gather(scene, patches, b, emitted, rho, direct, emitters, bvh,
     start = time.perf_counter()
     gather = final_gather.prepare(
         scene, patches, b, emitted, rho, direct, emitters, bvh, settings.smooth_angle,
-        settings.area_light_samples_per_side,
-        FinalGatherSettings(emitter_rays=settings.gather_rays, seed=settings.seed,
-                            patch_samples=settings.samples_per_side))
+        settings.area_light_samples_per_side, gather_settings(settings))
     stats["final_gather"] = {**gather.stats, "prepare_seconds": time.perf_counter() - start}
     return gather
 
