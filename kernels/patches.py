@@ -17,6 +17,7 @@ a point (`locate`). Discontinuities stay where objects meet or where surfaces fo
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -61,6 +62,12 @@ class Patches:
 
     def __len__(self) -> int:
         return int(self.parent.shape[0])
+
+    @cached_property
+    def cells(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """`_cell_members` over the parents, built once per patch set (`locate` runs per chunk
+        of receivers)."""
+        return _cell_members(self, int(self.parent.max(initial=-1)) + 1)
 
     def level_counts(self) -> dict[int, int]:
         """{refinement level: patch count}."""
@@ -197,13 +204,14 @@ def locate(patches: Patches, tri: np.ndarray, bary: np.ndarray) -> tuple[np.ndar
     tri = np.asarray(tri, np.int64)
     bary = np.asarray(bary, np.float64)
     count = len(tri)
-    members, cell_start, grid, first_cell = _cell_members(
-        patches, max(int(tri.max(initial=-1)), int(patches.parent.max(initial=-1))) + 1)
-    g = grid[tri]
+    members, cell_start, grid, first_cell = patches.cells
+    known = tri < len(grid)  # triangles past the last parent have no patch
+    t = np.where(known, tri, 0)
+    g = grid[t]
     i = np.clip(np.floor(bary[:, 1] * g), 0, g - 1).astype(np.int64)
     j = np.clip(np.floor(bary[:, 2] * g), 0, g - 1).astype(np.int64)
-    cell = first_cell[tri] + i * g + j
-    first, number = cell_start[cell], cell_start[cell + 1] - cell_start[cell]
+    cell = first_cell[t] + i * g + j
+    first, number = cell_start[cell], np.where(known, cell_start[cell + 1] - cell_start[cell], 0)
     patch = np.full(count, -1, np.int64)
     local = np.zeros((count, 3))
     has = np.flatnonzero(number > 0)
