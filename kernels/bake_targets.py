@@ -1,9 +1,18 @@
 """Where a bake is evaluated: lightmap texel centres and mesh corners, as world points and normals.
 
-A lightmap texel (i, j) (row 0 at the top) is baked at its centre u = (j + 0.5) / W,
-v = 1 - (i + 0.5) / H, on the triangle whose lightmap-UV footprint covers that centre — as Cycles
-bakes. Texels no triangle covers are "unbaked": `dilate` fills the padding ring around the charts
-from their baked neighbours so bilinear lookups at chart edges never read black.
+A lightmap texel (i, j) (row 0 at the top) belongs to the triangle whose lightmap-UV footprint
+covers its centre u = (j + 0.5) / W, v = 1 - (i + 0.5) / H, and is baked there. Texels no triangle
+covers are "unbaked": `dilate` fills the padding ring around the charts from their baked
+neighbours so bilinear lookups at chart edges never read black.
+
+Texel filter. Cycles takes a bake's first sample at the texel centre and jitters every later one
+uniformly over the texel, retrying until it lands inside the texel's own triangle (its
+`bake_jitter_barycentric`): a converged Cycles texel is the mean over texel ∩ triangle, a box
+filter. Where the baked function is linear across a texel that mean is the centre value; where it
+jumps (a block standing on the floor, a hard shadow edge) the centre alone is off by the whole
+step: 0 against Cycles' half-lit 0.15 in a texel the block's edge crosses. `box_filter` finds those
+texels from the centre values (a second difference along a row or column of the image, relative
+to the texels' level) and replaces each by the mean over k x k sub-texel points of its triangle.
 Finding the covering triangle is rasterisation in UV space: the lightmap is an orthographic image
 of the UV triangles, drawn by `raster.py` with its top-left rule (no texel claimed twice).
 """
@@ -20,6 +29,30 @@ from .scene import Scene, geometric_normals
 # Barycentric coordinates are clamped to [0, 1] after solving: texel centres on a shared edge may
 # land a rounding error outside the triangle the rasteriser gave them to.
 BARY_CLAMP = (0.0, 1.0)
+# Texels darker than this fraction of the object's brightest are compared as if this bright: their
+# differences do not show, and relative to their own level they would flag every bit of noise.
+EDGE_FLOOR_REL = 1e-3
+
+
+@dataclass(frozen=True)
+class TexelFilterSettings:
+    """| field            | range | default | meaning                                          |
+    |------------------|-------|---------|--------------------------------------------------|
+    | samples_per_side | >= 1  | 2       | k x k sub-texel points averaged in an edge texel |
+    |                  |       |         | (1: centre values only, no filter)               |
+    | edge_threshold   | > 0   | 0.5     | |left + right - 2 centre| over the three texels' |
+    |                  |       |         | mean (or |neighbour - centre| over the two's     |
+    |                  |       |         | mean at a chart border) that marks an edge texel |
+    """
+
+    # Measured on the Cornell box's lightmaps (600 patches, bench/radiosity.py's texels): relMSE
+    # 0.0032 unfiltered; 0.0024 with 2 x 2 points, 0.0023 with 3 x 3 at 1.6x their extra seconds.
+    samples_per_side: int = 2
+    edge_threshold: float = 0.5
+
+    def __post_init__(self) -> None:
+        if self.samples_per_side < 1 or not self.edge_threshold > 0.0:
+            raise ValueError("samples_per_side must be >= 1 and edge_threshold > 0")
 
 
 @dataclass(frozen=True, eq=False)
@@ -76,6 +109,84 @@ def lightmap_targets(scene: Scene, object_index: int, resolution: int) -> BakeTa
     centre = np.stack([(cols + 0.5) / resolution, 1.0 - (rows + 0.5) / resolution], 1)
     bary = _barycentric_2d(uv[tri_local], centre)
     return _targets(scene, sl.start + tri_local, bary, mask=mask, rows=rows, cols=cols)
+
+
+def edge_texels(targets: BakeTargets, values: np.ndarray, threshold: float) -> np.ndarray:
+    """(N,) bool: texels of lightmap `targets` whose centre value (N, C) or (N,) departs from a
+    straight line through their neighbours along a row or a column (`TexelFilterSettings`)."""
+    level = np.asarray(values, np.float64).reshape(len(targets), -1).mean(axis=1)
+    image = np.zeros(targets.mask.shape)
+    image[targets.rows, targets.cols] = level
+    floor = EDGE_FLOOR_REL * max(float(level.max(initial=0.0)), 1e-300)
+    mask = targets.mask
+    edge = np.zeros_like(mask)
+    for axis in (0, 1):
+        before, after = _shifted(image, 1, axis), _shifted(image, -1, axis)
+        has_before, has_after = _shifted(mask, 1, axis), _shifted(mask, -1, axis)
+        both = mask & has_before & has_after
+        mean3 = np.maximum((before + after + image) / 3.0, floor)
+        edge |= both & (np.abs(before + after - 2.0 * image) > threshold * mean3)
+        for other, has in ((before, has_before), (after, has_after)):
+            one = mask & has & ~both
+            edge |= one & (np.abs(other - image) > threshold * np.maximum((other + image) / 2.0, floor))
+    return edge[targets.rows, targets.cols]
+
+
+def _shifted(a: np.ndarray, step: int, axis: int) -> np.ndarray:
+    """a[i - step] along `axis` (2-D), zero (False) where that falls outside the image."""
+    out = np.zeros_like(a)
+    size = a.shape[axis]
+    src, dst = [slice(None)] * 2, [slice(None)] * 2
+    src[axis] = slice(max(-step, 0), size - max(step, 0))
+    dst[axis] = slice(max(step, 0), size - max(-step, 0))
+    out[tuple(dst)] = a[tuple(src)]
+    return out
+
+
+def subtexel_points(scene: Scene, targets: BakeTargets, which: np.ndarray, k: int
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """k x k stratified points over each lightmap texel `which` (M,) indexes, kept where they lie
+    in the texel's own triangle (as Cycles keeps its jittered samples). Returns owner (P,) int64
+    positions into `which`, triangles (P,) int64 and barycentrics (P, 3) float64."""
+    height, width = targets.mask.shape
+    tri = targets.triangles[which]
+    uv = scene.lightmap_uv[tri].astype(np.float64)  # (M, 3, 2)
+    offset = (np.arange(k) + 0.5) / k  # within the texel, 0..1 from its top-left corner
+    du, dv = np.meshgrid(offset, offset)
+    u = (targets.cols[which][:, None] + du.ravel()) / width  # (M, k^2)
+    v = 1.0 - (targets.rows[which][:, None] + dv.ravel()) / height
+    a = uv[:, None, 0]
+    e1, e2 = uv[:, None, 1] - a, uv[:, None, 2] - a  # (M, 1, 2)
+    pu, pv = u - a[..., 0], v - a[..., 1]
+    det = e1[..., 0] * e2[..., 1] - e1[..., 1] * e2[..., 0]
+    safe = np.where(det != 0.0, det, 1.0)
+    b1 = (pu * e2[..., 1] - pv * e2[..., 0]) / safe
+    b2 = (e1[..., 0] * pv - e1[..., 1] * pu) / safe
+    bary = np.stack([1.0 - b1 - b2, b1, b2], axis=-1)  # (M, k^2, 3)
+    inside = (bary >= 0.0).all(axis=-1) & (det != 0.0)
+    owner = np.broadcast_to(np.arange(len(which))[:, None], inside.shape)[inside]
+    return owner.astype(np.int64), tri[owner], bary[inside]
+
+
+def box_filter(scene: Scene, targets: BakeTargets, values: np.ndarray, evaluate,
+               settings: TexelFilterSettings = TexelFilterSettings()  # noqa: B008
+               ) -> tuple[np.ndarray, int]:
+    """Centre values (N, C) of lightmap `targets` with every edge texel (`edge_texels`) replaced by
+    its mean over texel ∩ triangle (module docstring). evaluate(triangles (P,), bary (P, 3)) ->
+    (P, C) is the bake itself. Returns the values and how many texels were filtered."""
+    values = np.array(values, copy=True)
+    if settings.samples_per_side <= 1 or len(targets) == 0:
+        return values, 0
+    which = np.flatnonzero(edge_texels(targets, values, settings.edge_threshold))
+    if which.size == 0:
+        return values, 0
+    owner, tri, bary = subtexel_points(scene, targets, which, settings.samples_per_side)
+    sums = np.zeros((len(which),) + values.shape[1:])
+    np.add.at(sums, owner, evaluate(tri, bary))
+    counts = np.bincount(owner, minlength=len(which))
+    got = counts > 0  # a triangle thinner than the sub-texel spacing keeps its centre value
+    values[which[got]] = sums[got] / counts[got].reshape((-1,) + (1,) * (values.ndim - 1))
+    return values, int(got.sum())
 
 
 def corner_targets(scene: Scene, object_index: int) -> BakeTargets:

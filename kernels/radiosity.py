@@ -51,6 +51,7 @@ import numpy as np
 from . import final_gather
 from . import lights as light_units
 from . import patches as patching
+from .bake_targets import TexelFilterSettings
 from .final_gather import FinalGather, FinalGatherSettings
 from .form_factors import (
     RAY_OFFSET_REL,
@@ -660,26 +661,31 @@ class ObjectRadiosityBake:
     lightmap: np.ndarray | None  # (S, S, 3) float32, row 0 top, dilated over the padding
     lightmap_mask: np.ndarray | None  # (S, S) bool: texels baked (before dilation)
     corners: np.ndarray  # (T * 3, 3) float32, per triangle corner, scene corner order
+    filtered_texels: int = 0  # lightmap texels averaged over sub-texel points (edges)
 
 
-def bake_steps(scene: Scene, result: RadiosityResult, objects, lightmap_sizes: dict, padding: int
+def bake_steps(scene: Scene, result: RadiosityResult, objects, lightmap_sizes: dict, padding: int,
+               texel_filter: TexelFilterSettings = TexelFilterSettings()  # noqa: B008
                ) -> Iterator[float | dict]:
     """Radiance B / pi of `objects` (indices into scene.objects) on their lightmap texels (when
-    the scene carries lightmap UVs; sizes {object index: texels per side}) and corners. Yields
-    progress, then {object index: ObjectRadiosityBake}."""
-    from .bake_targets import corner_targets, dilate, lightmap_targets
+    the scene carries lightmap UVs; sizes {object index: texels per side}), box-filtered over the
+    texels an edge crosses as Cycles' bake filters them (`bake_targets.box_filter`), and at their
+    corners. Yields progress, then {object index: ObjectRadiosityBake}."""
+    from .bake_targets import box_filter, corner_targets, dilate, lightmap_targets
 
     out = {}
     for n, k in enumerate(objects):
         lightmap = mask = None
+        filtered = 0
         if scene.lightmap_uv is not None and scene.objects[k].has_lightmap_uv:
             targets = lightmap_targets(scene, k, lightmap_sizes[k])
             values = result.radiance_at(targets.triangles, targets.bary)
+            values, filtered = box_filter(scene, targets, values, result.radiance_at, texel_filter)
             mask = targets.mask
             lightmap = dilate(targets.to_image(values), mask, padding)
         corners = corner_targets(scene, k)
         values = result.radiance_at(corners.triangles, np.tile(np.eye(3), (len(corners) // 3, 1)))
-        out[k] = ObjectRadiosityBake(lightmap, mask, values.astype(np.float32))
+        out[k] = ObjectRadiosityBake(lightmap, mask, values.astype(np.float32), filtered)
         yield (n + 1) / max(len(objects), 1)
     yield out
 

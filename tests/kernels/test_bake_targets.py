@@ -1,0 +1,93 @@
+"""The texel filter of lightmap bakes (kernels/bake_targets.py: `box_filter`), checked against the
+exact box-filtered mean of functions with a known integral over each texel."""
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from scene_builder import build, quad
+
+from classic_bake.kernels.bake_targets import (
+    TexelFilterSettings,
+    box_filter,
+    edge_texels,
+    lightmap_targets,
+    subtexel_points,
+)
+from classic_bake.kernels.scene import Material
+
+WHITE = Material(name="white", base_color=np.full(3, 0.8, np.float32), specular=0.0)
+SIZE = 32
+
+
+def ground(size=4.0):
+    """A ground quad whose lightmap UVs map [-size/2, size/2]^2 onto [0.1, 0.9]^2."""
+    h = size / 2
+    scene = build([(quad([(-h, -h, 0), (h, -h, 0), (h, h, 0), (-h, h, 0)]), WHITE)])
+    lm = 0.1 + 0.8 * (scene.triangles[:, :, :2].astype(np.float64) + h) / size
+    return replace(scene, lightmap_uv=lm.astype(np.float32))
+
+
+def points_of(scene, tri, bary):
+    return np.einsum("nk,nkc->nc", bary, scene.triangles[tri].astype(np.float64))
+
+
+def texel_x_range(targets, size=4.0):
+    """World x of each texel's left and right edges (the UV map is x -> 0.1 + 0.8 (x + 2) / 4)."""
+    u0 = targets.cols / SIZE
+    to_x = lambda u: (u - 0.1) / 0.8 * size - size / 2  # noqa: E731
+    return to_x(u0), to_x(u0 + 1.0 / SIZE)
+
+
+def test_subtexel_points_lie_in_their_texel_and_triangle():
+    scene = ground()
+    t = lightmap_targets(scene, 0, SIZE)
+    which = np.arange(len(t))
+    owner, tri, bary = subtexel_points(scene, t, which, 3)
+    assert (bary >= 0).all() and np.allclose(bary.sum(1), 1)
+    np.testing.assert_array_equal(tri, t.triangles[which][owner])
+    uv = np.einsum("nk,nkc->nc", bary, scene.lightmap_uv[tri].astype(np.float64))
+    col, row = uv[:, 0] * SIZE, (1 - uv[:, 1]) * SIZE
+    assert np.all(np.floor(col + 1e-9) == t.cols[owner]) and np.all(np.floor(row + 1e-9) == t.rows[owner])
+    # Inner texels keep all 9 points; texels on the quad's diagonal split theirs between the two
+    # triangles, each keeping only the points on its own side.
+    counts = np.bincount(owner, minlength=len(which))
+    assert counts.max() == 9 and 0 < counts.min()
+
+
+@pytest.mark.parametrize("k", [2, 4])
+def test_a_step_is_box_filtered_to_the_covered_fraction(k):
+    scene = ground()
+    t = lightmap_targets(scene, 0, SIZE)
+    edge_x = 0.375  # 40% into a texel 0.15625 m wide: on no texel or sub-texel boundary
+
+    def lit(tri, bary):  # 1 left of the edge, 0 right of it
+        return (points_of(scene, tri, bary)[:, 0] < edge_x).astype(np.float64)[:, None]
+
+    centre = lit(t.triangles, t.bary)
+    values, filtered = box_filter(scene, t, centre, lit, TexelFilterSettings(k, 0.5))
+    left, right = texel_x_range(t)
+    exact = np.clip((edge_x - left) / (right - left), 0.0, 1.0)  # the texel's lit fraction
+    crossed = (left < edge_x) & (edge_x < right)
+    assert filtered >= crossed.sum()
+    # Stratified points in k columns: the covered fraction to within half a column.
+    np.testing.assert_allclose(values[crossed, 0], exact[crossed], atol=0.5 / k + 1e-9)
+    assert np.abs(centre[crossed, 0] - exact[crossed]).max() > 0.5 / k  # the centre alone is off
+    np.testing.assert_array_equal(values[~crossed], centre[~crossed])  # far from it: untouched
+
+
+def test_a_linear_ramp_has_no_edge_texels():
+    scene = ground()
+    t = lightmap_targets(scene, 0, SIZE)
+    ramp = 1.0 + 0.2 * t.points[:, :1] + 0.1 * t.points[:, 1:2]  # box filter = centre value
+    assert not edge_texels(t, ramp, 0.5).any()
+    values, filtered = box_filter(scene, t, ramp, lambda tri, bary: 1 / 0, TexelFilterSettings())
+    assert filtered == 0
+    np.testing.assert_array_equal(values, ramp)
+
+
+def test_texel_filter_settings_refuse_nonsense():
+    with pytest.raises(ValueError):
+        TexelFilterSettings(samples_per_side=0)
+    with pytest.raises(ValueError):
+        TexelFilterSettings(edge_threshold=0.0)
