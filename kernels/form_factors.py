@@ -223,6 +223,8 @@ def sample_patches(
     """
     v = _as_corners(corners)
     count, k = v.shape[:2]
+    if k == 3 and rule == "midpoint":
+        return triangle_midpoints(v, n * cells)
     if k == 3:
         quads = np.concatenate([v, v[:, 2:3]], axis=1)[:, None]  # (N, 1, 4, 3)
     elif k == 4:
@@ -257,6 +259,21 @@ def sample_patches(
     jac = np.linalg.norm(np.cross(du, dv), axis=-1) * np.outer(grid_w, grid_w).ravel()
     jac = jac.reshape(count, -1)
     return points.reshape(count, -1, 3), jac / jac.sum(axis=1, keepdims=True)
+
+
+def triangle_midpoints(triangles: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
+    """The centroids of the m^2 equal triangles that cutting each side of each triangle (N, 3, 3)
+    into m makes, weights 1 / m^2: points (N, m^2, 3), weights (N, m^2). Exact for linear
+    functions at any m (m = 1: the centroid), unlike the bilinear square folded onto a triangle,
+    whose cell centres crowd toward the repeated corner."""
+    i, j = np.meshgrid(np.arange(m), np.arange(m), indexing="ij")
+    up = (i + j <= m - 1).ravel()
+    down = (i + j <= m - 2).ravel()
+    a = np.concatenate([i.ravel()[up] + 1.0 / 3.0, i.ravel()[down] + 2.0 / 3.0]) / m
+    b = np.concatenate([j.ravel()[up] + 1.0 / 3.0, j.ravel()[down] + 2.0 / 3.0]) / m
+    bary = np.stack([1.0 - a - b, a, b], axis=1)  # (m^2, 3) weights of corners 0, 1, 2
+    points = np.einsum("sk,nkc->nsc", bary, triangles)
+    return points, np.full(points.shape[:2], 1.0 / (m * m))
 
 
 def tangent_frames(normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

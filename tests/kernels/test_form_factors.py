@@ -484,3 +484,26 @@ def test_settings_are_validated():
         ff.patch_geometry(np.zeros((1, 4, 3)))
     with pytest.raises(ValueError):
         ff.sample_patches(unit_floor()[None], 2, "sobol")
+
+
+@pytest.mark.parametrize("m", [1, 2, 3, 5])
+def test_triangle_midpoints_integrate_linear_functions_exactly(m):
+    rng = np.random.default_rng(m)
+    tri = rng.normal(size=(4, 3, 3))
+    points, weights = ff.sample_patches(tri, m, "midpoint")
+    assert points.shape == (4, m * m, 3)
+    np.testing.assert_allclose(weights, 1.0 / (m * m))
+    # The mean of a linear function over a triangle is its value at the centroid.
+    coef = rng.normal(size=3)
+    np.testing.assert_allclose(np.einsum("ns,ns->n", weights, points @ coef),
+                               tri.mean(axis=1) @ coef, rtol=1e-12, atol=1e-12)
+    if m == 1:
+        np.testing.assert_allclose(points[:, 0], tri.mean(axis=1), atol=1e-15)
+    # Every point strictly inside its triangle, no two alike.
+    e1, e2 = (tri[:, 1] - tri[:, 0])[:, None], (tri[:, 2] - tri[:, 0])[:, None]
+    nrm = np.cross(e1, e2)
+    d = points - tri[:, None, 0]
+    b1 = np.einsum("nsc,nsc->ns", np.cross(d, e2), nrm) / np.einsum("nsc,nsc->ns", nrm, nrm)
+    b2 = np.einsum("nsc,nsc->ns", np.cross(e1, d), nrm) / np.einsum("nsc,nsc->ns", nrm, nrm)
+    assert (b1 > 0).all() and (b2 > 0).all() and (b1 + b2 < 1).all()
+    assert len(np.unique(np.round(points[0], 12), axis=0)) == m * m
