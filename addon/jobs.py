@@ -189,5 +189,6 @@ def radiosity_bake_job(context, settings, uv_name: str, uv_settings, attribute: 
     # --- write back: everything computed ---------------------------------------------------------
     summary = _write_back(scene, bakes, attribute, image_prefix, image, "Classic Bake Radiosity",
                           wire=wire)
-    summary.update(result=result, lightmap_sizes=plan)
+    summary.update(result=result, lightmap_sizes=plan,
+                   filtered_texels=sum(b.filtered_texels for b in bakes.values()))
     yield summary

@@ -155,15 +155,9 @@ def subtexel_points(scene: Scene, targets: BakeTargets, which: np.ndarray, k: in
     du, dv = np.meshgrid(offset, offset)
     u = (targets.cols[which][:, None] + du.ravel()) / width  # (M, k^2)
     v = 1.0 - (targets.rows[which][:, None] + dv.ravel()) / height
-    a = uv[:, None, 0]
-    e1, e2 = uv[:, None, 1] - a, uv[:, None, 2] - a  # (M, 1, 2)
-    pu, pv = u - a[..., 0], v - a[..., 1]
-    det = e1[..., 0] * e2[..., 1] - e1[..., 1] * e2[..., 0]
-    safe = np.where(det != 0.0, det, 1.0)
-    b1 = (pu * e2[..., 1] - pv * e2[..., 0]) / safe
-    b2 = (e1[..., 0] * pv - e1[..., 1] * pu) / safe
-    bary = np.stack([1.0 - b1 - b2, b1, b2], axis=-1)  # (M, k^2, 3)
-    inside = (bary >= 0.0).all(axis=-1) & (det != 0.0)
+    points = np.stack([u, v], axis=-1).reshape(-1, 2)
+    bary = _barycentric_2d(np.repeat(uv, k * k, axis=0), points, clamp=False).reshape(-1, k * k, 3)
+    inside = (bary >= 0.0).all(axis=-1)
     owner = np.broadcast_to(np.arange(len(which))[:, None], inside.shape)[inside]
     return owner.astype(np.int64), tri[owner], bary[inside]
 
@@ -198,8 +192,10 @@ def corner_targets(scene: Scene, object_index: int) -> BakeTargets:
     return _targets(scene, tri, bary, corner_index=corners)
 
 
-def _barycentric_2d(tri: np.ndarray, p: np.ndarray) -> np.ndarray:
-    """Barycentric weights (N, 3) of 2-D points p (N, 2) in triangles (N, 3, 2)."""
+def _barycentric_2d(tri: np.ndarray, p: np.ndarray, clamp: bool = True) -> np.ndarray:
+    """Barycentric weights (N, 3) of 2-D points p (N, 2) in triangles (N, 3, 2); clamped into the
+    triangle (BARY_CLAMP) unless `clamp` is False. Degenerate triangles: their centroid (clamped)
+    or NaN (unclamped, which no `>= 0` test accepts)."""
     a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
     v0, v1, v2 = b - a, c - a, p - a
     d00 = np.einsum("ij,ij->i", v0, v0)
@@ -209,8 +205,11 @@ def _barycentric_2d(tri: np.ndarray, p: np.ndarray) -> np.ndarray:
     d21 = np.einsum("ij,ij->i", v2, v1)
     denom = d00 * d11 - d01 * d01
     safe = np.where(np.abs(denom) > 0, denom, 1.0)
-    v = np.where(np.abs(denom) > 0, (d11 * d20 - d01 * d21) / safe, 1.0 / 3.0)
-    w = np.where(np.abs(denom) > 0, (d00 * d21 - d01 * d20) / safe, 1.0 / 3.0)
+    fallback = 1.0 / 3.0 if clamp else np.nan
+    v = np.where(np.abs(denom) > 0, (d11 * d20 - d01 * d21) / safe, fallback)
+    w = np.where(np.abs(denom) > 0, (d00 * d21 - d01 * d20) / safe, fallback)
+    if not clamp:
+        return np.stack([1.0 - v - w, v, w], 1)
     bary = np.clip(np.stack([1.0 - v - w, v, w], 1), *BARY_CLAMP)
     return bary / bary.sum(1, keepdims=True)
 

@@ -98,6 +98,7 @@ def run(ctx: RunContext) -> None:
         "refinement_levels": len(stats["levels"]) - 1,
         "triangles": scene.triangle_count, "lights": len(scene.lights),
         "baked_texels": int(sum(int(m.sum()) for _, m in summary["lightmaps"].values())),
+        "filtered_texels": int(summary["filtered_texels"]),  # averaged over sub-texel points
         "memory_estimate_bytes": stats["memory_estimate"]["total"],
     }
     ctx.record.extra["radiosity"] = {
