@@ -42,7 +42,13 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from . import patches as patching
-from .form_factors import RAY_OFFSET_REL, point_to_polygon, sample_patches, tangent_frames
+from .form_factors import (
+    RAY_OFFSET_REL,
+    pair_kernel,
+    point_to_polygon,
+    sample_patches,
+    tangent_frames,
+)
 from .metrics import REC709_LUMINANCE
 from .scene import Scene, geometric_normals, triangle_areas, triangle_emission
 
@@ -137,12 +143,7 @@ def _kernel_sums(points: np.ndarray, normals: np.ndarray, poly: np.ndarray, nj: 
     """(seen, total) (m,): sums of the point-to-point kernel k_s over n x n stratified points s of
     triangle `poly` (normal nj), over the visible ones and over all, for each receiver."""
     y = stratified_triangle_points(poly, len(points), n, rng)
-    between = y - points[:, None, :]  # (m, S, 3)
-    dist2 = np.einsum("msc,msc->ms", between, between)
-    cos_x = np.einsum("msc,mc->ms", between, normals)
-    cos_y = -(between @ nj)
-    kernel = np.where((cos_x > 0.0) & (cos_y > 0.0),
-                      cos_x * cos_y / np.maximum(dist2 * dist2, 1e-300), 0.0)
+    kernel = pair_kernel(y - points[:, None, :], normals[:, None, :], nj)  # (m, S)
     rays = kernel > 0.0
     seen = kernel.copy()
     if rays.any():

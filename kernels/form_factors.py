@@ -872,6 +872,16 @@ def raycast_gather_steps(points, normals, weights, corners, corner_normals, trac
     return unoccluded, visible
 
 
+def pair_kernel(between: np.ndarray, nx: np.ndarray, ny: np.ndarray) -> np.ndarray:
+    """(...) the point-to-point kernel cos_x cos_y / d^2 of point pairs `between` (..., 3) = y - x
+    apart (m), unit normals nx at x and ny at y broadcastable to it; 0 where either faces away."""
+    dist2 = np.einsum("...c,...c->...", between, between)
+    cos_x = np.einsum("...c,...c->...", between, nx)  # times d: d^4 below divides both out
+    cos_y = -np.einsum("...c,...c->...", between, ny)
+    return np.where((cos_x > 0.0) & (cos_y > 0.0),
+                    cos_x * cos_y / np.maximum(dist2 * dist2, np.finfo(np.float64).tiny), 0.0)
+
+
 def _visible_fraction_steps(x, nx, y, wy, nj, ray_offset: float) -> RayRequests:
     """Generator asking for its shadow rays (see `RayRequest`); returns the (S, J) kernel-weighted
     visible fraction of J polygons from S points x (normals nx); y (J, M, 3), wy (J, M): the

@@ -39,7 +39,7 @@ from collections.abc import Iterator
 import numpy as np
 
 from . import patches as patching
-from .form_factors import RAY_OFFSET_REL, answer_rays, point_to_polygon, sample_patches
+from .form_factors import RAY_OFFSET_REL, answer_rays, pair_kernel, point_to_polygon, sample_patches
 from .scene import Scene, geometric_normals, triangle_areas
 
 # Links whose factors are evaluated at once: bounds point_to_polygon's (L, S, K, 3) temporaries.
@@ -199,12 +199,8 @@ def _visible_share_steps(tree: _Tree, p: np.ndarray, q: np.ndarray, side: int,
     pick = (np.arange(count)[None, :] + shift[:, None]) % count  # (L, S): each point's target
     targets = np.take_along_axis(targets, pick[:, :, None], axis=1)
     target_weights = np.take_along_axis(target_weights, pick, axis=1)
-    between = targets - points  # (L, S, 3)
-    dist2 = np.maximum(np.einsum("lsc,lsc->ls", between, between), np.finfo(np.float64).tiny)
-    cos_x = np.einsum("lsc,lc->ls", between, tree.normals[p])
-    cos_y = -np.einsum("lsc,lc->ls", between, tree.normals[q])
-    kernel = np.where((cos_x > 0.0) & (cos_y > 0.0), cos_x * cos_y / (dist2 * dist2), 0.0)
-    kernel *= weights * target_weights
+    kernel = pair_kernel(targets - points, tree.normals[p][:, None, :], tree.normals[q][:, None, :])
+    kernel *= weights * target_weights  # (L, S)
     start = points + ray_offset * tree.normals[p][:, None, :]
     seg = (targets + ray_offset * tree.normals[q][:, None, :] - start).reshape(-1, 3)
     length = np.sqrt(np.einsum("ij,ij->i", seg, seg))
