@@ -162,25 +162,64 @@ def subtexel_points(scene: Scene, targets: BakeTargets, which: np.ndarray, k: in
     return owner.astype(np.int64), tri[owner], bary[inside]
 
 
+@dataclass(frozen=True, eq=False)
+class FilterSamples:
+    """The sub-texel points of a lightmap's edge texels (`filter_samples`).
+
+    which      (M,) int64    edge texels, positions into the targets
+    owner      (P,) int64    each point's position into `which`
+    triangles  (P,) int64    scene triangle of each point
+    bary       (P, 3)        barycentric weights of each point in its triangle
+    """
+
+    which: np.ndarray
+    owner: np.ndarray
+    triangles: np.ndarray
+    bary: np.ndarray
+
+
+def filter_samples(scene: Scene, targets: BakeTargets, values: np.ndarray,
+                   settings: TexelFilterSettings = TexelFilterSettings()  # noqa: B008
+                   ) -> FilterSamples:
+    """Where `box_filter` evaluates the bake again for lightmap `targets` with centre values
+    (N, C): k x k points in every edge texel (`edge_texels`), none when k = 1."""
+    none = np.zeros(0, np.int64)
+    if settings.samples_per_side <= 1 or len(targets) == 0:
+        return FilterSamples(none, none, none, np.zeros((0, 3)))
+    which = np.flatnonzero(edge_texels(targets, values, settings.edge_threshold))
+    if which.size == 0:
+        return FilterSamples(which, none, none, np.zeros((0, 3)))
+    return FilterSamples(which, *subtexel_points(scene, targets, which, settings.samples_per_side))
+
+
+def apply_box_filter(values: np.ndarray, samples: FilterSamples, sampled: np.ndarray
+                     ) -> tuple[np.ndarray, int]:
+    """Centre values (N, C) with each edge texel replaced by the mean of the bake at its points,
+    sampled (P, C). Returns the values and how many texels were replaced."""
+    values = np.array(values, copy=True)
+    if samples.which.size == 0:
+        return values, 0
+    which = samples.which
+    sums = np.zeros((len(which),) + values.shape[1:])
+    np.add.at(sums, samples.owner, sampled)
+    counts = np.bincount(samples.owner, minlength=len(which))
+    got = counts > 0  # a triangle thinner than the sub-texel spacing keeps its centre value
+    values[which[got]] = sums[got] / counts[got].reshape((-1,) + (1,) * (values.ndim - 1))
+    return values, int(got.sum())
+
+
 def box_filter(scene: Scene, targets: BakeTargets, values: np.ndarray, evaluate,
                settings: TexelFilterSettings = TexelFilterSettings()  # noqa: B008
                ) -> tuple[np.ndarray, int]:
     """Centre values (N, C) of lightmap `targets` with every edge texel (`edge_texels`) replaced by
     its mean over texel ∩ triangle (module docstring). evaluate(triangles (P,), bary (P, 3)) ->
-    (P, C) is the bake itself. Returns the values and how many texels were filtered."""
-    values = np.array(values, copy=True)
-    if settings.samples_per_side <= 1 or len(targets) == 0:
-        return values, 0
-    which = np.flatnonzero(edge_texels(targets, values, settings.edge_threshold))
-    if which.size == 0:
-        return values, 0
-    owner, tri, bary = subtexel_points(scene, targets, which, settings.samples_per_side)
-    sums = np.zeros((len(which),) + values.shape[1:])
-    np.add.at(sums, owner, evaluate(tri, bary))
-    counts = np.bincount(owner, minlength=len(which))
-    got = counts > 0  # a triangle thinner than the sub-texel spacing keeps its centre value
-    values[which[got]] = sums[got] / counts[got].reshape((-1,) + (1,) * (values.ndim - 1))
-    return values, int(got.sum())
+    (P, C) is the bake itself. Returns the values and how many texels were filtered.
+    (`filter_samples` and `apply_box_filter` are its two halves, for a bake that evaluates many
+    lightmaps' points at once.)"""
+    samples = filter_samples(scene, targets, values, settings)
+    if samples.which.size == 0:
+        return np.array(values, copy=True), 0
+    return apply_box_filter(values, samples, evaluate(samples.triangles, samples.bary))
 
 
 def corner_targets(scene: Scene, object_index: int) -> BakeTargets:

@@ -88,6 +88,9 @@ DESCENT = 4
 LEAF_BATCH = 0.3
 # Seconds between progress reports of the *_steps generators.
 PROGRESS_SECONDS = 0.05
+# (region, node) pairs `convex_clear` tests at once: its (pairs, planes, width) temporaries stay
+# at a few MB.
+SHAFT_PAIRS = 1 << 13
 
 
 @dataclass(frozen=True)
@@ -968,3 +971,92 @@ class BVH:
         for _ in self.occluded_steps(origins, directions, t_min, t_max, result):
             pass
         return result
+
+    # ---------------------------------------------------------------------------------------
+
+    def convex_clear(self, normals: np.ndarray, offsets: np.ndarray, corners: np.ndarray,
+                     slack: float) -> np.ndarray:
+        """(P,) bool: which of P convex regions no triangle enters (shaft culling).
+
+        Region p is the convex hull of corners[p] (P, V, 3), bounded by the K half-spaces
+        n . x <= d of normals (P, K, 3) and offsets (P, K), float64 world m (a row with a zero
+        normal and d = +inf bounds nothing). A box or triangle stays out when all of it lies at
+        n . x - d >= -slack for some plane, or (a triangle) when all the corners lie on one side
+        of its own plane within slack (slack m, >= 0: touching the region's boundary, as a floor
+        touches the shaft it is the base of, is not entering it). What passes neither test counts
+        as entering, so the answer is conservative. Degenerate triangles never enter (they are
+        never hit either).
+
+        The tree is walked level by level for all regions at once: (region, node) pairs whose box
+        a plane keeps out are dropped, regions found entered stop, and the leaves' triangles are
+        tested.
+        """
+        normals = np.asarray(normals, np.float64)
+        offsets = np.asarray(offsets, np.float64)
+        corners = np.asarray(corners, np.float64)
+        clear = np.ones(normals.shape[0], bool)
+        tree = self._tree
+        if tree.root == NONE or clear.size == 0:
+            return clear
+        size, width = self._leaf_slots, self.settings.width
+        # The one-leaf tree keeps a copy per ray frame; frame kz = 2 has the world axis order.
+        leaf_row = 2 * tree.leaf_count if tree.root <= -2 else 0
+        absn = np.abs(normals)
+
+        def enter_boxes(region: np.ndarray, node: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            """The children (region, child reference) of `node` (F,) some plane does not keep
+            out."""
+            record = tree.nodes[node]
+            box = record[:, : 6 * width].reshape(-1, 2, 3, width).astype(np.float64)
+            child = record[:, 6 * width :].view(np.int32)  # (F, W)
+            centre, half = 0.5 * (box[:, 0] + box[:, 1]), 0.5 * (box[:, 1] - box[:, 0])
+            n, a = normals[region], absn[region]  # (F, K, 3)
+            gap = -offsets[region][:, :, None]  # (F, K, W): n . centre - |n| . half - d
+            for c in range(3):  # three multiply-adds beat einsum's generic loop here
+                gap = gap + (n[:, :, c, None] * centre[:, None, c]
+                             - a[:, :, c, None] * half[:, None, c])
+            f, w = np.nonzero((child != NONE) & ~(gap >= -slack).any(axis=1))
+            return region[f], child[f, w].astype(np.int64)
+
+        def test_leaves(region: np.ndarray, leaf: np.ndarray) -> None:
+            record = tree.leaves[leaf_row + leaf]  # (F, 10 S)
+            tri = record[:, : 9 * size].reshape(-1, 3, 3, size).astype(np.float64)  # f v c s
+            filled = record[:, 9 * size :].view(np.int32) >= 0  # (F, S)
+            n = normals[region]  # (F, K, 3)
+            gap = None  # (F, K, S): the least n . v - d over the triangle's corners v
+            for v in range(3):
+                dist = -offsets[region][:, :, None]
+                for c in range(3):
+                    dist = dist + n[:, :, c, None] * tri[:, None, v, c]
+                gap = dist if gap is None else np.minimum(gap, dist)
+            out = (gap >= -slack).any(axis=1)
+            # The triangle's own plane, scaled to metres by its normal's length.
+            edge1, edge2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]  # (F, 3, S)
+            m = np.cross(edge1, edge2, axis=1)
+            m_len = np.maximum(np.linalg.norm(m, axis=1), 1e-300)  # (F, S)
+            pts = corners[region]  # (F, V, 3)
+            side = sum(m[:, None, c] * (pts[:, :, c, None] - tri[:, None, 0, c])
+                       for c in range(3))  # (F, V, S)
+            tol = slack * m_len[:, None, :]
+            out |= (side >= -tol).all(axis=1) | (side <= tol).all(axis=1)
+            clear[region[(filled & ~out).any(axis=1)]] = False
+
+        region, node = np.arange(clear.size), np.zeros(clear.size, np.int64)
+        if tree.root <= -2:
+            node = np.full(clear.size, -2, np.int64)  # every region at the one leaf
+        while region.size:
+            next_region, next_node = [], []
+            for a in range(0, region.size, SHAFT_PAIRS):  # bounds the (F, K, W) temporaries
+                r, n = region[a : a + SHAFT_PAIRS], node[a : a + SHAFT_PAIRS]
+                live = clear[r]
+                r, n = r[live], n[live]
+                at_leaf = n <= -2
+                if at_leaf.any():
+                    test_leaves(r[at_leaf], -2 - n[at_leaf])
+                if (~at_leaf).any():
+                    rr, nn = enter_boxes(r[~at_leaf], n[~at_leaf])
+                    next_region.append(rr)
+                    next_node.append(nn)
+            region = np.concatenate(next_region) if next_region else np.zeros(0, np.int64)
+            node = np.concatenate(next_node) if next_node else np.zeros(0, np.int64)
+        return clear

@@ -21,6 +21,10 @@ floor, the floor inside a closed block. Most of that detail is DIRECT light. The
   estimator at the patch's points (`radiosity.first_shot`) and did not carry again. It is smooth
   wherever the patches are, so patch-sized interpolation loses little.
 
+Shaft culling. Before any ray, each (patch, emissive triangle) pair is tested for an empty
+shaft (`shafts.py`): a receiver in a patch that sees the triangle whole takes its exact factor
+with share 1 and casts no shadow ray (about half the pairs of the Cornell box).
+
 Enclosure. A floor texel inside a closed block sees only the block's inside (back faces) and
 receives nothing; the patch that straddles the block's edge averages its open and enclosed parts.
 `enclosed` probes each receiver with rays (along the normal, and if that hits a back face, four
@@ -51,6 +55,7 @@ from .form_factors import (
 )
 from .metrics import REC709_LUMINANCE
 from .scene import Scene, geometric_normals, triangle_areas, triangle_emission
+from .shafts import clear_pairs
 
 # Shadow rays to points ON an emitter stop this fraction short of it; the target itself is lifted
 # off the emitter by the ray offset along its normal (the BVH's float32 hit distances differ from
@@ -160,7 +165,8 @@ def _kernel_sums(points: np.ndarray, normals: np.ndarray, poly: np.ndarray, nj: 
 
 def emitter_irradiance(emitters: Emitters, points: np.ndarray, normals: np.ndarray, occluded,
                        offset: float, rng: np.random.Generator,
-                       share_out: np.ndarray | None = None) -> np.ndarray:
+                       share_out: np.ndarray | None = None,
+                       clear: np.ndarray | None = None) -> np.ndarray:
     """(M, 3) irradiance W/m^2 at points (M, 3) m with unit normals (M, 3) from the emitters,
     shadowed: pi L_j F(x -> j) V_j(x) summed over j (module docstring). share_out (M,), when
     given, receives the visible share of the unshadowed irradiance (luminance; 1 where none
@@ -172,6 +178,9 @@ def emitter_irradiance(emitters: Emitters, points: np.ndarray, normals: np.ndarr
     as well, so fully lit and fully shadowed receivers cost about half the rays. The pilot can
     miss an occluder thinner than its point spacing seen from the receiver: it takes the light
     as unblocked there.
+
+    clear (M, K) bool, when given: receivers known to see emitter triangle k whole (their patch's
+    shaft to it is empty, `clear_shafts`), which take share 1 without rays.
     """
     out = np.zeros((len(points), 3))
     unshadowed = np.zeros(len(points)) if share_out is not None else None
@@ -179,6 +188,12 @@ def emitter_irradiance(emitters: Emitters, points: np.ndarray, normals: np.ndarr
         poly, nj = emitters.triangles[j], emitters.normals[j]
         factor = point_to_polygon(points, normals, poly[None], nj[None])  # (M,) exact, unoccluded
         live = np.flatnonzero(factor > 0.0)
+        if unshadowed is not None:
+            unshadowed[live] += np.pi * factor[live] * (emitters.radiance[j] @ LUMINANCE)
+        if clear is not None:
+            seen_whole = live[clear[live, j]]
+            out[seen_whole] += np.pi * factor[seen_whole, None] * emitters.radiance[j]
+            live = live[~clear[live, j]]
         if live.size == 0:
             continue
         n = int(emitters.per_side[j])
@@ -194,12 +209,21 @@ def emitter_irradiance(emitters: Emitters, points: np.ndarray, normals: np.ndarr
                 total[mixed] += more_total
         share = np.divide(seen, total, out=np.zeros_like(total), where=total > 0.0)
         out[live] += (np.pi * factor[live] * share)[:, None] * emitters.radiance[j]
-        if unshadowed is not None:
-            unshadowed[live] += np.pi * factor[live] * (emitters.radiance[j] @ LUMINANCE)
     if share_out is not None:
         np.divide(out @ LUMINANCE, unshadowed, out=share_out, where=unshadowed > 0.0)
         share_out[unshadowed <= 0.0] = 1.0
     return out
+
+
+def clear_shafts(patches: patching.Patches, emitters: Emitters, bvh, offset: float) -> np.ndarray:
+    """(N, K) bool: patch i sees emitter triangle k whole, nothing in the shaft between them
+    (`shafts.clear_pairs`; slack: the rays' `offset` m)."""
+    n, k = len(patches), len(emitters.triangles)
+    if n == 0 or k == 0:
+        return np.zeros((n, k), bool)
+    a = np.repeat(patches.corners, k, axis=0)
+    b = np.tile(emitters.triangles, (n, 1, 1))
+    return clear_pairs(a, b, bvh, offset).reshape(n, k)
 
 
 def lamp_irradiance(scene: Scene, points: np.ndarray, normals: np.ndarray, occluded, offset: float,
@@ -252,6 +276,7 @@ class FinalGather:
     scene: Scene
     bvh: object  # kernels.bvh.BVH over scene.triangles
     emitters: Emitters
+    clear: np.ndarray  # (N, K) bool: patch i sees emitter triangle k whole (`clear_shafts`)
     corner_indirect: np.ndarray  # (N, 3, 3) indirect irradiance at patch corners, W/m^2
     triangle_normals: np.ndarray  # (T, 3) float64
     emission: np.ndarray  # (T, 3) float64 pi L_e per scene triangle, W/m^2
@@ -299,11 +324,13 @@ def prepare(scene: Scene, patches: patching.Patches, radiosity: np.ndarray, emit
         weight_areas = patches.areas * np.maximum(open_fraction, 1e-9)
     corner = patching.corner_values(replace(patches, areas=weight_areas), indirect, smooth_angle,
                                     scale)
+    clear = clear_shafts(patches, emitters, bvh, offset)
     stats = {"emitter_triangles": int(len(emitters.triangles)),
+             "clear_shafts": int(clear.sum()),
              "emitter_rays_per_receiver": int((emitters.per_side ** 2).sum()),
              "enclosed_patches": int((open_fraction == 0.0).sum()),
              "straddling_patches": int(((open_fraction > 0.0) & (open_fraction < 1.0)).sum())}
-    return FinalGather(scene, bvh, emitters, corner, tri_normals,
+    return FinalGather(scene, bvh, emitters, clear, corner, tri_normals,
                        np.pi * triangle_emission(scene), offset, area_samples_per_side,
                        settings, stats)
 
@@ -326,10 +353,13 @@ def exitance(gather: FinalGather, patches: patching.Patches, tri: np.ndarray, ba
         inset = (1.0 - RECEIVER_INSET) * b + RECEIVER_INSET / 3.0
         points = np.einsum("mk,mkc->mc", inset, scene.triangles[t].astype(np.float64))
         normals = gather.triangle_normals[t]
-        h = emitter_irradiance(gather.emitters, points, normals, occluded, gather.offset, rng)
+        # Located at the inset point: the one the rays leave from must lie in the patch whose
+        # shaft clears it.
+        patch, local = patching.locate(patches, t, inset)
+        h = emitter_irradiance(gather.emitters, points, normals, occluded, gather.offset, rng,
+                               clear=gather.clear[patch])
         h += lamp_irradiance(scene, points, normals, occluded, gather.offset,
                              gather.area_samples_per_side)
-        patch, local = patching.locate(patches, t, b)
         h += patching.interpolate(gather.corner_indirect, patch, local)
         np.maximum(h, 0.0, out=h)
         if gather.settings.enclosure_probes:

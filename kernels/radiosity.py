@@ -670,24 +670,55 @@ def bake_steps(scene: Scene, result: RadiosityResult, objects, lightmap_sizes: d
     """Radiance B / pi of `objects` (indices into scene.objects) on their lightmap texels (when
     the scene carries lightmap UVs; sizes {object index: texels per side}), box-filtered over the
     texels an edge crosses as Cycles' bake filters them (`bake_targets.box_filter`), and at their
-    corners. Yields progress, then {object index: ObjectRadiosityBake}."""
-    from .bake_targets import box_filter, corner_targets, dilate, lightmap_targets
+    corners. Yields progress, then {object index: ObjectRadiosityBake}.
 
+    Every object's points are evaluated together, in two passes (texel centres and corners, then
+    the edge texels' sub-texel points): the gather's shadow rays reach the BVH in large batches,
+    and a BVH call costs ~2 ms besides its rays (0.6 M rays/s in calls of 2k rays, 1.0 M at 128k
+    on the Cornell box)."""
+    from .bake_targets import (
+        apply_box_filter,
+        corner_targets,
+        dilate,
+        filter_samples,
+        lightmap_targets,
+    )
+
+    lightmaps = {k: lightmap_targets(scene, k, lightmap_sizes[k]) for k in objects
+                 if scene.lightmap_uv is not None and scene.objects[k].has_lightmap_uv}
+    corners = {k: corner_targets(scene, k) for k in objects}
+    first = [(lightmaps[k].triangles, lightmaps[k].bary) for k in lightmaps]
+    first += [(c.triangles, c.bary) for c in corners.values()]
+    values = yield from _radiance_steps(result, first, 0.0, 0.8)
+    centre = dict(zip(lightmaps, values[: len(lightmaps)], strict=True))
+    samples = {k: filter_samples(scene, lightmaps[k], centre[k], texel_filter) for k in lightmaps}
+    sampled = yield from _radiance_steps(result, [(s.triangles, s.bary) for s in samples.values()],
+                                         0.8, 0.2)
     out = {}
-    for n, k in enumerate(objects):
+    for k, corner_values in zip(corners, values[len(lightmaps):], strict=True):
         lightmap = mask = None
         filtered = 0
-        if scene.lightmap_uv is not None and scene.objects[k].has_lightmap_uv:
-            targets = lightmap_targets(scene, k, lightmap_sizes[k])
-            values = result.radiance_at(targets.triangles, targets.bary)
-            values, filtered = box_filter(scene, targets, values, result.radiance_at, texel_filter)
-            mask = targets.mask
-            lightmap = dilate(targets.to_image(values), mask, padding)
-        corners = corner_targets(scene, k)
-        values = result.radiance_at(corners.triangles, np.tile(np.eye(3), (len(corners) // 3, 1)))
-        out[k] = ObjectRadiosityBake(lightmap, mask, values.astype(np.float32), filtered)
-        yield (n + 1) / max(len(objects), 1)
+        if k in lightmaps:
+            texels, filtered = apply_box_filter(centre[k], samples[k], sampled.pop(0))
+            mask = lightmaps[k].mask
+            lightmap = dilate(lightmaps[k].to_image(texels), mask, padding)
+        out[k] = ObjectRadiosityBake(lightmap, mask, corner_values.astype(np.float32), filtered)
     yield out
+
+
+def _radiance_steps(result: RadiosityResult, parts: list, start: float, span: float):
+    """Generator: yields progress in [start, start + span] while it evaluates B / pi at every
+    part (triangles (M,), bary (M, 3)) in chunks of `final_gather.GATHER_CHUNK` points, then
+    returns the parts' values [(M, 3)]."""
+    sizes = [len(t) for t, _ in parts]
+    tri = np.concatenate([t for t, _ in parts]) if parts else np.zeros(0, np.int64)
+    bary = np.concatenate([b for _, b in parts]) if parts else np.zeros((0, 3))
+    values = np.zeros((len(tri), 3))
+    chunk = final_gather.GATHER_CHUNK
+    for a in range(0, len(tri), chunk):
+        values[a:a + chunk] = result.radiance_at(tri[a:a + chunk], bary[a:a + chunk])
+        yield start + span * min(a + chunk, len(tri)) / len(tri)
+    return np.split(values, np.cumsum(sizes)[:-1]) if parts else []
 
 
 def render_steps(scene: Scene, result: RadiosityResult, resolution=None,

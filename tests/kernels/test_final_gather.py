@@ -138,6 +138,48 @@ def test_the_gather_draws_the_shadow_that_coarse_patches_blur():
     assert result.stats["final_gather"]["emitter_triangles"] == 2
 
 
+def test_clear_shafts_skip_the_rays_and_change_nothing():
+    """Lamp, blocker and floor as above, floor patches of 0.25: the patches far from the blocker
+    see the lamp whole (`clear_shafts`), the ones under it do not; receivers of clear patches get
+    the same irradiance without a single shadow ray (the ratio estimator is exact when nothing
+    blocks), and the others the same as before from the same rays."""
+    from classic_bake.kernels.patches import locate, make_patches
+
+    scene = build([(square(1.0, 0.2, up=False), grey(0.0, emission=5.0, name="lamp")),
+                   (square(0.5, 0.15, up=False), grey(0.0, name="black")),
+                   (square(0.0, 1.0, up=True), grey(0.5))])
+    bvh, emitters, occluded = gather_inputs(scene)
+    patches = make_patches(scene, 0.25)
+    floor = np.flatnonzero(patches.object_ids == 2)
+    clear = fg.clear_shafts(patches, emitters, bvh, 1e-5)
+    assert clear[floor].any() and not clear[floor].all()
+    rng = np.random.default_rng(5)
+    uv = rng.random((4000, 2))
+    uv = np.where(uv.sum(axis=1, keepdims=True) > 1, 1 - uv, uv)
+    bary = np.column_stack([1 - uv.sum(axis=1), uv])
+    tri = np.full(4000, scene.object_slice(2).start, np.int64) + rng.integers(0, 2, 4000)
+    points = np.einsum("mk,mkc->mc", bary, scene.triangles[tri].astype(np.float64))
+    normals = np.tile([0.0, 0.0, 1.0], (4000, 1))
+    patch, _ = locate(patches, tri, bary)
+    rays = []
+
+    def counting(o, d, t0, t1):
+        rays.append(len(o))
+        return occluded(o, d, t0, t1)
+
+    plain = fg.emitter_irradiance(emitters, points, normals, counting, 1e-5,
+                                  np.random.default_rng(0))
+    plain_rays, rays[:] = sum(rays), []
+    culled = fg.emitter_irradiance(emitters, points, normals, counting, 1e-5,
+                                   np.random.default_rng(0), clear=clear[patch])
+    seen_whole = clear[patch].all(axis=1)
+    assert seen_whole.mean() > 0.3
+    assert np.array_equal(culled[seen_whole], plain[seen_whole])
+    assert sum(rays) < 0.8 * plain_rays
+    # Receivers that still cast rays draw other random points: the same to the estimator's noise.
+    assert culled[~seen_whole].sum() == pytest.approx(plain[~seen_whole].sum(), rel=0.02)
+
+
 def grid_box(cells: int) -> np.ndarray:
     """The unit cube's six faces, inward normals, each cut into cells x cells quads."""
     v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0],
