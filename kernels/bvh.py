@@ -975,7 +975,7 @@ class BVH:
     # ---------------------------------------------------------------------------------------
 
     def convex_clear(self, normals: np.ndarray, offsets: np.ndarray, corners: np.ndarray,
-                     slack: float) -> np.ndarray:
+                     slack: float, facing: np.ndarray | None = None) -> np.ndarray:
         """(P,) bool: which of P convex regions no triangle enters (shaft culling).
 
         Region p is the convex hull of corners[p] (P, V, 3), bounded by the K half-spaces
@@ -984,16 +984,25 @@ class BVH:
         n . x - d >= -slack for some plane, or (a triangle) when all the corners lie on one side
         of its own plane within slack (slack m, >= 0: touching the region's boundary, as a floor
         touches the shaft it is the base of, is not entering it). What passes neither test counts
-        as entering, so the answer is conservative. Degenerate triangles never enter (they are
-        never hit either).
+        as entering, so the answer is conservative (the corners' bounding box planes are added
+        to the K, which catches most of what only an edge-edge axis would separate). Degenerate
+        triangles never enter (they are
+        never hit either). facing (P, 3), when given: only triangles whose front normal has a
+        positive component along facing[p] count for region p (the back faces a ray along it
+        would meet).
 
         The tree is walked level by level for all regions at once: (region, node) pairs whose box
         a plane keeps out are dropped, regions found entered stop, and the leaves' triangles are
         tested.
         """
-        normals = np.asarray(normals, np.float64)
-        offsets = np.asarray(offsets, np.float64)
         corners = np.asarray(corners, np.float64)
+        # The region's bounding box faces support it too: they separate what lies beyond a
+        # corner of the region along an axis, which no face plane of a slanted region does.
+        box_normals = np.broadcast_to(np.concatenate([np.eye(3), -np.eye(3)]),
+                                      (corners.shape[0], 6, 3))
+        box_offsets = np.concatenate([corners.max(axis=1), -corners.min(axis=1)], axis=1)
+        normals = np.concatenate([np.asarray(normals, np.float64), box_normals], axis=1)
+        offsets = np.concatenate([np.asarray(offsets, np.float64), box_offsets], axis=1)
         clear = np.ones(normals.shape[0], bool)
         tree = self._tree
         if tree.root == NONE or clear.size == 0:
@@ -1039,6 +1048,8 @@ class BVH:
                        for c in range(3))  # (F, V, S)
             tol = slack * m_len[:, None, :]
             out |= (side >= -tol).all(axis=1) | (side <= tol).all(axis=1)
+            if facing is not None:
+                out |= np.einsum("fcs,fc->fs", m, facing[region]) <= 0.0
             clear[region[(filled & ~out).any(axis=1)]] = False
 
         region, node = np.arange(clear.size), np.zeros(clear.size, np.int64)

@@ -29,9 +29,10 @@ Enclosure. A floor texel inside a closed block sees only the block's inside (bac
 receives nothing; the patch that straddles the block's edge averages its open and enclosed parts.
 `enclosed` probes each receiver with rays (along the normal, and if that hits a back face, four
 more at 45 degrees): a receiver all of whose probes hit back faces is inside a solid and gets no
-reflected light. Patches scale their indirect irradiance by 1 / (open fraction of their sample
-points), and corners average only the open parts, so the open side of a straddling patch keeps
-what the solver found for it.
+reflected light. Receivers in patches that no back face hangs over (`shafts.open_above`) are not
+probed: their normal's ray cannot meet one. Patches scale their indirect irradiance by
+1 / (open fraction of their sample points), and corners average only the open parts, so the open
+side of a straddling patch keeps what the solver found for it.
 
 Measured on the sample Cornell box (bench/radiosity.py: 21k lightmap texels, 296 patches,
 hierarchical): relative MSE against a 1024-sample Cycles bake 0.087 interpolated, 0.011 with the
@@ -46,6 +47,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from . import patches as patching
+from . import shafts
 from .form_factors import (
     RAY_OFFSET_REL,
     pair_kernel,
@@ -55,7 +57,6 @@ from .form_factors import (
 )
 from .metrics import REC709_LUMINANCE
 from .scene import Scene, geometric_normals, triangle_areas, triangle_emission
-from .shafts import clear_pairs
 
 # Shadow rays to points ON an emitter stop this fraction short of it; the target itself is lifted
 # off the emitter by the ray offset along its normal (the BVH's float32 hit distances differ from
@@ -223,7 +224,7 @@ def clear_shafts(patches: patching.Patches, emitters: Emitters, bvh, offset: flo
         return np.zeros((n, k), bool)
     a = np.repeat(patches.corners, k, axis=0)
     b = np.tile(emitters.triangles, (n, 1, 1))
-    return clear_pairs(a, b, bvh, offset).reshape(n, k)
+    return shafts.clear_pairs(a, b, bvh, offset).reshape(n, k)
 
 
 def lamp_irradiance(scene: Scene, points: np.ndarray, normals: np.ndarray, occluded, offset: float,
@@ -277,6 +278,7 @@ class FinalGather:
     bvh: object  # kernels.bvh.BVH over scene.triangles
     emitters: Emitters
     clear: np.ndarray  # (N, K) bool: patch i sees emitter triangle k whole (`clear_shafts`)
+    open_above: np.ndarray  # (N,) bool: no back face over patch i (`shafts.open_above`)
     corner_indirect: np.ndarray  # (N, 3, 3) indirect irradiance at patch corners, W/m^2
     triangle_normals: np.ndarray  # (T, 3) float64
     emission: np.ndarray  # (T, 3) float64 pi L_e per scene triangle, W/m^2
@@ -293,8 +295,9 @@ def _occluded(bvh):
 def prepare(scene: Scene, patches: patching.Patches, radiosity: np.ndarray, emitted: np.ndarray,
             reflectance: np.ndarray, direct: np.ndarray, emitters: Emitters, bvh,
             smooth_angle: float, area_samples_per_side: int,
-            settings: FinalGatherSettings) -> FinalGather:
+            settings: FinalGatherSettings, clear: np.ndarray | None = None) -> FinalGather:
     """The patch-level half: each patch's indirect irradiance (W/m^2, RGB) and its corners.
+    clear (N, K): `clear_shafts` of these patches when the first shot already has it.
 
     radiosity, emitted, reflectance, direct (N, 3): the solution B, pi L_e, rho and the first
     shot's irradiance of `patches` (lamps and `emitters`, which the solver did not carry again:
@@ -316,21 +319,30 @@ def prepare(scene: Scene, patches: patching.Patches, radiosity: np.ndarray, emit
     indirect = arrived - direct
     weight_areas = patches.areas
     open_fraction = np.ones(count)
+    # Patches no back face hangs over cannot be enclosed: their receivers cast no probe.
+    unroofed = shafts.open_above(patches.corners, patches.normals, scale, bvh, offset)
     if settings.enclosure_probes:
-        inside = enclosed(pts, nrm, bvh.intersect, tri_normals, offset).reshape(count, samples)
+        inside = np.zeros((count, samples), bool)
+        probed = np.flatnonzero(~unroofed)
+        if probed.size:
+            rows = (probed[:, None] * samples + np.arange(samples)).ravel()
+            inside[probed] = enclosed(pts[rows], nrm[rows], bvh.intersect, tri_normals,
+                                      offset).reshape(-1, samples)
         open_fraction = np.where(inside.any(axis=1), np.einsum("ns,ns->n", weights, ~inside), 1.0)
         # The solver averaged each patch over its enclosed part too, which receives nothing.
         indirect /= np.maximum(open_fraction, MIN_OPEN_FRACTION)[:, None]
         weight_areas = patches.areas * np.maximum(open_fraction, 1e-9)
     corner = patching.corner_values(replace(patches, areas=weight_areas), indirect, smooth_angle,
                                     scale)
-    clear = clear_shafts(patches, emitters, bvh, offset)
+    if clear is None:
+        clear = clear_shafts(patches, emitters, bvh, offset)
     stats = {"emitter_triangles": int(len(emitters.triangles)),
              "clear_shafts": int(clear.sum()),
+             "unroofed_patches": int(unroofed.sum()),
              "emitter_rays_per_receiver": int((emitters.per_side ** 2).sum()),
              "enclosed_patches": int((open_fraction == 0.0).sum()),
              "straddling_patches": int(((open_fraction > 0.0) & (open_fraction < 1.0)).sum())}
-    return FinalGather(scene, bvh, emitters, clear, corner, tri_normals,
+    return FinalGather(scene, bvh, emitters, clear, unroofed, corner, tri_normals,
                        np.pi * triangle_emission(scene), offset, area_samples_per_side,
                        settings, stats)
 
@@ -363,8 +375,9 @@ def exitance(gather: FinalGather, patches: patching.Patches, tri: np.ndarray, ba
         h += patching.interpolate(gather.corner_indirect, patch, local)
         np.maximum(h, 0.0, out=h)
         if gather.settings.enclosure_probes:
-            h[enclosed(points, normals, gather.bvh.intersect, gather.triangle_normals,
-                       gather.offset)] = 0.0
+            probed = np.flatnonzero(~gather.open_above[patch])
+            h[probed[enclosed(points[probed], normals[probed], gather.bvh.intersect,
+                              gather.triangle_normals, gather.offset)]] = 0.0
         value = albedo_at(scene, t, b) * h
         if not reflected_only:
             value += gather.emission[t]

@@ -280,16 +280,17 @@ def shot_emission(scene: Scene, patches: patching.Patches,
 
 
 def first_shot(scene: Scene, patches: patching.Patches, occluded, settings: RadiositySettings,
-               scale: float, emitters: final_gather.Emitters | None = None
-               ) -> tuple[np.ndarray, np.ndarray]:
+               scale: float, emitters: final_gather.Emitters | None = None,
+               clear: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Direct irradiance of the scene's lights, and of `emitters` (`shot_emitters`: exact
     point-to-polygon factors times the visible share, `final_gather.emitter_irradiance`), on
     every patch, with shadows.
 
     occluded: the BVH callback (origins, directions, t_min, t_max) -> (R,) bool, or None (no
-    shadows). Returns H (N, 3) W/m^2, the mean over n x n midpoint samples of each patch, and
-    boundary (N,) bool: patches with some samples lit and some shadowed by one light (or by the
-    emitters together).
+    shadows); clear (N, K) bool: the patches that see emitter k whole
+    (`final_gather.clear_shafts`), whose points cast no shadow rays to it. Returns H (N, 3) W/m^2,
+    the mean over n x n midpoint samples of each patch, and boundary (N,) bool: patches with
+    some samples lit and some shadowed by one light (or by the emitters together).
     """
     count = len(patches)
     irradiance = np.zeros((count, 3))
@@ -320,7 +321,8 @@ def first_shot(scene: Scene, patches: patching.Patches, occluded, settings: Radi
         share = np.ones(len(flat))
         e = final_gather.emitter_irradiance(
             emitters, flat, normals, occluded or _never_occluded, offset,
-            np.random.default_rng(settings.seed + 2), share_out=share)
+            np.random.default_rng(settings.seed + 2), share_out=share,
+            clear=None if clear is None else np.repeat(clear, samples, axis=0))
         add(e, share)
     return irradiance, boundary
 
@@ -557,7 +559,8 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
         rho = patch_reflectance(scene, patches)
         emitted = patch_emission(scene, patches)
         shot = shot_emission(scene, patches, emitters)
-        direct, boundary = first_shot(scene, patches, occluded, settings, scale, emitters)
+        clear = final_gather.clear_shafts(patches, emitters, bvh, RAY_OFFSET_REL * scale)
+        direct, boundary = first_shot(scene, patches, occluded, settings, scale, emitters, clear)
         sources = emitted - shot + rho * direct
         level_stats: dict = {"patches": len(patches), "per_level": patches.level_counts()}
         base = 0.02 + 0.96 * level / levels
@@ -578,17 +581,18 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
     stats.update(patches=len(patches), per_level=patches.level_counts(), solver=last["solver"],
                  memory_estimate=last["memory_estimate"], method=settings.method)
     result = _result(scene, patches, b, emitted, rho, direct, corner_b, bvh, settings, scale,
-                     stats, t0, emitters)
+                     stats, t0, emitters, clear)
     yield 1.0
     yield result
 
 
 def _result(scene, patches, b, emitted, rho, direct, corner_b, bvh, settings: RadiositySettings,
-            scale: float, stats: dict, t0: float, emitters) -> RadiosityResult:
-    """The solved scene, with the final gather prepared when the settings ask for it."""
+            scale: float, stats: dict, t0: float, emitters, clear) -> RadiosityResult:
+    """The solved scene, with the final gather prepared when the settings ask for it (clear:
+    the patches' `final_gather.clear_shafts`, from the first shot)."""
     corner_e = patching.corner_values(patches, emitted, settings.smooth_angle, scale)
     gather = _prepare_gather(scene, patches, b, emitted, rho, direct, emitters, bvh, settings,
-                             stats)
+                             stats, clear)
     stats["seconds"] = time.perf_counter() - t0
     return RadiosityResult(patches=patches, radiosity=b, emitted=emitted, direct=direct,
                            reflectance=rho, corner_b=corner_b, corner_e=corner_e, stats=stats,
@@ -596,14 +600,14 @@ def _result(scene, patches, b, emitted, rho, direct, corner_b, bvh, settings: Ra
 
 
 def _prepare_gather(scene, patches, b, emitted, rho, direct, emitters, bvh,
-                    settings: RadiositySettings, stats: dict) -> FinalGather | None:
+                    settings: RadiositySettings, stats: dict, clear) -> FinalGather | None:
     """The final gather's patch-level half, when the settings ask for it (stats: its figures)."""
     if not settings.final_gather:
         return None
     start = time.perf_counter()
     gather = final_gather.prepare(
         scene, patches, b, emitted, rho, direct, emitters, bvh, settings.smooth_angle,
-        settings.area_light_samples_per_side, gather_settings(settings))
+        settings.area_light_samples_per_side, gather_settings(settings), clear)
     stats["final_gather"] = {**gather.stats, "prepare_seconds": time.perf_counter() - start}
     return gather
 
@@ -617,9 +621,11 @@ def _hierarchical(scene, size, bvh, settings, scale, t0, roots, depth, memory: d
         return bvh.occluded(o, d, t_min, t_max)
 
     emitters = shot_emitters(scene, settings)
+    shafts = {}  # the last level's, which the final gather reads again
 
     def lamps(leaves):
-        return first_shot(scene, leaves, occluded, settings, scale, emitters)
+        shafts["clear"] = final_gather.clear_shafts(leaves, emitters, bvh, RAY_OFFSET_REL * scale)
+        return first_shot(scene, leaves, occluded, settings, scale, emitters, shafts["clear"])
 
     for step in hierarchical_steps(scene, roots, depth, occluded, settings, scale, lamps,
                                    emitters):
@@ -637,7 +643,7 @@ def _hierarchical(scene, size, bvh, settings, scale, t0, roots, depth, memory: d
                          "converged": bool(level["solver_error"] <= settings.tolerance)}
                         for level in info["per_refinement"]]}
     result = _result(scene, leaves, b, emitted, rho, direct, corner_b, bvh, settings, scale, stats,
-                     t0, emitters)
+                     t0, emitters, shafts["clear"])
     yield 1.0
     yield result
 

@@ -16,6 +16,10 @@ of the hull, so a triangle wholly outside one of them is outside the hull, and s
 whose own plane has all six corners on one side (`BVH.convex_clear`). The test is conservative:
 a triangle that only a hull edge's cross product would separate counts as entering, which costs
 rays, never a wrong answer.
+
+The same test with the prism swept from a patch along its normal (`open_above`) tells which
+patches no back face hangs over: the final gather's enclosure probe (a ray along the normal that
+meets a back face) cannot find them enclosed, so it is not cast.
 """
 
 from __future__ import annotations
@@ -83,3 +87,26 @@ def clear_pairs(a: np.ndarray, b: np.ndarray, bvh, slack: float) -> np.ndarray:
         return np.zeros(0, bool)
     normals, offsets = hull_planes(a, b)
     return bvh.convex_clear(normals, offsets, np.concatenate([a, b], axis=1), slack)
+
+
+def open_above(tris: np.ndarray, normals: np.ndarray, height: float, bvh, slack: float
+               ) -> np.ndarray:
+    """(P,) bool: no triangle of `bvh` that faces away from triangle tris[p] (P, 3, 3) (front
+    normal along normals[p] (P, 3), unit) enters the prism swept from it along its normal for
+    `height` m (the scene's extent: nothing lies beyond), by more than `slack` m."""
+    tris = np.asarray(tris, np.float64)
+    count = len(tris)
+    if count == 0:
+        return np.zeros(0, bool)
+    n = np.asarray(normals, np.float64)
+    base = np.einsum("pc,pc->p", n, tris[:, 0])
+    planes = [-n, n]  # in front of the base, below the cap
+    offsets = [-base, base + height]
+    for i, j in _EDGES:  # the side walls through each edge, parallel to the normal, outwards
+        side = np.cross(tris[:, j] - tris[:, i], n)
+        side /= np.maximum(np.linalg.norm(side, axis=1), 1e-300)[:, None]
+        planes.append(side)
+        offsets.append(np.einsum("pc,pc->p", side, tris[:, i]))
+    corners = np.concatenate([tris, tris + height * n[:, None, :]], axis=1)
+    return bvh.convex_clear(np.stack(planes, axis=1), np.stack(offsets, axis=1), corners, slack,
+                            facing=n)

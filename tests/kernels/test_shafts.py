@@ -82,3 +82,30 @@ def test_no_pair_called_clear_has_a_blocked_segment(count, size):
     assert not blocked[clear].any()
     # Conservative but not vacuous: most pairs with no blocked segment are found clear.
     assert clear[~blocked.any(axis=1)].mean() > 0.5
+
+
+def test_open_above_finds_the_floor_under_a_box_and_ignores_a_ceiling():
+    """A floor under a ceiling (facing down: a front face seen from the floor) with a closed
+    box standing on part of it: only the floor patches the box's top hangs over are roofed."""
+    from classic_bake.kernels.shafts import open_above
+
+    def square(z, x0, x1, up):
+        c = [[x0, x0, z], [x1, x0, z], [x1, x1, z], [x0, x1, z]]
+        c = c if up else c[::-1]
+        return np.array([[c[0], c[1], c[2]], [c[0], c[2], c[3]]])
+
+    top = square(0.3, 0.1, 0.4, up=True)  # the box's lid, facing up like the floor
+    bvh = BVH.build(np.concatenate([square(0.0, 0.0, 1.0, up=True), square(1.0, 0.0, 1.0, False),
+                                    top]))
+    cells = np.linspace(0.0, 1.0, 11)
+    patches = np.concatenate([square(0.0, 0.0, 0.1, up=True) + [x, y, 0.0]
+                              for x in cells[:-1] for y in cells[:-1]])
+    centre = patches.mean(axis=1)
+    up = np.tile([0.0, 0.0, 1.0], (len(patches), 1))
+    unroofed = open_above(patches, up, 2.0, bvh, 1e-6)
+    under = ((centre[:, :2] > 0.1) & (centre[:, :2] < 0.4)).all(axis=1)
+    assert not unroofed[under].any()
+    # A cell's width from the box the floor is open (a cell touching the footprint only at a
+    # corner may count as roofed: the test is conservative there).
+    away = (centre[:, :2] > 0.5).any(axis=1)
+    assert unroofed[away].all()
