@@ -56,13 +56,12 @@ from __future__ import annotations
 
 import os
 from collections.abc import Iterator
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
 
-from . import cubemap
+from . import cubemap, threads
 from .raster import Projection, look_at, rasterize_steps, rasterize_views_steps
 from .scene import Light
 from .vec import bounds, cross3, max_of_three, min_of_three, row_norms
@@ -765,30 +764,9 @@ def receivers_visibility(shadow_map: ShadowMap, receivers: Receivers,
         out[a:b] = _visibility_chunk(shadow_map, depth, pts[:, a:b], receivers.centre, nrm[:, a:b],
                                      None if zero is None else zero[a:b], size)
 
-    count = len(receivers)
-    threads = max(1, min(shadow_map.settings.thread_count, count // MIN_THREAD_RECEIVERS))
-    # Equal shares, as few as the chunk size allows: each thread takes the same number of them.
-    shares = threads * -(-count // (threads * RECEIVER_CHUNK))
-    ends = [count * k // shares for k in range(shares + 1)]
-    if threads == 1:
-        for a, b in zip(ends[:-1], ends[1:], strict=True):
-            look_up(a, b)
-    else:
-        for _ in _lookup_pool(threads).map(look_up, ends[:-1], ends[1:]):
-            pass  # re-raises a worker's exception here
+    threads.for_ranges(look_up, len(receivers), RECEIVER_CHUNK,
+                       shadow_map.settings.thread_count, MIN_THREAD_RECEIVERS)
     return out
-
-
-_POOLS: dict[int, ThreadPoolExecutor] = {}
-
-
-def _lookup_pool(threads: int) -> ThreadPoolExecutor:
-    """A process-wide pool of `threads` workers, started on first use (starting threads per call
-    would cost ~0.1 ms each)."""
-    pool = _POOLS.get(threads)
-    if pool is None:
-        pool = _POOLS[threads] = ThreadPoolExecutor(threads, thread_name_prefix="shadow-lookup")
-    return pool
 
 
 def shadow_visibility(

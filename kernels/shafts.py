@@ -26,6 +26,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import threads
+
 # Planes through three corners closer to collinear than this (|cross| relative to the squared
 # longest edge) are skipped: a sliver's plane is meaningless, and the hull keeps its other faces.
 DEGENERATE_REL = 1e-12
@@ -33,6 +35,8 @@ DEGENERATE_REL = 1e-12
 # and it still counts as supporting: float rounding of coplanar corners (1e-16 relative) with a
 # wide margin, far below any geometry that could block a ray.
 SUPPORT_REL = 1e-9
+# Regions handed to a thread at a time (a few ms of plane tests each).
+THREAD_PAIRS = 1024
 # Edges (start corner, end corner) of a triangle.
 _EDGES = ((0, 1), (1, 2), (2, 0))
 
@@ -85,8 +89,15 @@ def clear_pairs(a: np.ndarray, b: np.ndarray, bvh, slack: float) -> np.ndarray:
     own triangles and their coplanar neighbours lie on the shaft's faces)."""
     if len(a) == 0:
         return np.zeros(0, bool)
-    normals, offsets = hull_planes(a, b)
-    return bvh.convex_clear(normals, offsets, np.concatenate([a, b], axis=1), slack)
+    out = np.empty(len(a), bool)
+
+    def work(lo: int, hi: int) -> None:
+        normals, offsets = hull_planes(a[lo:hi], b[lo:hi])
+        out[lo:hi] = bvh.convex_clear(normals, offsets, np.concatenate([a[lo:hi], b[lo:hi]], axis=1),
+                                      slack)
+
+    threads.for_ranges(work, len(a), THREAD_PAIRS, min_rows=THREAD_PAIRS // 4)
+    return out
 
 
 def open_above(tris: np.ndarray, normals: np.ndarray, height: float, bvh, slack: float
@@ -107,6 +118,13 @@ def open_above(tris: np.ndarray, normals: np.ndarray, height: float, bvh, slack:
         side /= np.maximum(np.linalg.norm(side, axis=1), 1e-300)[:, None]
         planes.append(side)
         offsets.append(np.einsum("pc,pc->p", side, tris[:, i]))
+    planes, offsets = np.stack(planes, axis=1), np.stack(offsets, axis=1)
     corners = np.concatenate([tris, tris + height * n[:, None, :]], axis=1)
-    return bvh.convex_clear(np.stack(planes, axis=1), np.stack(offsets, axis=1), corners, slack,
-                            facing=n)
+    out = np.empty(count, bool)
+
+    def work(lo: int, hi: int) -> None:
+        out[lo:hi] = bvh.convex_clear(planes[lo:hi], offsets[lo:hi], corners[lo:hi], slack,
+                                      facing=n[lo:hi])
+
+    threads.for_ranges(work, count, THREAD_PAIRS, min_rows=THREAD_PAIRS // 4)
+    return out
