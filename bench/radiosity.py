@@ -194,10 +194,12 @@ def cornell(args) -> tuple[dict, dict, list]:
     OUT_DIR.mkdir(parents=True, exist_ok=True)
     speed_accuracy_chart(kernel, cycles, OUT_DIR / "radiosity_bake", metric="rel_mse",
                          title="Cornell box lightmaps: radiosity vs Cycles DIFFUSE bake",
-                         kernel_label="radiosity (patches)", cycles_label="Cycles bake (samples)")
+                         kernel_label="radiosity (patches)", cycles_label="Cycles bake (samples)",
+                         kernel_frontier=True)
     speed_accuracy_chart(kernel_render, cycles_render, OUT_DIR / "radiosity_render",
                          metric="rel_mse", title="Cornell box camera: radiosity vs Cycles",
-                         kernel_label="radiosity (patches)", cycles_label="Cycles (samples)")
+                         kernel_label="radiosity (patches)", cycles_label="Cycles (samples)",
+                         kernel_frontier=True)
     if best_image is not None:
         write_preview_png(OUT_DIR / "radiosity_cornell.png", best_image)
     figures = {"bake": {"kernel": kernel, "cycles": cycles}, "render": {"kernel": kernel_render,

@@ -136,8 +136,13 @@ def speed_accuracy_chart(
     title: str = "Speed against accuracy (reference: Cycles)",
     kernel_label: str = "Classic Bake kernel",
     cycles_label: str = "Cycles",
+    kernel_frontier: bool = False,
 ) -> ChartFiles:
     """Error (`metric`) against seconds, log-log, one curve per ladder: stem.png/.svg/.data.json.
+
+    kernel_frontier: the kernel's points are not joined in ladder order (a ladder of several
+    methods zigzags); a line joins its frontier instead, the points no other point beats on both
+    seconds and error, and only those are labelled (series "<kernel_label> frontier").
 
     kernel: [{"setting": str, "seconds": s, metric: x, ...}]; cycles: [{"samples": n, "seconds": s,
     metric: x, ...}], as in metrics.json "comparison.ladder"; an entry's "label" overrides the
@@ -153,22 +158,30 @@ def speed_accuracy_chart(
     axes = figure.add_subplot()
     series: dict[str, dict[str, list]] = {}
     omitted: list[dict[str, Any]] = []
-    for name, points, marker, style in ladders:
+    for k, (name, points, marker, style) in enumerate(ladders):
         shown = []
         for x, y, label in points:
             if x <= 0.0 or (log_y and y <= 0.0):
                 omitted.append({"series": name, "label": label, "x": x, "y": y})
             else:
                 shown.append((x, y, label))
+        joined = not (kernel_frontier and k == 0)
         (line,) = axes.plot(
-            [p[0] for p in shown], [p[1] for p in shown], marker=marker, linestyle=style, label=name
+            [p[0] for p in shown], [p[1] for p in shown], marker=marker,
+            linestyle=style if joined else "none", label=name
         )
+        best = shown if joined else sorted(
+            p for p in shown if not any(o[0] < p[0] and o[1] < p[1] for o in shown))
         annotations = [
             axes.annotate(label, (x, y), textcoords="offset points", xytext=(5, 4), fontsize=8,
                           color=line.get_color())
-            for x, y, label in shown
+            for x, y, label in best
         ]
         series[name] = _read_back(line, annotations)
+        if not joined:
+            (front,) = axes.plot([p[0] for p in best], [p[1] for p in best], linestyle=style,
+                                 color=line.get_color(), label=f"{name} frontier")
+            series[f"{name} frontier"] = _read_back(front, [])
     axes.set_xscale("log")
     axes.margins(0.12)  # room for the annotations of the end points
     if log_y:

@@ -53,6 +53,21 @@ def test_speed_accuracy_chart_writes_png_svg_and_plots_exactly_the_input(tmp_pat
     assert sidecar["series"] == result.series and sidecar["omitted"] == []
 
 
+def test_speed_accuracy_chart_frontier_joins_only_the_unbeaten_points(tmp_path):
+    """A ladder of several methods: every point is drawn, unjoined; the line and the labels go
+    through the points no other beats on both seconds and error, in order of seconds."""
+    ladder = [{"setting": "a", "seconds": 1.0, "rel_mse": 0.1},
+              {"setting": "slow", "seconds": 5.0, "rel_mse": 0.2},
+              {"setting": "b", "seconds": 2.0, "rel_mse": 0.01},
+              {"setting": "c", "seconds": 0.5, "rel_mse": 0.5}]
+    result = charts.speed_accuracy_chart(ladder, CYCLES_LADDER, tmp_path / "front",
+                                         kernel_frontier=True)
+    points = result.series["Classic Bake kernel"]
+    assert points["x"] == [1.0, 5.0, 2.0, 0.5] and points["labels"] == ["c", "a", "b"]
+    front = result.series["Classic Bake kernel frontier"]
+    assert (front["x"], front["y"]) == ([0.5, 1.0, 2.0], [0.5, 0.1, 0.01])
+
+
 def test_speed_accuracy_chart_other_metric_and_unplottable_points(tmp_path):
     cycles = CYCLES_LADDER + [{"samples": 4096, "seconds": 300.0, "flip": 0.0}]
     result = charts.speed_accuracy_chart(KERNEL_LADDER, cycles, tmp_path / "flip", metric="flip")
