@@ -986,10 +986,9 @@ class BVH:
         touches the shaft it is the base of, is not entering it). What passes neither test counts
         as entering, so the answer is conservative (the corners' bounding box planes are added
         to the K, which catches most of what only an edge-edge axis would separate). Degenerate
-        triangles never enter (they are
-        never hit either). facing (P, 3), when given: only triangles whose front normal has a
-        positive component along facing[p] count for region p (the back faces a ray along it
-        would meet).
+        triangles never enter (they are never hit either). facing (P, 3), when given: only
+        triangles whose front normal has a positive component along facing[p] count for region p
+        (the back faces a ray along it would meet).
 
         The tree is walked level by level for all regions at once: (region, node) pairs whose box
         a plane keeps out are dropped, regions found entered stop, and the leaves' triangles are
@@ -1058,14 +1057,14 @@ class BVH:
         while region.size:
             next_region, next_node = [], []
             for a in range(0, region.size, SHAFT_PAIRS):  # bounds the (F, K, W) temporaries
-                r, n = region[a : a + SHAFT_PAIRS], node[a : a + SHAFT_PAIRS]
+                r, nd = region[a : a + SHAFT_PAIRS], node[a : a + SHAFT_PAIRS]
                 live = clear[r]
-                r, n = r[live], n[live]
-                at_leaf = n <= -2
+                r, nd = r[live], nd[live]
+                at_leaf = nd <= -2
                 if at_leaf.any():
-                    test_leaves(r[at_leaf], -2 - n[at_leaf])
+                    test_leaves(r[at_leaf], -2 - nd[at_leaf])
                 if (~at_leaf).any():
-                    rr, nn = enter_boxes(r[~at_leaf], n[~at_leaf])
+                    rr, nn = enter_boxes(r[~at_leaf], nd[~at_leaf])
                     next_region.append(rr)
                     next_node.append(nn)
             region = np.concatenate(next_region) if next_region else np.zeros(0, np.int64)

@@ -319,9 +319,10 @@ def prepare(scene: Scene, patches: patching.Patches, radiosity: np.ndarray, emit
     indirect = arrived - direct
     weight_areas = patches.areas
     open_fraction = np.ones(count)
-    # Patches no back face hangs over cannot be enclosed: their receivers cast no probe.
-    unroofed = shafts.open_above(patches.corners, patches.normals, scale, bvh, offset)
+    unroofed = np.ones(count, bool)  # without probes nothing counts as enclosed
     if settings.enclosure_probes:
+        # Patches no back face hangs over cannot be enclosed: their receivers cast no probe.
+        unroofed = shafts.open_above(patches.corners, patches.normals, scale, bvh, offset)
         inside = np.zeros((count, samples), bool)
         probed = np.flatnonzero(~unroofed)
         if probed.size:

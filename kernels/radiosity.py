@@ -621,11 +621,12 @@ def _hierarchical(scene, size, bvh, settings, scale, t0, roots, depth, memory: d
         return bvh.occluded(o, d, t_min, t_max)
 
     emitters = shot_emitters(scene, settings)
-    shafts = {}  # the last level's, which the final gather reads again
+    last_clear = {}  # the last level's clear shafts, which the final gather reads again
 
     def lamps(leaves):
-        shafts["clear"] = final_gather.clear_shafts(leaves, emitters, bvh, RAY_OFFSET_REL * scale)
-        return first_shot(scene, leaves, occluded, settings, scale, emitters, shafts["clear"])
+        clear = final_gather.clear_shafts(leaves, emitters, bvh, RAY_OFFSET_REL * scale)
+        last_clear["leaves"] = clear
+        return first_shot(scene, leaves, occluded, settings, scale, emitters, clear)
 
     for step in hierarchical_steps(scene, roots, depth, occluded, settings, scale, lamps,
                                    emitters):
@@ -643,7 +644,7 @@ def _hierarchical(scene, size, bvh, settings, scale, t0, roots, depth, memory: d
                          "converged": bool(level["solver_error"] <= settings.tolerance)}
                         for level in info["per_refinement"]]}
     result = _result(scene, leaves, b, emitted, rho, direct, corner_b, bvh, settings, scale, stats,
-                     t0, emitters, shafts["clear"])
+                     t0, emitters, last_clear["leaves"])
     yield 1.0
     yield result
 
