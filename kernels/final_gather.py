@@ -263,10 +263,11 @@ def enclosed(points: np.ndarray, normals: np.ndarray, intersect, triangle_normal
     rows = np.flatnonzero(backs(np.arange(len(points)), normals))
     if rows.size:
         t1, t2 = tangent_frames(normals[rows])
-        keep = np.ones(rows.size, bool)
-        for a, b in _PROBE_TILTS:
-            keep &= backs(rows, (normals[rows] + a * t1 + b * t2) / np.sqrt(2.0))
-        inside[rows[keep]] = True
+        # The four tilted probes in one BVH call (a call costs ~2 ms besides its rays).
+        dirs = np.concatenate([(normals[rows] + a * t1 + b * t2) / np.sqrt(2.0)
+                               for a, b in _PROBE_TILTS])
+        keep = backs(np.tile(rows, len(_PROBE_TILTS)), dirs).reshape(len(_PROBE_TILTS), -1)
+        inside[rows[keep.all(axis=0)]] = True
     return inside
 
 

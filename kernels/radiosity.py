@@ -679,25 +679,45 @@ def bake_steps(scene: Scene, result: RadiosityResult, objects, lightmap_sizes: d
     texels an edge crosses as Cycles' bake filters them (`bake_targets.box_filter`), and at their
     corners. Yields progress, then {object index: ObjectRadiosityBake}.
 
-    Every object's points are evaluated together, in two passes (texel centres and corners, then
-    the edge texels' sub-texel points): the gather's shadow rays reach the BVH in large batches,
-    and a BVH call costs ~2 ms besides its rays (0.6 M rays/s in calls of 2k rays, 1.0 M at 128k
-    on the Cornell box)."""
+    Every object's points are evaluated together, in three passes: the lightmaps' lattice texels
+    and the corners; the texels the lattice cannot give (`bake_targets.lattice_fill`); the edge
+    texels' sub-texel points. The gather's shadow rays reach the BVH in large batches, and a BVH
+    call costs ~2 ms besides its rays (0.6 M rays/s in calls of 2k rays, 1.0 M at 128k on the
+    Cornell box)."""
     from .bake_targets import (
         apply_box_filter,
         corner_targets,
         dilate,
         filter_samples,
+        lattice_fill,
+        lattice_plan,
         lightmap_targets,
     )
 
     lightmaps = {k: lightmap_targets(scene, k, lightmap_sizes[k]) for k in objects
                  if scene.lightmap_uv is not None and scene.objects[k].has_lightmap_uv}
     corners = {k: corner_targets(scene, k) for k in objects}
-    first = [(lightmaps[k].triangles, lightmaps[k].bary) for k in lightmaps]
-    first += [(c.triangles, c.bary) for c in corners.values()]
-    values = yield from _radiance_steps(result, first, 0.0, 0.8)
-    centre = dict(zip(lightmaps, values[: len(lightmaps)], strict=True))
+    plans = {k: lattice_plan(t) if texel_filter.lattice_threshold > 0.0 else None
+             for k, t in lightmaps.items()}
+
+    def first_of(k):  # the lightmap positions the first pass evaluates
+        return np.arange(len(lightmaps[k])) if plans[k] is None else plans[k].first
+
+    parts = [(lightmaps[k].triangles[first_of(k)], lightmaps[k].bary[first_of(k)])
+             for k in lightmaps]
+    values = yield from _radiance_steps(result, parts + [(c.triangles, c.bary)
+                                                         for c in corners.values()], 0.0, 0.5)
+    centre, todo = {}, {}
+    for k, first in zip(lightmaps, values, strict=False):
+        if plans[k] is None:
+            centre[k], todo[k] = first, np.zeros(0, np.int64)
+        else:
+            centre[k], todo[k] = lattice_fill(plans[k], first, texel_filter.lattice_threshold)
+    rest = yield from _radiance_steps(result, [(lightmaps[k].triangles[todo[k]],
+                                                lightmaps[k].bary[todo[k]]) for k in lightmaps],
+                                      0.5, 0.3)
+    for k, got in zip(lightmaps, rest, strict=True):
+        centre[k][todo[k]] = got
     samples = {k: filter_samples(scene, lightmaps[k], centre[k], texel_filter) for k in lightmaps}
     sampled = yield from _radiance_steps(result, [(s.triangles, s.bary) for s in samples.values()],
                                          0.8, 0.2)

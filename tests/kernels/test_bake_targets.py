@@ -11,6 +11,8 @@ from classic_bake.kernels.bake_targets import (
     TexelFilterSettings,
     box_filter,
     edge_texels,
+    lattice_fill,
+    lattice_plan,
     lightmap_targets,
     subtexel_points,
 )
@@ -91,3 +93,68 @@ def test_texel_filter_settings_refuse_nonsense():
         TexelFilterSettings(samples_per_side=0)
     with pytest.raises(ValueError):
         TexelFilterSettings(edge_threshold=0.0)
+
+
+# --- lattice interpolation ------------------------------------------------------------------------
+
+
+def lattice_bake(scene, targets, f, threshold):
+    """`lattice_fill` the way `radiosity.bake_steps` runs it: f at the lattice, then at the rest
+    it names. Returns the values and how many texels f was evaluated at."""
+    plan = lattice_plan(targets)
+    first = f(targets.triangles[plan.first], targets.bary[plan.first])
+    values, todo = lattice_fill(plan, first, threshold)
+    values[todo] = f(targets.triangles[todo], targets.bary[todo])
+    return values, len(plan.first) + len(todo)
+
+
+def test_lattice_interpolates_a_smooth_field_and_evaluates_a_step():
+    """A linear ramp is interpolated exactly (to rounding) away from the quad's diagonal, whose
+    texel centres are clamped into their triangles, and the chart's border; f runs at well under
+    half the texels. A step: every texel whose lattice neighbours straddle it is evaluated, so the
+    result equals the full evaluation exactly."""
+    scene = ground()
+    t = lightmap_targets(scene, 0, SIZE)
+
+    def ramp(tri, bary):
+        p = points_of(scene, tri, bary)
+        return np.stack([1.0 + 0.2 * p[:, 0], 2.0 - 0.1 * p[:, 1], np.ones(len(p))], axis=1)
+
+    full = ramp(t.triangles, t.bary)
+    values, evaluated = lattice_bake(scene, t, ramp, 0.1)
+    np.testing.assert_allclose(values, full, rtol=1e-9)
+    assert evaluated < 0.45 * len(t)
+
+    def step(tri, bary):
+        return np.where(points_of(scene, tri, bary)[:, :1] < 0.375, 1.0, 0.05) * np.ones((1, 3))
+
+    values, evaluated = lattice_bake(scene, t, step, 0.1)
+    np.testing.assert_array_equal(values, step(t.triangles, t.bary))
+    assert evaluated < 0.5 * len(t)
+
+
+def test_lattice_does_not_interpolate_across_a_seam_or_a_fold():
+    """Two quads whose lightmap charts touch in UV: side by side in the world with a 90-degree
+    fold between them, then far apart. A texel whose lattice neighbours lie on both charts is
+    evaluated, never averaged, however equal their values."""
+    left = quad([(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)])
+    folded = quad([(1, 0, 0), (1, 0, 1), (1, 1, 1), (1, 1, 0)])  # standing on the first's edge
+    far = quad([(5, 0, 3), (6, 0, 3), (6, 1, 3), (5, 1, 3)])
+    for second in (folded, far):
+        scene = build([(np.concatenate([left, second]), WHITE)])
+        uv = np.concatenate([np.full((2, 3, 2), 0.0), np.full((2, 3, 2), 0.0)])
+        uv[:2] = 0.1 + 0.4 * scene.triangles[:2, :, :2].astype(np.float64)  # u, v in [0.1, 0.5]
+        local = np.stack([scene.triangles[2:, :, 2], scene.triangles[2:, :, 1]], axis=-1)
+        if second is far:
+            local = np.stack([scene.triangles[2:, :, 0] - 5.0, scene.triangles[2:, :, 1]], -1)
+        uv[2:] = [0.5, 0.1] + 0.4 * local.astype(np.float64)  # u in [0.5, 0.9]: touching at 0.5
+        scene = replace(scene, lightmap_uv=uv.astype(np.float32))
+        t = lightmap_targets(scene, 0, SIZE)
+        plan = lattice_plan(t)
+        on_left = t.points[:, 0] < 1.0 - 1e-9
+        src_sides = on_left[np.where(plan.sources >= 0, plan.sources, 0)]
+        mixed = (plan.sources >= 0).all(axis=1) & src_sides.any(axis=1) & ~src_sides.all(axis=1)
+        assert mixed.any()
+        assert not plan.affine[mixed].any()
+        _, todo = lattice_fill(plan, np.ones((len(plan.first), 3)), 0.1)
+        assert set(plan.rest[mixed]) <= set(todo)
