@@ -62,7 +62,9 @@ class CLASSICBAKE_PG_settings(bpy.types.PropertyGroup):
         default=400, min=1, soft_max=5000)
     radiosity_refine: IntProperty(
         name="Refinement", description="Adaptive refinement levels (patches split where the "
-        "solution varies strongly or a shadow boundary crosses)", default=1, min=0, max=4)
+        "solution varies strongly or a shadow boundary crosses); -1: auto, none with the final "
+        "gather (its receivers carry the detail), one level without it", default=-1, min=-1,
+        max=4)
     radiosity_final_gather: BoolProperty(
         name="Final Gather", description="Read the solution out with exact direct light (and "
         "its shadows) at every texel, pixel and corner; the patches carry only the indirect light",

@@ -284,16 +284,15 @@ def hierarchical_steps(scene: Scene, roots: patching.Patches, depth: int, occlud
     RadiositySettings (link_epsilon, max_depth, samples_per_side, tolerance, refine_levels,
     refine_threshold, max_patches, smooth_angle).
 
-    Leaves are refined as the matrix solvers refine their patches (`radiosity.refine_mask`: a
-    corner value far from the leaf's own B, or a lamp's shadow edge across it), up to
+    Leaves are refined as the matrix solvers refine their patches (`radiosity.refine_splits`: a
+    corner value far from the leaf's own, or a lamp's shadow edge across it), up to
     `refine_levels` times within `max_patches`; every level links and solves afresh.
     """
     from .radiosity import (
         patch_emission,
         patch_reflectance,
-        refine_mask,
+        refine_splits,
         shot_emission,
-        within_budget,
     )
 
     tree = _Tree(scene, roots)
@@ -334,10 +333,8 @@ def hierarchical_steps(scene: Scene, roots: patching.Patches, depth: int, occlud
         yield base + span
         if level == levels - 1:
             break
-        corner = patching.corner_values(leaf_patches, b[leaves], settings.smooth_angle, scale)
-        mask = within_budget(refine_mask(leaf_patches, b[leaves], corner, boundary,
-                                         emitted[leaves], settings.refine_threshold),
-                             b[leaves], corner, settings.max_patches)
+        mask = refine_splits(leaf_patches, b[leaves], emitted[leaves], rho[leaves],
+                             direct[leaves], boundary, settings, scale)
         if not mask.any():
             break
         tree.split(leaves[mask])

@@ -9,7 +9,7 @@ from ..outputs import UsageError
 
 # Defaults of the options, also used when another command (demo) runs this one without them.
 DEFAULTS = {"method": "raycast", "solver": "auto", "patches": 400, "patch_size": 0.0,
-            "refine": 1, "final_gather": True, "gather_rays": 16, "lightmap_size": 128,
+            "refine": -1, "final_gather": True, "gather_rays": 16, "lightmap_size": 128,
             "padding": 2, "uv_name": "Lightmap", "wire": False}
 
 
@@ -26,7 +26,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--patch-size", type=float, default=DEFAULTS["patch_size"], metavar="M",
                         help="longest patch edge in metres (default 0: from --patches)")
     parser.add_argument("--refine", type=int, default=DEFAULTS["refine"], metavar="LEVELS",
-                        help="adaptive refinement levels (default 1)")
+                        help="adaptive refinement levels (default -1, auto: 0 with the final gather, "
+                             "whose receivers carry the detail, 1 without it)")
     parser.add_argument("--no-final-gather", dest="final_gather", action="store_false",
                         help="interpolate the patch solution instead of gathering direct light "
                              "at every texel, pixel and corner")

@@ -3,6 +3,8 @@ the camera view and the refusal of reflectance >= 1."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from scene_builder import build, ortho_camera, quad
@@ -14,7 +16,9 @@ from classic_bake.kernels.radiosity import (
     RadiositySettings,
     bake_steps,
     first_shot,
+    refine_splits,
     render_steps,
+    resolve_auto,
     solve_radiosity,
 )
 from classic_bake.kernels.scene import Light, Material, triangle_areas
@@ -204,10 +208,11 @@ def test_emitter_and_one_reflector_match_howell():
 
 
 def test_refinement_splits_only_at_the_shadow_boundary():
-    """A sun straight down over a floor: no occluder, no split. With a plate over the floor's
-    middle, the split patches are those crossing the plate's shadow edge."""
+    """Without the final gather (the patches are what is shown): a sun straight down over a
+    floor, no occluder, no split. With a plate over the floor's middle, the split patches are
+    those crossing the plate's shadow edge."""
     plain = build([(floor_quad(), grey(0.5))], lights=(sun_down(),))
-    settings = RadiositySettings(patch_budget=64, refine_levels=1, **FAST)
+    settings = RadiositySettings(patch_budget=64, refine_levels=1, final_gather=False, **FAST)
     assert set(solve_radiosity(plain, settings).stats["per_level"]) == {0}
     plate = floor_quad(z=0.5, lo=0.3, hi=0.7)
     shaded = build([(floor_quad(), grey(0.5)), (plate, grey(0.5))], lights=(sun_down(),))
@@ -219,6 +224,48 @@ def test_refinement_splits_only_at_the_shadow_boundary():
     centre = p.corners[split_floor].mean(axis=1)[:, :2]
     to_edge = np.min(np.abs(np.concatenate([centre - 0.3, centre - 0.7], axis=1)), axis=1)
     assert np.all(to_edge < size), to_edge.max()
+
+
+def test_with_the_final_gather_refinement_follows_the_indirect_light_only():
+    """With the final gather, receivers gather the direct light and its shadows themselves: a
+    patch across a shadow edge whose indirect light is smooth is not split, one whose indirect
+    light jumps is; without the gather the shadow edge alone splits it."""
+    scene = build([(floor_quad(), grey(0.5))])
+    patches = patching.make_patches(scene, 0.25)
+    n = len(patches)
+    rho = np.full((n, 3), 0.5)
+    emitted = np.zeros((n, 3))
+    x = patches.corners.mean(axis=1)[:, 0]
+    direct = np.where(x[:, None] < 0.5, 2.0, 0.0) * np.ones((1, 3))  # a hard shadow at x = 0.5
+    indirect = np.full((n, 3), 0.3)
+    boundary = np.abs(x - 0.5) < 0.2
+    gather = RadiositySettings(refine_levels=1, final_gather=True)
+    b = emitted + rho * direct + indirect
+    assert not refine_splits(patches, b, emitted, rho, direct, boundary, gather, 1.0).any()
+    plain = replace(gather, final_gather=False)
+    assert refine_splits(patches, b, emitted, rho, direct, boundary, plain, 1.0)[boundary].all()
+    jump = indirect * np.where(x[:, None] < 0.5, 1.0, 3.0)
+    split = refine_splits(patches, emitted + rho * direct + jump, emitted, rho, direct, boundary,
+                          gather, 1.0)
+    assert split.any() and not split[np.abs(x - 0.5) > 0.3].any()
+
+
+def test_auto_settings_follow_the_scene():
+    """samples_per_side 0 takes one point per patch for the hierarchy over surfaces that reflect
+    at most AUTO_ONE_POINT_RHO, 2 x 2 above it or for the matrix solvers; refine_levels -1 is 0
+    with the final gather and 1 without."""
+    auto = RadiositySettings()
+    dull = build([(inward_box(), grey(0.5, emission=1.0))])
+    bright = build([(inward_box(), grey(0.9, emission=1.0))])
+    assert resolve_auto(dull, auto, hierarchical=True).samples_per_side == 1
+    assert resolve_auto(bright, auto, hierarchical=True).samples_per_side == 2
+    assert resolve_auto(dull, auto, hierarchical=False).samples_per_side == 2
+    assert resolve_auto(dull, auto, hierarchical=True).refine_levels == 0
+    assert resolve_auto(dull, replace(auto, final_gather=False), True).refine_levels == 1
+    fixed = RadiositySettings(samples_per_side=3, refine_levels=2)
+    assert resolve_auto(bright, fixed, hierarchical=True) == fixed
+    result = solve_radiosity(dull, RadiositySettings(solver="hierarchical", patch_budget=60))
+    assert (result.stats["samples_per_side"], result.stats["refine_levels"]) == (1, 0)
 
 
 def test_hierarchical_matches_howell_and_needs_fewer_links_than_pairs():
