@@ -750,7 +750,6 @@ def bake_steps(scene: Scene, result: RadiosityResult, objects, lightmap_sizes: d
         corner_targets,
         dilate,
         filter_samples,
-        lattice_fill,
         lattice_plan,
         lightmap_targets,
     )
@@ -773,7 +772,8 @@ def bake_steps(scene: Scene, result: RadiosityResult, objects, lightmap_sizes: d
         if plans[k] is None:
             centre[k], todo[k] = first, np.zeros(0, np.int64)
         else:
-            centre[k], todo[k] = lattice_fill(plans[k], first, texel_filter.lattice_threshold)
+            centre[k], todo[k] = _lattice_radiance(scene, result, lightmaps[k], plans[k], first,
+                                                   texel_filter.lattice_threshold)
     rest = yield from _radiance_steps(result, [(lightmaps[k].triangles[todo[k]],
                                                 lightmaps[k].bary[todo[k]]) for k in lightmaps],
                                       0.5, 0.3)
@@ -792,6 +792,32 @@ def bake_steps(scene: Scene, result: RadiosityResult, objects, lightmap_sizes: d
             lightmap = dilate(lightmaps[k].to_image(texels), mask, padding)
         out[k] = ObjectRadiosityBake(lightmap, mask, corner_values.astype(np.float32), filtered)
     yield out
+
+
+def _lattice_radiance(scene: Scene, result: RadiosityResult, targets, plan, first: np.ndarray,
+                      threshold: float) -> tuple[np.ndarray, np.ndarray]:
+    """`bake_targets.lattice_fill` of radiance (N, 3) from the lattice's, first (L, 3); returns
+    the values and the texels still to evaluate. With the final gather a texel's radiance is
+    L_e + rho(x) H(x) / pi, rho sampled at the texel (textures): the lattice interpolates the
+    smooth part H / pi and each texel multiplies by its own reflectance, so texture detail between
+    lattice texels is kept (irradiance caching caches irradiance, not radiance). Without the
+    gather the patches' B is already smooth and is interpolated as it is."""
+    from .bake_targets import lattice_fill
+
+    if result.gather is None:
+        return lattice_fill(plan, first, threshold)
+    from .direct_light import albedo_at
+
+    rho = albedo_at(scene, targets.triangles, targets.bary)  # (N, 3)
+    emitted = triangle_emission(scene)[targets.triangles]  # (N, 3) L_e, W/(m^2 sr)
+    f = plan.first
+    # Where a lattice texel reflects nothing its H is unknown: 0, which no smooth test passes
+    # next to a lit neighbour, so the texels around it are evaluated.
+    h = np.divide(first - emitted[f], rho[f], out=np.zeros_like(first), where=rho[f] > 0.0)
+    h, todo = lattice_fill(plan, h, threshold)
+    values = emitted + rho * h
+    values[f] = first
+    return values, todo
 
 
 def _radiance_steps(result: RadiosityResult, parts: list, start: float, span: float):
