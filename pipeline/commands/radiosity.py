@@ -104,6 +104,8 @@ def run(ctx: RunContext) -> None:
     }
     ctx.record.extra["radiosity"] = {
         "solver": stats["solver"], "method": stats["method"], "patch_size_m": stats["patch_size_m"],
+        # What "auto" (0 and -1 in settings) chose for this scene.
+        "samples_per_side": stats["samples_per_side"], "refine_levels": stats["refine_levels"],
         "memory_estimate": stats["memory_estimate"],
         "levels": [{k: v for k, v in level.items() if k != "memory_estimate"}
                    for level in stats["levels"]],

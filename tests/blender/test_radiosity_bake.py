@@ -74,6 +74,8 @@ def test_cli_writes_render_lightmaps_and_patch_counts(tmp_path):
     assert sizes["patches"] == sum(sizes["patches_per_level"].values())
     assert sizes["refinement_levels"] in (0, 1) and sizes["memory_estimate_bytes"] > 0
     assert metrics["radiosity"]["solver"] == "gauss_seidel"
+    # What auto chose: the matrix solvers keep 2 x 2 source points; --refine 1 was asked for.
+    assert (metrics["radiosity"]["samples_per_side"], metrics["radiosity"]["refine_levels"]) == (2, 1)
     bad = subprocess.run([sys.executable, "-m", "classic_bake", "radiosity", str(SCENE),
                           "--patches", "0", "--out", str(tmp_path / "x")],
                          capture_output=True, text=True, timeout=300)
