@@ -377,6 +377,8 @@ def light_visibility(light, origins: np.ndarray, occluded, area_samples_per_side
 # 1.0 s, the same error against Cycles). The matrix solvers keep 2 x 2: their rows do not refine
 # the near field, and one point misses the row sums by ~0.8% (furnace 1.3% at rho 0.6).
 AUTO_ONE_POINT_RHO = 0.8
+
+
 def resolve_auto(scene: Scene, settings: RadiositySettings, hierarchical: bool
                  ) -> RadiositySettings:
     """`settings` with its "auto" fields chosen for `scene` and the solver that runs:
@@ -768,7 +770,7 @@ def bake_steps(scene: Scene, result: RadiosityResult, objects, lightmap_sizes: d
     values = yield from _radiance_steps(result, parts + [(c.triangles, c.bary)
                                                          for c in corners.values()], 0.0, 0.5)
     centre, todo = {}, {}
-    for k, first in zip(lightmaps, values, strict=False):
+    for k, first in zip(lightmaps, values[:len(lightmaps)], strict=True):
         if plans[k] is None:
             centre[k], todo[k] = first, np.zeros(0, np.int64)
         else:
