@@ -29,7 +29,7 @@ Pipeline (`radiosity_steps`):
 Display: `RadiosityResult.exitance_at(tri, bary)` gives B anywhere on the surface. With
 `final_gather` (the default, `final_gather.py`) each receiver gets its exact direct light (lamps
 and emissive triangles, with shadow rays) and the indirect part interpolated from the patches;
-without it, B itself is interpolated smoothly inside objects (`patches.corner_values`,
+without it, B itself is interpolated smoothly inside objects (`patches.fitted_corner_values`,
 `interpolate`). Outgoing radiance is B / pi, what Cycles' DIFFUSE bake (with colour) gives plus
 the emission. `bake_steps` evaluates lightmap texels and mesh corners, `render_steps` the scene
 camera's view.
@@ -197,7 +197,7 @@ class RadiosityResult:
     emitted     (N, 3) float64  pi x emission radiance, W/m^2
     direct      (N, 3) float64  the lights' direct irradiance H (first shot), W/m^2
     reflectance (N, 3) float64  rho
-    corner_b    (N, 3, 3)       B at each patch corner, smoothed within objects
+    corner_b    (N, 3, 3)       B at each patch corner (`patches.fitted_corner_values`)
     corner_e    (N, 3, 3)       the same for `emitted`
     stats       dict            patch counts per level, solver, memory estimate, seconds
     gather      FinalGather     what the final gather reads at receivers; None: interpolate B
@@ -631,7 +631,7 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
         for p in _solve_level(scene, patches, rho, sources, bvh, settings, level_stats):
             yield base + 0.96 / levels * p
         b = level_stats.pop("_b") + shot
-        corner_b = patching.corner_values(patches, b, settings.smooth_angle, scale)
+        corner_b = patching.fitted_corner_values(patches, b, settings.smooth_angle, scale)
         stats["levels"].append(level_stats)
         if level == levels - 1:
             break
@@ -652,7 +652,7 @@ def _result(scene, patches, b, emitted, rho, direct, corner_b, bvh, settings: Ra
             scale: float, stats: dict, t0: float, emitters, clear) -> RadiosityResult:
     """The solved scene, with the final gather prepared when the settings ask for it (clear:
     the patches' `final_gather.clear_shafts`, from the first shot)."""
-    corner_e = patching.corner_values(patches, emitted, settings.smooth_angle, scale)
+    corner_e = patching.fitted_corner_values(patches, emitted, settings.smooth_angle, scale)
     # What "auto" chose, for metrics.json.
     stats.update(samples_per_side=settings.samples_per_side, refine_levels=settings.refine_levels)
     gather = _prepare_gather(scene, patches, b, emitted, rho, direct, emitters, bvh, settings,
@@ -698,7 +698,7 @@ def _hierarchical(scene, size, bvh, settings, scale, t0, roots, depth, memory: d
             leaves, b, emitted, rho, direct, info = step
         else:
             yield 0.02 + 0.96 * step
-    corner_b = patching.corner_values(leaves, b, settings.smooth_angle, scale)
+    corner_b = patching.fitted_corner_values(leaves, b, settings.smooth_angle, scale)
     memory = {**memory, "links_made": info["links"]}  # bounded before linking, and as made
     stats = {"patch_size_m": size, "patches": len(leaves), "per_level": leaves.level_counts(),
              "solver": "hierarchical", "memory_estimate": memory, "method": "raycast",
