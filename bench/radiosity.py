@@ -118,8 +118,10 @@ def cornell(args) -> tuple[dict, dict, list]:
 
     # (form factors, solver, patch budget, refinement levels, final gather, source points per
     # patch side)
-    rungs = [("raycast", "hierarchical", 25, 0, True, 2), ("raycast", "hierarchical", 150, 0, True, 2),
-             ("raycast", "hierarchical", 150, 0, True, 1), ("raycast", "hierarchical", 300, 0, True, 1),
+    rungs = [("raycast", "hierarchical", 25, 0, True, 2), ("raycast", "hierarchical", 25, 0, True, 1),
+             ("raycast", "hierarchical", 150, 0, True, 2),
+             ("raycast", "hierarchical", 75, 0, True, 1), ("raycast", "hierarchical", 150, 0, True, 1),
+             ("raycast", "hierarchical", 300, 0, True, 1),
              ("raycast", "hierarchical", 150, 0, False, 2), ("raycast", "gauss_seidel", 50, 0, True, 2),
              ("raycast", "gauss_seidel", 150, 0, False, 2), ("hemicube", "gauss_seidel", 150, 0, True, 2),
              ("raycast", "progressive", 150, 0, True, 2), ("raycast", "hierarchical", 600, 0, True, 2),
