@@ -334,8 +334,8 @@ def prepare(scene: Scene, patches: patching.Patches, radiosity: np.ndarray, emit
         # The solver averaged each patch over its enclosed part too, which receives nothing.
         indirect /= np.maximum(open_fraction, MIN_OPEN_FRACTION)[:, None]
         weight_areas = patches.areas * np.maximum(open_fraction, 1e-9)
-    corner = patching.fitted_corner_values(replace(patches, areas=weight_areas), indirect, smooth_angle,
-                                    scale)
+    corner = patching.fitted_corner_values(replace(patches, areas=weight_areas), indirect,
+                                           smooth_angle, scale)
     if clear is None:
         clear = clear_shafts(patches, emitters, bvh, offset)
     stats = {"emitter_triangles": int(len(emitters.triangles)),

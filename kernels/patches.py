@@ -339,7 +339,7 @@ def fitted_corner_values(patches: Patches, values: np.ndarray, smooth_angle: flo
     peak by half a patch and cannot extrapolate to a surface's border; the fit keeps each
     patch's total (its energy) instead, so slopes run through to the borders and peaks stay.
     On the Cornell box with the final gather it lowers the lightmaps' relMSE against Cycles by
-    30-40% at 296-600 patches, and halves it without the gather (bench/README.md, session 10).
+    38-48% at 296-600 patches, and halves it without the gather (bench/README.md, session 10).
     The weak pull fixes what the means leave free (a lone triangle's corners take its value).
     Solved by conjugate gradients on the normal equations, Jacobi-preconditioned, to FIT_TOLERANCE.
     """

@@ -631,7 +631,6 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
         for p in _solve_level(scene, patches, rho, sources, bvh, settings, level_stats):
             yield base + 0.96 / levels * p
         b = level_stats.pop("_b") + shot
-        corner_b = patching.fitted_corner_values(patches, b, settings.smooth_angle, scale)
         stats["levels"].append(level_stats)
         if level == levels - 1:
             break
@@ -642,16 +641,17 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
     last = stats["levels"][-1]
     stats.update(patches=len(patches), per_level=patches.level_counts(), solver=last["solver"],
                  memory_estimate=last["memory_estimate"], method=settings.method)
-    result = _result(scene, patches, b, emitted, rho, direct, corner_b, bvh, settings, scale,
-                     stats, t0, emitters, clear)
+    result = _result(scene, patches, b, emitted, rho, direct, bvh, settings, scale, stats, t0,
+                     emitters, clear)
     yield 1.0
     yield result
 
 
-def _result(scene, patches, b, emitted, rho, direct, corner_b, bvh, settings: RadiositySettings,
+def _result(scene, patches, b, emitted, rho, direct, bvh, settings: RadiositySettings,
             scale: float, stats: dict, t0: float, emitters, clear) -> RadiosityResult:
     """The solved scene, with the final gather prepared when the settings ask for it (clear:
     the patches' `final_gather.clear_shafts`, from the first shot)."""
+    corner_b = patching.fitted_corner_values(patches, b, settings.smooth_angle, scale)
     corner_e = patching.fitted_corner_values(patches, emitted, settings.smooth_angle, scale)
     # What "auto" chose, for metrics.json.
     stats.update(samples_per_side=settings.samples_per_side, refine_levels=settings.refine_levels)
@@ -698,7 +698,6 @@ def _hierarchical(scene, size, bvh, settings, scale, t0, roots, depth, memory: d
             leaves, b, emitted, rho, direct, info = step
         else:
             yield 0.02 + 0.96 * step
-    corner_b = patching.fitted_corner_values(leaves, b, settings.smooth_angle, scale)
     memory = {**memory, "links_made": info["links"]}  # bounded before linking, and as made
     stats = {"patch_size_m": size, "patches": len(leaves), "per_level": leaves.level_counts(),
              "solver": "hierarchical", "memory_estimate": memory, "method": "raycast",
@@ -707,8 +706,8 @@ def _hierarchical(scene, size, bvh, settings, scale, t0, roots, depth, memory: d
                          "iterations": level["iterations"], "solver_error": level["solver_error"],
                          "converged": bool(level["solver_error"] <= settings.tolerance)}
                         for level in info["per_refinement"]]}
-    result = _result(scene, leaves, b, emitted, rho, direct, corner_b, bvh, settings, scale, stats,
-                     t0, emitters, last_clear["leaves"])
+    result = _result(scene, leaves, b, emitted, rho, direct, bvh, settings, scale, stats, t0,
+                     emitters, last_clear["leaves"])
     yield 1.0
     yield result
 
