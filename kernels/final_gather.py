@@ -333,7 +333,9 @@ def prepare(scene: Scene, patches: patching.Patches, radiosity: np.ndarray, emit
         open_fraction = np.where(inside.any(axis=1), np.einsum("ns,ns->n", weights, ~inside), 1.0)
         # The solver averaged each patch over its enclosed part too, which receives nothing.
         indirect /= np.maximum(open_fraction, MIN_OPEN_FRACTION)[:, None]
-        weight_areas = patches.areas * np.maximum(open_fraction, 1e-9)
+        # An enclosed patch weighs 0: its corners follow its open neighbours
+        # (`fitted_corner_values` floors the weights, so none is left undetermined).
+        weight_areas = patches.areas * open_fraction
     corner = patching.fitted_corner_values(replace(patches, areas=weight_areas), indirect,
                                            smooth_angle, scale)
     if clear is None:
