@@ -75,6 +75,9 @@ RECEIVER_INSET = 1e-4
 # Probe rays at 45 degrees (after the normal ray): their tangent-frame directions.
 _PROBE_TILTS = ((1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0))
 LUMINANCE = np.array(REC709_LUMINANCE)
+# What a receiver's rays found about one emitter triangle (`Visibility.emitters`): nothing known
+# (or a penumbra), all of it hidden, all of it seen, or it lies behind the receiver's plane.
+UNKNOWN, HIDDEN, CLEAR, AWAY = -1, 0, 1, 2
 
 
 @dataclass(frozen=True)
@@ -130,6 +133,48 @@ def emitters_of(scene: Scene, settings: FinalGatherSettings) -> Emitters:
     return Emitters(keep, tris[keep], normals[keep], radiance[keep], per_side)
 
 
+@dataclass(frozen=True, eq=False)
+class Visibility:
+    """What the gather's rays found at M receivers, for neighbouring receivers to reuse.
+
+    emitters  (M, K) int8  per emitter triangle: UNKNOWN, HIDDEN, CLEAR or AWAY
+    inside    (M,) int8    -1 unknown, 0 open, 1 inside a closed solid (`enclosed`)
+
+    Given to `exitance` as `known`, a CLEAR or HIDDEN emitter takes share 1 or 0 without rays and
+    a known `inside` skips the probes; `visibility_out` receives what a call found."""
+
+    emitters: np.ndarray
+    inside: np.ndarray
+
+    @classmethod
+    def unknown(cls, count: int, emitter_count: int) -> Visibility:
+        return cls(np.full((count, emitter_count), UNKNOWN, np.int8), np.full(count, -1, np.int8))
+
+    def __len__(self) -> int:
+        return len(self.inside)
+
+    def take(self, rows: np.ndarray) -> Visibility:
+        return Visibility(self.emitters[rows], self.inside[rows])
+
+    def agreed(self, sources: np.ndarray) -> Visibility:
+        """(R,) receivers each lying among receivers `sources` (R, S) of these (-1: none, which
+        makes the receiver UNKNOWN): per emitter CLEAR where every source is CLEAR or AWAY and one
+        is CLEAR, HIDDEN likewise, UNKNOWN otherwise; inside where every source agrees. A shadow
+        edge or an enclosure's wall passing between the sources leaves them disagreeing, so the
+        receiver casts its own rays; what this misses fits between the sources without touching
+        one (the lattice's caveat, `bake_targets.py`)."""
+        missing = (sources < 0).any(axis=1)
+        states = self.emitters[np.maximum(sources, 0)]  # (R, S, K)
+        facing = states != AWAY
+        clear = np.all((states == CLEAR) | ~facing, axis=1) & np.any(facing, axis=1)
+        hidden = np.all((states == HIDDEN) | ~facing, axis=1) & np.any(facing, axis=1)
+        emitters = np.where(clear, CLEAR, np.where(hidden, HIDDEN, UNKNOWN)).astype(np.int8)
+        emitters[missing] = UNKNOWN
+        inside = self.inside[np.maximum(sources, 0)]  # (R, S)
+        agree = (inside == inside[:, :1]).all(axis=1) & ~missing
+        return Visibility(emitters, np.where(agree, inside[:, 0], -1).astype(np.int8))
+
+
 def stratified_triangle_points(poly: np.ndarray, m: int, n: int, rng: np.random.Generator
                                ) -> np.ndarray:
     """(m, n^2, 3) points on triangle `poly` (3, 3): m independent sets, one uniform point in each
@@ -167,7 +212,8 @@ def _kernel_sums(points: np.ndarray, normals: np.ndarray, poly: np.ndarray, nj: 
 def emitter_irradiance(emitters: Emitters, points: np.ndarray, normals: np.ndarray, occluded,
                        offset: float, rng: np.random.Generator,
                        share_out: np.ndarray | None = None,
-                       clear: np.ndarray | None = None) -> np.ndarray:
+                       clear: np.ndarray | None = None, known: np.ndarray | None = None,
+                       states_out: np.ndarray | None = None) -> np.ndarray:
     """(M, 3) irradiance W/m^2 at points (M, 3) m with unit normals (M, 3) from the emitters,
     shadowed: pi L_j F(x -> j) V_j(x) summed over j (module docstring). share_out (M,), when
     given, receives the visible share of the unshadowed irradiance (luminance; 1 where none
@@ -181,20 +227,29 @@ def emitter_irradiance(emitters: Emitters, points: np.ndarray, normals: np.ndarr
     as unblocked there.
 
     clear (M, K) bool, when given: receivers known to see emitter triangle k whole (their patch's
-    shaft to it is empty, `clear_shafts`), which take share 1 without rays.
+    shaft to it is empty, `clear_shafts`), which take share 1 without rays. known (M, K) int8
+    (`Visibility.emitters`) likewise: CLEAR takes share 1, HIDDEN share 0, without rays.
+    states_out (M, K) int8, when given, receives what was found (CLEAR, HIDDEN, AWAY, UNKNOWN for
+    a penumbra).
     """
     out = np.zeros((len(points), 3))
     unshadowed = np.zeros(len(points)) if share_out is not None else None
+    states = np.full((len(points), len(emitters.triangles)), UNKNOWN, np.int8)
+    if known is not None:
+        states[...] = known
+    if clear is not None:
+        states[clear] = CLEAR
     for j in range(len(emitters.triangles)):
         poly, nj = emitters.triangles[j], emitters.normals[j]
         factor = point_to_polygon(points, normals, poly[None], nj[None])  # (M,) exact, unoccluded
         live = np.flatnonzero(factor > 0.0)
         if unshadowed is not None:
             unshadowed[live] += np.pi * factor[live] * (emitters.radiance[j] @ LUMINANCE)
-        if clear is not None:
-            seen_whole = live[clear[live, j]]
-            out[seen_whole] += np.pi * factor[seen_whole, None] * emitters.radiance[j]
-            live = live[~clear[live, j]]
+        state = states[live, j]
+        seen_whole = live[state == CLEAR]
+        out[seen_whole] += np.pi * factor[seen_whole, None] * emitters.radiance[j]
+        states[factor <= 0.0, j] = AWAY
+        live = live[(state != CLEAR) & (state != HIDDEN)]
         if live.size == 0:
             continue
         n = int(emitters.per_side[j])
@@ -210,6 +265,10 @@ def emitter_irradiance(emitters: Emitters, points: np.ndarray, normals: np.ndarr
                 total[mixed] += more_total
         share = np.divide(seen, total, out=np.zeros_like(total), where=total > 0.0)
         out[live] += (np.pi * factor[live] * share)[:, None] * emitters.radiance[j]
+        states[live, j] = np.where(total <= 0.0, UNKNOWN, np.where(
+            seen >= total, CLEAR, np.where(seen <= 0.0, HIDDEN, UNKNOWN)))
+    if states_out is not None:
+        states_out[...] = states
     if share_out is not None:
         np.divide(out @ LUMINANCE, unshadowed, out=share_out, where=unshadowed > 0.0)
         share_out[unshadowed <= 0.0] = 1.0
@@ -352,9 +411,14 @@ def prepare(scene: Scene, patches: patching.Patches, radiosity: np.ndarray, emit
 
 
 def exitance(gather: FinalGather, patches: patching.Patches, tri: np.ndarray, bary: np.ndarray,
-             reflected_only: bool = False) -> np.ndarray:
+             reflected_only: bool = False, known: Visibility | None = None,
+             visibility_out: Visibility | None = None) -> np.ndarray:
     """(M, 3) exitance B(x) W/m^2 at receivers given as scene triangles (M,) and barycentric
-    coordinates (M, 3): E + rho (H_direct + H_indirect), or without E (`reflected_only`)."""
+    coordinates (M, 3): E + rho (H_direct + H_indirect), or without E (`reflected_only`).
+
+    known: what neighbouring receivers' rays agree on (`Visibility.agreed`), taken without rays
+    of its own; visibility_out (M receivers) receives what this call found, for later neighbours.
+    The lamps' shadow rays are cast every time."""
     from .direct_light import albedo_at
 
     scene = gather.scene
@@ -372,16 +436,27 @@ def exitance(gather: FinalGather, patches: patching.Patches, tri: np.ndarray, ba
         # Located at the inset point: the one the rays leave from must lie in the patch whose
         # shaft clears it.
         patch, local = patching.locate(patches, t, inset)
+        rows = slice(a, a + GATHER_CHUNK)
         h = emitter_irradiance(gather.emitters, points, normals, occluded, gather.offset, rng,
-                               clear=gather.clear[patch])
+                               clear=gather.clear[patch],
+                               known=None if known is None else known.emitters[rows],
+                               states_out=None if visibility_out is None
+                               else visibility_out.emitters[rows])
         h += lamp_irradiance(scene, points, normals, occluded, gather.offset,
                              gather.area_samples_per_side)
         h += patching.interpolate(gather.corner_indirect, patch, local)
         np.maximum(h, 0.0, out=h)
+        inside = np.zeros(len(t), np.int8)  # receivers no back face hangs over are open
         if gather.settings.enclosure_probes:
             probed = np.flatnonzero(~gather.open_above[patch])
-            h[probed[enclosed(points[probed], normals[probed], gather.bvh.intersect,
-                              gather.triangle_normals, gather.offset)]] = 0.0
+            if known is not None:
+                inside[probed] = known.inside[rows][probed]
+                probed = probed[inside[probed] < 0]
+            inside[probed] = enclosed(points[probed], normals[probed], gather.bvh.intersect,
+                                      gather.triangle_normals, gather.offset)
+            h[inside == 1] = 0.0
+        if visibility_out is not None:
+            visibility_out.inside[rows] = inside
         value = albedo_at(scene, t, b) * h
         if not reflected_only:
             value += gather.emission[t]
