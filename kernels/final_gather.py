@@ -150,11 +150,17 @@ class Visibility:
     def unknown(cls, count: int, emitter_count: int) -> Visibility:
         return cls(np.full((count, emitter_count), UNKNOWN, np.int8), np.full(count, -1, np.int8))
 
-    def __len__(self) -> int:
-        return len(self.inside)
+    @classmethod
+    def joined(cls, parts: list[Visibility]) -> Visibility:
+        return cls(np.concatenate([v.emitters for v in parts]),
+                   np.concatenate([v.inside for v in parts]))
 
     def take(self, rows: np.ndarray) -> Visibility:
         return Visibility(self.emitters[rows], self.inside[rows])
+
+    def put(self, rows: np.ndarray, found: Visibility) -> None:
+        """In place: receivers `rows` take what `found` (one per row) says."""
+        self.emitters[rows], self.inside[rows] = found.emitters, found.inside
 
     def agreed(self, sources: np.ndarray) -> Visibility:
         """(R,) receivers each lying among receivers `sources` (R, S) of these (-1: none, which

@@ -779,8 +779,7 @@ def bake_steps(scene: Scene, result: RadiosityResult, objects, lightmap_sizes: d
                                strict=True):
         texel_seen[k] = final_gather.Visibility.unknown(len(lightmaps[k]),
                                                         found.emitters.shape[1])
-        texel_seen[k].emitters[first_of(k)] = found.emitters
-        texel_seen[k].inside[first_of(k)] = found.inside
+        texel_seen[k].put(first_of(k), found)
         if plans[k] is None:
             centre[k], todo[k] = first, np.zeros(0, np.int64)
         else:
@@ -792,8 +791,7 @@ def bake_steps(scene: Scene, result: RadiosityResult, objects, lightmap_sizes: d
         0.5, 0.3, [texel_seen[k].take(todo[k]) for k in lightmaps])
     for k, got, found in zip(lightmaps, rest, seen, strict=True):
         centre[k][todo[k]] = got
-        texel_seen[k].emitters[todo[k]] = found.emitters
-        texel_seen[k].inside[todo[k]] = found.inside
+        texel_seen[k].put(todo[k], found)
     samples = {k: filter_samples(scene, lightmaps[k], centre[k], texel_filter) for k in lightmaps}
     sampled, _ = yield from _radiance_steps(
         result, [(s.triangles, s.bary) for s in samples.values()], 0.8, 0.2,
@@ -842,8 +840,7 @@ def _lattice_visibility(plan, seen: final_gather.Visibility) -> None:
     lattice sources agree on (`Visibility.agreed`; UNKNOWN where the sources are not all on one
     flat piece with the texel, `plan.affine`). seen: every texel's, the lattice's set."""
     sources = np.where(plan.affine[:, None], plan.sources, -1)
-    agreed = seen.agreed(sources)
-    seen.emitters[plan.rest], seen.inside[plan.rest] = agreed.emitters, agreed.inside
+    seen.put(plan.rest, seen.agreed(sources))
 
 
 def _texel_neighbourhood(targets, seen: final_gather.Visibility, which: np.ndarray
@@ -873,24 +870,18 @@ def _radiance_steps(result: RadiosityResult, parts: list, start: float, span: fl
     bary = np.concatenate([b for _, b in parts]) if parts else np.zeros((0, 3))
     emitters = 0 if result.gather is None else len(result.gather.emitters.triangles)
     found = final_gather.Visibility.unknown(len(tri), emitters)
-    given = None
-    if known is not None and parts:
-        given = final_gather.Visibility(np.concatenate([v.emitters for v in known]),
-                                        np.concatenate([v.inside for v in known]))
+    given = final_gather.Visibility.joined(known) if known is not None and parts else None
     values = np.zeros((len(tri), 3))
     chunk = final_gather.GATHER_CHUNK
     for a in range(0, len(tri), chunk):
         rows = slice(a, a + chunk)
         values[rows] = result.radiance_at(
             tri[rows], bary[rows], known=None if given is None else given.take(rows),
-            visibility_out=final_gather.Visibility(found.emitters[rows], found.inside[rows]))
+            visibility_out=found.take(rows))  # views: the gather writes into `found`
         yield start + span * min(a + chunk, len(tri)) / len(tri)
-    if not parts:
-        return [], []
-    cuts = np.cumsum(sizes)[:-1]
-    return np.split(values, cuts), [final_gather.Visibility(e, i) for e, i in
-                                    zip(np.split(found.emitters, cuts), np.split(found.inside, cuts),
-                                        strict=True)]
+    bounds = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+    return ([values[a:b] for a, b in zip(bounds[:-1], bounds[1:], strict=True)],
+            [found.take(slice(a, b)) for a, b in zip(bounds[:-1], bounds[1:], strict=True)])
 
 
 def render_steps(scene: Scene, result: RadiosityResult, resolution=None,
