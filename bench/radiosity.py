@@ -65,7 +65,7 @@ def cornell(args) -> tuple[dict, dict, list]:
     from classic_bake.kernels.bvh import BVH
     from classic_bake.kernels.lightmap_uv import LightmapUVSettings
     from classic_bake.kernels.metrics import rel_mse
-    from classic_bake.pipeline.charts import speed_accuracy_chart
+    from classic_bake.pipeline.charts import frontier, speed_accuracy_chart
     from classic_bake.pipeline.images import write_preview_png
 
     bpy.ops.wm.open_mainfile(filepath=str(SCENE), load_ui=False, use_scripts=False)
@@ -176,10 +176,9 @@ def cornell(args) -> tuple[dict, dict, list]:
         ratios[f"cycles_{which}_vs_radiosity_seconds_to_same_rel_mse"] = float(worst)
         # The rungs no other rung beats on both seconds and error: what the radiosity bake
         # reaches at each error level, at its fastest.
-        frontier = [e for e in ours if not any(o["seconds"] < e["seconds"]
-                                               and o["rel_mse"] < e["rel_mse"] for o in ours)]
+        front = frontier(ours, lambda e: (e["seconds"], e["rel_mse"]))
         ratios[f"cycles_{which}_vs_radiosity_frontier_seconds_to_same_rel_mse"] = float(
-            min(e["speedup"] for e in frontier))
+            min(e["speedup"] for e in front))
         # The same ratio for the best rung, and for the default settings (the last rung of a full
         # run).
         ratios[f"cycles_{which}_vs_radiosity_best_rung_seconds_to_same_rel_mse"] = float(

@@ -127,6 +127,14 @@ def _cycles_label(entry: Mapping[str, Any], where: str) -> str:
     return f"{int(_number(entry, 'samples', where))} spp"
 
 
+def frontier(points: Sequence, key=lambda p: p) -> list:
+    """The points no other point beats on both coordinates, key(point) -> (seconds, error), in
+    their given order: what a ladder reaches at each error level at its fastest."""
+    coords = [key(p)[:2] for p in points]
+    return [p for p, (x, y) in zip(points, coords, strict=True)
+            if not any(ox < x and oy < y for ox, oy in coords)]
+
+
 def speed_accuracy_chart(
     kernel: Sequence[Mapping[str, Any]],
     cycles: Sequence[Mapping[str, Any]],
@@ -170,8 +178,7 @@ def speed_accuracy_chart(
             [p[0] for p in shown], [p[1] for p in shown], marker=marker,
             linestyle=style if joined else "none", label=name
         )
-        best = shown if joined else sorted(
-            p for p in shown if not any(o[0] < p[0] and o[1] < p[1] for o in shown))
+        best = shown if joined else sorted(frontier(shown))
         annotations = [
             axes.annotate(label, (x, y), textcoords="offset points", xytext=(5, 4), fontsize=8,
                           color=line.get_color())
