@@ -67,6 +67,15 @@ LINK_BYTES = 96
 ELEMENT_BYTES = 500  # corners, barycentrics, normals, area, tree indices of one element
 # Working memory per point pair of a chunk: kernels, shadow-ray origins, directions, lengths.
 WORK_BYTES_PER_POINT_PAIR = 300
+# Root pairs at most that `radiosity.hierarchical_memory` has `facing_roots` count (~40 ms per
+# million); past it the bound takes every pair.
+FACING_COUNT_PAIRS = 1 << 28
+# `facing_roots` counts a pair as facing from this share of `_facing`'s epsilon
+# (1e-9 sqrt(area_p + area_q) m) up: never fewer pairs than `_facing` finds, while coplanar
+# pairs (a floor's patches, exactly 0) still count as not facing.
+FACING_EPS_SHARE = 0.5
+# Root pairs per block of `facing_roots` (two (rows, N) float64 tables of ~8 MB).
+FACING_BLOCK = 1 << 20
 # Shadow rays per chunk of links (side^2 each): ~40 MB of pairs, and BVH calls at full rate.
 VISIBILITY_RAYS = 1 << 17
 
@@ -85,7 +94,8 @@ def hierarchy_roots(scene: Scene, patch_size: float, max_depth: int
 
 
 def memory_bound(root_count: int, depth: int, link_epsilon: float, side: int = 2,
-                 refine_levels: int = 0, max_patches: int = 0) -> dict:
+                 refine_levels: int = 0, max_patches: int = 0,
+                 facing: tuple[int, int] | None = None) -> dict:
     """Bytes of links and elements, bounded before any link is made.
 
     Each leaf starts linked to at most every root; a link splits only while its factor exceeds
@@ -93,12 +103,20 @@ def memory_bound(root_count: int, depth: int, link_epsilon: float, side: int = 2
     so each level of sources adds at most 4 / epsilon links per leaf:
     links <= leaves x (roots + 4 levels / epsilon), with levels = depth + refine_levels and, when
     leaves are refined, leaves <= max(the first leaves, max_patches).
+
+    facing (`facing_roots`: the root pairs that face each other, and the most roots one root
+    faces), when given, tightens the first term: a leaf faces only roots its own root faces, so
+    the first leaves start with at most 4^depth x pairs links and each refined leaf with at most
+    the most (a room of many small triangles: 19% of all pairs face).
     """
     first = root_count * 4**depth
     leaves = max(first, max_patches) if refine_levels else first
     elements = root_count * sum(4**k for k in range(depth + 1)) + (leaves - first) * 4 // 3
     levels = depth + refine_levels
-    links = min(leaves * (root_count + 4.0 * levels / link_epsilon), float(leaves) * elements)
+    start = float(leaves) * root_count
+    if facing is not None:
+        start = min(start, 4.0**depth * facing[0] + float(leaves - first) * facing[1])
+    links = min(start + leaves * 4.0 * levels / link_epsilon, float(leaves) * elements)
     work = max(LINK_CHUNK * side**2, VISIBILITY_RAYS) * WORK_BYTES_PER_POINT_PAIR
     return {"links": int(links * LINK_BYTES), "elements": int(elements * ELEMENT_BYTES),
             "work": int(work), "link_bound": int(links)}
@@ -135,9 +153,36 @@ class _Tree:
         self.areas = np.concatenate([self.areas, triangle_areas(corners)])
 
 
-def _facing(tree: _Tree, p: np.ndarray, q: np.ndarray) -> np.ndarray:
+def facing_roots(roots: patching.Patches) -> tuple[int, int]:
+    """(ordered root pairs (p, q) that face each other, the most roots one root faces), never
+    fewer than `_facing` finds: its test as matrix products in row blocks, with half its
+    epsilon, A[p, q] = max_k n_p . (c_qk - c_p0) > FACING_EPS_SHARE x 1e-9 sqrt(area_p) (float64
+    rounding of the products, ~1e-16 of the scene, stays far below that)."""
+    count = len(roots)
+    corners = roots.corners.reshape(-1, 3)  # (3N, 3): root q's corners at rows 3q..3q+2
+    normals = roots.normals
+    level = np.einsum("nc,nc->n", normals, roots.corners[:, 0])  # n_p . c_p0
+    level += FACING_EPS_SHARE * 1e-9 * np.sqrt(roots.areas)
+
+    def ahead(p: np.ndarray, q_corners: np.ndarray) -> np.ndarray:
+        """(len(p), Q) bool: the farthest corner of each q lies in front of p's plane."""
+        d = (normals[p] @ q_corners.T).reshape(len(p), -1, 3)
+        return np.maximum(np.maximum(d[..., 0], d[..., 1]), d[..., 2]) > level[p, None]
+
+    per_root = np.zeros(count, np.int64)
+    step = max(1, FACING_BLOCK // max(count, 1))
+    every = np.arange(count)
+    for a in range(0, count, step):
+        rows = every[a:a + step]
+        faces = ahead(rows, corners) & ahead(every, roots.corners[rows].reshape(-1, 3)).T
+        per_root[rows] = faces.sum(axis=1)
+    return int(per_root.sum()), int(per_root.max(initial=0))
+
+
+def _facing(tree: _Tree | patching.Patches, p: np.ndarray, q: np.ndarray) -> np.ndarray:
     """(L,) bool: some corner of q is in front of p's plane and some corner of p in front of q's
-    (a pair failing this exchanges nothing, at any refinement)."""
+    (a pair failing this exchanges nothing, at any refinement); elements p, q of `tree` (or of
+    any Patches: corners, normals and areas are read)."""
     c, n = tree.corners, tree.normals
     out = np.empty(len(p), bool)
 

@@ -7,7 +7,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from scene_builder import build, ortho_camera, quad
+from scene_builder import build, ortho_camera, quad, uv_sphere
 
 from classic_bake.kernels import patches as patching
 from classic_bake.kernels.bake_targets import TexelFilterSettings, lattice_plan, lightmap_targets
@@ -199,6 +199,38 @@ def test_auto_solver_goes_hierarchical_beyond_small_scenes_within_its_bound():
     assert solve_radiosity(scene, tight).stats["solver"] in ("gauss_seidel", "progressive")
     small = RadiositySettings(patch_budget=AUTO_DENSE_PATCHES // 4, refine_levels=0, **FAST)
     assert solve_radiosity(scene, small).stats["solver"] == "gauss_seidel"
+
+
+def test_many_small_triangles_bound_only_the_root_pairs_that_face():
+    """A room around a finely tessellated ball: every triangle is a root, and the links' bound
+    over all root pairs overshoots the limit, but a convex ball's triangles never face each
+    other. `facing_roots` counts exactly the pairs `_facing` keeps (never fewer), the bound over
+    those fits, auto runs the hierarchical solver within it, and the furnace holds."""
+    from classic_bake.kernels.bvh import BVH
+    from classic_bake.kernels.hierarchical import _facing, facing_roots, hierarchy_roots
+    from classic_bake.kernels.radiosity import hierarchical_memory
+
+    ball = uv_sphere((0.5, 0.5, 0.5), 0.2, rings=10, segments=20)
+    scene = build([(inward_box(), grey(0.3, emission=1.0)), (ball, grey(0.3, emission=1.0))])
+    settings = RadiositySettings(patch_budget=60, refine_levels=0, **FAST)
+    size = patching.auto_patch_size(scene, settings.patch_budget)
+    roots, depth, _ = hierarchy_roots(scene, size, settings.max_depth)
+    n = len(roots)
+    p, q = np.repeat(np.arange(n), n), np.tile(np.arange(n), n)
+    pairs, most = facing_roots(roots)
+    kept = _facing(roots, p, q).reshape(n, n).sum(axis=1)
+    assert (pairs, most) == (int(kept.sum()), int(kept.max()))
+    assert pairs < 0.6 * n * n  # the ball's own pairs and coplanar wall pairs drop out
+    bvh = BVH.build(scene.triangles)
+    every = hierarchical_memory(scene, roots, depth, bvh, settings)  # within the default limit
+    limit = every["total"] - 1
+    facing = hierarchical_memory(scene, roots, depth, bvh, replace(settings, dense_memory_limit=limit))
+    assert facing["link_bound"] < every["link_bound"] and facing["total"] <= limit
+    result = solve_radiosity(scene, replace(settings, dense_memory_limit=limit))
+    memory = result.stats["memory_estimate"]
+    assert result.stats["solver"] == "hierarchical" and memory["total"] == facing["total"]
+    assert 0 < memory["links_made"] <= memory["link_bound"]
+    np.testing.assert_allclose(result.radiosity, np.pi / 0.7, rtol=0.01)
 
 
 @pytest.mark.parametrize("refine_levels", [0, 1])

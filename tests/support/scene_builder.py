@@ -29,7 +29,7 @@ def uv_sphere(centre, radius, rings=48, segments=96, inward=False) -> np.ndarray
             if i < rings - 1:
                 tris.append([b, c, d])
     tris = np.array(tris)
-    return tris[:, ::-1] if not inward else tris
+    return tris if not inward else tris[:, ::-1]  # [a, b, d]: e_theta x e_phi, outwards
 
 
 def build(parts, camera=None, lights=(), world=(0.0, 0.0, 0.0)) -> Scene:
