@@ -179,6 +179,16 @@ def albedo_at(scene: Scene, tri: np.ndarray, bary: np.ndarray) -> np.ndarray:
     return out
 
 
+
+def diffuse_at(scene: Scene, tri: np.ndarray, bary: np.ndarray) -> np.ndarray:
+    """(N, 3) diffuse reflectance at barycentric points of triangles: the base colour
+    (`albedo_at`) times the Principled BSDF's diffuse weight (1 - metallic)(1 - transmission).
+    A metal or glass reflects nothing diffusely: its light leaves along specular paths, which a
+    diffuse solver does not follow (Cycles' DIFFUSE bake of it is black too)."""
+    mats = scene.materials
+    weight = np.array([(1.0 - m.metallic) * (1.0 - m.transmission) for m in mats], np.float64)
+    return albedo_at(scene, tri, bary) * weight[scene.material_ids[tri]][:, None]
+
 # --- the camera view ------------------------------------------------------------------------------
 
 

@@ -453,7 +453,7 @@ def exitance(gather: FinalGather, patches: patching.Patches, tri: np.ndarray, ba
     known: what neighbouring receivers' rays agree on (`Visibility.agreed`), taken without rays
     of its own; visibility_out (M receivers) receives what this call found, for later neighbours.
     The lamps' shadow rays are cast every time."""
-    from .direct_light import albedo_at
+    from .direct_light import diffuse_at
 
     scene = gather.scene
     tri = np.asarray(tri, np.int64)
@@ -491,7 +491,7 @@ def exitance(gather: FinalGather, patches: patching.Patches, tri: np.ndarray, ba
             h[inside == 1] = 0.0
         if visibility_out is not None:
             visibility_out.inside[rows] = inside
-        value = albedo_at(scene, t, b) * h
+        value = diffuse_at(scene, t, b) * h
         if not reflected_only:
             value += gather.emission[t]
         out[a:a + GATHER_CHUNK] = value

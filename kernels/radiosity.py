@@ -34,8 +34,10 @@ without it, B itself is interpolated smoothly inside objects (`patches.fitted_co
 the emission. `bake_steps` evaluates lightmap texels and mesh corners, `render_steps` the scene
 camera's view.
 
-Materials: every surface is treated as Lambertian with its base colour (textures sampled at the
-patch centre); metallic, glossy and transmissive parts are not modelled (listed in `ignored`).
+Materials: every surface is treated as Lambertian with the Principled BSDF's diffuse part, base
+colour x (1 - metallic) x (1 - transmission) (textures sampled at the patch centre); the
+specular paths of metals, glossy coats and glass are not modelled (listed in `ignored`), so a
+chrome ball or a glass is black to the solution, as in Cycles' DIFFUSE bake.
 """
 
 from __future__ import annotations
@@ -241,18 +243,20 @@ class RadiosityResult:
 
 
 def patch_reflectance(scene: Scene, patches: patching.Patches) -> np.ndarray:
-    """(N, 3) diffuse reflectance at each patch centre (base colour, textures sampled there).
+    """(N, 3) diffuse reflectance at each patch centre (`direct_light.diffuse_at`: base colour,
+    textures sampled there, times the diffuse weight; metals and glass reflect nothing diffusely).
 
     Raises ValueError naming the material when any channel is >= 1 (no convergence)."""
-    from .direct_light import albedo_at
+    from .direct_light import diffuse_at
 
     for mat in scene.materials:
-        if mat.base_color_texture is None and np.any(np.asarray(mat.base_color) >= 1.0):
+        weight = (1.0 - mat.metallic) * (1.0 - mat.transmission)
+        if mat.base_color_texture is None and np.any(weight * np.asarray(mat.base_color) >= 1.0):
             raise ValueError(
-                f"material '{mat.name}' has a base colour of {np.max(mat.base_color):.3g} >= 1: "
-                "radiosity needs reflectance < 1 in every channel (a surface reflecting all "
-                "light never lets a closed scene converge)")
-    rho = albedo_at(scene, patches.parent, patches.bary.mean(axis=1))
+                f"material '{mat.name}' has a diffuse reflectance of "
+                f"{weight * np.max(mat.base_color):.3g} >= 1: radiosity needs reflectance < 1 in "
+                "every channel (a surface reflecting all light never lets a closed scene converge)")
+    rho = diffuse_at(scene, patches.parent, patches.bary.mean(axis=1))
     if np.any(rho >= 1.0):
         bad = scene.materials[int(scene.material_ids[patches.parent[np.argmax(rho.max(1))]])]
         raise ValueError(f"material '{bad.name}': its texture reaches reflectance >= 1; "
@@ -392,12 +396,12 @@ def resolve_auto(scene: Scene, settings: RadiositySettings, hierarchical: bool
     refine_levels from the final gather (which gathers direct light and its shadows at every
     receiver, so the patches carry only smooth indirect light: a refinement level costs a second
     link-and-solve for ~15% less error on the Cornell box, where twice the patches give ~40%)."""
-    from .direct_light import albedo_at
+    from .direct_light import diffuse_at
 
     changes = {}
     if settings.samples_per_side == 0:
         count = scene.triangle_count
-        rho = albedo_at(scene, np.arange(count), np.full((count, 3), 1.0 / 3.0))
+        rho = diffuse_at(scene, np.arange(count), np.full((count, 3), 1.0 / 3.0))
         one = hierarchical and float(np.max(rho, initial=0.0)) <= AUTO_ONE_POINT_RHO
         changes["samples_per_side"] = 1 if one else 2
     if settings.refine_levels == -1:
@@ -830,9 +834,9 @@ def _lattice_radiance(scene: Scene, result: RadiosityResult, targets, plan, firs
 
     if result.gather is None:
         return lattice_fill(plan, first, threshold)
-    from .direct_light import albedo_at
+    from .direct_light import diffuse_at
 
-    rho = albedo_at(scene, targets.triangles, targets.bary)  # (N, 3)
+    rho = diffuse_at(scene, targets.triangles, targets.bary)  # (N, 3)
     emitted = triangle_emission(scene)[targets.triangles]  # (N, 3) L_e, W/(m^2 sr)
     f = plan.first
     # Where a lattice texel reflects nothing its H is unknown: 0, which no smooth test passes

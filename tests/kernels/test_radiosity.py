@@ -108,6 +108,22 @@ def test_refuses_reflectance_of_one():
         solve_radiosity(scene, RadiositySettings(patch_budget=24, refine_levels=0))
 
 
+def test_metal_and_glass_reflect_nothing_diffusely():
+    """Reflectance is the Principled BSDF's diffuse part, base x (1 - metallic)(1 - transmission):
+    a clear glass of base colour 1 is not refused but black to the solution, a half-metallic
+    grey reflects half its base colour. Furnace: a closed box of emission 1 whose walls reflect
+    rho has B = pi / (1 - rho) (within the solver's 1%)."""
+    glass = Material(name="Glass", base_color=np.ones(3, np.float32),
+                     emission=np.ones(3, np.float32), transmission=1.0)
+    half = Material(name="Satin", base_color=np.full(3, 0.6, np.float32),
+                    emission=np.ones(3, np.float32), metallic=0.5)
+    for material, rho in ((glass, 0.0), (half, 0.3)):
+        result = solve_radiosity(build([(inward_box(), material)]),
+                                 RadiositySettings(patch_budget=24, refine_levels=0, **FAST))
+        np.testing.assert_allclose(result.reflectance, rho)
+        np.testing.assert_allclose(result.radiosity, np.pi / (1.0 - rho), rtol=0.01)
+
+
 # --- solutions -------------------------------------------------------------------------------------
 
 
