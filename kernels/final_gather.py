@@ -452,47 +452,61 @@ def exitance(gather: FinalGather, patches: patching.Patches, tri: np.ndarray, ba
 
     known: what neighbouring receivers' rays agree on (`Visibility.agreed`), taken without rays
     of its own; visibility_out (M receivers) receives what this call found, for later neighbours.
-    The lamps' shadow rays are cast every time."""
+    The lamps' shadow rays are cast every time. A receiver that reflects nothing diffusely
+    (`direct_light.diffuse_at`: black, metal, glass) casts no ray and stays UNKNOWN."""
     from .direct_light import diffuse_at
 
     scene = gather.scene
     tri = np.asarray(tri, np.int64)
     bary = np.asarray(bary, np.float64)
     out = np.zeros((len(tri), 3))
-    occluded = _occluded(gather.bvh)
     # A seed per call keeps repeated evaluations of the same receivers identical.
     rng = np.random.default_rng(gather.settings.seed + 1)
     for a in range(0, len(tri), GATHER_CHUNK):
         t, b = tri[a:a + GATHER_CHUNK], bary[a:a + GATHER_CHUNK]
-        inset = (1.0 - RECEIVER_INSET) * b + RECEIVER_INSET / 3.0
-        points = np.einsum("mk,mkc->mc", inset, scene.triangles[t].astype(np.float64))
-        normals = gather.triangle_normals[t]
-        # Located at the inset point: the one the rays leave from must lie in the patch whose
-        # shaft clears it.
-        patch, local = patching.locate(patches, t, inset)
-        rows = slice(a, a + GATHER_CHUNK)
-        h = emitter_irradiance(gather.emitters, points, normals, occluded, gather.offset, rng,
-                               clear=gather.clear[patch],
-                               known=None if known is None else known.emitters[rows],
-                               states_out=None if visibility_out is None
-                               else visibility_out.emitters[rows])
-        h += lamp_irradiance(scene, points, normals, occluded, gather.offset,
-                             gather.area_samples_per_side)
-        h += patching.interpolate(gather.corner_indirect, patch, local)
-        np.maximum(h, 0.0, out=h)
-        inside = np.zeros(len(t), np.int8)  # receivers no back face hangs over are open
-        if gather.settings.enclosure_probes:
-            probed = np.flatnonzero(~gather.open_above[patch])
-            if known is not None:
-                inside[probed] = known.inside[rows][probed]
-                probed = probed[inside[probed] < 0]
-            inside[probed] = enclosed(points[probed], normals[probed], gather.bvh.intersect,
-                                      gather.triangle_normals, gather.offset)
-            h[inside == 1] = 0.0
+        rho = diffuse_at(scene, t, b)
+        lit = np.flatnonzero(rho.max(axis=1) > 0.0)
+        given = None if known is None else known.take(a + lit)
+        h, found = _irradiance(gather, patches, t[lit], b[lit], given, rng)
         if visibility_out is not None:
-            visibility_out.inside[rows] = inside
-        value = diffuse_at(scene, t, b) * h
+            visibility_out.put(a + lit, found)
+        value = np.zeros((len(t), 3))
+        value[lit] = rho[lit] * h
         if not reflected_only:
             value += gather.emission[t]
         out[a:a + GATHER_CHUNK] = value
     return out
+
+
+def _irradiance(gather: FinalGather, patches: patching.Patches, t: np.ndarray, b: np.ndarray,
+                known: Visibility | None, rng: np.random.Generator
+                ) -> tuple[np.ndarray, Visibility]:
+    """(M, 3) irradiance H_direct + H_indirect W/m^2 at receivers (triangles t, barycentrics b)
+    and what its rays found (`exitance`)."""
+    scene = gather.scene
+    found = Visibility.unknown(len(t), len(gather.emitters.triangles))
+    inset = (1.0 - RECEIVER_INSET) * b + RECEIVER_INSET / 3.0
+    points = np.einsum("mk,mkc->mc", inset, scene.triangles[t].astype(np.float64))
+    normals = gather.triangle_normals[t]
+    # Located at the inset point: the one the rays leave from must lie in the patch whose shaft
+    # clears it.
+    patch, local = patching.locate(patches, t, inset)
+    occluded = _occluded(gather.bvh)
+    h = emitter_irradiance(gather.emitters, points, normals, occluded, gather.offset, rng,
+                           clear=gather.clear[patch],
+                           known=None if known is None else known.emitters,
+                           states_out=found.emitters)
+    h += lamp_irradiance(scene, points, normals, occluded, gather.offset,
+                         gather.area_samples_per_side)
+    h += patching.interpolate(gather.corner_indirect, patch, local)
+    np.maximum(h, 0.0, out=h)
+    found.inside[:] = 0  # receivers no back face hangs over are open
+    if gather.settings.enclosure_probes:
+        probed = np.flatnonzero(~gather.open_above[patch])
+        if known is not None:
+            found.inside[probed] = known.inside[probed]
+            probed = probed[found.inside[probed] < 0]
+        found.inside[probed] = enclosed(points[probed], normals[probed], gather.bvh.intersect,
+                                        gather.triangle_normals, gather.offset)
+        h[found.inside == 1] = 0.0
+    return h, found

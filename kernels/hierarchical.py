@@ -80,14 +80,14 @@ FACING_BLOCK = 1 << 20
 VISIBILITY_RAYS = 1 << 17
 
 
-def hierarchy_roots(scene: Scene, patch_size: float, max_depth: int
-                    ) -> tuple[patching.Patches, int, int]:
+def hierarchy_roots(scene: Scene, patch_size: float, max_depth: int,
+                    triangles: np.ndarray | None = None) -> tuple[patching.Patches, int, int]:
     """(roots, depth, patches asked for): the deepest hierarchy (at most max_depth) whose leaves
     are not much finer than the patches of `patch_size`; a small scene's roots cannot be coarser
-    than its triangles."""
-    wanted = len(patching.make_patches(scene, patch_size))
+    than its triangles. triangles (T,) bool: the scene triangles meshed (all when None)."""
+    wanted = len(patching.make_patches(scene, patch_size, triangles))
     for depth in range(max_depth, -1, -1):
-        roots = patching.make_patches(scene, patch_size * 2.0**depth)
+        roots = patching.make_patches(scene, patch_size * 2.0**depth, triangles)
         if len(roots) * 4**depth <= LEAF_SLACK * wanted:
             break
     return roots, depth, wanted
@@ -405,9 +405,8 @@ def _link(tree: _Tree, root_count: int, leaves: np.ndarray, occluded, settings, 
         alive = _facing(tree, pp, qq)
         settled.extend(refine_links(tree, pp[alive], qq[alive], settings.link_epsilon, side))
         yield 0.5 * min(a + step, len(leaves)) / len(leaves)
-    p = np.concatenate([s[0] for s in settled])
-    q = np.concatenate([s[1] for s in settled])
-    factor = np.concatenate([s[2] for s in settled])
+    none = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0))  # nothing faces (a floor)
+    p, q, factor = (np.concatenate([s[k] for s in settled] + [none[k]]) for k in range(3))
     near = (factor > settings.link_epsilon) & (tree.child[q] < 0)
     if near.any():
         factor[near] = _unoccluded(tree, p[near], q[near], NEAR_FIELD_SIDE * side)

@@ -111,14 +111,18 @@ def _template(n: int) -> np.ndarray:
     return np.concatenate([1.0 - ab.sum(axis=2, keepdims=True), ab], axis=2)
 
 
-def make_patches(scene: Scene, target_size: float) -> Patches:
-    """Uniform meshing: each non-degenerate scene triangle cut into n^2 sub-triangles with
-    n = ceil(longest edge / target_size), clamped to [1, MAX_SUBDIVISIONS]."""
+def make_patches(scene: Scene, target_size: float, triangles: np.ndarray | None = None
+                 ) -> Patches:
+    """Uniform meshing: each non-degenerate scene triangle (of `triangles`, (T,) bool, when
+    given) cut into n^2 sub-triangles with n = ceil(longest edge / target_size), clamped to
+    [1, MAX_SUBDIVISIONS] (an infinite size: one patch per triangle)."""
     if not target_size > 0.0:
         raise ValueError(f"patch size must be > 0 m, got {target_size}")
     tris = scene.triangles.astype(np.float64)
     edges = np.linalg.norm(tris - np.roll(tris, -1, axis=1), axis=2).max(axis=1)  # (T,)
     keep = triangle_areas(tris) > 0.0
+    if triangles is not None:
+        keep &= np.asarray(triangles, bool)
     n = np.clip(np.ceil(edges / target_size), 1, MAX_SUBDIVISIONS).astype(np.int64)
     parents, barys = [], []
     for k in np.unique(n[keep]):
@@ -132,6 +136,16 @@ def make_patches(scene: Scene, target_size: float) -> Patches:
     order = np.argsort(parent, kind="stable")
     return _assemble(scene, parent[order], np.concatenate(barys)[order],
                      np.zeros(len(parent), np.int32))
+
+
+def merged(scene: Scene, a: Patches, b: Patches) -> tuple[Patches, np.ndarray]:
+    """The patches of a and b in one set, by parent as meshing orders them, and order
+    (N_a + N_b,): the result's patch i is patch order[i] of the concatenation [a, b]."""
+    parent = np.concatenate([a.parent, b.parent])
+    order = np.argsort(parent, kind="stable")
+    bary = np.concatenate([a.bary, b.bary])[order]
+    level = np.concatenate([a.level, b.level])[order]
+    return _assemble(scene, parent[order], bary, level.astype(np.int32)), order
 
 
 def split(scene: Scene, patches: Patches, mask: np.ndarray) -> Patches:

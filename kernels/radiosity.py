@@ -264,6 +264,36 @@ def patch_reflectance(scene: Scene, patches: patching.Patches) -> np.ndarray:
     return rho.astype(np.float64)
 
 
+def exchanging_triangles(scene: Scene) -> np.ndarray:
+    """(T,) bool: triangles that take part in the exchange, reflecting diffusely (a diffuse
+    weight and a base colour above 0, or a texture) or emitting. The others (a chrome ball, a
+    glass, black paint) send nothing and their B is 0: they are solved without, one idle patch
+    per triangle, and stay occluders (all of them when none exchanges)."""
+    mats = scene.materials
+    emits = np.array([np.any(np.asarray(m.emission) > 0.0) for m in mats], bool)
+    reflects = np.array([(1.0 - m.metallic) * (1.0 - m.transmission) > 0.0
+                         and (m.base_color_texture is not None or np.any(np.asarray(m.base_color) > 0.0))
+                         for m in mats], bool)
+    out = (emits | reflects)[scene.material_ids] if mats else np.ones(scene.triangle_count, bool)
+    return out if out.any() else np.ones(scene.triangle_count, bool)
+
+
+def with_idle(scene: Scene, patches: patching.Patches, exchanging: np.ndarray,
+              *per_patch: np.ndarray) -> tuple[patching.Patches, list[np.ndarray]]:
+    """`patches` of the exchanging triangles joined by one idle patch per other triangle
+    (`exchanging_triangles`), and each (N, ...) array of `per_patch` with zero rows for the idle
+    ones, all in the joined order."""
+    idle = patching.make_patches(scene, np.inf, ~exchanging) if not exchanging.all() else None
+    if idle is None or len(idle) == 0:
+        return patches, list(per_patch)
+    joined, order = patching.merged(scene, patches, idle)
+    out = []
+    for values in per_patch:
+        padded = np.concatenate([values, np.zeros((len(idle),) + values.shape[1:], values.dtype)])
+        out.append(padded[order])
+    return joined, out
+
+
 def patch_emission(scene: Scene, patches: patching.Patches) -> np.ndarray:
     """(N, 3) emitted radiosity pi L_e, W/m^2 (front face)."""
     return np.pi * triangle_emission(scene)[patches.parent]
@@ -583,7 +613,8 @@ def _hierarchical_plan(scene: Scene, size: float, bvh, settings: RadiositySettin
         return None
     if settings.solver == "auto" and settings.method != "raycast":
         return None
-    roots, depth, wanted = hierarchy_roots(scene, size, settings.max_depth)
+    roots, depth, wanted = hierarchy_roots(scene, size, settings.max_depth,
+                                           exchanging_triangles(scene))
     memory = hierarchical_memory(scene, roots, depth, bvh, settings)
     if settings.solver == "auto" and (wanted <= AUTO_DENSE_PATCHES
                                       or memory["total"] > settings.dense_memory_limit):
@@ -627,7 +658,8 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
         yield from _hierarchical(scene, size, bvh, tree_settings, scale, t0, *plan)
         return
     settings = resolve_auto(scene, settings, hierarchical=False)
-    patches = patching.make_patches(scene, size)
+    exchanging = exchanging_triangles(scene)
+    patches = patching.make_patches(scene, size, exchanging)
     yield 0.02
     levels = settings.refine_levels + 1
     stats: dict = {"patch_size_m": size, "levels": []}
@@ -656,7 +688,11 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
             break
         patches = patching.split(scene, patches, mask)
     last = stats["levels"][-1]
-    stats.update(patches=len(patches), per_level=patches.level_counts(), solver=last["solver"],
+    solved = len(patches)
+    patches, (b, emitted, rho, direct, clear) = with_idle(scene, patches, exchanging, b, emitted,
+                                                          rho, direct, clear)
+    stats.update(patches=len(patches), idle_patches=len(patches) - solved,
+                 per_level=patches.level_counts(), solver=last["solver"],
                  memory_estimate=last["memory_estimate"], method=settings.method)
     result = _result(scene, patches, b, emitted, rho, direct, bvh, settings, scale, stats, t0,
                      emitters, clear)
@@ -716,7 +752,11 @@ def _hierarchical(scene, size, bvh, settings, scale, t0, roots, depth, memory: d
         else:
             yield 0.02 + 0.96 * step
     memory = {**memory, "links_made": info["links"]}  # bounded before linking, and as made
-    stats = {"patch_size_m": size, "patches": len(leaves), "per_level": leaves.level_counts(),
+    solved = len(leaves)
+    leaves, (b, emitted, rho, direct, clear) = with_idle(
+        scene, leaves, exchanging_triangles(scene), b, emitted, rho, direct, last_clear["leaves"])
+    stats = {"patch_size_m": size, "patches": len(leaves), "idle_patches": len(leaves) - solved,
+             "per_level": leaves.level_counts(),
              "solver": "hierarchical", "memory_estimate": memory, "method": "raycast",
              "hierarchy": info,
              "levels": [{"patches": level["leaves"], "solver": "hierarchical",
@@ -724,7 +764,7 @@ def _hierarchical(scene, size, bvh, settings, scale, t0, roots, depth, memory: d
                          "converged": bool(level["solver_error"] <= settings.tolerance)}
                         for level in info["per_refinement"]]}
     result = _result(scene, leaves, b, emitted, rho, direct, bvh, settings, scale, stats, t0,
-                     emitters, last_clear["leaves"])
+                     emitters, clear)
     yield 1.0
     yield result
 
