@@ -179,15 +179,20 @@ def albedo_at(scene: Scene, tri: np.ndarray, bary: np.ndarray) -> np.ndarray:
     return out
 
 
+def diffuse_weight(material) -> float:
+    """The Principled BSDF's diffuse weight, (1 - metallic)(1 - transmission): how much of the
+    base colour a surface reflects diffusely. A metal or a glass reflects nothing diffusely: its
+    light leaves along specular paths, which a diffuse solver does not follow (Cycles' DIFFUSE
+    bake of it is black too)."""
+    return (1.0 - material.metallic) * (1.0 - material.transmission)
+
 
 def diffuse_at(scene: Scene, tri: np.ndarray, bary: np.ndarray) -> np.ndarray:
     """(N, 3) diffuse reflectance at barycentric points of triangles: the base colour
-    (`albedo_at`) times the Principled BSDF's diffuse weight (1 - metallic)(1 - transmission).
-    A metal or glass reflects nothing diffusely: its light leaves along specular paths, which a
-    diffuse solver does not follow (Cycles' DIFFUSE bake of it is black too)."""
-    mats = scene.materials
-    weight = np.array([(1.0 - m.metallic) * (1.0 - m.transmission) for m in mats], np.float64)
+    (`albedo_at`) times its material's `diffuse_weight`."""
+    weight = np.array([diffuse_weight(m) for m in scene.materials], np.float64)
     return albedo_at(scene, tri, bary) * weight[scene.material_ids[tri]][:, None]
+
 
 # --- the camera view ------------------------------------------------------------------------------
 

@@ -247,10 +247,10 @@ def patch_reflectance(scene: Scene, patches: patching.Patches) -> np.ndarray:
     textures sampled there, times the diffuse weight; metals and glass reflect nothing diffusely).
 
     Raises ValueError naming the material when any channel is >= 1 (no convergence)."""
-    from .direct_light import diffuse_at
+    from .direct_light import diffuse_at, diffuse_weight
 
     for mat in scene.materials:
-        weight = (1.0 - mat.metallic) * (1.0 - mat.transmission)
+        weight = diffuse_weight(mat)
         if mat.base_color_texture is None and np.any(weight * np.asarray(mat.base_color) >= 1.0):
             raise ValueError(
                 f"material '{mat.name}' has a diffuse reflectance of "
@@ -269,11 +269,14 @@ def exchanging_triangles(scene: Scene) -> np.ndarray:
     weight and a base colour above 0, or a texture) or emitting. The others (a chrome ball, a
     glass, black paint) send nothing and their B is 0: they are solved without, one idle patch
     per triangle, and stay occluders (all of them when none exchanges)."""
+    from .direct_light import diffuse_weight
+
     mats = scene.materials
     emits = np.array([np.any(np.asarray(m.emission) > 0.0) for m in mats], bool)
-    reflects = np.array([(1.0 - m.metallic) * (1.0 - m.transmission) > 0.0
-                         and (m.base_color_texture is not None or np.any(np.asarray(m.base_color) > 0.0))
-                         for m in mats], bool)
+    coloured = [m.base_color_texture is not None or np.any(np.asarray(m.base_color) > 0.0)
+                for m in mats]
+    reflects = np.array([diffuse_weight(m) > 0.0 and c for m, c in zip(mats, coloured, strict=True)],
+                        bool)
     out = (emits | reflects)[scene.material_ids] if mats else np.ones(scene.triangle_count, bool)
     return out if out.any() else np.ones(scene.triangle_count, bool)
 
