@@ -411,12 +411,17 @@ def prepare(scene: Scene, patches: patching.Patches, radiosity: np.ndarray, emit
                         where=reflectance > 0.0)
     # Negative only by the solver's tolerance; the receivers' sums are clamped (`exitance`).
     indirect = arrived - direct
-    weight_areas = patches.areas
+    # Idle patches (`radiosity.with_idle`: nothing reflected) hold no receiver that gathers
+    # (`exitance` skips black ones) and their indirect 0 is not what arrives there: they weigh 0
+    # in the corner fit, as enclosed patches do, and cast no probes.
+    reflects = reflectance.max(axis=1) > 0.0
+    weight_areas = patches.areas * reflects
     open_fraction = np.ones(count)
     unroofed = np.ones(count, bool)  # without probes nothing counts as enclosed
     if settings.enclosure_probes:
         # Patches no back face hangs over cannot be enclosed: their receivers cast no probe.
-        unroofed = shafts.open_above(patches.corners, patches.normals, scale, bvh, offset)
+        unroofed[reflects] = shafts.open_above(patches.corners[reflects], patches.normals[reflects],
+                                               scale, bvh, offset)
         inside = np.zeros((count, samples), bool)
         probed = np.flatnonzero(~unroofed)
         if probed.size:
@@ -428,7 +433,7 @@ def prepare(scene: Scene, patches: patching.Patches, radiosity: np.ndarray, emit
         indirect /= np.maximum(open_fraction, MIN_OPEN_FRACTION)[:, None]
         # An enclosed patch weighs 0: its corners follow its open neighbours
         # (`fitted_corner_values` floors the weights, so none is left undetermined).
-        weight_areas = patches.areas * open_fraction
+        weight_areas = weight_areas * open_fraction
     corner = patching.fitted_corner_values(replace(patches, areas=weight_areas), indirect,
                                            smooth_angle, scale)
     if clear is None:
