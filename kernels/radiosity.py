@@ -50,7 +50,7 @@ from typing import Literal
 
 import numpy as np
 
-from . import final_gather
+from . import clusters, final_gather
 from . import lights as light_units
 from . import patches as patching
 from .bake_targets import TexelFilterSettings
@@ -86,6 +86,7 @@ ROW_BYTES_PER_ELEMENT = 400
 # Shadow rays stop this fraction short of a point light (it has no surface to hit).
 LIGHT_END_REL = 1e-6
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
+SOLVERS = ("auto", "gauss_seidel", "progressive", "hierarchical", "clustered")
 
 
 @dataclass(frozen=True)
@@ -93,13 +94,17 @@ class RadiositySettings:
     """| field                       | range               | default  | unit / meaning             |
     |-----------------------------|---------------------|----------|----------------------------|
     | method                      | raycast / hemicube  | raycast  | form factor estimator      |
-    | solver                      | auto / gauss_seidel | auto     | auto: above AUTO_DENSE_    |
-    |                             | / progressive /     |          | PATCHES patches the hier-  |
-    |                             | hierarchical        |          | archical solver if its     |
-    |                             |                     |          | bound fits the memory limit|
-    |                             |                     |          | (raycast); else Gauss-     |
-    |                             |                     |          | Seidel when the dense F    |
-    |                             |                     |          | fits, else progressive     |
+    | solver                      | auto / gauss_seidel | auto     | auto: the clustered solver |
+    |                             | / progressive /     |          | when grouping the patches  |
+    |                             | hierarchical /      |          | of fine meshes at least    |
+    |                             | clustered           |          | halves the unknowns; else  |
+    |                             |                     |          | above AUTO_DENSE_PATCHES   |
+    |                             |                     |          | patches the hierarchical   |
+    |                             |                     |          | solver if its bound fits   |
+    |                             |                     |          | the memory limit (raycast);|
+    |                             |                     |          | else Gauss-Seidel when the |
+    |                             |                     |          | dense F fits, else         |
+    |                             |                     |          | progressive                |
     | patch_size                  | >= 0                | 0        | m, longest patch edge; 0:  |
     |                             |                     |          | from patch_budget          |
     | patch_budget                | >= 1                | 400      | patches aimed at (auto)    |
@@ -141,10 +146,14 @@ class RadiositySettings:
     |                             |                     |          | per receiver to emissive   |
     |                             |                     |          | triangles                  |
     | seed                        | int                 | 0        | RNG seed of the estimators |
+    | clusters                    | bool                | True     | auto may solve the patches |
+    |                             |                     |          | of finely tessellated      |
+    |                             |                     |          | meshes as groups           |
+    |                             |                     |          | (clusters.py)              |
     """
 
     method: Literal["raycast", "hemicube"] = "raycast"
-    solver: Literal["auto", "gauss_seidel", "progressive", "hierarchical"] = "auto"
+    solver: Literal["auto", "gauss_seidel", "progressive", "hierarchical", "clustered"] = "auto"
     patch_size: float = 0.0
     patch_budget: int = 400
     refine_levels: int = -1
@@ -164,13 +173,16 @@ class RadiositySettings:
     final_gather: bool = True
     gather_rays: int = 16
     seed: int = 0
+    clusters: bool = True
 
     def __post_init__(self) -> None:
         if self.method not in ("raycast", "hemicube"):
             raise ValueError(f"method must be 'raycast' or 'hemicube', got {self.method!r}")
-        if self.solver not in ("auto", "gauss_seidel", "progressive", "hierarchical"):
-            raise ValueError("solver must be auto, gauss_seidel, progressive or hierarchical, "
-                             f"got {self.solver!r}")
+        if self.solver not in SOLVERS:
+            raise ValueError(f"solver must be one of {', '.join(SOLVERS)}, got {self.solver!r}")
+        if self.solver == "clustered" and self.method != "raycast":
+            raise ValueError("the clustered solver estimates its own ray-cast factors: "
+                             "use method 'raycast'")
         if not self.link_epsilon > 0.0 or self.max_depth < 0:
             raise ValueError("link_epsilon must be > 0 and max_depth >= 0")
         if self.patch_size < 0.0 or self.patch_budget < 1 or self.max_patches < 1:
@@ -446,10 +458,11 @@ def resolve_auto(scene: Scene, settings: RadiositySettings, hierarchical: bool
 
 
 def memory_estimate(patch_count: int, triangle_count: int, settings: RadiositySettings,
-                    solver: str) -> dict:
+                    solver: str, group_count: int = 0) -> dict:
     """Bytes each part of a solve needs, and their sum ("total").
 
-    dense_f: N^2 x 8 (Gauss-Seidel only); rows: the per-row temporaries of the estimator;
+    dense_f: N^2 x 8 (Gauss-Seidel only; the clustered solver: G^2 x 8 over `group_count`
+    groups, and its (points, groups) factor table); rows: the per-row temporaries of the estimator;
     row_cache: progressive refinement's cached rows; quick_test: method B's pair tables;
     bvh: about 200 bytes per triangle (nodes, leaves, prepared triangles); patches: ~400 B each.
     """
@@ -457,6 +470,7 @@ def memory_estimate(patch_count: int, triangle_count: int, settings: RadiositySe
     s = settings.samples_per_side ** 2
     parts = {
         "dense_f": n * n * 8 if solver == "gauss_seidel" else 0,
+        "groups": clustered_bytes(group_count) if solver == "clustered" else 0,
         "rows": ROW_BYTES_PER_ELEMENT * s * n * (4 if settings.method == "raycast" else 1),
         "row_cache": min(n * n * 8, settings.dense_memory_limit) if solver == "progressive" else 0,
         "quick_test": quick_test_bytes(n, t) if quick_test_bytes(n, t) <= QUICK_TEST_BYTES else 0,
@@ -467,6 +481,11 @@ def memory_estimate(patch_count: int, triangle_count: int, settings: RadiositySe
         parts["rows"] += 3 * settings.hemicube_resolution ** 2 * s * 64
     parts["total"] = int(sum(parts.values()))
     return parts
+
+
+def clustered_bytes(group_count: int) -> int:
+    """The clustered solver's G x G factors and its (receiver points, groups) table."""
+    return group_count * group_count * 8 * (1 + max(clusters.CLUSTER_POINTS, 4))
 
 
 def quick_test_bytes(patch_count: int, triangle_count: int) -> int:
@@ -480,10 +499,24 @@ def quick_test_bytes(patch_count: int, triangle_count: int) -> int:
 AUTO_DENSE_PATCHES = 200
 
 
-def choose_solver(patch_count: int, settings: RadiositySettings) -> str:
+def choose_solver(patch_count: int, settings: RadiositySettings,
+                  groups: clusters.Groups | None = None) -> str:
+    """The solver "auto" runs over `patch_count` patches (the hierarchical solver aside, which
+    `_hierarchical_plan` chooses first): the clustered solver when `groups`
+    (`clusters.group_patches`) has at most AUTO_MAX_GROUP_SHARE as many unknowns and fits the
+    memory limit; else Gauss-Seidel when the dense matrix fits it, else progressive."""
     if settings.solver != "auto":
         return settings.solver
+    if _clustering_pays(patch_count, groups, settings):
+        return "clustered"
     return "gauss_seidel" if patch_count ** 2 * 8 <= settings.dense_memory_limit else "progressive"
+
+
+def _clustering_pays(patch_count: int, groups: clusters.Groups | None,
+                     settings: RadiositySettings) -> bool:
+    return (settings.clusters and settings.method == "raycast" and groups is not None
+            and groups.count <= clusters.AUTO_MAX_GROUP_SHARE * patch_count
+            and clustered_bytes(groups.count) <= settings.dense_memory_limit)
 
 
 # --- one level: form factors and solve ------------------------------------------------------------
@@ -509,14 +542,21 @@ def _rows(scene: Scene, patches: patching.Patches, bvh, settings: RadiositySetti
         triangles=scene.triangles if quick else None, settings=ray)
 
 
-def _solve_level(scene, patches, rho, sources, bvh, settings, stats) -> Iterator[float]:
-    """Form factors and solve of one level; yields progress, leaves B in stats["_b"]."""
+def _solve_level(scene, patches, rho, sources, bvh, settings, stats, size: float
+                 ) -> Iterator[float]:
+    """Form factors and solve of one level (patches about `size` m); yields progress, leaves B
+    in stats["_b"]."""
     count = len(patches)
-    solver = choose_solver(count, settings)
+    groups = clusters.group_patches(patches, size) if settings.method == "raycast" else None
+    solver = choose_solver(count, settings, groups)
     stats["solver"] = solver
-    stats["memory_estimate"] = memory_estimate(count, scene.triangle_count, settings, solver)
-    rows = _rows(scene, patches, bvh, settings)
+    stats["memory_estimate"] = memory_estimate(count, scene.triangle_count, settings, solver,
+                                               groups.count if groups is not None else 0)
     start = time.perf_counter()
+    if solver == "clustered":
+        yield from _solve_clustered(scene, patches, groups, rho, sources, bvh, settings, stats)
+        return
+    rows = _rows(scene, patches, bvh, settings)
     if solver == "gauss_seidel":
         matrix = np.empty((count, count))
         for p in iter_matrix(rows, matrix):
@@ -545,6 +585,42 @@ def _solve_level(scene, patches, rho, sources, bvh, settings, stats) -> Iterator
     stats["converged"] = bool(solution.converged)
     stats["solver_error"] = float(solution.error)
     stats["_b"] = solution.radiosity
+
+
+def _solve_clustered(scene, patches, groups, rho, sources, bvh, settings, stats
+                     ) -> Iterator[float]:
+    """`_solve_level` with the clustered solver (`clusters.py`)."""
+    flat = scene.triangles.reshape(-1, 3).astype(np.float64)
+    offset = RAY_OFFSET_REL * float(np.linalg.norm(flat.max(axis=0) - flat.min(axis=0)))
+    start = time.perf_counter()
+    factors = yield from _scaled(clusters.factor_steps(
+        patches, groups, settings.samples_per_side, offset,
+        lambda o, d, t0, t1: bvh.occluded(o, d, t0, t1), np.random.default_rng(settings.seed)),
+        0.0, 0.9)
+    stats["form_factor_seconds"] = time.perf_counter() - start
+    stats["groups"] = groups.count
+    stats["clustered_patches"] = int(groups.sizes[~groups.lone].sum())
+    b = solution = None
+    for step in clusters.solve_steps(patches, groups, sources, rho, factors, settings.tolerance):
+        if isinstance(step, tuple):
+            b, solution = step
+        else:
+            yield 0.9 + 0.1 * step
+    stats["solve_seconds"] = time.perf_counter() - start
+    stats["iterations"] = solution.iterations
+    stats["converged"] = bool(solution.converged)
+    stats["solver_error"] = float(solution.error)
+    stats["_b"] = b
+
+
+def _scaled(steps, start: float, span: float):
+    """Yield from a progress generator with its [0, 1] mapped to [start, start + span]; its
+    return value."""
+    try:
+        while True:
+            yield start + span * next(steps)
+    except StopIteration as stop:
+        return stop.value
 
 
 def refine_mask(patches: patching.Patches, radiosity: np.ndarray, corner: np.ndarray,
@@ -616,8 +692,14 @@ def _hierarchical_plan(scene: Scene, size: float, bvh, settings: RadiositySettin
         return None
     if settings.solver == "auto" and settings.method != "raycast":
         return None
-    roots, depth, wanted = hierarchy_roots(scene, size, settings.max_depth,
-                                           exchanging_triangles(scene))
+    exchanging = exchanging_triangles(scene)
+    if settings.solver == "auto":
+        # Finely tessellated meshes: their patches solved as groups (`clusters.py`) are far
+        # fewer unknowns than the hierarchy's leaves, one or more per triangle.
+        patches = patching.make_patches(scene, size, exchanging)
+        if _clustering_pays(len(patches), clusters.group_patches(patches, size), settings):
+            return None
+    roots, depth, wanted = hierarchy_roots(scene, size, settings.max_depth, exchanging)
     memory = hierarchical_memory(scene, roots, depth, bvh, settings)
     if settings.solver == "auto" and (wanted <= AUTO_DENSE_PATCHES
                                       or memory["total"] > settings.dense_memory_limit):
@@ -675,12 +757,13 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
         rho = patch_reflectance(scene, patches)
         emitted = patch_emission(scene, patches)
         shot = shot_emission(scene, patches, emitters)
-        clear = final_gather.clear_shafts(patches, emitters, bvh, RAY_OFFSET_REL * scale)
+        clear = final_gather.clear_shafts(patches, emitters, bvh, RAY_OFFSET_REL * scale,
+                                          clusters.CLUSTER_AREA_SHARE * size * size)
         direct, boundary = first_shot(scene, patches, occluded, settings, scale, emitters, clear)
         sources = emitted - shot + rho * direct
         level_stats: dict = {"patches": len(patches), "per_level": patches.level_counts()}
         base = 0.02 + 0.96 * level / levels
-        for p in _solve_level(scene, patches, rho, sources, bvh, settings, level_stats):
+        for p in _solve_level(scene, patches, rho, sources, bvh, settings, level_stats, size):
             yield base + 0.96 / levels * p
         b = level_stats.pop("_b") + shot
         stats["levels"].append(level_stats)
@@ -744,7 +827,8 @@ def _hierarchical(scene, size, bvh, settings, scale, t0, roots, depth, memory: d
     last_clear = {}  # the last level's clear shafts, which the final gather reads again
 
     def lamps(leaves):
-        clear = final_gather.clear_shafts(leaves, emitters, bvh, RAY_OFFSET_REL * scale)
+        clear = final_gather.clear_shafts(leaves, emitters, bvh, RAY_OFFSET_REL * scale,
+                                          clusters.CLUSTER_AREA_SHARE * size * size)
         last_clear["leaves"] = clear
         return first_shot(scene, leaves, occluded, settings, scale, emitters, clear)
 

@@ -250,14 +250,15 @@ def test_many_small_triangles_bound_only_the_root_pairs_that_face():
     """A room around a finely tessellated ball: every triangle is a root, and the links' bound
     over all root pairs overshoots the limit, but a convex ball's triangles never face each
     other. `facing_roots` counts exactly the pairs `_facing` keeps (never fewer), the bound over
-    those fits, auto runs the hierarchical solver within it, and the furnace holds."""
+    those fits, auto runs the hierarchical solver within it, and the furnace holds. (Clusters
+    off: auto would solve the ball's small patches as groups, `test_clusters.py`.)"""
     from classic_bake.kernels.bvh import BVH
     from classic_bake.kernels.hierarchical import _facing, facing_roots, hierarchy_roots
     from classic_bake.kernels.radiosity import hierarchical_memory
 
     ball = uv_sphere((0.5, 0.5, 0.5), 0.2, rings=10, segments=20)
     scene = build([(inward_box(), grey(0.3, emission=1.0)), (ball, grey(0.3, emission=1.0))])
-    settings = RadiositySettings(patch_budget=60, refine_levels=0, **FAST)
+    settings = RadiositySettings(patch_budget=60, refine_levels=0, clusters=False, **FAST)
     size = patching.auto_patch_size(scene, settings.patch_budget)
     roots, depth, _ = hierarchy_roots(scene, size, settings.max_depth)
     n = len(roots)
