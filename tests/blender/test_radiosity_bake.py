@@ -114,3 +114,27 @@ def test_lightmaps_agree_with_cycles_diffuse_bake(open_sample):
     error = total_err / total_ref
     print(f"mean relative error {error:.3f}")
     assert error < 0.08
+
+
+def test_cli_clusters_a_finely_tessellated_ball(tmp_path, open_sample):
+    """A ball of 960 triangles standing in the Cornell box: auto solves its small patches as
+    groups (kernels/clusters.py), and the ball's lightmap and corners carry its light."""
+    open_sample("cornell_box")
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=32, ring_count=16, radius=0.08,
+                                         location=(-0.28, 0.28, 0.42))
+    ball = bpy.context.active_object
+    ball.name = "Ball"
+    ball.data.materials.append(bpy.data.objects["Floor"].material_slots[0].material)
+    path = tmp_path / "ball.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path), copy=True)
+    done = subprocess.run([sys.executable, "-m", "classic_bake", "radiosity", str(path), "--out",
+                           str(tmp_path / "out"), "--patches", "60", "--lightmap-size", "32",
+                           "--resolution", "32", "24"],
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    metrics = json.loads((tmp_path / "out" / "metrics.json").read_text())
+    level = metrics["radiosity"]["levels"][-1]
+    assert metrics["radiosity"]["solver"] == "clustered"
+    assert level["clustered_patches"] >= 960 and level["groups"] < metrics["sizes"]["patches"] / 4
+    lightmap = read_exr(tmp_path / "out" / "lightmaps" / "Ball_radiosity.exr")
+    assert np.isfinite(lightmap).all() and lightmap.max() > 0.1
