@@ -60,8 +60,9 @@ CLUSTER_POINTS = 8
 NEAR_AREAS = 16.0
 # Shadow rays per (receiver point, group) pair.
 VISIBILITY_RAYS = 2
-# (receiver point, member) pairs evaluated at once: a few (pairs,) float64 temporaries of 32 MB.
-PAIR_CHUNK = 1 << 22
+# (receiver point, member) pairs evaluated at once: a (pairs, 3) float64 temporary of 48 MB and a
+# few (pairs,) ones of 16 MB.
+PAIR_CHUNK = 1 << 21
 # Shadow rays stop this fraction short of their target point (which lies on a surface).
 SHADOW_END_REL = 1e-6
 # auto clusters only when that cuts the unknowns fourfold at least. Sharing a group's indirect
@@ -182,9 +183,9 @@ def _unoccluded(patches: patching.Patches, groups: Groups, x: np.ndarray, nx: np
     if not many.size:
         return out
     # Members of clusters, in group order, and where each cluster's run of them starts.
-    runs = [groups.members[groups.starts[c]:groups.starts[c + 1]] for c in many]
-    member = np.concatenate(runs)
-    run_starts = np.concatenate([[0], np.cumsum([len(r) for r in runs])[:-1]])
+    member = groups.members[~groups.lone[groups.of_patch[groups.members]]]
+    owner = groups.of_patch[member]
+    run_starts = np.flatnonzero(np.concatenate([[True], owner[1:] != owner[:-1]]))
     centroid = patches.corners[member].mean(axis=1)
     normal = patches.normals[member]
     area = patches.areas[member]
