@@ -284,9 +284,10 @@ def group_means(groups: Groups, areas: np.ndarray, values: np.ndarray) -> np.nda
 
 def solve_steps(patches: patching.Patches, groups: Groups, sources: np.ndarray,
                 reflectance: np.ndarray, factors: np.ndarray, tolerance: float
-                ) -> Iterator[float | tuple]:
-    """Gauss-Seidel on the groups' system; yields progress, then (B per patch (N, 3), the
-    solver's `RadiositySolution` over the groups). sources, reflectance (N, 3) per patch."""
+                ) -> Iterator[float]:
+    """Generator: Gauss-Seidel on the groups' system; yields progress, returns (B per patch
+    (N, 3), the solver's `RadiositySolution` over the groups). sources, reflectance (N, 3) per
+    patch."""
     from .radiosity_solvers import GaussSeidelSettings, GaussSeidelSolver
 
     s = group_means(groups, patches.areas, sources)
@@ -295,4 +296,4 @@ def solve_steps(patches: patching.Patches, groups: Groups, sources: np.ndarray,
     yield from solver.run()
     solution = solver.solution()
     gathered = factors @ solution.radiosity  # (G, 3) what reaches each group
-    yield sources + reflectance * gathered[groups.of_patch], solution
+    return sources + reflectance * gathered[groups.of_patch], solution

@@ -547,17 +547,18 @@ def _solve_level(scene, patches, rho, sources, bvh, settings, stats, size: float
     """Form factors and solve of one level (patches about `size` m); yields progress, leaves B
     in stats["_b"]."""
     count = len(patches)
-    groups = clusters.group_patches(patches, size) if settings.method == "raycast" else None
+    groups = (clusters.group_patches(patches, size)
+              if settings.method == "raycast" and settings.solver in ("auto", "clustered") else None)
     solver = choose_solver(count, settings, groups)
     stats["solver"] = solver
     stats["memory_estimate"] = memory_estimate(count, scene.triangle_count, settings, solver,
                                                groups.count if groups is not None else 0)
     start = time.perf_counter()
     if solver == "clustered":
-        yield from _solve_clustered(scene, patches, groups, rho, sources, bvh, settings, stats)
-        return
-    rows = _rows(scene, patches, bvh, settings)
-    if solver == "gauss_seidel":
+        b, solution = yield from _solve_clustered(scene, patches, groups, rho, sources, bvh,
+                                                  settings, stats)
+    elif solver == "gauss_seidel":
+        rows = _rows(scene, patches, bvh, settings)
         matrix = np.empty((count, count))
         for p in iter_matrix(rows, matrix):
             yield 0.9 * p
@@ -569,7 +570,9 @@ def _solve_level(scene, patches, rho, sources, bvh, settings, stats, size: float
         for p in gs.run():
             yield 0.9 + 0.1 * p
         solution = gs.solution()
+        b = solution.radiosity
     else:
+        rows = _rows(scene, patches, bvh, settings)
         # Keep as many rows as the memory limit allows: a patch is shot again and again when
         # rho is high, and a row costs O(N) form factors with rays.
         cache = int(min(count, settings.dense_memory_limit // (8 * count)))
@@ -580,16 +583,17 @@ def _solve_level(scene, patches, rho, sources, bvh, settings, stats, size: float
         for p in prog.run():
             yield max(p, prog.shots / settings.max_shots) if settings.max_shots else p
         solution = prog.solution()
+        b = solution.radiosity
     stats["solve_seconds"] = time.perf_counter() - start
     stats["iterations"] = solution.iterations
     stats["converged"] = bool(solution.converged)
     stats["solver_error"] = float(solution.error)
-    stats["_b"] = solution.radiosity
+    stats["_b"] = b
 
 
-def _solve_clustered(scene, patches, groups, rho, sources, bvh, settings, stats
-                     ) -> Iterator[float]:
-    """`_solve_level` with the clustered solver (`clusters.py`)."""
+def _solve_clustered(scene, patches, groups, rho, sources, bvh, settings, stats):
+    """Generator: `_solve_level`'s clustered solver (`clusters.py`); yields progress, returns
+    (B per patch (N, 3), the solution over the groups)."""
     flat = scene.triangles.reshape(-1, 3).astype(np.float64)
     offset = RAY_OFFSET_REL * float(np.linalg.norm(flat.max(axis=0) - flat.min(axis=0)))
     start = time.perf_counter()
@@ -600,17 +604,8 @@ def _solve_clustered(scene, patches, groups, rho, sources, bvh, settings, stats
     stats["form_factor_seconds"] = time.perf_counter() - start
     stats["groups"] = groups.count
     stats["clustered_patches"] = int(groups.sizes[~groups.lone].sum())
-    b = solution = None
-    for step in clusters.solve_steps(patches, groups, sources, rho, factors, settings.tolerance):
-        if isinstance(step, tuple):
-            b, solution = step
-        else:
-            yield 0.9 + 0.1 * step
-    stats["solve_seconds"] = time.perf_counter() - start
-    stats["iterations"] = solution.iterations
-    stats["converged"] = bool(solution.converged)
-    stats["solver_error"] = float(solution.error)
-    stats["_b"] = b
+    return (yield from _scaled(clusters.solve_steps(patches, groups, sources, rho, factors,
+                                                    settings.tolerance), 0.9, 0.1))
 
 
 def _scaled(steps, start: float, span: float):
