@@ -882,6 +882,27 @@ def pair_kernel(between: np.ndarray, nx: np.ndarray, ny: np.ndarray) -> np.ndarr
                     cos_x * cos_y / np.maximum(dist2 * dist2, np.finfo(np.float64).tiny), 0.0)
 
 
+def paired_share_steps(x, nx, y, ny, weight, ray_offset: float) -> RayRequests:
+    """Generator asking for its shadow rays (see `RayRequest`); returns (L,) the visible share of
+    L sets of point pairs: points x (L, S, 3) with unit normals nx, targets y (L, S, 3) with ny
+    (normals broadcastable to the points), one ray per pair between copies lifted by
+    `ray_offset` m along the normals. Each ray counts with the point-to-point kernel
+    cos_x cos_y / d^2 times its weight (L, S), so a target behind either horizon carries no
+    weight instead of counting as blocked; 1 where no pair of a set has weight."""
+    kernel = pair_kernel(y - x, nx, ny) * weight  # (L, S)
+    start = np.broadcast_to(x + ray_offset * nx, y.shape)
+    seg = (y + ray_offset * ny - start).reshape(-1, 3)
+    length = np.sqrt(np.einsum("ij,ij->i", seg, seg))
+    rays = np.flatnonzero((kernel.ravel() > 0.0) & (length > 0.0))
+    blocked = np.zeros(seg.shape[0], bool)
+    if rays.size:
+        blocked[rays] = yield (start.reshape(-1, 3)[rays], seg[rays] / length[rays, None],
+                               length[rays] * (1.0 - SHADOW_END_REL))
+    total = kernel.sum(axis=1)
+    seen = np.where(blocked.reshape(kernel.shape), 0.0, kernel).sum(axis=1)
+    return np.divide(seen, total, out=np.ones_like(total), where=total > 0.0)
+
+
 def _visible_fraction_steps(x, nx, y, wy, nj, ray_offset: float) -> RayRequests:
     """Generator asking for its shadow rays (see `RayRequest`); returns the (S, J) kernel-weighted
     visible fraction of J polygons from S points x (normals nx); y (J, M, 3), wy (J, M): the

@@ -40,7 +40,13 @@ import numpy as np
 
 from . import patches as patching
 from . import threads
-from .form_factors import RAY_OFFSET_REL, answer_rays, pair_kernel, point_to_polygon, sample_patches
+from .form_factors import (
+    RAY_OFFSET_REL,
+    answer_rays,
+    paired_share_steps,
+    point_to_polygon,
+    sample_patches,
+)
 from .scene import Scene, geometric_normals, triangle_areas
 
 # Links whose factors are evaluated at once: bounds point_to_polygon's (L, S, K, 3) temporaries.
@@ -52,8 +58,6 @@ THREAD_LINKS = 2048
 # gives the Cornell lightmaps the same error as 3 (relMSE 0.00148 and 0.00150 at 1184 patches)
 # now that the points are sub-triangle centroids (`form_factors.triangle_midpoints`).
 NEAR_FIELD_SIDE = 2
-# Shadow rays stop this fraction short of their target point (which lies on a surface).
-SHADOW_END_REL = 1e-6
 # Rays per shadow-ray call (the BVH reaches its full rate from about 50k).
 RAYS_PER_CALL = 1 << 18
 # Leaves may number this many times the patches asked for (roots are whole scene triangles at
@@ -255,19 +259,9 @@ def _visible_share_steps(tree: _Tree, p: np.ndarray, q: np.ndarray, side: int,
     pick = (np.arange(count)[None, :] + shift[:, None]) % count  # (L, S): each point's target
     targets = np.take_along_axis(targets, pick[:, :, None], axis=1)
     target_weights = np.take_along_axis(target_weights, pick, axis=1)
-    kernel = pair_kernel(targets - points, tree.normals[p][:, None, :], tree.normals[q][:, None, :])
-    kernel *= weights * target_weights  # (L, S)
-    start = points + ray_offset * tree.normals[p][:, None, :]
-    seg = (targets + ray_offset * tree.normals[q][:, None, :] - start).reshape(-1, 3)
-    length = np.sqrt(np.einsum("ij,ij->i", seg, seg))
-    rays = np.flatnonzero((kernel.ravel() > 0.0) & (length > 0.0))
-    blocked = np.zeros(seg.shape[0], bool)
-    if rays.size:
-        blocked[rays] = yield (start.reshape(-1, 3)[rays], seg[rays] / length[rays, None],
-                               length[rays] * (1.0 - SHADOW_END_REL))
-    total = kernel.sum(axis=1)
-    seen = np.where(blocked.reshape(kernel.shape), 0.0, kernel).sum(axis=1)
-    return np.divide(seen, total, out=np.ones_like(total), where=total > 0.0)
+    return (yield from paired_share_steps(points, tree.normals[p][:, None, :], targets,
+                                          tree.normals[q][:, None, :], weights * target_weights,
+                                          ray_offset))
 
 
 def _pull(tree: _Tree, b: np.ndarray, levels: list) -> None:
