@@ -96,8 +96,8 @@ class RadiositySettings:
     | method                      | raycast / hemicube  | raycast  | form factor estimator      |
     | solver                      | auto / gauss_seidel | auto     | auto: the clustered solver |
     |                             | / progressive /     |          | when grouping the patches  |
-    |                             | hierarchical /      |          | of fine meshes at least    |
-    |                             | clustered           |          | halves the unknowns; else  |
+    |                             | hierarchical /      |          | of fine meshes cuts the    |
+    |                             | clustered           |          | unknowns fourfold; else    |
     |                             |                     |          | above AUTO_DENSE_PATCHES   |
     |                             |                     |          | patches the hierarchical   |
     |                             |                     |          | solver if its bound fits   |
@@ -542,10 +542,10 @@ def _rows(scene: Scene, patches: patching.Patches, bvh, settings: RadiositySetti
         triangles=scene.triangles if quick else None, settings=ray)
 
 
-def _solve_level(scene, patches, rho, sources, bvh, settings, stats, size: float
-                 ) -> Iterator[float]:
-    """Form factors and solve of one level (patches about `size` m); yields progress, leaves B
-    in stats["_b"]."""
+def _solve_level(scene, patches, rho, sources, bvh, settings, stats, size: float,
+                 scale: float) -> Iterator[float]:
+    """Form factors and solve of one level (patches about `size` m, scene diagonal `scale` m);
+    yields progress, leaves B in stats["_b"]."""
     count = len(patches)
     groups = (clusters.group_patches(patches, size)
               if settings.method == "raycast" and settings.solver in ("auto", "clustered") else None)
@@ -555,8 +555,8 @@ def _solve_level(scene, patches, rho, sources, bvh, settings, stats, size: float
                                                groups.count if groups is not None else 0)
     start = time.perf_counter()
     if solver == "clustered":
-        b, solution = yield from _solve_clustered(scene, patches, groups, rho, sources, bvh,
-                                                  settings, stats)
+        b, solution = yield from _solve_clustered(patches, groups, rho, sources, bvh, settings,
+                                                  stats, RAY_OFFSET_REL * scale)
     elif solver == "gauss_seidel":
         rows = _rows(scene, patches, bvh, settings)
         matrix = np.empty((count, count))
@@ -591,11 +591,9 @@ def _solve_level(scene, patches, rho, sources, bvh, settings, stats, size: float
     stats["_b"] = b
 
 
-def _solve_clustered(scene, patches, groups, rho, sources, bvh, settings, stats):
-    """Generator: `_solve_level`'s clustered solver (`clusters.py`); yields progress, returns
-    (B per patch (N, 3), the solution over the groups)."""
-    flat = scene.triangles.reshape(-1, 3).astype(np.float64)
-    offset = RAY_OFFSET_REL * float(np.linalg.norm(flat.max(axis=0) - flat.min(axis=0)))
+def _solve_clustered(patches, groups, rho, sources, bvh, settings, stats, offset: float):
+    """Generator: `_solve_level`'s clustered solver (`clusters.py`, shadow rays lifted `offset`
+    m); yields progress, returns (B per patch (N, 3), the solution over the groups)."""
     start = time.perf_counter()
     factors = yield from _scaled(clusters.factor_steps(
         patches, groups, settings.samples_per_side, offset,
@@ -758,7 +756,8 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
         sources = emitted - shot + rho * direct
         level_stats: dict = {"patches": len(patches), "per_level": patches.level_counts()}
         base = 0.02 + 0.96 * level / levels
-        for p in _solve_level(scene, patches, rho, sources, bvh, settings, level_stats, size):
+        for p in _solve_level(scene, patches, rho, sources, bvh, settings, level_stats, size,
+                              scale):
             yield base + 0.96 / levels * p
         b = level_stats.pop("_b") + shot
         stats["levels"].append(level_stats)
