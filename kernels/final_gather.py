@@ -15,7 +15,9 @@ floor, the floor inside a closed block. Most of that detail is DIRECT light. The
       k_s = cos(theta_x) cos(theta_s) / d_s^2   at stratified points s of triangle j
   (`stratified_triangle_points`: equal areas),
   v_s one shadow ray each (the ratio estimator of `form_factors._visible_fraction_steps`: exact
-  when nothing blocks, and its noise stays in penumbrae).
+  when nothing blocks, and its noise stays in penumbrae). Cosines at x are to its shading normal
+  (`shading_normals`: a smooth mesh's interpolated corner normals, as Cycles shades it); the rays
+  leave along the face's own normal, which no smoothing tilts into the surface.
 * H_indirect(x), interpolated from the patches: what the solution says arrives at patch i,
   (B_i - E_i) / rho_i, less the first shot H_direct(i), which the solver took from this same
   estimator at the patch's points (`radiosity.first_shot`) and did not carry again. It is smooth
@@ -196,16 +198,18 @@ def stratified_triangle_points(poly: np.ndarray, m: int, n: int, rng: np.random.
 
 def _kernel_sums(jobs: list, occluded, offset: float, rng: np.random.Generator
                  ) -> list[tuple[np.ndarray, np.ndarray]]:
-    """For each job (points (m, 3), normals (m, 3), triangle `poly` (3, 3), its normal nj, n):
+    """For each job (points (m, 3), normals (m, 3), lift (m, 3), triangle `poly` (3, 3), its
+    normal nj, n), rays leaving `offset` m along `lift` (the geometric normals; `normals` may be
+    shading normals):
     (seen, total) (m,), the sums of the point-to-point kernel k_s over n x n stratified points s
     of the triangle, over the visible ones and over all, for each receiver. Every job's shadow
     rays go to the BVH in one call (a call costs ~2 ms besides its rays)."""
     starts, ends, lengths, found = [], [], [], []
-    for points, normals, poly, nj, n in jobs:
+    for points, normals, lift, poly, nj, n in jobs:
         y = stratified_triangle_points(poly, len(points), n, rng)
         kernel = pair_kernel(y - points[:, None, :], normals[:, None, :], nj)  # (m, S)
         rays = kernel > 0.0
-        origins = points + offset * normals
+        origins = points + offset * lift
         seg = ((y + offset * nj) - origins[:, None, :])[rays]  # (R, 3)
         starts.append(np.broadcast_to(origins[:, None, :], y.shape)[rays])
         ends.append(seg)
@@ -237,7 +241,8 @@ def emitter_irradiance(emitters: Emitters, points: np.ndarray, normals: np.ndarr
                        offset: float, rng: np.random.Generator,
                        share_out: np.ndarray | None = None,
                        clear: np.ndarray | None = None, known: np.ndarray | None = None,
-                       states_out: np.ndarray | None = None) -> np.ndarray:
+                       states_out: np.ndarray | None = None, lift: np.ndarray | None = None
+                       ) -> np.ndarray:
     """(M, 3) irradiance W/m^2 at points (M, 3) m with unit normals (M, 3) from the emitters,
     shadowed: pi L_j F(x -> j) V_j(x) summed over j (module docstring). share_out (M,), when
     given, receives the visible share of the unshadowed irradiance (luminance; 1 where none
@@ -254,8 +259,10 @@ def emitter_irradiance(emitters: Emitters, points: np.ndarray, normals: np.ndarr
     shaft to it is empty, `clear_shafts`), which take share 1 without rays. known (M, K) int8
     (`Visibility.emitters`) likewise: CLEAR takes share 1, HIDDEN share 0, without rays.
     states_out (M, K) int8, when given, receives what was found (CLEAR, HIDDEN, AWAY, UNKNOWN for
-    a penumbra).
+    a penumbra). lift (M, 3), when given: the unit directions the rays leave the points along
+    (the faces' geometric normals where `normals` are shading normals); `normals` otherwise.
     """
+    lift = normals if lift is None else lift
     out = np.zeros((len(points), 3))
     unshadowed = np.zeros(len(points)) if share_out is not None else None
     states = np.full((len(points), len(emitters.triangles)), UNKNOWN, np.int8)
@@ -279,7 +286,7 @@ def emitter_irradiance(emitters: Emitters, points: np.ndarray, normals: np.ndarr
         if live.size:
             todo.append((j, live))
     # The pilot of every triangle in one BVH call, then the penumbrae's full sets in another.
-    pilots = [(points[live], normals[live], emitters.triangles[j], emitters.normals[j],
+    pilots = [(points[live], normals[live], lift[live], emitters.triangles[j], emitters.normals[j],
                _pilot_side(int(emitters.per_side[j]))) for j, live in todo]
     sums = _kernel_sums(pilots, occluded, offset, rng)
     more, mixed_of = [], []
@@ -289,8 +296,8 @@ def emitter_irradiance(emitters: Emitters, points: np.ndarray, normals: np.ndarr
             np.zeros(0, np.int64)
         mixed_of.append(mixed)
         if mixed.size:
-            more.append((points[live[mixed]], normals[live[mixed]], emitters.triangles[j],
-                         emitters.normals[j], n))
+            more.append((points[live[mixed]], normals[live[mixed]], lift[live[mixed]],
+                         emitters.triangles[j], emitters.normals[j], n))
     extra = iter(_kernel_sums(more, occluded, offset, rng))
     for (j, live), (seen, total), mixed in zip(todo, sums, mixed_of, strict=True):
         if mixed.size:
@@ -327,13 +334,14 @@ def clear_shafts(patches: patching.Patches, emitters: Emitters, bvh, offset: flo
 
 
 def lamp_irradiance(scene: Scene, points: np.ndarray, normals: np.ndarray, occluded, offset: float,
-                    area_samples_per_side: int) -> np.ndarray:
+                    area_samples_per_side: int, lift: np.ndarray | None = None) -> np.ndarray:
     """(M, 3) irradiance W/m^2 of the scene's lamps (point, spot, sun, area) with shadow rays, as
-    the radiosity first shot computes it for patch points."""
+    the radiosity first shot computes it for patch points; rays leave along `lift` (M, 3) when
+    given (`emitter_irradiance`)."""
     from .radiosity import shadowed_irradiance
 
     out = np.zeros((len(points), 3))
-    origins = points + offset * normals
+    origins = points + offset * (normals if lift is None else lift)
     for light in scene.lights:
         out += shadowed_irradiance(light, points, normals, origins, occluded,
                                    area_samples_per_side)[0]
@@ -489,6 +497,21 @@ def exitance(gather: FinalGather, patches: patching.Patches, tri: np.ndarray, ba
     return out
 
 
+def shading_normals(scene: Scene, tri: np.ndarray, bary: np.ndarray, geometric: np.ndarray
+                    ) -> np.ndarray:
+    """(M, 3) unit shading normals at receivers (triangles (M,), barycentrics (M, 3)): the
+    corner normals interpolated, as Cycles shades a smooth mesh (its DIFFUSE bake weighs light by
+    the cosine to this normal, not the facet's), turned to the side of the geometric normals
+    (M, 3) where they point behind the face (a corner normal can, at a sharp fold). Flat faces'
+    corner normals are their face normal, so nothing changes there."""
+    normals = np.einsum("mk,mkc->mc", bary, scene.normals[tri].astype(np.float64))
+    length = np.linalg.norm(normals, axis=1, keepdims=True)
+    normals = np.where(length > 1e-12, normals / np.maximum(length, 1e-12), geometric)
+    back = np.einsum("mc,mc->m", normals, geometric) < 0.0
+    normals[back] *= -1.0
+    return normals
+
+
 def _irradiance(gather: FinalGather, patches: patching.Patches, t: np.ndarray, b: np.ndarray,
                 known: Visibility | None, rng: np.random.Generator
                 ) -> tuple[np.ndarray, Visibility]:
@@ -498,7 +521,8 @@ def _irradiance(gather: FinalGather, patches: patching.Patches, t: np.ndarray, b
     found = Visibility.unknown(len(t), len(gather.emitters.triangles))
     inset = (1.0 - RECEIVER_INSET) * b + RECEIVER_INSET / 3.0
     points = np.einsum("mk,mkc->mc", inset, scene.triangles[t].astype(np.float64))
-    normals = gather.triangle_normals[t]
+    geometric = gather.triangle_normals[t]
+    normals = shading_normals(scene, t, inset, geometric)
     # Located at the inset point: the one the rays leave from must lie in the patch whose shaft
     # clears it.
     patch, local = patching.locate(patches, t, inset)
@@ -506,9 +530,9 @@ def _irradiance(gather: FinalGather, patches: patching.Patches, t: np.ndarray, b
     h = emitter_irradiance(gather.emitters, points, normals, occluded, gather.offset, rng,
                            clear=gather.clear[patch],
                            known=None if known is None else known.emitters,
-                           states_out=found.emitters)
+                           states_out=found.emitters, lift=geometric)
     h += lamp_irradiance(scene, points, normals, occluded, gather.offset,
-                         gather.area_samples_per_side)
+                         gather.area_samples_per_side, lift=geometric)
     h += patching.interpolate(gather.corner_indirect, patch, local)
     np.maximum(h, 0.0, out=h)
     found.inside[:] = 0  # receivers no back face hangs over are open
@@ -517,7 +541,7 @@ def _irradiance(gather: FinalGather, patches: patching.Patches, t: np.ndarray, b
         if known is not None:
             found.inside[probed] = known.inside[probed]
             probed = probed[found.inside[probed] < 0]
-        found.inside[probed] = enclosed(points[probed], normals[probed], gather.bvh.intersect,
+        found.inside[probed] = enclosed(points[probed], geometric[probed], gather.bvh.intersect,
                                         gather.triangle_normals, gather.offset)
         h[found.inside == 1] = 0.0
     return h, found

@@ -333,3 +333,52 @@ def test_reused_visibility_leaves_the_bake_as_it_was():
 
     assert rms(reused, own) <= rms(other_seed, own)
     np.testing.assert_allclose(reused.mean(axis=0), own.mean(axis=0), rtol=0.01)
+
+
+def test_smooth_normals_weigh_the_light_as_cycles_shades_them():
+    """A floor whose corner normals lean (a smooth-shaded mesh's interpolated normal) takes each
+    light's cosine to that normal, as Cycles' DIFFUSE bake does, and still leaves its rays along
+    the face: under a sun straight down (3 W/m^2) and an emissive square above, rho = 0.5, the
+    gathered B is rho (E cos + pi L F(x, n_shading)) at every receiver, F the exact factor for
+    the leaning normal (nothing else reflects light back). A normal pointing behind the face is
+    turned to its side instead of going dark."""
+    from dataclasses import replace
+
+    from classic_bake.kernels.form_factors import point_to_polygon
+    from classic_bake.kernels.scene import Light
+
+    sun = Light(name="Sun", kind="SUN", position=np.zeros(3), direction=np.array([0, 0, -1.0]),
+                axis_x=np.array([1.0, 0, 0]), axis_y=np.array([0, 1.0, 0]),
+                irradiance=np.full(3, 3.0))
+    lamp = square(1.0, 0.25, up=False)
+    scene = build([(square(0.0, 2.0, up=True), grey(0.5)), (lamp, grey(0.0, 2.0, "lamp"))],
+                  lights=(sun,))
+    tilt = np.radians(30.0)
+    leaning = np.array([np.sin(tilt), 0.0, np.cos(tilt)])
+    normals = np.array(scene.normals)
+    normals[:2] = leaning
+    flat = solve_radiosity(scene, RadiositySettings(patch_budget=8), BVH.build(scene.triangles))
+    smooth_scene = replace(scene, normals=normals.astype(np.float32))
+    smooth = solve_radiosity(smooth_scene, RadiositySettings(patch_budget=8),
+                             BVH.build(scene.triangles))
+    tri = np.array([0, 0, 1])
+    bary = np.array([[0.6, 0.2, 0.2], [0.2, 0.3, 0.5], [0.3, 0.3, 0.4]])
+    points = np.einsum("mk,mkc->mc", bary, scene.triangles[tri].astype(np.float64))
+    up = np.tile([0.0, 0.0, 1.0], (3, 1))
+
+    def expected(n):
+        f = sum(point_to_polygon(points, n, lamp[k][None].astype(np.float64),
+                                 np.array([[0.0, 0.0, -1.0]])) for k in range(2))
+        return 0.5 * (3.0 * n[:, 2] + np.pi * 2.0 * f)
+
+    got_flat = flat.exitance_at(tri, bary)[:, 0]
+    got_smooth = smooth.exitance_at(tri, bary)[:, 0]
+    # rel 1e-4: receivers are pulled 1e-4 of the way to their triangle's centroid (RECEIVER_INSET).
+    assert got_flat == pytest.approx(expected(up), rel=1e-4)
+    assert got_smooth == pytest.approx(expected(np.tile(leaning, (3, 1))), rel=1e-4)
+    assert got_smooth.max() < got_flat.min()  # cos 30 deg dims the sun's share
+    # A corner normal pointing behind the face is turned to the face's side.
+    normals[:2] = [0.0, 0.0, -1.0]
+    under = solve_radiosity(replace(scene, normals=normals.astype(np.float32)),
+                            RadiositySettings(patch_budget=8), BVH.build(scene.triangles))
+    assert under.exitance_at(tri, bary)[:, 0] == pytest.approx(got_flat, rel=1e-9)
