@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .raster import Projection, rasterize
-from .scene import Scene, geometric_normals
+from .scene import Scene, geometric_normals, interpolated_normals
 
 # Barycentric coordinates are clamped to [0, 1] after solving: texel centres on a shared edge may
 # land a rounding error outside the triangle the rasteriser gave them to.
@@ -345,10 +345,8 @@ def _barycentric_2d(tri: np.ndarray, p: np.ndarray, clamp: bool = True) -> np.nd
 def _targets(scene: Scene, tri: np.ndarray, bary: np.ndarray, **where) -> BakeTargets:
     corners = scene.triangles[tri].astype(np.float64)  # (N, 3, 3)
     points = np.einsum("nc,ncj->nj", bary, corners)
-    normals = np.einsum("nc,ncj->nj", bary, scene.normals[tri].astype(np.float64))
     geo = geometric_normals(scene.triangles[tri])
-    length = np.linalg.norm(normals, axis=1, keepdims=True)
-    normals = np.where(length > 1e-12, normals / np.maximum(length, 1e-12), geo)
+    normals = interpolated_normals(scene, tri, bary, geo)
     return BakeTargets(points=points, normals=normals, geo_normals=geo, triangles=tri, bary=bary,
                        **where)
 

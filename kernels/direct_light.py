@@ -22,7 +22,7 @@ import numpy as np
 from . import lights as light_units
 from .bake_targets import BakeTargets
 from .camera_view import background_and_fragments
-from .scene import Scene, geometric_normals
+from .scene import Scene, geometric_normals, interpolated_normals
 from .shadowmap import (
     Receivers,
     ShadowMapSettings,
@@ -209,8 +209,7 @@ def render_steps(scene: Scene, settings: DirectLightSettings, resolution=None,
         yield image
         return
     rows, cols, tri, bary, points, d, t = f.rows, f.cols, f.tri, f.bary, f.points, f.dirs, f.depth
-    normals = np.einsum("nc,ncj->nj", bary, scene.normals[tri].astype(np.float64))
-    normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-12)
+    normals = interpolated_normals(scene, tri, bary)
     geo = geometric_normals(scene.triangles[tri])
     facing = np.einsum("ij,ij->i", geo, d) > 0  # seen from behind: shade the side we see
     geo[facing] *= -1

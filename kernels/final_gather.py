@@ -58,7 +58,13 @@ from .form_factors import (
     tangent_frames,
 )
 from .metrics import REC709_LUMINANCE
-from .scene import Scene, geometric_normals, triangle_areas, triangle_emission
+from .scene import (
+    Scene,
+    geometric_normals,
+    interpolated_normals,
+    triangle_areas,
+    triangle_emission,
+)
 
 # Shadow rays to points ON an emitter stop this fraction short of it; the target itself is lifted
 # off the emitter by the ray offset along its normal (the BVH's float32 hit distances differ from
@@ -504,9 +510,7 @@ def shading_normals(scene: Scene, tri: np.ndarray, bary: np.ndarray, geometric: 
     the cosine to this normal, not the facet's), turned to the side of the geometric normals
     (M, 3) where they point behind the face (a corner normal can, at a sharp fold). Flat faces'
     corner normals are their face normal, so nothing changes there."""
-    normals = np.einsum("mk,mkc->mc", bary, scene.normals[tri].astype(np.float64))
-    length = np.linalg.norm(normals, axis=1, keepdims=True)
-    normals = np.where(length > 1e-12, normals / np.maximum(length, 1e-12), geometric)
+    normals = interpolated_normals(scene, tri, bary, geometric)
     back = np.einsum("mc,mc->m", normals, geometric) < 0.0
     normals[back] *= -1.0
     return normals

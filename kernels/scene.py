@@ -239,6 +239,17 @@ def geometric_normals(triangles: np.ndarray) -> np.ndarray:
     return np.divide(cross, length, out=np.zeros_like(cross), where=length > 0.0)
 
 
+def interpolated_normals(scene: Scene, tri: np.ndarray, bary: np.ndarray,
+                         fallback: np.ndarray | None = None) -> np.ndarray:
+    """(M, 3) float64 unit shading normals at points given as scene triangles (M,) and
+    barycentrics (M, 3): the corner normals interpolated and normalised. Where they cancel
+    (length <= 1e-12), `fallback` (M, 3) when given, else the near-zero vector as it is."""
+    normals = np.einsum("mk,mkc->mc", bary, scene.normals[tri].astype(np.float64))
+    length = np.linalg.norm(normals, axis=1, keepdims=True)
+    unit = normals / np.maximum(length, 1e-12)
+    return unit if fallback is None else np.where(length > 1e-12, unit, fallback)
+
+
 def empty_scene() -> Scene:
     """A scene with nothing in it: the neutral element tests and kernels can start from."""
     return Scene(
