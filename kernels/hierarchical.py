@@ -85,11 +85,14 @@ VISIBILITY_RAYS = 1 << 17
 
 
 def hierarchy_roots(scene: Scene, patch_size: float, max_depth: int,
-                    triangles: np.ndarray | None = None) -> tuple[patching.Patches, int, int]:
+                    triangles: np.ndarray | None = None, wanted: int | None = None
+                    ) -> tuple[patching.Patches, int, int]:
     """(roots, depth, patches asked for): the deepest hierarchy (at most max_depth) whose leaves
     are not much finer than the patches of `patch_size`; a small scene's roots cannot be coarser
-    than its triangles. triangles (T,) bool: the scene triangles meshed (all when None)."""
-    wanted = len(patching.make_patches(scene, patch_size, triangles))
+    than its triangles. triangles (T,) bool: the scene triangles meshed (all when None); wanted:
+    the count of those patches when the caller has them (meshed here when None)."""
+    if wanted is None:
+        wanted = len(patching.make_patches(scene, patch_size, triangles))
     for depth in range(max_depth, -1, -1):
         roots = patching.make_patches(scene, patch_size * 2.0**depth, triangles)
         if len(roots) * 4**depth <= LEAF_SLACK * wanted:

@@ -676,23 +676,24 @@ def hierarchical_memory(scene: Scene, roots: patching.Patches, depth: int, bvh,
     return found
 
 
-def _hierarchical_plan(scene: Scene, size: float, bvh, settings: RadiositySettings
+def _hierarchical_plan(scene: Scene, size: float, bvh, settings: RadiositySettings,
+                       exchanging: np.ndarray, patches: patching.Patches
                        ) -> tuple[patching.Patches, int, dict] | None:
     """(roots, depth, memory) of the hierarchical solver when it is the one to run, else None.
     auto picks it for all but small scenes (more than AUTO_DENSE_PATCHES patches) when its bound
-    fits `dense_memory_limit` and factors are ray-cast."""
+    fits `dense_memory_limit` and factors are ray-cast. exchanging: `exchanging_triangles`;
+    patches: theirs at `size`, what the other solvers would start from."""
     if settings.solver not in ("hierarchical", "auto"):
         return None
     if settings.solver == "auto" and settings.method != "raycast":
         return None
-    exchanging = exchanging_triangles(scene)
     if settings.solver == "auto":
         # Finely tessellated meshes: their patches solved as groups (`clusters.py`) are far
         # fewer unknowns than the hierarchy's leaves, one or more per triangle.
-        patches = patching.make_patches(scene, size, exchanging)
         if _clustering_pays(len(patches), clusters.group_patches(patches, size), settings):
             return None
-    roots, depth, wanted = hierarchy_roots(scene, size, settings.max_depth, exchanging)
+    roots, depth, wanted = hierarchy_roots(scene, size, settings.max_depth, exchanging,
+                                           wanted=len(patches))
     memory = hierarchical_memory(scene, roots, depth, bvh, settings)
     if settings.solver == "auto" and (wanted <= AUTO_DENSE_PATCHES
                                       or memory["total"] > settings.dense_memory_limit):
@@ -730,14 +731,15 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
     size = settings.patch_size or patching.auto_patch_size(scene, settings.patch_budget)
     if bvh is None:
         bvh = BVH.build(scene.triangles)
+    exchanging = exchanging_triangles(scene)
+    # The first patches: auto's test for clusters, the hierarchy's count, the other solvers' mesh.
+    patches = patching.make_patches(scene, size, exchanging)
     tree_settings = resolve_auto(scene, settings, hierarchical=True)
-    plan = _hierarchical_plan(scene, size, bvh, tree_settings)
+    plan = _hierarchical_plan(scene, size, bvh, tree_settings, exchanging, patches)
     if plan is not None:
-        yield from _hierarchical(scene, size, bvh, tree_settings, scale, t0, *plan)
+        yield from _hierarchical(scene, size, bvh, tree_settings, scale, t0, exchanging, *plan)
         return
     settings = resolve_auto(scene, settings, hierarchical=False)
-    exchanging = exchanging_triangles(scene)
-    patches = patching.make_patches(scene, size, exchanging)
     yield 0.02
     levels = settings.refine_levels + 1
     stats: dict = {"patch_size_m": size, "levels": []}
@@ -809,7 +811,8 @@ def _prepare_gather(scene, patches, b, emitted, rho, direct, emitters, bvh,
     return gather
 
 
-def _hierarchical(scene, size, bvh, settings, scale, t0, roots, depth, memory: dict) -> Iterator:
+def _hierarchical(scene, size, bvh, settings, scale, t0, exchanging, roots, depth,
+                  memory: dict) -> Iterator:
     """`radiosity_steps` with the hierarchical solver (`hierarchical.py`): its patches are the
     leaves of the hierarchy, about `size`, refined as the other solvers refine theirs."""
     from .hierarchical import hierarchical_steps
@@ -835,7 +838,7 @@ def _hierarchical(scene, size, bvh, settings, scale, t0, roots, depth, memory: d
     memory = {**memory, "links_made": info["links"]}  # bounded before linking, and as made
     solved = len(leaves)
     leaves, (b, emitted, rho, direct, clear) = with_idle(
-        scene, leaves, exchanging_triangles(scene), b, emitted, rho, direct, last_clear["leaves"])
+        scene, leaves, exchanging, b, emitted, rho, direct, last_clear["leaves"])
     stats = {"patch_size_m": size, "patches": len(leaves), "idle_patches": len(leaves) - solved,
              "per_level": leaves.level_counts(),
              "solver": "hierarchical", "memory_estimate": memory, "method": "raycast",
