@@ -253,17 +253,6 @@ def _visible_share(x, nx, targets, target_normals, cumulative, ray_offset: float
                        occluded, RAYS_PER_CALL)
 
 
-def group_factors(patches: patching.Patches, groups: Groups, side: int, ray_offset: float,
-                  occluded, rng: np.random.Generator) -> np.ndarray:
-    """`factor_steps` run to the end: (G, G) F_GH."""
-    steps = factor_steps(patches, groups, side, ray_offset, occluded, rng)
-    try:
-        while True:
-            next(steps)
-    except StopIteration as stop:
-        return stop.value
-
-
 def group_means(groups: Groups, areas: np.ndarray, values: np.ndarray) -> np.ndarray:
     """(G, C) area-weighted means of per-patch `values` (N, C) over each group."""
     weighted = np.zeros((groups.count, values.shape[1]))
