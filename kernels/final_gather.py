@@ -125,6 +125,12 @@ class Emitters:
     radiance: np.ndarray  # (K, 3) float64 emitted radiance L_e, W/(m^2 sr)
     per_side: np.ndarray  # (K,) int64 n: n x n stratified visibility points each
 
+    def thinned(self, k: int) -> Emitters:
+        """These emitters with ceil(n / k) points per side each: for receivers averaged k x k
+        to one value (a lightmap texel's sub-texel points, `bake_targets.box_filter`), whose
+        mean then rests on about the n x n rays one receiver casts."""
+        return replace(self, per_side=-(-self.per_side // max(k, 1)))
+
 
 def emitters_of(scene: Scene, settings: FinalGatherSettings) -> Emitters:
     """Emissive triangles with their share of `emitter_rays` (by power: area x luminance of L_e);
@@ -239,8 +245,10 @@ def _kernel_sums(jobs: list, occluded, offset: float, rng: np.random.Generator
 
 
 def _pilot_side(n: int) -> int:
-    """The pilot's points per side for a triangle of n x n (`emitter_irradiance`)."""
-    return max(1, n - 1)
+    """The pilot's points per side for a triangle of n x n (`emitter_irradiance`): (n - 1)^2
+    from n = 3 on; below that the full set at once, since a pilot of one ray finds every receiver
+    wholly lit or wholly hidden and would never send a penumbra on to its n x n."""
+    return n - 1 if n >= 3 else n
 
 
 def emitter_irradiance(emitters: Emitters, points: np.ndarray, normals: np.ndarray, occluded,
@@ -400,6 +408,12 @@ class FinalGather:
     area_samples_per_side: int
     settings: FinalGatherSettings
     stats: dict
+
+    def thinned(self, k: int) -> FinalGather:
+        """This gather for receivers averaged k x k to one value: ceil(1 / k) of the shadow
+        points per side, emitters' (`Emitters.thinned`) and area lights' alike."""
+        return replace(self, emitters=self.emitters.thinned(k),
+                       area_samples_per_side=-(-self.area_samples_per_side // max(k, 1)))
 
 
 def _occluded(bvh):

@@ -930,8 +930,13 @@ def bake_steps(scene: Scene, result: RadiosityResult, objects, lightmap_sizes: d
         centre[k][todo[k]] = got
         texel_seen[k].put(todo[k], found)
     samples = {k: filter_samples(scene, lightmaps[k], centre[k], texel_filter) for k in lightmaps}
+    # A texel averages its k x k sub-texel points: each casts about 1 / k^2 of a receiver's
+    # shadow rays, and their mean rests on as many as a texel centre's.
+    side = texel_filter.samples_per_side
+    thinned = result if result.gather is None else replace(result,
+                                                           gather=result.gather.thinned(side))
     sampled, _ = yield from _radiance_steps(
-        result, [(s.triangles, s.bary) for s in samples.values()], 0.8, 0.2,
+        thinned, [(s.triangles, s.bary) for s in samples.values()], 0.8, 0.2,
         [_texel_neighbourhood(lightmaps[k], texel_seen[k], s.which).take(s.owner)
          for k, s in samples.items()])
     out = {}

@@ -85,6 +85,29 @@ def test_a_half_hidden_emitter_in_the_penumbra():
     assert abs(share.mean() - 0.5) < 0.03
 
 
+@pytest.mark.parametrize("rays", [2, 8])
+def test_few_points_per_side_still_see_a_penumbra(rays):
+    """With 1 x 1 or 2 x 2 points per emitter triangle there is no pilot to stop at: every
+    receiver on the penumbra's centre line casts its whole set, so with 2 x 2 most see part of
+    each triangle (a share strictly between 0 and 1), and their mean share stays near 1/2. (The
+    old pilot of one ray for 2 x 2 gave every receiver 0 or 1.)"""
+    blocker = quad([[-1.0, -1.0, 0.25], [0.0, -1.0, 0.25], [0.0, 1.0, 0.25], [-1.0, 1.0, 0.25]])
+    scene = build([(square(0.5, 0.25, up=False), grey(0.0, emission=1.0, name="lamp")),
+                   (blocker, grey(0.5)), (square(0.0, 2.0, up=True), grey(0.5))])
+    _, emitters, occluded = gather_inputs(scene, rays=rays)
+    assert set(emitters.per_side) == {1 if rays == 2 else 2}
+    count = 400
+    points = np.stack([np.zeros(count), np.linspace(-0.1, 0.1, count), np.zeros(count)], axis=1)
+    normals = np.tile([0.0, 0.0, 1.0], (count, 1))
+    h = fg.emitter_irradiance(emitters, points, normals, occluded, 1e-6, np.random.default_rng(2))
+    full = fg.emitter_irradiance(emitters, points, normals, lambda o, d, t0, t1:
+                                 np.zeros(len(o), bool), 1e-6, np.random.default_rng(2))
+    share = h[:, 0] / full[:, 0]
+    assert abs(share.mean() - 0.5) < 0.05
+    partial = np.mean((share > 0.01) & (share < 0.99))
+    assert partial > (0.8 if rays == 8 else -1.0)
+
+
 def test_enclosure_probes_find_the_inside_of_solids_only():
     """Floor points under a closed cube are inside it; points beside it are not, nor are points
     under a single-sided sheet (its back face above them, but open to the sides)."""
