@@ -114,6 +114,9 @@ class RadiositySettings:
     | refine_threshold            | > 0                 | 0.25     | relative corner difference |
     |                             |                     |          | that splits a patch        |
     | max_patches                 | >= 1                | 3000     | refinement stops here      |
+    |                             |                     |          | (auto lowers it where the  |
+    |                             |                     |          | hierarchy's bound would    |
+    |                             |                     |          | not fit the memory limit)  |
     | tolerance                   | (0, 1)              | 1e-4     | solver stop (see solvers)  |
     | dense_memory_limit          | >= 0                | 512 MiB  | bytes for the dense F      |
     | samples_per_side            | >= 0                | 0        | n x n points per patch     |
@@ -655,9 +658,10 @@ def refine_splits(patches: patching.Patches, b: np.ndarray, emitted: np.ndarray,
 
 
 def hierarchical_memory(scene: Scene, roots: patching.Patches, depth: int, bvh,
-                        settings: RadiositySettings) -> dict:
+                        settings: RadiositySettings, facing: tuple[int, int] | None = None
+                        ) -> dict:
     """The hierarchical solver's memory (bytes by part, "total") over `hierarchy_roots`' roots
-    and depth, bounded before it links."""
+    and depth, bounded before it links. facing: `facing_roots(roots)` when the caller has it."""
     def memory(facing=None) -> dict:
         bound = memory_bound(len(roots), depth, settings.link_epsilon,
                              settings.samples_per_side, settings.refine_levels,
@@ -668,6 +672,8 @@ def hierarchical_memory(scene: Scene, roots: patching.Patches, depth: int, bvh,
         out["link_bound"] = bound["link_bound"]
         return out
 
+    if facing is not None:
+        return memory(facing)
     found = memory()
     if found["total"] > settings.dense_memory_limit and len(roots) ** 2 <= FACING_COUNT_PAIRS:
         # Many roots (a room of many small triangles): count the root pairs that can exchange
@@ -678,11 +684,13 @@ def hierarchical_memory(scene: Scene, roots: patching.Patches, depth: int, bvh,
 
 def _hierarchical_plan(scene: Scene, size: float, bvh, settings: RadiositySettings,
                        exchanging: np.ndarray, patches: patching.Patches
-                       ) -> tuple[patching.Patches, int, dict] | None:
-    """(roots, depth, memory) of the hierarchical solver when it is the one to run, else None.
-    auto picks it for all but small scenes (more than AUTO_DENSE_PATCHES patches) when its bound
-    fits `dense_memory_limit` and factors are ray-cast. exchanging: `exchanging_triangles`;
-    patches: theirs at `size`, what the other solvers would start from."""
+                       ) -> tuple[RadiositySettings, patching.Patches, int, dict] | None:
+    """(settings, roots, depth, memory) of the hierarchical solver when it is the one to run,
+    else None. auto picks it for all but small scenes (more than AUTO_DENSE_PATCHES patches)
+    when its bound fits `dense_memory_limit` and factors are ray-cast; where only refinement
+    breaks the bound, auto lowers `max_patches` (the refined leaves' cap) until it fits
+    (`capped_refinement`) rather than hand the scene to a matrix solver. exchanging:
+    `exchanging_triangles`; patches: theirs at `size`, what the other solvers would start from."""
     if settings.solver not in ("hierarchical", "auto"):
         return None
     if settings.solver == "auto" and settings.method != "raycast":
@@ -695,10 +703,41 @@ def _hierarchical_plan(scene: Scene, size: float, bvh, settings: RadiositySettin
     roots, depth, wanted = hierarchy_roots(scene, size, settings.max_depth, exchanging,
                                            wanted=len(patches))
     memory = hierarchical_memory(scene, roots, depth, bvh, settings)
+    if settings.solver == "auto" and memory["total"] > settings.dense_memory_limit:
+        settings, memory = capped_refinement(scene, roots, depth, bvh, settings, memory)
     if settings.solver == "auto" and (wanted <= AUTO_DENSE_PATCHES
                                       or memory["total"] > settings.dense_memory_limit):
         return None
-    return roots, depth, memory
+    return settings, roots, depth, memory
+
+
+def capped_refinement(scene: Scene, roots: patching.Patches, depth: int, bvh,
+                      settings: RadiositySettings, memory: dict) -> tuple[RadiositySettings, dict]:
+    """`settings` with the largest `max_patches` (refined leaves) whose hierarchical bound fits
+    `dense_memory_limit`, and that bound; `settings` and `memory` as they are when refinement
+    is off or the unrefined leaves alone break it. The fallback would be Gauss-Seidel over the
+    refined patches' dense matrix, O(N^2) ray-cast factors: shadows.blend with refine_levels 2
+    took 671 s there against 10 s hierarchical."""
+    first = len(roots) * 4**depth
+    if settings.refine_levels < 1 or settings.max_patches <= first:
+        return settings, memory
+
+    facing = facing_roots(roots) if len(roots) ** 2 <= FACING_COUNT_PAIRS else None
+
+    def bound(cap: int) -> dict:
+        return hierarchical_memory(scene, roots, depth, bvh, replace(settings, max_patches=cap),
+                                   facing)
+
+    low, high = first, settings.max_patches  # bound(low) may fit, bound(high) does not
+    if bound(low)["total"] > settings.dense_memory_limit:
+        return settings, memory
+    while high - low > max(1, first // 100):  # the bound grows with the cap: bisect
+        mid = (low + high) // 2
+        if bound(mid)["total"] <= settings.dense_memory_limit:
+            low = mid
+        else:
+            high = mid
+    return replace(settings, max_patches=low), bound(low)
 
 
 def within_budget(mask: np.ndarray, radiosity: np.ndarray, corner: np.ndarray,
@@ -737,7 +776,9 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
     tree_settings = resolve_auto(scene, settings, hierarchical=True)
     plan = _hierarchical_plan(scene, size, bvh, tree_settings, exchanging, patches)
     if plan is not None:
-        yield from _hierarchical(scene, size, bvh, tree_settings, scale, t0, exchanging, *plan)
+        tree_settings, roots, depth, memory = plan
+        yield from _hierarchical(scene, size, bvh, tree_settings, scale, t0, exchanging, roots,
+                                 depth, memory)
         return
     settings = resolve_auto(scene, settings, hierarchical=False)
     yield 0.02
@@ -842,6 +883,7 @@ def _hierarchical(scene, size, bvh, settings, scale, t0, exchanging, roots, dept
     stats = {"patch_size_m": size, "patches": len(leaves), "idle_patches": len(leaves) - solved,
              "per_level": leaves.level_counts(),
              "solver": "hierarchical", "memory_estimate": memory, "method": "raycast",
+             "max_patches": settings.max_patches,  # lowered by auto to fit the memory limit
              "hierarchy": info,
              "levels": [{"patches": level["leaves"], "solver": "hierarchical",
                          "iterations": level["iterations"], "solver_error": level["solver_error"],

@@ -279,6 +279,36 @@ def test_many_small_triangles_bound_only_the_root_pairs_that_face():
     np.testing.assert_allclose(result.radiosity, np.pi / 0.7, rtol=0.01)
 
 
+def test_auto_caps_refinement_to_keep_the_hierarchy_within_memory():
+    """Where refined leaves (up to max_patches) would break the memory limit but the unrefined
+    ones fit, auto keeps the hierarchical solver and lowers max_patches to the largest cap whose
+    bound fits (before: Gauss-Seidel over the refined patches, O(N^2) ray-cast factors; 671 s on
+    shadows.blend with refine_levels 2, 10 s hierarchical). Furnace: B = E / (1 - rho)."""
+    from classic_bake.kernels.bvh import BVH
+    from classic_bake.kernels.hierarchical import hierarchy_roots
+    from classic_bake.kernels.radiosity import hierarchical_memory
+
+    scene = build([(inward_box(), grey(0.3, emission=1.0))])
+    settings = RadiositySettings(patch_budget=400, refine_levels=1, max_patches=20_000, **FAST)
+    size = patching.auto_patch_size(scene, settings.patch_budget)
+    roots, depth, _ = hierarchy_roots(scene, size, settings.max_depth)
+    bvh = BVH.build(scene.triangles)
+    first = len(roots) * 4**depth
+    unrefined = hierarchical_memory(scene, roots, depth, bvh, replace(settings, max_patches=first))
+    refined = hierarchical_memory(scene, roots, depth, bvh, settings)
+    limit = (unrefined["total"] + refined["total"]) // 2
+    result = solve_radiosity(scene, replace(settings, dense_memory_limit=limit))
+    stats = result.stats
+    assert stats["solver"] == "hierarchical"
+    assert first < stats["max_patches"] < settings.max_patches
+    assert stats["memory_estimate"]["total"] <= limit
+    assert len(result.patches) <= stats["max_patches"]
+    np.testing.assert_allclose(result.radiosity, np.pi / 0.7, rtol=0.01)
+    # Past what the unrefined leaves need, the limit leaves nothing to cap: auto falls back.
+    tight = solve_radiosity(scene, replace(settings, dense_memory_limit=unrefined["total"] - 1))
+    assert tight.stats["solver"] != "hierarchical"
+
+
 @pytest.mark.parametrize("refine_levels", [0, 1])
 def test_hierarchical_memory_is_bounded_before_linking(refine_levels):
     """The hierarchical solver's memory estimate is fixed before any link is made (leaves x
