@@ -108,6 +108,21 @@ def test_few_points_per_side_still_see_a_penumbra(rays):
     assert partial > (0.8 if rays == 8 else -1.0)
 
 
+def test_thinned_emitters_keep_a_texels_rays():
+    """Sub-texel points averaged k x k to one texel take ceil(n / k) points per side each, so the
+    texel's mean rests on at least the n x n rays of one receiver: n = 3 -> 2 at k = 2 (16 in
+    all), 1 stays 1; the triangles and their radiance are the same."""
+    scene = build([(square(0.5, 0.25, up=False), grey(0.0, emission=1.0, name="lamp")),
+                   (square(0.0, 2.0, up=True), grey(0.5))])
+    _, emitters, _ = gather_inputs(scene, rays=16)
+    assert emitters.per_side.tolist() == [3, 3]
+    thin = emitters.thinned(2)
+    assert thin.per_side.tolist() == [2, 2] and emitters.per_side.tolist() == [3, 3]
+    assert (2 * thin.per_side) ** 2 @ np.ones(2) >= emitters.per_side ** 2 @ np.ones(2)
+    assert emitters.thinned(3).per_side.tolist() == [1, 1]
+    assert thin.triangles is emitters.triangles and thin.radiance is emitters.radiance
+
+
 def test_enclosure_probes_find_the_inside_of_solids_only():
     """Floor points under a closed cube are inside it; points beside it are not, nor are points
     under a single-sided sheet (its back face above them, but open to the sides)."""
