@@ -130,7 +130,12 @@ class Emitters:
         """These emitters with ceil(n / k) points per side each: for receivers averaged k x k
         to one value (a lightmap texel's sub-texel points, `bake_targets.box_filter`), whose
         mean then rests on about the n x n rays one receiver casts."""
-        return replace(self, per_side=-(-self.per_side // max(k, 1)))
+        return replace(self, per_side=thinned_side(self.per_side, k))
+
+
+def thinned_side(n, k: int):
+    """ceil(n / k): the points per side of n x n shared among k x k receivers averaged to one."""
+    return -(-n // max(k, 1))
 
 
 def emitters_of(scene: Scene, settings: FinalGatherSettings) -> Emitters:
@@ -411,10 +416,10 @@ class FinalGather:
     stats: dict
 
     def thinned(self, k: int) -> FinalGather:
-        """This gather for receivers averaged k x k to one value: ceil(1 / k) of the shadow
-        points per side, emitters' (`Emitters.thinned`) and area lights' alike."""
+        """This gather for receivers averaged k x k to one value: ceil(n / k) shadow points per
+        side where it had n, emitters' (`Emitters.thinned`) and area lights' alike."""
         return replace(self, emitters=self.emitters.thinned(k),
-                       area_samples_per_side=-(-self.area_samples_per_side // max(k, 1)))
+                       area_samples_per_side=thinned_side(self.area_samples_per_side, k))
 
 
 def _occluded(bvh):
@@ -556,8 +561,9 @@ def _irradiance(gather: FinalGather, patches: patching.Patches, t: np.ndarray, b
             probed = probed[found.inside[probed] < 0]
         found.inside[probed] = enclosed(points[probed], geometric[probed], gather.bvh.intersect,
                                         gather.triangle_normals, gather.offset)
-    outside = np.flatnonzero(found.inside != 1)
-    found.emitters[found.inside == 1] = HIDDEN  # nothing of any emitter reaches inside
+    inside = found.inside == 1
+    found.emitters[inside] = HIDDEN  # nothing of any emitter reaches inside
+    outside = np.flatnonzero(~inside)
     h = np.zeros((len(t), 3))
     states = np.full((outside.size, found.emitters.shape[1]), UNKNOWN, np.int8)
     h[outside] = emitter_irradiance(gather.emitters, points[outside], normals[outside],
