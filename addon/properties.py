@@ -52,7 +52,8 @@ class CLASSICBAKE_PG_settings(bpy.types.PropertyGroup):
         name="Solver", description="How the radiosity system is solved",
         items=[("auto", "Automatic", "Clustered when grouping fine meshes cuts the unknowns "
                 "fourfold; else Gauss-Seidel up to 200 patches; above, hierarchical when its "
-                "memory bound fits, else Gauss-Seidel or progressive refinement"),
+                "memory bound fits (refinement capped to fit), else Gauss-Seidel or "
+                "progressive refinement"),
                ("gauss_seidel", "Gauss-Seidel", "Gathering on the dense form factor matrix"),
                ("progressive", "Progressive", "Shooting, one row at a time, never N x N"),
                ("hierarchical", "Hierarchical", "Patches gather from a hierarchy of sources, "

@@ -22,8 +22,9 @@ def add_arguments(parser) -> None:
                         help="auto (default): clustered (the patches of finely tessellated meshes "
                              "solved as groups) when that cuts the unknowns fourfold; else "
                              "Gauss-Seidel up to 200 patches, above that hierarchical (links to a "
-                             "hierarchy of sources) when its memory bound fits, else Gauss-Seidel "
-                             "while the dense matrix fits, else progressive")
+                             "hierarchy of sources) when its memory bound fits (refinement "
+                             "capped to fit), else Gauss-Seidel while the dense matrix fits, "
+                             "else progressive")
     parser.add_argument("--patches", type=int, default=DEFAULTS["patches"], metavar="N",
                         help="patches aimed at before refinement (default 400)")
     parser.add_argument("--patch-size", type=float, default=DEFAULTS["patch_size"], metavar="M",
