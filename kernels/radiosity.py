@@ -661,7 +661,8 @@ def hierarchical_memory(scene: Scene, roots: patching.Patches, depth: int, bvh,
                         settings: RadiositySettings, facing: tuple[int, int] | None = None
                         ) -> dict:
     """The hierarchical solver's memory (bytes by part, "total") over `hierarchy_roots`' roots
-    and depth, bounded before it links. facing: `facing_roots(roots)` when the caller has it."""
+    and depth, bounded before it links. facing: `facing_roots(roots)` when the caller has it;
+    when counted here or given, the result keeps it as "facing" (pairs, most)."""
     def memory(facing=None) -> dict:
         bound = memory_bound(len(roots), depth, settings.link_epsilon,
                              settings.samples_per_side, settings.refine_levels,
@@ -670,6 +671,8 @@ def hierarchical_memory(scene: Scene, roots: patching.Patches, depth: int, bvh,
                "bvh": 200 * scene.triangle_count, "bvh_queries": bvh.settings.query_bytes}
         out["total"] = int(sum(out.values()))
         out["link_bound"] = bound["link_bound"]
+        if facing is not None:
+            out["facing"] = tuple(facing)
         return out
 
     if facing is not None:
@@ -722,7 +725,7 @@ def capped_refinement(scene: Scene, roots: patching.Patches, depth: int, bvh,
     if settings.refine_levels < 1 or settings.max_patches <= first:
         return settings, memory
 
-    facing = facing_roots(roots) if len(roots) ** 2 <= FACING_COUNT_PAIRS else None
+    facing = memory.get("facing")  # counted by the bound that broke the limit, if at all
 
     def bound(cap: int) -> dict:
         return hierarchical_memory(scene, roots, depth, bvh, replace(settings, max_patches=cap),
