@@ -545,13 +545,19 @@ def _rows(scene: Scene, patches: patching.Patches, bvh, settings: RadiositySetti
         triangles=scene.triangles if quick else None, settings=ray)
 
 
+def _groups(patches: patching.Patches, size: float, settings: RadiositySettings
+            ) -> clusters.Groups | None:
+    """`clusters.group_patches` where auto or the clustered solver may use them, else None."""
+    if settings.method == "raycast" and settings.solver in ("auto", "clustered"):
+        return clusters.group_patches(patches, size)
+    return None
+
+
 def _solve_level(scene, patches, rho, sources, bvh, settings, stats, size: float,
-                 scale: float) -> Iterator[float]:
-    """Form factors and solve of one level (patches about `size` m, scene diagonal `scale` m);
-    yields progress, leaves B in stats["_b"]."""
+                 scale: float, groups: clusters.Groups | None) -> Iterator[float]:
+    """Form factors and solve of one level (patches about `size` m, scene diagonal `scale` m,
+    `_groups` of them); yields progress, leaves B in stats["_b"]."""
     count = len(patches)
-    groups = (clusters.group_patches(patches, size)
-              if settings.method == "raycast" and settings.solver in ("auto", "clustered") else None)
     solver = choose_solver(count, settings, groups)
     stats["solver"] = solver
     stats["memory_estimate"] = memory_estimate(count, scene.triangle_count, settings, solver,
@@ -686,14 +692,16 @@ def hierarchical_memory(scene: Scene, roots: patching.Patches, depth: int, bvh,
 
 
 def _hierarchical_plan(scene: Scene, size: float, bvh, settings: RadiositySettings,
-                       exchanging: np.ndarray, patches: patching.Patches
+                       exchanging: np.ndarray, patches: patching.Patches,
+                       groups: clusters.Groups | None
                        ) -> tuple[RadiositySettings, patching.Patches, int, dict] | None:
     """(settings, roots, depth, memory) of the hierarchical solver when it is the one to run,
     else None. auto picks it for all but small scenes (more than AUTO_DENSE_PATCHES patches)
     when its bound fits `dense_memory_limit` and factors are ray-cast; where only refinement
     breaks the bound, auto lowers `max_patches` (the refined leaves' cap) until it fits
     (`capped_refinement`) rather than hand the scene to a matrix solver. exchanging:
-    `exchanging_triangles`; patches: theirs at `size`, what the other solvers would start from."""
+    `exchanging_triangles`; patches: theirs at `size`, what the other solvers would start from;
+    groups: their `_groups`."""
     if settings.solver not in ("hierarchical", "auto"):
         return None
     if settings.solver == "auto" and settings.method != "raycast":
@@ -701,7 +709,7 @@ def _hierarchical_plan(scene: Scene, size: float, bvh, settings: RadiositySettin
     if settings.solver == "auto":
         # Finely tessellated meshes: their patches solved as groups (`clusters.py`) are far
         # fewer unknowns than the hierarchy's leaves, one or more per triangle.
-        if _clustering_pays(len(patches), clusters.group_patches(patches, size), settings):
+        if _clustering_pays(len(patches), groups, settings):
             return None
     roots, depth, wanted = hierarchy_roots(scene, size, settings.max_depth, exchanging,
                                            wanted=len(patches))
@@ -776,8 +784,9 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
     exchanging = exchanging_triangles(scene)
     # The first patches: auto's test for clusters, the hierarchy's count, the other solvers' mesh.
     patches = patching.make_patches(scene, size, exchanging)
+    groups = _groups(patches, size, settings)  # grouped once, for auto's test and the first level
     tree_settings = resolve_auto(scene, settings, hierarchical=True)
-    plan = _hierarchical_plan(scene, size, bvh, tree_settings, exchanging, patches)
+    plan = _hierarchical_plan(scene, size, bvh, tree_settings, exchanging, patches, groups)
     if plan is not None:
         tree_settings, roots, depth, memory = plan
         yield from _hierarchical(scene, size, bvh, tree_settings, scale, t0, exchanging, roots,
@@ -803,7 +812,7 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
         level_stats: dict = {"patches": len(patches), "per_level": patches.level_counts()}
         base = 0.02 + 0.96 * level / levels
         for p in _solve_level(scene, patches, rho, sources, bvh, settings, level_stats, size,
-                              scale):
+                              scale, groups):
             yield base + 0.96 / levels * p
         b = level_stats.pop("_b") + shot
         stats["levels"].append(level_stats)
@@ -813,6 +822,7 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
         if not mask.any():
             break
         patches = patching.split(scene, patches, mask)
+        groups = _groups(patches, size, settings)
     last = stats["levels"][-1]
     solved = len(patches)
     patches, (b, emitted, rho, direct, clear) = with_idle(scene, patches, exchanging, b, emitted,
