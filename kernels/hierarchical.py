@@ -109,7 +109,8 @@ def memory_bound(root_count: int, depth: int, link_epsilon: float, side: int = 2
     epsilon, and the factors from one leaf to disjoint elements of one level sum to at most 1,
     so each level of sources adds at most 4 / epsilon links per leaf:
     links <= leaves x (roots + 4 levels / epsilon), with levels = depth + refine_levels and, when
-    leaves are refined, leaves <= max(the first leaves, max_patches).
+    leaves are refined, leaves <= max(the first leaves, max_patches) (refine_levels counts none
+    when max_patches leaves no room for a split).
 
     facing (`facing_roots`: the root pairs that face each other, and the most roots one root
     faces), when given, tightens the first term: a leaf faces only roots its own root faces, so
@@ -117,6 +118,8 @@ def memory_bound(root_count: int, depth: int, link_epsilon: float, side: int = 2
     the most (a room of many small triangles: 19% of all pairs face).
     """
     first = root_count * 4**depth
+    if max_patches <= first:
+        refine_levels = 0  # no room for a split: the first leaves are the last
     leaves = max(first, max_patches) if refine_levels else first
     elements = root_count * sum(4**k for k in range(depth + 1)) + (leaves - first) * 4 // 3
     levels = depth + refine_levels

@@ -309,6 +309,18 @@ def test_auto_caps_refinement_to_keep_the_hierarchy_within_memory():
     assert tight.stats["solver"] != "hierarchical"
 
 
+def test_the_memory_bound_counts_no_split_that_max_patches_leaves_no_room_for():
+    """With max_patches at or below the first leaves no leaf can split, so refinement adds
+    nothing to the bound; the bound used to add 4 / epsilon links per leaf and level anyway,
+    which could hand a scene that fits to a matrix solver."""
+    from classic_bake.kernels.hierarchical import memory_bound
+
+    first = 500 * 4**2
+    plain = memory_bound(500, 2, 0.01)
+    assert memory_bound(500, 2, 0.01, refine_levels=2, max_patches=first) == plain
+    assert memory_bound(500, 2, 0.01, refine_levels=2, max_patches=first + 3) != plain
+
+
 @pytest.mark.parametrize("refine_levels", [0, 1])
 def test_hierarchical_memory_is_bounded_before_linking(refine_levels):
     """The hierarchical solver's memory estimate is fixed before any link is made (leaves x
