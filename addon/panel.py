@@ -103,6 +103,7 @@ class CLASSICBAKE_PT_radiosity(_TechniquePanel, bpy.types.Panel):
         layout.prop(props, "radiosity_solver")
         layout.prop(props, "radiosity_patches")
         layout.prop(props, "radiosity_refine")
+        layout.prop(props, "radiosity_shadow_splits")
         layout.prop(props, "radiosity_final_gather")
         row = layout.row()
         row.enabled = props.radiosity_final_gather

@@ -69,6 +69,11 @@ class CLASSICBAKE_PG_settings(bpy.types.PropertyGroup):
         "solution varies strongly or a shadow boundary crosses); -1: auto, none with the final "
         "gather (its receivers carry the detail), one level without it", default=-1, min=-1,
         max=4)
+    radiosity_shadow_splits: IntProperty(
+        name="Shadow Splits", description="Times patches across a point, spot or sun lamp's "
+        "shadow edge are split before the solve, so the light they pass on follows the shadow; "
+        "-1: auto, 2 with the final gather when such a lamp casts shadows, else 0", default=-1,
+        min=-1, max=4)
     radiosity_final_gather: BoolProperty(
         name="Final Gather", description="Read the solution out with exact direct light (and "
         "its shadows) at every texel, pixel and corner; the patches carry only the indirect light",

@@ -36,5 +36,6 @@ def radiosity_settings(props):
     return RadiositySettings(method=props.radiosity_method, solver=props.radiosity_solver,
                              patch_budget=props.radiosity_patches,
                              refine_levels=props.radiosity_refine,
+                             shadow_splits=props.radiosity_shadow_splits,
                              final_gather=props.radiosity_final_gather,
                              gather_rays=props.radiosity_gather_rays)

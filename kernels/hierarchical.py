@@ -12,9 +12,12 @@ exact over its source polygon, and only the radiosity of a coarse source is aver
 
 Elements. The roots are `patches.make_patches` at 2^max_depth times the patch size; each is split
 max_depth times into midpoint children (`patches.split`'s rule), and the leaves, about the patch
-size, are the patches of the result. After a solve, leaves are split again where the matrix
-solvers would split their patches (`radiosity.refine_mask`), up to `refine_levels` times, and
-everything is linked and solved again.
+size, are the patches of the result. Before any link, leaves across a point, spot or sun lamp's
+shadow edge are split `shadow_splits` times, as the matrix solvers split theirs
+(`radiosity.hard_shadow_edges`, `radiosity.shadow_edge_splits`).
+After a solve, leaves are split again where the matrix solvers would split their patches
+(`radiosity.refine_mask`), up to `refine_levels` times, and everything is linked and solved
+again.
 
 Links (p <- q: leaf p gathers from element q). Every leaf starts linked to every root that faces
 it. A link is refined while it carries more than `link_epsilon`, F_pq > epsilon, by linking p to
@@ -147,6 +150,22 @@ class _Tree:
 
     def __len__(self) -> int:
         return len(self.tri)
+
+    def leaf_patches(self, scene: Scene) -> tuple[np.ndarray, patching.Patches, patching.Patches]:
+        """(leaf element ids in the patches' order (by parent triangle), every element as
+        Patches, the leaves as Patches)."""
+        leaves = np.flatnonzero(self.child < 0)
+        leaves = leaves[np.argsort(self.tri[leaves], kind="stable")]
+        elements = self.patches(scene, slice(None))
+        return leaves, elements, elements.subset(leaves)
+
+    def patches(self, scene: Scene, index) -> patching.Patches:
+        """The elements `index` (indices or a slice) as Patches."""
+        tri = self.tri[index]
+        return patching.Patches(corners=self.corners[index], parent=tri, bary=self.bary[index],
+                                level=self.level[index], normals=self.normals[index],
+                                areas=self.areas[index],
+                                object_ids=scene.object_ids[tri].astype(np.int32))
 
     def split(self, elements: np.ndarray) -> None:
         """Give `elements` (leaves) their four midpoint children."""
@@ -334,27 +353,33 @@ def hierarchical_steps(scene: Scene, roots: patching.Patches, depth: int, occlud
     `refine_levels` times within `max_patches`; every level links and solves afresh.
     """
     from .radiosity import (
+        hard_shadow_edges,
         patch_emission,
         patch_reflectance,
         refine_splits,
+        shadow_edge_splits,
         shot_emission,
     )
 
     tree = _Tree(scene, roots)
     for _ in range(depth):
         tree.split(np.flatnonzero(tree.child < 0))
+    fresh = np.flatnonzero(tree.child < 0)  # leaves no shadow-edge test has seen
+    for _ in range(settings.shadow_splits):  # leaves across a shadow edge, before any link
+        tested = tree.patches(scene, fresh)
+        leaf_count = int(np.count_nonzero(tree.child < 0))
+        mask = shadow_edge_splits(hard_shadow_edges(scene, tested, occluded, settings, scale),
+                                  patch_emission(scene, tested), tested.areas,
+                                  (settings.max_patches - leaf_count) // 3)
+        if not mask.any():
+            break
+        first_kid = len(tree)
+        tree.split(fresh[mask])
+        fresh = np.arange(first_kid, len(tree))
     levels = settings.refine_levels + 1
     per_level = []
     for level in range(levels):
-        leaves = np.flatnonzero(tree.child < 0)
-        leaves = leaves[np.argsort(tree.tri[leaves], kind="stable")]  # patches order: by parent
-        elements = patching.Patches(corners=tree.corners, parent=tree.tri, bary=tree.bary,
-                                    level=tree.level, normals=tree.normals, areas=tree.areas,
-                                    object_ids=scene.object_ids[tree.tri].astype(np.int32))
-        leaf_patches = patching.Patches(
-            corners=tree.corners[leaves], parent=tree.tri[leaves], bary=tree.bary[leaves],
-            level=tree.level[leaves], normals=tree.normals[leaves], areas=tree.areas[leaves],
-            object_ids=elements.object_ids[leaves])
+        leaves, elements, leaf_patches = tree.leaf_patches(scene)
         emitted = patch_emission(scene, elements)
         shot = shot_emission(scene, elements, emitters) if emitters is not None else 0.0
         rho = patch_reflectance(scene, elements)

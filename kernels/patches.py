@@ -83,6 +83,13 @@ class Patches:
         of receivers)."""
         return _cell_members(self, int(self.parent.max(initial=-1)) + 1)
 
+    def subset(self, index: np.ndarray) -> Patches:
+        """The patches `index` (bool mask or indices), in that order."""
+        return Patches(corners=self.corners[index], parent=self.parent[index],
+                       bary=self.bary[index], level=self.level[index],
+                       normals=self.normals[index], areas=self.areas[index],
+                       object_ids=self.object_ids[index])
+
     def level_counts(self) -> dict[int, int]:
         """{refinement level: patch count}."""
         levels, counts = np.unique(self.level, return_counts=True)
@@ -150,15 +157,21 @@ def merged(scene: Scene, a: Patches, b: Patches) -> tuple[Patches, np.ndarray]:
 
 def split(scene: Scene, patches: Patches, mask: np.ndarray) -> Patches:
     """Replace the patches where `mask` (N,) bool is set by their four midpoint children."""
+    return split_children(scene, patches, mask)[0]
+
+
+def split_children(scene: Scene, patches: Patches, mask: np.ndarray) -> tuple[Patches, np.ndarray]:
+    """`split`, and where the new children lie in its result: (N',) bool."""
     mask = np.asarray(mask, bool)
     if not mask.any():
-        return patches
+        return patches, np.zeros(len(patches), bool)
     children = midpoint_children(patches.bary[mask])
     parent = np.concatenate([patches.parent[~mask], np.repeat(patches.parent[mask], 4)])
     bary = np.concatenate([patches.bary[~mask], children])
     level = np.concatenate([patches.level[~mask], np.repeat(patches.level[mask] + 1, 4)])
     order = np.argsort(parent, kind="stable")
-    return _assemble(scene, parent[order], bary[order], level[order].astype(np.int32))
+    kept = int(np.count_nonzero(~mask))
+    return _assemble(scene, parent[order], bary[order], level[order].astype(np.int32)), order >= kept
 
 
 def midpoint_children(bary: np.ndarray) -> np.ndarray:

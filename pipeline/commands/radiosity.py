@@ -9,7 +9,7 @@ from ..outputs import UsageError
 
 # Defaults of the options, also used when another command (demo) runs this one without them.
 DEFAULTS = {"method": "raycast", "solver": "auto", "patches": 400, "patch_size": 0.0,
-            "refine": -1, "final_gather": True, "gather_rays": 16, "lightmap_size": 128,
+            "refine": -1, "shadow_splits": -1, "final_gather": True, "gather_rays": 16, "lightmap_size": 128,
             "padding": 2, "uv_name": "Lightmap", "wire": False}
 # kernels.radiosity.SOLVERS, written out: the kernels load only when a command runs.
 SOLVERS = ("auto", "gauss_seidel", "progressive", "hierarchical", "clustered")
@@ -32,6 +32,11 @@ def add_arguments(parser) -> None:
     parser.add_argument("--refine", type=int, default=DEFAULTS["refine"], metavar="LEVELS",
                         help="adaptive refinement levels (default -1, auto: 0 with the final gather, "
                              "whose receivers carry the detail, 1 without it)")
+    parser.add_argument("--shadow-splits", type=int, default=DEFAULTS["shadow_splits"],
+                        metavar="LEVELS",
+                        help="times patches across a point, spot or sun lamp's shadow edge are "
+                             "split before the solve (default -1, auto: 2 with the final gather "
+                             "when such a lamp casts shadows, else 0)")
     parser.add_argument("--no-final-gather", dest="final_gather", action="store_false",
                         help="interpolate the patch solution instead of gathering direct light "
                              "at every texel, pixel and corner")
@@ -57,6 +62,7 @@ def settings_from(args):
         settings = RadiositySettings(method=value["method"], solver=value["solver"],
                                      patch_budget=value["patches"], patch_size=value["patch_size"],
                                      refine_levels=value["refine"],
+                                     shadow_splits=value["shadow_splits"],
                                      final_gather=value["final_gather"],
                                      gather_rays=value["gather_rays"])
         uv = LightmapUVSettings(resolution=value["lightmap_size"], padding=value["padding"])
@@ -110,6 +116,7 @@ def run(ctx: RunContext) -> None:
         "solver": stats["solver"], "method": stats["method"], "patch_size_m": stats["patch_size_m"],
         # What "auto" (0 and -1 in settings) chose for this scene.
         "samples_per_side": stats["samples_per_side"], "refine_levels": stats["refine_levels"],
+        "shadow_splits": stats["shadow_splits"],
         "memory_estimate": stats["memory_estimate"],
         "levels": [{k: v for k, v in level.items() if k != "memory_estimate"}
                    for level in stats["levels"]],
