@@ -346,7 +346,8 @@ def hierarchical_steps(scene: Scene, roots: patching.Patches, depth: int, occlud
     boundary (N,) bool), the first shot; emitters: the emissive triangles whose light it
     includes (`radiosity.shot_emitters`), whose emission is not carried again; settings:
     RadiositySettings (link_epsilon, max_depth, samples_per_side, tolerance, refine_levels,
-    refine_threshold, max_patches, smooth_angle).
+    refine_threshold, max_patches, smooth_angle; shadow_splits and light_samples_per_side for
+    the splits at lamps' shadow edges made before any link).
 
     Leaves are refined as the matrix solvers refine their patches (`radiosity.refine_splits`: a
     corner value far from the leaf's own, or a lamp's shadow edge across it), up to

@@ -874,12 +874,7 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
         return bvh.occluded(o, d, t_min, t_max)
 
     emitters = shot_emitters(scene, settings)
-
-    def lamps(patches):
-        clear = final_gather.clear_shafts(patches, emitters, bvh, RAY_OFFSET_REL * scale,
-                                          clusters.CLUSTER_AREA_SHARE * size * size)
-        return first_shot(scene, patches, occluded, settings, scale, emitters, clear), clear
-
+    # Patches across a lamp's hard shadow edge split before the first solve (`shadow_splits`).
     fresh = np.ones(len(patches), bool)  # the patches no shadow-edge test has seen
     for _ in range(settings.shadow_splits):
         tested = patches.subset(fresh)
@@ -895,7 +890,9 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
         rho = patch_reflectance(scene, patches)
         emitted = patch_emission(scene, patches)
         shot = shot_emission(scene, patches, emitters)
-        (direct, boundary), clear = lamps(patches)
+        clear = final_gather.clear_shafts(patches, emitters, bvh, RAY_OFFSET_REL * scale,
+                                          clusters.CLUSTER_AREA_SHARE * size * size)
+        direct, boundary = first_shot(scene, patches, occluded, settings, scale, emitters, clear)
         sources = emitted - shot + rho * direct
         level_stats: dict = {"patches": len(patches), "per_level": patches.level_counts()}
         base = 0.02 + 0.96 * level / levels
