@@ -371,13 +371,9 @@ def first_shot(scene: Scene, patches: patching.Patches, occluded, settings: Radi
     shooting = emitters is not None and len(emitters.triangles) > 0
     if not (scene.lights or shooting) or count == 0:
         return irradiance, boundary
-    n = settings.light_samples_per_side
-    points, weights = sample_patches(patches.corners, n, "midpoint")  # (N, S, 3), (N, S)
-    samples = points.shape[1]
-    flat = points.reshape(-1, 3)
-    normals = np.repeat(patches.normals, samples, axis=0)
+    weights, flat, normals, origins = _light_samples(patches, settings, scale)
+    samples = weights.shape[1]
     offset = RAY_OFFSET_REL * scale
-    origins = flat + offset * normals
 
     def add(e: np.ndarray, vis: np.ndarray) -> None:
         irradiance[:] += np.einsum("ns,nsc->nc", weights, e.reshape(count, samples, 3))
@@ -411,20 +407,33 @@ def hard_shadow_edges(scene: Scene, patches: patching.Patches, occluded,
     light's shadow edges cost more seconds than the error it removed, at every patch count).
     occluded: the BVH callback, or None (no shadows, no edges)."""
     edges = np.zeros(len(patches), bool)
-    hard = [light for light in scene.lights if light.kind != "AREA" and light.cast_shadow]
+    hard = hard_lamps(scene)
     if occluded is None or not hard or len(patches) == 0:
         return edges
-    points, _ = sample_patches(patches.corners, settings.light_samples_per_side, "midpoint")
-    count, samples = points.shape[:2]
-    flat = points.reshape(-1, 3)
-    normals = np.repeat(patches.normals, samples, axis=0)
-    origins = flat + RAY_OFFSET_REL * scale * normals
+    weights, flat, normals, origins = _light_samples(patches, settings, scale)
+    count, samples = weights.shape
     for light in hard:
         e, vis = shadowed_irradiance(light, flat, normals, origins, occluded, 1)
         v = vis.reshape(count, samples)
         lit = (e.max(axis=1) > 0.0).reshape(count, samples)
         edges |= np.any(lit, axis=1) & np.any(v < 1.0, axis=1)
     return edges
+
+
+def hard_lamps(scene: Scene) -> list:
+    """The point, spot and sun lamps that cast shadows: steps, not ramps."""
+    return [light for light in scene.lights if light.kind != "AREA" and light.cast_shadow]
+
+
+def _light_samples(patches: patching.Patches, settings: RadiositySettings, scale: float
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The lights' n x n midpoint samples of every patch (`light_samples_per_side`): weights
+    (N, S), points (N S, 3) world m, their normals (N S, 3) and the shadow rays' origins, lifted
+    RAY_OFFSET_REL x scale off the surface (N S, 3)."""
+    points, weights = sample_patches(patches.corners, settings.light_samples_per_side, "midpoint")
+    flat = points.reshape(-1, 3)
+    normals = np.repeat(patches.normals, points.shape[1], axis=0)
+    return weights, flat, normals, flat + RAY_OFFSET_REL * scale * normals
 
 
 def _never_occluded(origins, directions, t_min, t_max) -> np.ndarray:
@@ -503,8 +512,8 @@ def resolve_auto(scene: Scene, settings: RadiositySettings, hierarchical: bool
     if settings.refine_levels == -1:
         changes["refine_levels"] = 0 if settings.final_gather else 1
     if settings.shadow_splits == -1:
-        hard = any(light.kind != "AREA" and light.cast_shadow for light in scene.lights)
-        changes["shadow_splits"] = AUTO_SHADOW_SPLITS if settings.final_gather and hard else 0
+        hard = settings.final_gather and hard_lamps(scene)
+        changes["shadow_splits"] = AUTO_SHADOW_SPLITS if hard else 0
     return replace(settings, **changes) if changes else settings
 
 
