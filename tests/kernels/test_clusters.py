@@ -102,6 +102,36 @@ def _lamp_room_with_ball():
                   (ball, orange)])
 
 
+def test_split_children_group_apart_by_their_direct_light():
+    """A refinement's children (level > 0) lit in different octaves, or unlit, never share a
+    group, so a shadow edge's split stays split in the clustered solve; first meshings group as
+    before whatever their light, and without the direct light nothing changes."""
+    ground = quad([[0, 0, 0], [4, 0, 0], [4, 4, 0], [0, 4, 0]])  # inside one grid cell
+    scene = build([(ground, grey(0.5))])
+    size = 8.0  # every patch under CLUSTER_AREA_SHARE x size^2 = 4 m^2
+    first = patching.make_patches(scene, size)
+    patches, _ = patching.split_children(scene, first, np.ones(len(first), bool))
+    patches, _ = patching.split_children(scene, patches, patches.level == 1)
+    assert (patches.level == 2).sum() == 16 * len(first)
+    x = patches.corners.mean(axis=1)[:, 0]
+    direct = np.where(x[:, None] < 2.0, 0.0, 3.0) * np.ones(3)  # a shadow edge along x = 2
+    direct[x > 3.0] = 1.0  # an octave and a half down
+    before = clusters.group_patches(patches, size)
+    after = clusters.group_patches(patches, size, direct)
+    assert before.count == 1
+    assert after.count == 3
+    lum = direct[:, 0]
+    for g in range(after.count):
+        members = after.members[after.starts[g]:after.starts[g + 1]]
+        assert len(set(lum[members])) == 1
+    octaves = clusters.light_bucket(np.array([4.0, 2.0, 1.9, 0.9, 0.0])[:, None] * np.ones(3))
+    assert np.array_equal(octaves, [0, 1, 1, 2, clusters.LIGHT_OCTAVES + 1])
+    # First meshings keep their groups, lit or not.
+    lit = np.arange(len(first))[:, None] * np.ones(3)  # every first patch in its own octave
+    assert clusters.group_patches(first, size, lit).count == clusters.group_patches(first,
+                                                                                   size).count
+
+
 def test_clustered_agrees_with_the_hierarchical_solver_on_the_same_patches():
     """The lamp-lit room with a ball of 992 triangles: the clustered solve (179 unknowns)
     against the hierarchical solver over all 1070 patches, which agrees with Gauss-Seidel within
