@@ -866,7 +866,7 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
     exchanging = exchanging_triangles(scene)
     # The first patches: auto's test for clusters, the hierarchy's count, the other solvers' mesh.
     patches = patching.make_patches(scene, size, exchanging)
-    groups = _groups(patches, size, settings)  # grouped once, for auto's test and the first level
+    groups = _groups(patches, size, settings)  # for auto's test; each level regroups
     tree_settings = resolve_auto(scene, settings, hierarchical=True)
     plan = _hierarchical_plan(scene, size, bvh, tree_settings, exchanging, patches, groups)
     if plan is not None:
@@ -899,7 +899,6 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
         if not mask.any():
             break
         patches, fresh = patching.split_children(scene, patches, mask)
-        groups = _groups(patches, size, settings)
     for level in range(levels):
         rho = patch_reflectance(scene, patches)
         emitted = patch_emission(scene, patches)
@@ -923,7 +922,6 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
         if not mask.any():
             break
         patches = patching.split(scene, patches, mask)
-        groups = _groups(patches, size, settings)
     last = stats["levels"][-1]
     solved = len(patches)
     patches, (b, emitted, rho, direct, clear) = with_idle(scene, patches, exchanging, b, emitted,
