@@ -907,7 +907,9 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
                                           clusters.CLUSTER_AREA_SHARE * size * size)
         direct, boundary = first_shot(scene, patches, occluded, settings, scale, emitters, clear)
         sources = emitted - shot + rho * direct
-        if groups is not None:  # split children known lit or shadowed now: grouped apart
+        if groups is not None and (patches.level > 0).any():
+            # Split children, known lit or shadowed now, group apart (`clusters.light_bucket`);
+            # without any, these are the first patches and their groups as they were.
             groups = _groups(patches, size, settings, direct)
         level_stats: dict = {"patches": len(patches), "per_level": patches.level_counts()}
         base = 0.02 + 0.96 * level / levels
