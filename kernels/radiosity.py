@@ -1086,6 +1086,8 @@ def bake_steps(scene: Scene, result: RadiosityResult, objects, lightmap_sizes: d
     for k, got, found in zip(lightmaps, rest, seen, strict=True):
         centre[k][todo[k]] = got
         texel_seen[k].put(todo[k], found)
+    # Hard lamp shadows are steps through texels, which take more points than soft ramps.
+    texel_filter = texel_filter.resolved(hard_edges=bool(hard_lamps(scene)))
     samples = {k: filter_samples(scene, lightmaps[k], centre[k], texel_filter) for k in lightmaps}
     # A texel averages its k x k sub-texel points: each casts about 1 / k^2 of a receiver's
     # shadow rays, and their mean rests on as many as a texel centre's.

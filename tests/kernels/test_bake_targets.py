@@ -90,7 +90,7 @@ def test_a_linear_ramp_has_no_edge_texels():
 
 def test_texel_filter_settings_refuse_nonsense():
     with pytest.raises(ValueError):
-        TexelFilterSettings(samples_per_side=0)
+        TexelFilterSettings(samples_per_side=-1)
     with pytest.raises(ValueError):
         TexelFilterSettings(edge_threshold=0.0)
 

@@ -219,6 +219,46 @@ def test_lattice_keeps_texture_detail_between_lattice_texels():
     assert len(plan.first) + len(todo) < 0.5 * len(targets)
 
 
+def test_hard_lamp_shadows_get_more_points_per_edge_texel():
+    """A sun straight down over a floor and a plate at z = 0.5 over [0.3, 0.7]^2 (seen from below
+    it is a back face: the floor gets the sun alone). Its lit fraction in a texel one shadow edge
+    crosses is what Cycles' bake converges to; auto's texel filter takes HARD_EDGE_SAMPLES^2
+    points there (a lamp's shadow is a step), which find it to half a column, 1 / 8, where
+    SOFT_EDGE_SAMPLES^2 points are off by up to 1 / 4."""
+    from classic_bake.kernels.bake_targets import HARD_EDGE_SAMPLES, SOFT_EDGE_SAMPLES
+
+    assert TexelFilterSettings().resolved(hard_edges=True).samples_per_side == HARD_EDGE_SAMPLES
+    assert TexelFilterSettings().resolved(hard_edges=False).samples_per_side == SOFT_EDGE_SAMPLES
+    explicit = TexelFilterSettings(samples_per_side=3)
+    assert explicit.resolved(hard_edges=True) is explicit
+    size, lo, hi = 16, 0.3, 0.7  # edges 80% and 20% into a texel: on no (sub-)texel boundary
+    plate = floor_quad(z=0.5, lo=lo, hi=hi)
+    scene = build([(floor_quad(), grey(0.5)), (plate, grey(0.5))], lights=(sun_down(),))
+    scene = replace(scene, lightmap_uv=scene.uv.copy(),
+                    objects=[replace(o, has_lightmap_uv=True) for o in scene.objects])
+    result = solve_radiosity(scene, RadiositySettings(patch_budget=16, **FAST))
+    bakes = None
+    for step in bake_steps(scene, result, [0], {0: size}, 2):
+        bakes = step
+    rows, cols = np.nonzero(bakes[0].lightmap_mask)
+    lit = bakes[0].lightmap[rows, cols].mean(axis=1) / (0.5 / np.pi)  # B / pi of the lit floor
+
+    def shadowed(a, b):  # length of [a, b] inside [lo, hi]
+        return np.clip(np.minimum(b, hi) - np.maximum(a, lo), 0.0, None)
+
+    x0, y0 = cols / size, 1.0 - (rows + 1) / size
+    inside_x = shadowed(x0, x0 + 1 / size) * size  # (N,) fractions of the texel's width
+    inside_y = shadowed(y0, y0 + 1 / size) * size
+    exact = 1.0 - inside_x * inside_y
+    # Texels one straight edge crosses: a fraction of one axis, all of the other.
+    one_edge = (((inside_x > 0) & (inside_x < 1) & (inside_y == 1))
+                | ((inside_y > 0) & (inside_y < 1) & (inside_x == 1)))
+    assert one_edge.sum() == 4 * 6  # 6 texels along each of the 4 edges
+    np.testing.assert_allclose(lit[one_edge], exact[one_edge], atol=1 / 8 + 0.01)
+    clear = (inside_x == 0) | (inside_y == 0)
+    np.testing.assert_allclose(lit[clear], 1.0, rtol=0.01)  # the sun alone, nothing in the way
+
+
 def test_auto_solver_goes_progressive_when_the_matrix_does_not_fit():
     scene = build([(inward_box(), grey(0.3, emission=1.0))])
     settings = RadiositySettings(patch_budget=40, refine_levels=0, dense_memory_limit=1000, **FAST)
