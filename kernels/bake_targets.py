@@ -1,7 +1,8 @@
 """Where a bake is evaluated: lightmap texel centres and mesh corners, as world points and normals.
 
 A lightmap texel (i, j) (row 0 at the top) belongs to the triangle whose lightmap-UV footprint
-covers its centre u = (j + 0.5) / W, v = 1 - (i + 0.5) / H, and is baked there. Texels no triangle
+covers its centre u = (j + 0.5) / W, v = 1 - (i + 0.5) / H (moved by Blender's `BAKE_SAMPLE_SHIFT`,
+a thousandth of a texel), and is baked there. Texels no triangle
 covers are "unbaked": `dilate` fills the padding ring around the charts from their baked
 neighbours so bilinear lookups at chart edges never read black.
 
@@ -40,6 +41,11 @@ from .scene import Scene, geometric_normals, interpolated_normals
 # Barycentric coordinates are clamped to [0, 1] after solving: texel centres on a shared edge may
 # land a rounding error outside the triangle the rasteriser gave them to.
 BARY_CLAMP = (0.0, 1.0)
+# Where in a texel Blender's bake takes its first sample, in texels from the centre along +u and
+# +v: it rasterises the UV triangles moved by (-0.501, -0.502) texels onto pixel corners (its
+# bake.cc, against texel centres landing exactly on pixel-aligned edges, its bug #18685), so
+# texel (x, y), y counted from the bottom, is sampled at ((x + 0.501) / W, (y + 0.502) / H).
+BAKE_SAMPLE_SHIFT = (0.001, 0.002)
 # Texels darker than this fraction of the object's brightest are compared as if this bright: their
 # differences do not show, and relative to their own level they would flag every bit of noise.
 EDGE_FLOOR_REL = 1e-3
@@ -140,7 +146,11 @@ def lightmap_targets(scene: Scene, object_index: int, resolution: int) -> BakeTa
         raise ValueError("the scene snapshot has no lightmap UVs (request them by name)")
     sl = scene.object_slice(object_index)
     uv = scene.lightmap_uv[sl].astype(np.float64)  # (T, 3, 2)
-    tris_uv = np.concatenate([uv, -np.ones(uv.shape[:2] + (1,))], axis=2)  # at view depth 1
+    # Sampled where Blender's bake samples: the triangles moved back by the shift, so the
+    # rasteriser's texel centres meet them at centre + shift (and an edge through a centre,
+    # common on grid meshes, gives the texel to the triangle Cycles bakes it from).
+    shift = np.array(BAKE_SAMPLE_SHIFT) / resolution  # uv units
+    tris_uv = np.concatenate([uv - shift, -np.ones(uv.shape[:2] + (1,))], axis=2)  # depth 1
     projection = Projection.orthographic(np.eye(4), (0.0, 1.0, 0.0, 1.0), 0.5, 1.5)
     raster = rasterize(tris_uv.astype(np.float32), projection, resolution, resolution,
                        with_triangle_ids=True)
@@ -148,7 +158,7 @@ def lightmap_targets(scene: Scene, object_index: int, resolution: int) -> BakeTa
     mask = local >= 0
     rows, cols = np.nonzero(mask)
     tri_local = local[rows, cols].astype(np.int64)
-    centre = np.stack([(cols + 0.5) / resolution, 1.0 - (rows + 0.5) / resolution], 1)
+    centre = np.stack([(cols + 0.5) / resolution, 1.0 - (rows + 0.5) / resolution], 1) + shift
     bary = _barycentric_2d(uv[tri_local], centre)
     return _targets(scene, sl.start + tri_local, bary, mask=mask, rows=rows, cols=cols)
 
@@ -221,7 +231,9 @@ def lattice_fill(plan: LatticePlan, first_values: np.ndarray, threshold: float,
     themselves, the mean of their sources where `plan.affine` and the sources' (max - min) is at
     most `threshold` of their mean in every channel (EDGE_FLOOR_REL of the brightest as a floor);
     zero elsewhere. Returns the values and the positions (into the targets) still to evaluate."""
-    first_values = np.asarray(first_values, np.float64).reshape(len(plan.first), -1)
+    first_values = np.asarray(first_values, np.float64)
+    if first_values.ndim == 1:
+        first_values = first_values[:, None]
     count = len(plan.first) + len(plan.rest)
     if out is None:
         out = np.zeros((count, first_values.shape[1]))

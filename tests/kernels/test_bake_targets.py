@@ -72,8 +72,13 @@ def test_a_step_is_box_filtered_to_the_covered_fraction(k):
     exact = np.clip((edge_x - left) / (right - left), 0.0, 1.0)  # the texel's lit fraction
     crossed = (left < edge_x) & (edge_x < right)
     assert filtered >= crossed.sum()
+    # The quad's diagonal cuts some texels in two; each half's mean is its own triangle's lit
+    # fraction, not the texel's. The others keep all their points.
+    owner, _, _ = subtexel_points(scene, t, np.arange(len(t)), 3)
+    whole = crossed & (np.bincount(owner, minlength=len(t)) == 9)
+    assert whole.sum() >= crossed.sum() - 3  # the diagonal meets the column in a few texels
     # Stratified points in k columns: the covered fraction to within half a column.
-    np.testing.assert_allclose(values[crossed, 0], exact[crossed], atol=0.5 / k + 1e-9)
+    np.testing.assert_allclose(values[whole, 0], exact[whole], atol=0.5 / k + 1e-9)
     assert np.abs(centre[crossed, 0] - exact[crossed]).max() > 0.5 / k  # the centre alone is off
     np.testing.assert_array_equal(values[~crossed], centre[~crossed])  # far from it: untouched
 
@@ -93,6 +98,29 @@ def test_texel_filter_settings_refuse_nonsense():
         TexelFilterSettings(samples_per_side=-1)
     with pytest.raises(ValueError):
         TexelFilterSettings(edge_threshold=0.0)
+
+
+def test_texels_on_a_grid_edge_go_where_blender_samples_them():
+    """Four quads meeting in lines through texel centres (column 8, row 8 of 16), as a grid
+    mesh's edges do when its cells span whole texels. Blender's bake samples a texel a thousandth
+    of a texel along +u and +v from its centre (`BAKE_SAMPLE_SHIFT`), so those texels belong to
+    the quads on the +u and +v side, and their barycentrics are taken at that point."""
+    from classic_bake.kernels.bake_targets import BAKE_SAMPLE_SHIFT
+
+    size = 16
+    cu, cv = 8.5 / size, 1.0 - 8.5 / size  # the centres of column 8 and of row 8
+    parts = [quad([(u0, v0, 0), (u1, v0, 0), (u1, v1, 0), (u0, v1, 0)])
+             for u0, u1 in ((0.0, cu), (cu, 1.0)) for v0, v1 in ((0.0, cv), (cv, 1.0))]
+    scene = build([(np.concatenate(parts), WHITE)])
+    scene = replace(scene, lightmap_uv=scene.triangles[:, :, :2].copy())
+    t = lightmap_targets(scene, 0, size)
+    assert t.mask.all()
+    centre = scene.triangles[t.triangles].mean(axis=1)[:, :2]  # which quad each texel went to
+    on_column, on_row = t.cols == 8, t.rows == 8
+    assert (centre[on_column, 0] > cu).all() and (centre[on_row, 1] > cv).all()
+    expected = np.stack([(t.cols + 0.5 + BAKE_SAMPLE_SHIFT[0]) / size,
+                         1.0 - (t.rows + 0.5 - BAKE_SAMPLE_SHIFT[1]) / size], axis=1)
+    np.testing.assert_allclose(t.points[:, :2], expected, atol=1e-6)
 
 
 # --- lattice interpolation ------------------------------------------------------------------------

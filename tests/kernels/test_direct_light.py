@@ -9,7 +9,12 @@ from hypothesis import strategies as st
 from scene_builder import build, ortho_camera, quad
 
 from classic_bake.kernels import direct_light as dl
-from classic_bake.kernels.bake_targets import corner_targets, dilate, lightmap_targets
+from classic_bake.kernels.bake_targets import (
+    BAKE_SAMPLE_SHIFT,
+    corner_targets,
+    dilate,
+    lightmap_targets,
+)
 from classic_bake.kernels.scene import Light, Material
 
 WHITE = Material(name="white", base_color=np.full(3, 0.8, np.float32), specular=0.0)
@@ -50,8 +55,9 @@ def test_lightmap_targets_sit_at_texel_centres_on_the_surface():
     inside = (centres > 0.1) & (centres < 0.9)
     expected = np.outer(inside[::-1], inside)
     np.testing.assert_array_equal(t.mask, expected)
-    u = (t.cols + 0.5) / 64
-    v = 1 - (t.rows + 0.5) / 64
+    # Blender's bake samples a thousandth of a texel off the centre (BAKE_SAMPLE_SHIFT).
+    u = (t.cols + 0.5 + BAKE_SAMPLE_SHIFT[0]) / 64
+    v = 1 - (t.rows + 0.5 - BAKE_SAMPLE_SHIFT[1]) / 64
     np.testing.assert_allclose(t.points[:, 0], (u - 0.1) / 0.8 * 4 - 2, atol=1e-5)
     np.testing.assert_allclose(t.points[:, 1], (v - 0.1) / 0.8 * 4 - 2, atol=1e-5)
     np.testing.assert_allclose(t.points[:, 2], 0, atol=1e-6)
