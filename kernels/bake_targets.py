@@ -2,7 +2,7 @@
 
 A lightmap texel (i, j) (row 0 at the top) belongs to the triangle whose lightmap-UV footprint
 covers its centre u = (j + 0.5) / W, v = 1 - (i + 0.5) / H (moved by Blender's `BAKE_SAMPLE_SHIFT`,
-a thousandth of a texel), and is baked there. Texels no triangle
+a few thousandths of a texel: `SAMPLE_SHIFT`), and is baked there. Texels no triangle
 covers are "unbaked": `dilate` fills the padding ring around the charts from their baked
 neighbours so bilinear lookups at chart edges never read black.
 
@@ -35,7 +35,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .raster import Projection, rasterize
+from .raster import SUBPIXEL_STEPS, Projection, rasterize
 from .scene import Scene, geometric_normals, interpolated_normals
 
 # Barycentric coordinates are clamped to [0, 1] after solving: texel centres on a shared edge may
@@ -46,6 +46,10 @@ BARY_CLAMP = (0.0, 1.0)
 # bake.cc, against texel centres landing exactly on pixel-aligned edges, its bug #18685), so
 # texel (x, y), y counted from the bottom, is sampled at ((x + 0.501) / W, (y + 0.502) / H).
 BAKE_SAMPLE_SHIFT = (0.001, 0.002)
+# Ours: the rasteriser snaps vertices to 1 / SUBPIXEL_STEPS of a texel, which would round that
+# shift away. Scaled until its smaller part is one step, (1/256, 2/256) texels, it keeps its
+# direction and breaks every tie alike (an edge along it would need a slope of exactly 2).
+SAMPLE_SHIFT = tuple(s / (min(BAKE_SAMPLE_SHIFT) * SUBPIXEL_STEPS) for s in BAKE_SAMPLE_SHIFT)
 # Texels darker than this fraction of the object's brightest are compared as if this bright: their
 # differences do not show, and relative to their own level they would flag every bit of noise.
 EDGE_FLOOR_REL = 1e-3
@@ -149,7 +153,7 @@ def lightmap_targets(scene: Scene, object_index: int, resolution: int) -> BakeTa
     # Sampled where Blender's bake samples: the triangles moved back by the shift, so the
     # rasteriser's texel centres meet them at centre + shift (and an edge through a centre,
     # common on grid meshes, gives the texel to the triangle Cycles bakes it from).
-    shift = np.array(BAKE_SAMPLE_SHIFT) / resolution  # uv units
+    shift = np.array(SAMPLE_SHIFT) / resolution  # uv units
     tris_uv = np.concatenate([uv - shift, -np.ones(uv.shape[:2] + (1,))], axis=2)  # depth 1
     projection = Projection.orthographic(np.eye(4), (0.0, 1.0, 0.0, 1.0), 0.5, 1.5)
     raster = rasterize(tris_uv.astype(np.float32), projection, resolution, resolution,

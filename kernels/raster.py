@@ -70,7 +70,8 @@ ProjectionKind = Literal["PERSP", "ORTHO"]
 CullMode = Literal["NONE", "BACK", "FRONT"]
 
 SUBPIXEL_BITS = 8  # 1/256 pixel vertex snapping (as GPUs do): exact integer edge functions
-_ONE = 1 << SUBPIXEL_BITS  # one pixel in fixed point
+SUBPIXEL_STEPS = 1 << SUBPIXEL_BITS  # positions a pixel is cut into
+_ONE = SUBPIXEL_STEPS  # one pixel in fixed point
 _HALF = _ONE // 2  # half a pixel: the pixel-centre offset in fixed point
 GUARD_PIXELS = 2.0  # side clip planes this far outside the viewport: clip-made edges miss centres
 CHUNK_FRAGMENTS = 1 << 19  # covered pixels generated per vectorised step: ~60 B each

@@ -103,9 +103,11 @@ def test_texel_filter_settings_refuse_nonsense():
 def test_texels_on_a_grid_edge_go_where_blender_samples_them():
     """Four quads meeting in lines through texel centres (column 8, row 8 of 16), as a grid
     mesh's edges do when its cells span whole texels. Blender's bake samples a texel a thousandth
-    of a texel along +u and +v from its centre (`BAKE_SAMPLE_SHIFT`), so those texels belong to
-    the quads on the +u and +v side, and their barycentrics are taken at that point."""
-    from classic_bake.kernels.bake_targets import BAKE_SAMPLE_SHIFT
+    of a texel along +u and twice that along +v from its centre (`BAKE_SAMPLE_SHIFT`; ours,
+    snapped, `SAMPLE_SHIFT`), so those texels belong to the quads on the +u and +v side, and
+    their barycentrics are taken at that point. A square's diagonal runs through texel centres
+    too: those go to the triangle on the side the shift points to."""
+    from classic_bake.kernels.bake_targets import SAMPLE_SHIFT
 
     size = 16
     cu, cv = 8.5 / size, 1.0 - 8.5 / size  # the centres of column 8 and of row 8
@@ -118,9 +120,16 @@ def test_texels_on_a_grid_edge_go_where_blender_samples_them():
     centre = scene.triangles[t.triangles].mean(axis=1)[:, :2]  # which quad each texel went to
     on_column, on_row = t.cols == 8, t.rows == 8
     assert (centre[on_column, 0] > cu).all() and (centre[on_row, 1] > cv).all()
-    expected = np.stack([(t.cols + 0.5 + BAKE_SAMPLE_SHIFT[0]) / size,
-                         1.0 - (t.rows + 0.5 - BAKE_SAMPLE_SHIFT[1]) / size], axis=1)
+    expected = np.stack([(t.cols + 0.5 + SAMPLE_SHIFT[0]) / size,
+                         1.0 - (t.rows + 0.5 - SAMPLE_SHIFT[1]) / size], axis=1)
     np.testing.assert_allclose(t.points[:, :2], expected, atol=1e-6)
+    # A unit square's diagonal u = v runs through the centres of texels (i, 15 - i).
+    square = build([(quad([(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)]), WHITE)])
+    square = replace(square, lightmap_uv=square.triangles[:, :, :2].copy())
+    t = lightmap_targets(square, 0, size)
+    on_diagonal = t.cols == size - 1 - t.rows
+    assert on_diagonal.sum() == size
+    assert (t.triangles[on_diagonal] == 1).all()  # (c0, c2, c3): the side where v > u
 
 
 # --- lattice interpolation ------------------------------------------------------------------------
