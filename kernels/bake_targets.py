@@ -15,7 +15,9 @@ step: 0 against Cycles' half-lit 0.15 in a texel the block's edge crosses. `box_
 texels from the centre values (a second difference along a row or column of the image, relative
 to the texels' level) and replaces each by the mean over k x k sub-texel points of its triangle.
 Finding the covering triangle is rasterisation in UV space: the lightmap is an orthographic image
-of the UV triangles, drawn by `raster.py` with its top-left rule (no texel claimed twice).
+of the UV triangles, drawn by `raster.py` with its top-left rule (no texel claimed twice). Where
+UV triangles overlap (a packer's sliver across other charts) the last triangle of the mesh wins,
+as in Blender's bake, which writes every covered texel in triangle order without a depth test.
 
 Lattice interpolation (irradiance caching on the lightmap's grid: Ward, Rubinstein and Clear
 1988, with the cache points on a regular lattice). A bake is evaluated first at the texels of
@@ -156,12 +158,13 @@ def lightmap_targets(scene: Scene, object_index: int, resolution: int) -> BakeTa
     shift = np.array(SAMPLE_SHIFT) / resolution  # uv units
     tris_uv = np.concatenate([uv - shift, -np.ones(uv.shape[:2] + (1,))], axis=2)  # depth 1
     projection = Projection.orthographic(np.eye(4), (0.0, 1.0, 0.0, 1.0), 0.5, 1.5)
-    raster = rasterize(tris_uv.astype(np.float32), projection, resolution, resolution,
+    # Drawn in reverse: the rasteriser gives a tie to the lowest id, Blender's bake to the last
+    # triangle it draws (each overwrites the texels it covers), so overlaps go where it puts them.
+    raster = rasterize(tris_uv[::-1].astype(np.float32), projection, resolution, resolution,
                        with_triangle_ids=True)
-    local = raster.triangle  # (H, W) int, -1 where uncovered
-    mask = local >= 0
+    mask = raster.triangle >= 0  # (H, W)
     rows, cols = np.nonzero(mask)
-    tri_local = local[rows, cols].astype(np.int64)
+    tri_local = len(uv) - 1 - raster.triangle[rows, cols].astype(np.int64)
     centre = np.stack([(cols + 0.5) / resolution, 1.0 - (rows + 0.5) / resolution], 1) + shift
     bary = _barycentric_2d(uv[tri_local], centre)
     return _targets(scene, sl.start + tri_local, bary, mask=mask, rows=rows, cols=cols)

@@ -132,6 +132,21 @@ def test_texels_on_a_grid_edge_go_where_blender_samples_them():
     assert (t.triangles[on_diagonal] == 1).all()  # (c0, c2, c3): the side where v > u
 
 
+def test_a_texel_two_uv_triangles_cover_goes_to_the_later_one():
+    """Blender's bake draws an object's UV triangles in order and each overwrites the texels it
+    covers, with no depth test: where lightmap UVs overlap (a packer's sliver across another
+    chart) the last triangle's point is baked. Two squares at one place in UV, far apart in the
+    world: every texel belongs to the second square's triangles."""
+    size = 16
+    first = quad([(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)])
+    second = quad([(0, 0, 5), (1, 0, 5), (1, 1, 5), (0, 1, 5)])
+    scene = build([(np.concatenate([first, second]), WHITE)])
+    scene = replace(scene, lightmap_uv=scene.triangles[:, :, :2].copy())
+    t = lightmap_targets(scene, 0, size)
+    assert t.mask.all()
+    assert (t.triangles >= 2).all() and np.allclose(t.points[:, 2], 5.0)
+
+
 # --- lattice interpolation ------------------------------------------------------------------------
 
 
