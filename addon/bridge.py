@@ -786,8 +786,9 @@ def lightmap_loop_uv(obj, settings) -> tuple[np.ndarray, dict]:
     """Unwrap `obj`'s original mesh with xatlas: per-loop lightmap UVs (L, 2) and a summary.
 
     Texel density follows world-space size (the object's scale applied), so charts of one object
-    get the same density. Polygons whose triangles xatlas put in different charts would give one
-    loop two UVs; they are counted in the summary (`split_polygons`) — the last triangle's UV wins.
+    get the same density. Each polygon is kept in one chart (`unwrap`'s `polygons`); one whose
+    triangles still disagree on a loop's UV (none should) is counted in the summary
+    (`split_polygons`), the last triangle's UV winning.
     """
     from ..kernels.lightmap_uv import unwrap
 
@@ -795,7 +796,7 @@ def lightmap_loop_uv(obj, settings) -> tuple[np.ndarray, dict]:
     corner_verts, corner_loops, polys, _ = mesh_triangles(mesh)
     matrix = _matrix(obj.matrix_world)
     world = mesh_positions(mesh).astype(np.float64) @ matrix[:3, :3].T
-    result = unwrap(world, corner_verts, settings)
+    result = unwrap(world, corner_verts, settings, polys)
     loop_uv = np.zeros((len(mesh.loops), 2), np.float32)
     flat_loops = corner_loops.ravel()
     flat_uv = result.corner_uv.reshape(-1, 2)

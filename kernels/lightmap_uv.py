@@ -55,12 +55,20 @@ class LightmapUV:
 
 
 def unwrap(
-    positions: np.ndarray, triangles: np.ndarray, settings: LightmapUVSettings = LightmapUVSettings()
+    positions: np.ndarray, triangles: np.ndarray, settings: LightmapUVSettings = LightmapUVSettings(),
+    polygons: np.ndarray | None = None,
 ) -> LightmapUV:
     """Unwrap and pack one mesh.
 
     positions (V, 3) float, object or world space, m (only ratios matter); triangles (T, 3) vertex ids.
     Zero-area triangles get no chart (chart id -1) and UV (0, 0): they cover no texel.
+
+    polygons (T,) int, when given: the polygon each triangle was cut from. A mesh stores one UV per
+    polygon corner, so a polygon must lie in one chart; xatlas charts triangles and may cut a
+    quad along its diagonal (448 of subdivided Suzanne's 7872 quads), and the corner both halves
+    share would then take one chart's UV while the other half's own corner kept the other's: a
+    sliver across the atlas, over other charts (944 of its 3865 texels claimed twice at 128^2).
+    Such polygons are kept whole (`_polygons_whole`) and the charts packed again.
     """
     import xatlas
 
@@ -69,9 +77,9 @@ def unwrap(
     if triangles.shape[0] == 0:
         return LightmapUV(np.zeros((0, 3, 2), np.float32), np.zeros(0, np.int32), 0, 0.0)
 
-    def generate(texels_per_unit: float):
+    def generate(add, texels_per_unit: float):
         atlas = xatlas.Atlas()
-        atlas.add_mesh(positions, triangles)
+        add(atlas)
         chart_options = xatlas.ChartOptions()
         if settings.max_chart_area > 0:
             chart_options.max_chart_area = float(settings.max_chart_area)
@@ -83,26 +91,118 @@ def unwrap(
         atlas.generate(chart_options, pack)
         return atlas
 
-    # With texels_per_unit = 0 xatlas only estimates a density and may overshoot the resolution.
-    # Fixing the density makes it pack into atlases of exactly `resolution`; shrink the density
-    # until everything fits in one, so padding is measured in texels of the real lightmap.
-    atlas = generate(0.0)
-    density = atlas.texels_per_unit * FIT_MARGIN * settings.resolution / max(atlas.width, atlas.height)
-    for _ in range(MAX_FIT_ATTEMPTS):
-        atlas = generate(density)
-        if atlas.atlas_count == 1:
-            break
-        density *= SHRINK_PER_ATTEMPT
-    else:
+    def fitted(add):
+        # With texels_per_unit = 0 xatlas only estimates a density and may overshoot the
+        # resolution. Fixing the density makes it pack into atlases of exactly `resolution`;
+        # shrink it until everything fits in one, so padding is in texels of the real lightmap.
+        atlas = generate(add, 0.0)
+        density = atlas.texels_per_unit * FIT_MARGIN * settings.resolution / max(atlas.width,
+                                                                                 atlas.height)
+        for _ in range(MAX_FIT_ATTEMPTS):
+            atlas = generate(add, density)
+            if atlas.atlas_count == 1:
+                return atlas
+            density *= SHRINK_PER_ATTEMPT
         raise ValueError(
             f"lightmap UVs: charts do not fit one {settings.resolution}^2 atlas with "
             f"{settings.padding} texels of padding; raise the resolution or lower the padding"
         )
-    vmapping, indices, uvs = atlas[0]
+
+    atlas = fitted(lambda a: a.add_mesh(positions, triangles))
+    _, indices, uvs = atlas[0]
     corner_uv = uvs[indices].astype(np.float32)  # (T, 3, 2) in [0, 1] of the square atlas
     _, vertex_chart = atlas.get_mesh_vertex_assignment(0)
     chart_ids = np.asarray(vertex_chart, np.int64)[indices[:, 0]].astype(np.int32)
+    polygons = None if polygons is None else np.asarray(polygons, np.int64)
+    if polygons is not None and _moved(positions, triangles, polygons, chart_ids)[0].any():
+        # In m (atlas texels / density): the charts' own scale, for packing them again.
+        metres = corner_uv * np.array([atlas.width, atlas.height]) / atlas.texels_per_unit
+        whole = _polygons_whole(positions, triangles, polygons, chart_ids, metres)
+        # Corners of one vertex at one UV are one vertex of the UV mesh: its islands are the
+        # charts again, now whole polygons.
+        key = np.concatenate([triangles.reshape(-1, 1).astype(np.float64),
+                              whole.reshape(-1, 2)], axis=1)
+        _, shared = np.unique(key, axis=0, return_inverse=True)
+        island_uv = np.zeros((int(shared.max()) + 1, 2), np.float32)
+        island_uv[shared] = whole.reshape(-1, 2)
+        island_tris = np.ascontiguousarray(shared.reshape(-1, 3), np.uint32)
+        atlas = fitted(lambda a: a.add_uv_mesh(island_uv, island_tris))
+        _, indices, uvs = atlas[0]
+        corner_uv = uvs[indices].astype(np.float32)
+        _, vertex_chart = atlas.get_mesh_vertex_assignment(0)
+        chart_ids = np.asarray(vertex_chart, np.int64)[indices[:, 0]].astype(np.int32)
     return LightmapUV(corner_uv, chart_ids, int(atlas.chart_count), float(atlas.utilization))
+
+
+def _moved(positions: np.ndarray, triangles: np.ndarray, polygons: np.ndarray,
+           chart_ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """((T,) bool: triangles charted apart from their polygon's largest triangle, (T,) int: that
+    largest triangle of each one's polygon). A zero-area triangle (chart -1, its corners at UV
+    (0, 0)) in a polygon with area counts: the loops it shares would take (0, 0)."""
+    corners = positions.astype(np.float64)[triangles]
+    areas = np.linalg.norm(np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]),
+                           axis=1)
+    order = np.lexsort((-areas, polygons))  # by polygon, largest first
+    head = np.ones(len(order), bool)
+    head[1:] = polygons[order][1:] != polygons[order][:-1]
+    largest = np.empty(len(order), np.int64)
+    largest[order] = order[np.maximum.accumulate(np.where(head, np.arange(len(order)), 0))]
+    owner = chart_ids[largest]
+    return (chart_ids != owner) & (owner >= 0), largest
+
+
+def _polygons_whole(positions: np.ndarray, triangles: np.ndarray, polygons: np.ndarray,
+                    chart_ids: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """(T, 3, 2) corner UVs (in `uv`'s units) with every polygon in the chart of its largest
+    triangle. A triangle charted elsewhere is unfolded across an edge it shares with the
+    polygon's triangles placed so far: its free corner goes where the UV triangle is similar to
+    the 3D one (the chart's scale along that edge) and wound like the largest triangle's, so it
+    lies on the far side of the edge. A triangle that never shares a placed edge keeps its own
+    chart's UVs."""
+    moved, largest = _moved(positions, triangles, polygons, chart_ids)
+    out = uv.astype(np.float64)
+    if not moved.any():
+        return out
+    corners = positions.astype(np.float64)[triangles]  # (T, 3, 3)
+
+    def signed_area(t: int) -> float:
+        (x0, y0), (x1, y1), (x2, y2) = out[t]
+        return (x1 - x0) * (y2 - y0) - (y1 - y0) * (x2 - x0)
+
+    involved = np.isin(polygons, polygons[moved])
+    placed = {(int(polygons[t]), int(v)): out[t, c]
+              for t in np.flatnonzero(involved & ~moved) for c, v in enumerate(triangles[t])}
+    pending = [int(t) for t in np.flatnonzero(moved)]
+    while pending:
+        left = []
+        for t in pending:
+            poly = int(polygons[t])
+            known = [placed.get((poly, int(v))) for v in triangles[t]]
+            free = [c for c in range(3) if known[c] is None]
+            if len(free) > 1:
+                left.append(t)  # no placed edge yet: after its neighbours
+                continue
+            if free:
+                f = free[0]
+                a, b = (f + 1) % 3, (f + 2) % 3  # (f, a, b) keeps the corners' cyclic order
+                edge = corners[t, b] - corners[t, a]
+                length = float(np.linalg.norm(edge))
+                rel = corners[t, f] - corners[t, a]
+                along = float(rel @ edge) / max(length, 1e-300)
+                across = float(np.linalg.norm(rel - along * edge / max(length, 1e-300)))
+                d = known[b] - known[a]
+                scale = float(np.linalg.norm(d)) / max(length, 1e-300)  # uv units per m
+                direction = d / max(float(np.linalg.norm(d)), 1e-300)
+                normal = np.array([-direction[1], direction[0]])
+                # The signed area of (f, a, b) comes out as side x scale^2 x across x length.
+                side = 1.0 if signed_area(int(largest[t])) >= 0.0 else -1.0
+                known[f] = known[a] + scale * (along * direction + side * across * normal)
+                placed[(poly, int(triangles[t, f]))] = known[f]
+            out[t] = np.array(known)
+        if len(left) == len(pending):
+            break
+        pending = left
+    return out
 
 
 # Smallest lightmap an object gets: below 16 texels a side the padding eats the charts.

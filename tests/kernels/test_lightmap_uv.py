@@ -8,7 +8,12 @@ triangle/box separating-axis test, so bilinear lookups of any point of a chart r
 import numpy as np
 import pytest
 
-from classic_bake.kernels.lightmap_uv import LightmapUVSettings, unwrap
+from classic_bake.kernels.lightmap_uv import (
+    LightmapUVSettings,
+    _moved,
+    _polygons_whole,
+    unwrap,
+)
 
 
 def uv_sphere(rings=12, segments=24):
@@ -132,3 +137,61 @@ def test_settings_are_validated():
 def test_empty_mesh():
     result = unwrap(np.zeros((0, 3)), np.zeros((0, 3), int))
     assert result.corner_uv.shape == (0, 3, 2) and result.chart_count == 0
+
+
+def corner_uv_by_polygon(polygons, tris, uv) -> dict:
+    """{(polygon, vertex): set of the UVs its triangles give that corner}: a mesh stores one."""
+    out: dict = {}
+    for t, poly in enumerate(polygons):
+        for c in range(3):
+            out.setdefault((int(poly), int(tris[t, c])), set()).add(tuple(np.round(uv[t, c], 7)))
+    return out
+
+
+def test_a_polygon_stays_in_one_chart():
+    # A bumpy grid of non-planar quads: xatlas charts triangles and cuts some quads along their
+    # diagonal. A mesh keeps one UV per polygon corner, so the corner both halves share would
+    # take one chart's UV while the other half's own corner kept the other chart's (a sliver
+    # across the atlas in Blender).
+    pos, tris = terrain(8, seed=3)
+    polygons = np.arange(len(tris)) // 2
+    res, padding = 64, 2
+    loose = unwrap(pos, tris, LightmapUVSettings(resolution=res, padding=padding))
+    split = [k for k, v in corner_uv_by_polygon(polygons, tris, loose.corner_uv).items() if len(v) > 1]
+    assert len(split) >= 10  # the case is exercised: xatlas alone cuts quads apart
+    result = unwrap(pos, tris, LightmapUVSettings(resolution=res, padding=padding), polygons)
+    assert all(len(v) == 1 for v in corner_uv_by_polygon(polygons, tris, result.corner_uv).values())
+    assert all(len(set(result.chart_ids[polygons == p])) == 1 for p in np.unique(polygons))
+    # The halves moved to their polygon's chart are unfolded without distortion: their UV
+    # triangle is similar to the 3D one (edge lengths in proportion). Checked before the charts
+    # are packed again: xatlas' packing of UV islands bends them a little (2.5% median edge
+    # ratio change over all triangles here), and bends these halves no more than the rest.
+    moved, _ = _moved(pos, tris, polygons, loose.chart_ids)
+    assert moved.sum() >= 10
+    atlas_uv = loose.corner_uv.astype(np.float64)
+    uv = _polygons_whole(pos, tris, polygons, loose.chart_ids, atlas_uv)[moved]
+    edges3 = np.linalg.norm(pos[tris[moved]] - pos[tris[moved]][:, [1, 2, 0]], axis=2)
+    edges2 = np.linalg.norm(uv - uv[:, [1, 2, 0]], axis=2)
+    scale = edges2 / edges3
+    np.testing.assert_allclose(scale, scale[:, :1].repeat(3, axis=1), rtol=1e-6)
+    # Packed again: charts apart by `padding` texels, as every unwrap.
+    charts = [footprint(result.corner_uv[result.chart_ids == c], res)
+              for c in np.unique(result.chart_ids)]
+    for a in range(len(charts)):
+        grown = dilate(charts[a], padding)
+        assert not any(np.any(grown & charts[b]) for b in range(len(charts)) if b != a)
+
+
+def test_a_zero_area_triangle_does_not_pull_its_polygon_to_the_origin():
+    # A quad whose first triangle has three collinear corners: xatlas charts it nowhere and puts
+    # its corners at UV (0, 0), which its two shared corners would carry into the real triangle.
+    pos, tris = cube()
+    quad = np.array([[0, 0, 2], [1, 0, 2], [2, 0, 2], [1, 1, 2]], float)
+    pos = np.concatenate([pos, quad])
+    tris = np.concatenate([tris, [[8, 9, 10], [8, 10, 11]]])
+    polygons = np.concatenate([np.arange(12) // 2, [6, 6]])
+    result = unwrap(pos, tris, LightmapUVSettings(resolution=64, padding=2), polygons)
+    assert all(len(v) == 1 for v in corner_uv_by_polygon(polygons, tris, result.corner_uv).values())
+    real = result.corner_uv[13]
+    u1, u2 = real[1] - real[0], real[2] - real[0]
+    assert abs(u1[0] * u2[1] - u1[1] * u2[0]) > 0.0  # the real half keeps its area in UV
