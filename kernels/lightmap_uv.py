@@ -109,10 +109,7 @@ def unwrap(
         )
 
     atlas = fitted(lambda a: a.add_mesh(positions, triangles))
-    _, indices, uvs = atlas[0]
-    corner_uv = uvs[indices].astype(np.float32)  # (T, 3, 2) in [0, 1] of the square atlas
-    _, vertex_chart = atlas.get_mesh_vertex_assignment(0)
-    chart_ids = np.asarray(vertex_chart, np.int64)[indices[:, 0]].astype(np.int32)
+    corner_uv, chart_ids = _corners(atlas)
     polygons = None if polygons is None else np.asarray(polygons, np.int64)
     if polygons is not None and _moved(positions, triangles, polygons, chart_ids)[0].any():
         # In m (atlas texels / density): the charts' own scale, for packing them again.
@@ -127,11 +124,17 @@ def unwrap(
         island_uv[shared] = whole.reshape(-1, 2)
         island_tris = np.ascontiguousarray(shared.reshape(-1, 3), np.uint32)
         atlas = fitted(lambda a: a.add_uv_mesh(island_uv, island_tris))
-        _, indices, uvs = atlas[0]
-        corner_uv = uvs[indices].astype(np.float32)
-        _, vertex_chart = atlas.get_mesh_vertex_assignment(0)
-        chart_ids = np.asarray(vertex_chart, np.int64)[indices[:, 0]].astype(np.int32)
+        corner_uv, chart_ids = _corners(atlas)
     return LightmapUV(corner_uv, chart_ids, int(atlas.chart_count), float(atlas.utilization))
+
+
+def _corners(atlas) -> tuple[np.ndarray, np.ndarray]:
+    """(corner UVs (T, 3, 2) float32 in [0, 1] of the square atlas, chart of each triangle (T,)
+    int32) of a generated one-mesh atlas."""
+    _, indices, uvs = atlas[0]
+    _, vertex_chart = atlas.get_mesh_vertex_assignment(0)
+    return (uvs[indices].astype(np.float32),
+            np.asarray(vertex_chart, np.int64)[indices[:, 0]].astype(np.int32))
 
 
 def _moved(positions: np.ndarray, triangles: np.ndarray, polygons: np.ndarray,
@@ -157,51 +160,52 @@ def _polygons_whole(positions: np.ndarray, triangles: np.ndarray, polygons: np.n
     triangle. A triangle charted elsewhere is unfolded across an edge it shares with the
     polygon's triangles placed so far: its free corner goes where the UV triangle is similar to
     the 3D one (the chart's scale along that edge) and wound like the largest triangle's, so it
-    lies on the far side of the edge. A triangle that never shares a placed edge keeps its own
-    chart's UVs."""
+    lies on the far side of the edge. Rounds of this reach an n-gon's fan; a triangle that never
+    shares a placed edge keeps its own chart's UVs."""
     moved, largest = _moved(positions, triangles, polygons, chart_ids)
     out = uv.astype(np.float64)
     if not moved.any():
         return out
     corners = positions.astype(np.float64)[triangles]  # (T, 3, 3)
-
-    def signed_area(t: int) -> float:
-        (x0, y0), (x1, y1), (x2, y2) = out[t]
-        return (x1 - x0) * (y2 - y0) - (y1 - y0) * (x2 - x0)
-
-    involved = np.isin(polygons, polygons[moved])
-    placed = {(int(polygons[t]), int(v)): out[t, c]
-              for t in np.flatnonzero(involved & ~moved) for c, v in enumerate(triangles[t])}
-    pending = [int(t) for t in np.flatnonzero(moved)]
-    while pending:
-        left = []
-        for t in pending:
-            poly = int(polygons[t])
-            known = [placed.get((poly, int(v))) for v in triangles[t]]
-            free = [c for c in range(3) if known[c] is None]
-            if len(free) > 1:
-                left.append(t)  # no placed edge yet: after its neighbours
-                continue
-            if free:
-                f = free[0]
-                a, b = (f + 1) % 3, (f + 2) % 3  # (f, a, b) keeps the corners' cyclic order
-                edge = corners[t, b] - corners[t, a]
-                length = float(np.linalg.norm(edge))
-                rel = corners[t, f] - corners[t, a]
-                along = float(rel @ edge) / max(length, 1e-300)
-                across = float(np.linalg.norm(rel - along * edge / max(length, 1e-300)))
-                d = known[b] - known[a]
-                scale = float(np.linalg.norm(d)) / max(length, 1e-300)  # uv units per m
-                direction = d / max(float(np.linalg.norm(d)), 1e-300)
-                normal = np.array([-direction[1], direction[0]])
-                # The signed area of (f, a, b) comes out as side x scale^2 x across x length.
-                side = 1.0 if signed_area(int(largest[t])) >= 0.0 else -1.0
-                known[f] = known[a] + scale * (along * direction + side * across * normal)
-                placed[(poly, int(triangles[t, f]))] = known[f]
-            out[t] = np.array(known)
-        if len(left) == len(pending):
+    keys = polygons[:, None] * (int(triangles.max()) + 1) + triangles  # (T, 3): polygon corner
+    e1, e2 = out[:, 1] - out[:, 0], out[:, 2] - out[:, 0]
+    winding = np.where(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0] >= 0.0, 1.0, -1.0)
+    # The corners placed so far (sorted keys, their UVs): those of the triangles that stay.
+    stay = np.isin(polygons, polygons[moved]) & ~moved
+    placed_keys, first = np.unique(keys[stay].ravel(), return_index=True)
+    placed_uv = out[stay].reshape(-1, 2)[first]
+    pending = np.flatnonzero(moved)
+    while pending.size:
+        at = np.minimum(np.searchsorted(placed_keys, keys[pending]), len(placed_keys) - 1)
+        known = placed_keys[at] == keys[pending]  # (P, 3)
+        ready = known.sum(axis=1) >= 2
+        if not ready.any():
             break
-        pending = left
+        t, at, known = pending[ready], at[ready], known[ready]
+        rows = np.arange(t.size)
+        f = np.argmin(known, axis=1)  # the free corner (any, when all three are placed)
+        a, b = (f + 1) % 3, (f + 2) % 3  # (f, a, b) keeps the corners' cyclic order
+        ua, ub = placed_uv[at[rows, a]], placed_uv[at[rows, b]]
+        edge = corners[t, b] - corners[t, a]
+        length = np.maximum(np.linalg.norm(edge, axis=1), 1e-300)
+        rel = corners[t, f] - corners[t, a]
+        along = np.einsum("ij,ij->i", rel, edge) / length
+        across = np.linalg.norm(rel - (along / length)[:, None] * edge, axis=1)
+        d = ub - ua
+        span = np.maximum(np.linalg.norm(d, axis=1), 1e-300)
+        direction = d / span[:, None]
+        normal = np.stack([-direction[:, 1], direction[:, 0]], axis=1)
+        # The signed area of (f, a, b) comes out as side x scale^2 x across x length.
+        side = winding[largest[t]]
+        uf = ua + (span / length)[:, None] * (along[:, None] * direction
+                                              + (side * across)[:, None] * normal)
+        new = ~known[rows, f]
+        merged_keys = np.concatenate([placed_keys, keys[t[new], f[new]]])
+        merged_uv = np.concatenate([placed_uv, uf[new]])
+        placed_keys, first = np.unique(merged_keys, return_index=True)  # the first UV stays
+        placed_uv = merged_uv[first]
+        out[t] = placed_uv[np.searchsorted(placed_keys, keys[t])]
+        pending = pending[~ready]
     return out
 
 
