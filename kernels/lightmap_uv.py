@@ -124,7 +124,13 @@ def unwrap(
         island_uv[shared] = whole.reshape(-1, 2)
         island_tris = np.ascontiguousarray(shared.reshape(-1, 3), np.uint32)
         atlas = fitted(lambda a: a.add_uv_mesh(island_uv, island_tris))
+        degenerate = chart_ids < 0
         corner_uv, chart_ids = _corners(atlas)
+        # xatlas packs a zero-area UV triangle's lone corner anywhere: unfolded again onto the
+        # packed edge it shares (zero area in UV too, no texel), it keeps chart -1.
+        chart_ids[degenerate] = -1
+        corner_uv = _polygons_whole(positions, triangles, polygons, chart_ids,
+                                    corner_uv).astype(np.float32)
     return LightmapUV(corner_uv, chart_ids, int(atlas.chart_count), float(atlas.utilization))
 
 

@@ -192,6 +192,12 @@ def test_a_zero_area_triangle_does_not_pull_its_polygon_to_the_origin():
     polygons = np.concatenate([np.arange(12) // 2, [6, 6]])
     result = unwrap(pos, tris, LightmapUVSettings(resolution=64, padding=2), polygons)
     assert all(len(v) == 1 for v in corner_uv_by_polygon(polygons, tris, result.corner_uv).values())
-    real = result.corner_uv[13]
-    u1, u2 = real[1] - real[0], real[2] - real[0]
-    assert abs(u1[0] * u2[1] - u1[1] * u2[0]) > 0.0  # the real half keeps its area in UV
+
+    def uv_area(t):
+        c = result.corner_uv[t].astype(np.float64)
+        u1, u2 = c[1] - c[0], c[2] - c[0]
+        return abs(u1[0] * u2[1] - u1[1] * u2[0]) / 2.0
+
+    assert uv_area(13) > 0.0  # the real half keeps its area in UV
+    # The zero-area half stays chartless and lies on its edge in UV too: it covers no texel.
+    assert result.chart_ids[12] == -1 and uv_area(12) < 1e-6 * uv_area(13)
