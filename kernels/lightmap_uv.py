@@ -45,7 +45,8 @@ class LightmapUV:
 
     corner_uv   (T, 3, 2) float32  UV of each triangle corner, in [0, 1]
     chart_ids   (T,) int32         chart of each triangle; -1 for zero-area triangles, which
-                                   xatlas leaves out (their corners sit at UV (0, 0), no texels)
+                                   xatlas leaves out (their corners sit at UV (0, 0), or on the
+                                   edge they share in their polygon's chart: no texels either way)
     """
 
     corner_uv: np.ndarray
@@ -61,7 +62,8 @@ def unwrap(
     """Unwrap and pack one mesh.
 
     positions (V, 3) float, object or world space, m (only ratios matter); triangles (T, 3) vertex ids.
-    Zero-area triangles get no chart (chart id -1) and UV (0, 0): they cover no texel.
+    Zero-area triangles get no chart (chart id -1) and UV (0, 0) (with `polygons`: zero area on
+    the edge they share with their polygon); they cover no texel.
 
     polygons (T,) int, when given: the polygon each triangle was cut from. A mesh stores one UV per
     polygon corner, so a polygon must lie in one chart; xatlas charts triangles and may cut a
