@@ -78,3 +78,28 @@ def persp_camera(position, forward, up, fov_x_rad, resolution=(8, 8)) -> Camera:
     cam = ortho_camera(position, forward, up, 2.0 * np.tan(fov_x_rad / 2), resolution)
     return Camera(kind="PERSP", matrix_world=cam.matrix_world, plane_min=cam.plane_min,
                   plane_max=cam.plane_max, resolution=resolution, clip_start=0.0)
+
+
+def grey(rho, emission=0.0, name="grey"):
+    """A grey diffuse material of reflectance rho, emitting radiance `emission` (W/(m^2 sr))."""
+    return Material(name=name, base_color=np.full(3, rho, np.float32),
+                    emission=np.full(3, emission, np.float32))
+
+
+def tessellated_box(n: int, size: float = 1.0) -> np.ndarray:
+    """(6 x 2 n^2, 3, 3) triangles of the cube [0, size]^3, each face an n x n grid of quads,
+    normals inward."""
+    v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0],
+                  [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]], float) * size
+    faces = [[0, 1, 2, 3], [4, 7, 6, 5], [0, 4, 5, 1], [1, 5, 6, 2], [2, 6, 7, 3], [3, 7, 4, 0]]
+    out = []
+    t = np.linspace(0.0, 1.0, n + 1)
+    for f in faces:
+        a, b, _, d = v[f]
+        for i in range(n):
+            for j in range(n):
+                corner = [a + (b - a) * t[i] + (d - a) * t[j], a + (b - a) * t[i + 1] + (d - a) * t[j],
+                          a + (b - a) * t[i + 1] + (d - a) * t[j + 1],
+                          a + (b - a) * t[i] + (d - a) * t[j + 1]]
+                out.append(quad(corner))
+    return np.concatenate(out)
