@@ -27,6 +27,11 @@ points to randomly paired points of q, each weighted by the point-to-point kerne
 `_visible_share_steps`). Pairs that share an edge (still above the bound at the leaves) take
 NEAR_FIELD_SIDE times the points per side.
 
+Source clusters. Over more than `source_clusters.MIN_ROOTS` roots (a finely tessellated object,
+whose every triangle is a root), roots far from a leaf are reached through a tree over the roots:
+each still gets its own link, with the disc form of its factor, and the far ones of a group share
+the group's shadow rays (`source_clusters.py`; `cluster_sources` turns this off).
+
 Solve: Jacobi iteration of B_p = E_p + rho_p H_p + rho_p sum_{p <- q} F_pq B_q on the leaves,
 each inner element's B the area-weighted mean of its children (pull), until the contraction
 bound on the remaining error is below `tolerance` x the largest reflected radiosity (see
@@ -42,7 +47,7 @@ from collections.abc import Iterator
 import numpy as np
 
 from . import patches as patching
-from . import threads
+from . import source_clusters, threads
 from .form_factors import (
     RAY_OFFSET_REL,
     answer_rays,
@@ -54,6 +59,9 @@ from .scene import Scene, geometric_normals, triangle_areas
 
 # Links whose factors are evaluated at once: bounds point_to_polygon's (L, S, K, 3) temporaries.
 LINK_CHUNK = 1 << 15
+# (leaf, root) pairs a chunk of leaves walks the source tree with at once: its far roots' disc
+# factors take (pairs, points, 3) float64 temporaries, ~50 MB at 2 x 2 points.
+FAR_LINK_CHUNK = 1 << 18
 # Links a thread must have at least before `_point_factors` spreads them over the cores.
 THREAD_LINKS = 2048
 # Pairs still above the bound at the leaves (they meet at an edge or nearly) integrate over this
@@ -393,13 +401,14 @@ def hierarchical_steps(scene: Scene, roots: patching.Patches, depth: int, occlud
                 links = step
             else:
                 yield base + span * 0.9 * step
-        p, q, factor, near = links
+        p, q, factor, near, clustering = links
         b, iterations, change = solve_links(tree, leaves, p, q, factor,
                                             emitted - shot + rho * direct, rho,
                                             settings.tolerance, MAX_ITERATIONS)
         b += shot
         per_level.append({"leaves": int(leaves.size), "links": int(len(p)),
-                          "near_field_links": int(near.sum()), "iterations": iterations,
+                          "near_field_links": int(near.sum()), **clustering,
+                          "iterations": iterations,
                           "solver_error": change})
         yield base + span
         if level == levels - 1:
@@ -421,28 +430,82 @@ def hierarchical_steps(scene: Scene, roots: patching.Patches, depth: int, occlud
 
 def _link(tree: _Tree, root_count: int, leaves: np.ndarray, occluded, settings, scale: float):
     """Link every leaf to the roots and refine the links; yields progress in [0, 1], then
-    (p, q, factor with visibility, near-field mask)."""
+    (p, q, factor with visibility, near-field mask, {"clustered_links", "cluster_groups"}).
+
+    Over more than `source_clusters.MIN_ROOTS` roots (and `settings.cluster_sources`), roots far
+    from a leaf are reached through `source_clusters`: each takes its disc factor and the
+    visible share its group's rays found; the rest take the exact path below."""
     side = settings.samples_per_side
-    settled = []
-    step = max(1, LINK_CHUNK // max(root_count, 1))
-    for a in range(0, len(leaves), step):  # every leaf to every root that faces it
-        pp = np.repeat(leaves[a : a + step], root_count)
-        qq = np.tile(np.arange(root_count), len(leaves[a : a + step]))
+    eps = settings.link_epsilon
+    sources = None
+    if settings.cluster_sources and root_count > source_clusters.MIN_ROOTS:
+        sources = source_clusters.build(tree.corners[:root_count], tree.normals[:root_count],
+                                        tree.areas[:root_count])
+    settled, far = [], []  # exact batches (p, q, F); far batches (group p, node, group, root, F)
+    step = max(1, (LINK_CHUNK if sources is None else FAR_LINK_CHUNK) // max(root_count, 1))
+    for a in range(0, len(leaves), step):
+        chunk = leaves[a : a + step]
+        if sources is None:  # every leaf to every root that faces it
+            pp = np.repeat(chunk, root_count)
+            qq = np.tile(np.arange(root_count), len(chunk))
+        else:
+            leaf_points, _ = sample_patches(tree.corners[chunk], side, "midpoint")
+            group_p, group_n, pp, qq = source_clusters.far_groups(
+                sources, chunk, tree.corners[chunk].mean(axis=1), leaf_points,
+                tree.normals[chunk])
+            points, weights = sample_patches(tree.corners[group_p], side, "midpoint")
+            group, root, f, close = source_clusters.member_links(
+                sources, group_p, group_n, points, weights, tree.normals[group_p],
+                tree.areas[:root_count])
+            exact = (f > eps) | close  # too bright or too near for the disc form
+            pp = np.concatenate([pp, group_p[group[exact]]])
+            qq = np.concatenate([qq, root[exact]])
+            far.append((group_p, group_n, group[~exact], root[~exact], f[~exact]))
         alive = _facing(tree, pp, qq)
-        settled.extend(refine_links(tree, pp[alive], qq[alive], settings.link_epsilon, side))
+        settled.extend(refine_links(tree, pp[alive], qq[alive], eps, side))
         yield 0.5 * min(a + step, len(leaves)) / len(leaves)
     none = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0))  # nothing faces (a floor)
     p, q, factor = (np.concatenate([s[k] for s in settled] + [none[k]]) for k in range(3))
-    near = (factor > settings.link_epsilon) & (tree.child[q] < 0)
+    near = (factor > eps) & (tree.child[q] < 0)
     if near.any():
         factor[near] = _unoccluded(tree, p[near], q[near], NEAR_FIELD_SIDE * side)
+    # The far groups of every chunk together, their members' group numbers made global.
+    offsets = np.cumsum([0] + [len(g[0]) for g in far])
+    group_p, group_n = (np.concatenate([g[k] for g in far] + [none[0]]) for k in range(2))
+    group = np.concatenate([g[2] + o for g, o in zip(far, offsets[:-1], strict=True)] + [none[0]])
+    root = np.concatenate([g[3] for g in far] + [none[1]])
+    far_factor = np.concatenate([g[4] for g in far] + [none[2]])
     if occluded is not None:  # a chunk of links at a time: side^2 rays and kernels per link
         shift = np.random.default_rng(settings.seed).integers(0, side * side, len(p))
         chunk = max(1, VISIBILITY_RAYS // side**2)
+        total = len(p) + len(group_p)
         for a in range(0, len(p), chunk):
             b = a + chunk
             factor[a:b] *= answer_rays(_visible_share_steps(tree, p[a:b], q[a:b], side,
                                                             RAY_OFFSET_REL * scale, shift[a:b]),
                                        occluded, RAYS_PER_CALL)
-            yield 0.5 + 0.5 * min(b, len(p)) / len(p)
-    yield (p, q, factor, near)
+            yield 0.5 + 0.5 * min(b, len(p)) / total
+        # One visible share per far group, for all its roots (sorted by group), from as many
+        # rays per point as the group carries link bounds' worth of factor (at most one per
+        # root): the rays its roots' own links would have cast where they matter, few where not.
+        rng = np.random.default_rng(settings.seed + 1)
+        start = np.searchsorted(group, np.arange(len(group_p) + 1))
+        carried = np.bincount(group, far_factor, minlength=len(group_p))
+        rays = np.clip(np.ceil(carried / eps), 1, np.diff(start)).astype(np.int64)
+        share = np.ones(len(group_p))
+        before = np.concatenate([[0], np.cumsum(rays)])  # rays of the groups before each
+        a = 0
+        while a < len(group_p):  # groups of about `chunk` rays at a time
+            b = max(a + 1, int(np.searchsorted(before, before[a] + chunk, side="right")) - 1)
+            points, weights = sample_patches(tree.corners[group_p[a:b]], side, "midpoint")
+            share[a:b] = answer_rays(source_clusters.group_share_steps(
+                sources, start[a:b + 1] - start[a], root[start[a]:start[b]],
+                far_factor[start[a]:start[b]], points, weights, tree.normals[group_p[a:b]],
+                rays[a:b], RAY_OFFSET_REL * scale, rng), occluded, RAYS_PER_CALL)
+            yield 0.5 + 0.5 * (len(p) + b) / total
+            a = b
+        far_factor = far_factor * share[group]
+    stats = {"clustered_links": int(len(root)), "cluster_groups": int(len(group_p))}
+    yield (np.concatenate([p, group_p[group]]), np.concatenate([q, root]),
+           np.concatenate([factor, far_factor]), np.concatenate([near, np.zeros(len(root), bool)]),
+           stats)

@@ -163,6 +163,10 @@ class RadiositySettings:
     |                             |                     |          | of finely tessellated      |
     |                             |                     |          | meshes as groups           |
     |                             |                     |          | (clusters.py)              |
+    | cluster_sources             | bool                | True     | hierarchical: far groups of|
+    |                             |                     |          | many small roots share     |
+    |                             |                     |          | their shadow rays          |
+    |                             |                     |          | (source_clusters.py)       |
     """
 
     method: Literal["raycast", "hemicube"] = "raycast"
@@ -188,6 +192,7 @@ class RadiositySettings:
     gather_rays: int = 16
     seed: int = 0
     clusters: bool = True
+    cluster_sources: bool = True
 
     def __post_init__(self) -> None:
         if self.method not in ("raycast", "hemicube"):
