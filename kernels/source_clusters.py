@@ -32,7 +32,7 @@ F_m / F_g: the solver gives a group as many rays per point as it carries link bo
 factor (at most one per root), so the rays go where the light is.
 
 Measured (bench/README.md, session 20), default settings, relMSE against Cycles unchanged:
-shadows.blend's solve 3.44 -> 1.82 s (0.00068), env_room.blend's 7.74 -> 7.15 s (0.0239 -> 0.0240;
+shadows.blend's solve 3.55 -> 2.02 s (0.00068), env_room.blend's 7.74 -> 7.15 s (0.0239 -> 0.0240;
 most of its far roots lie within 8 sizes of the leaves and take the exact path).
 """
 
@@ -48,7 +48,8 @@ from .form_factors import SHADOW_END_REL, sample_patches
 # the leaf's nearest point: its roots then lie within 15 degrees of that direction, and rays to
 # a few of them stand for all. (The factors' accuracy rests on the link bound and NEAR_AREAS.)
 # shadows.blend: relMSE 0.00068 in 1.82 s of solve; 0.0007 in 1.65 s at 0.5 and 1.61 s at 1
-# (the rays follow the factors, so wider groups save little), 0.00068 in 3.44 s without.
+# (the rays follow the factors, so wider groups save little), 0.00068 in 3.44 s without
+# (256k-pair chunks of the walk; 2.02 s against 3.55 s at the 64k of FAR_LINK_CHUNK).
 SEPARATION = 0.25
 # A far root nearer to a leaf's point than this many times its area (d^2 < NEAR_AREAS A: within
 # 8 sizes of its own) takes the exact path. In a closed box of 1728 triangles the disc form was
