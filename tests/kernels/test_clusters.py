@@ -8,12 +8,12 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from scene_builder import build, grey, quad, tessellated_box, uv_sphere
+from radiosity_scenes import reflected_means
+from scene_builder import build, grey, lamp_room_with_ball, quad, tessellated_box
 
 from classic_bake.kernels import clusters
 from classic_bake.kernels import patches as patching
 from classic_bake.kernels.radiosity import RadiositySettings, solve_radiosity
-from classic_bake.kernels.scene import Material
 
 FAST = dict(samples_per_side=2, visibility_samples_per_side=2, refine_levels=0)
 
@@ -66,18 +66,6 @@ def test_groups_keep_to_one_object_cell_and_side():
                                                                normals[g].shape))
 
 
-def _lamp_room_with_ball():
-    """A grey room, an emissive square under its ceiling and a finely tessellated ball (an
-    orange diffuse one) standing in its light."""
-    room = tessellated_box(1)
-    lamp = quad([[0.4, 0.4, 0.99], [0.4, 0.6, 0.99], [0.6, 0.6, 0.99], [0.6, 0.4, 0.99]])
-    ball = uv_sphere((0.5, 0.5, 0.3), 0.2, rings=16, segments=32)
-    orange = Material(name="orange", base_color=np.array([0.8, 0.4, 0.1], np.float32),
-                      emission=np.zeros(3, np.float32))
-    return build([(room, grey(0.6)), (lamp, grey(0.0, emission=20.0, name="lamp")),
-                  (ball, orange)])
-
-
 def test_split_children_group_apart_by_their_direct_light():
     """A refinement's children (level > 0) lit in different octaves, or unlit, never share a
     group, so a shadow edge's split stays split in the clustered solve; first meshings group as
@@ -114,7 +102,7 @@ def test_clustered_agrees_with_the_hierarchical_solver_on_the_same_patches():
     0.5% on a coarser ball (Gauss-Seidel's dense matrix takes 7 s there, a minute here). Area
     means of the room's and the ball's reflected light agree within 1% (measured 0.1%), and the
     ball's orange light tints the floor under it alike: red over blue 1.273 and 1.270."""
-    scene = _lamp_room_with_ball()
+    scene = lamp_room_with_ball()
     settings = RadiositySettings(patch_budget=60, final_gather=False, **FAST)
     clustered = solve_radiosity(scene, replace(settings, solver="clustered"))
     full = solve_radiosity(scene, replace(settings, solver="hierarchical"))
@@ -122,15 +110,8 @@ def test_clustered_agrees_with_the_hierarchical_solver_on_the_same_patches():
     assert len(clustered.patches) == len(full.patches)
     assert clustered.stats["levels"][-1]["groups"] < 0.2 * len(clustered.patches)
 
-    def means(result):
-        out = []
-        for obj in (0, 2):  # the room, the ball
-            at = result.patches.object_ids == obj
-            reflected = result.radiosity[at] - result.emitted[at]
-            out.append(np.average(reflected, axis=0, weights=result.patches.areas[at]))
-        return np.array(out)
-
-    np.testing.assert_allclose(means(clustered), means(full), rtol=0.01)
+    np.testing.assert_allclose(reflected_means(clustered, (0, 2)),  # the room, the ball
+                               reflected_means(full, (0, 2)), rtol=0.01)
 
     def floor_tint(result):  # red over blue of the floor's light around the ball
         centre = result.patches.corners.mean(axis=1)
@@ -145,7 +126,7 @@ def test_clustered_agrees_with_the_hierarchical_solver_on_the_same_patches():
 def test_auto_clusters_only_what_cuts_the_unknowns_fourfold():
     """auto runs the clustered solver on the tessellated room, and not when clusters are off,
     nor on a room of a few large triangles."""
-    scene = _lamp_room_with_ball()
+    scene = lamp_room_with_ball()
     settings = RadiositySettings(patch_budget=60, **FAST)
     assert solve_radiosity(scene, settings).stats["solver"] == "clustered"
     assert solve_radiosity(scene, replace(settings, clusters=False)).stats["solver"] != "clustered"

@@ -9,13 +9,14 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from scene_builder import build, grey, quad, tessellated_box, uv_sphere
+from radiosity_scenes import reflected_means
+from scene_builder import build, grey, lamp_room_with_ball, quad, tessellated_box, uv_sphere
 
 from classic_bake.kernels import source_clusters as sc
 from classic_bake.kernels.bvh import BVH
 from classic_bake.kernels.form_factors import point_to_polygon, sample_patches
 from classic_bake.kernels.radiosity import RadiositySettings, solve_radiosity
-from classic_bake.kernels.scene import Material, geometric_normals, triangle_areas
+from classic_bake.kernels.scene import geometric_normals, triangle_areas
 
 LINK_EPSILON = RadiositySettings().link_epsilon
 
@@ -63,16 +64,21 @@ def _view(tree, triangles, leaves, side=2):
     return points, weights, normals, group_p, group_n, near_p, near_q, group, root, factor, close
 
 
+def _floor_leaves():
+    """The ball and floor's triangles, their tree, every third floor triangle as leaves, and
+    `_view` of those leaves."""
+    ball, floor = _ball_and_floor()
+    triangles = np.concatenate([ball, floor])
+    tree = _roots(triangles)
+    return triangles, tree, floor[::3], _view(tree, triangles, floor[::3])
+
+
 def test_each_leaf_reaches_every_root_it_sees_once():
     """Leaves on the floor: every ball triangle with a positive exact factor from a leaf's
     points is reached once, as a far group's root or as a near root; far nodes are at most
     SEPARATION of their distance to the leaf's nearest point wide."""
-    ball, floor = _ball_and_floor()
-    triangles = np.concatenate([ball, floor])
-    tree = _roots(triangles)
-    leaves = floor[::3]
-    points, weights, normals, group_p, group_n, near_p, near_q, group, root, factor, _ = _view(
-        tree, triangles, leaves)
+    triangles, tree, leaves, view = _floor_leaves()
+    points, weights, normals, group_p, group_n, near_p, near_q, group, root, factor, _ = view
     assert len(group_p) > 0 and len(near_p) > 0
     gap = np.linalg.norm(tree.centre[group_n][:, None] - points[group_p], axis=2).min(axis=1)
     assert np.all(tree.radius[group_n] <= sc.SEPARATION * gap)
@@ -91,12 +97,8 @@ def test_disc_factors_of_far_roots_are_within_two_percent_of_the_exact_ones():
     """The far roots the solver keeps (factor at most the link bound, not `close`) take the disc
     form A cos cos / (pi d^2 + A): against the exact point-to-polygon factor at the same points,
     each root within 2% (measured 0.7%), their sum per leaf within 0.5% (measured 0.23%)."""
-    ball, floor = _ball_and_floor()
-    triangles = np.concatenate([ball, floor])
-    tree = _roots(triangles)
-    leaves = floor[::3]
-    points, weights, normals, group_p, _, _, _, group, root, factor, close = _view(
-        tree, triangles, leaves)
+    triangles, _, _, view = _floor_leaves()
+    points, weights, normals, group_p, _, _, _, group, root, factor, close = view
     kept = (factor <= LINK_EPSILON) & ~close
     group, root, factor = group[kept], root[kept], factor[kept]
     leaf = group_p[group]
@@ -149,22 +151,12 @@ def _answered(steps, bvh):
         return stop.value
 
 
-def _lamp_room_with_fine_ball():
-    room = tessellated_box(1)
-    lamp = quad([[0.4, 0.4, 0.99], [0.4, 0.6, 0.99], [0.6, 0.6, 0.99], [0.6, 0.4, 0.99]])
-    ball = uv_sphere((0.5, 0.5, 0.3), 0.2, rings=16, segments=32)
-    orange = Material(name="orange", base_color=np.array([0.8, 0.4, 0.1], np.float32),
-                      emission=np.zeros(3, np.float32))
-    return build([(room, grey(0.6)), (lamp, grey(0.0, emission=20.0, name="lamp")),
-                  (ball, orange)])
-
-
 def test_the_solver_with_source_clusters_agrees_with_every_link_exact():
     """A lit room with a ball of 1024 triangles (over MIN_ROOTS roots): over a third of the links
     are reached through far groups (measured 42%; fewer groups than links, each casting the rays
     of one link), and the area means of the room's and the ball's reflected light agree with
     every link exact within 1% (measured 0.07%)."""
-    scene = _lamp_room_with_fine_ball()
+    scene = lamp_room_with_ball()
     settings = RadiositySettings(solver="hierarchical", patch_budget=60, final_gather=False,
                                  samples_per_side=2, refine_levels=0)
     clustered = solve_radiosity(scene, settings)
@@ -174,15 +166,8 @@ def test_the_solver_with_source_clusters_agrees_with_every_link_exact():
     assert level["cluster_groups"] < level["clustered_links"]
     assert exact.stats["hierarchy"]["per_refinement"][-1]["clustered_links"] == 0
 
-    def means(result):
-        out = []
-        for obj in (0, 2):  # the room, the ball
-            at = result.patches.object_ids == obj
-            reflected = result.radiosity[at] - result.emitted[at]
-            out.append(np.average(reflected, axis=0, weights=result.patches.areas[at]))
-        return np.array(out)
-
-    np.testing.assert_allclose(means(clustered), means(exact), rtol=0.01)
+    np.testing.assert_allclose(reflected_means(clustered, (0, 2)),  # the room, the ball
+                               reflected_means(exact, (0, 2)), rtol=0.01)
 
 
 @pytest.mark.parametrize("rho", [0.5, 0.9])

@@ -173,3 +173,14 @@ def cornell_box_patches(data: dict, wall_divisions: int, light_drop: float = 1e-
         "emission": np.asarray(emission, np.float64),
         "names": np.asarray(names),
     }
+
+
+def reflected_means(result, objects) -> np.ndarray:
+    """(len(objects), 3) the area mean of each object's reflected light B - E over its patches,
+    W/m^2 (a `RadiosityResult`)."""
+    out = []
+    for obj in objects:
+        at = result.patches.object_ids == obj
+        reflected = result.radiosity[at] - result.emitted[at]
+        out.append(np.average(reflected, axis=0, weights=result.patches.areas[at]))
+    return np.array(out)

@@ -103,3 +103,15 @@ def tessellated_box(n: int, size: float = 1.0) -> np.ndarray:
                           a + (b - a) * t[i] + (d - a) * t[j + 1]]
                 out.append(quad(corner))
     return np.concatenate(out)
+
+
+def lamp_room_with_ball():
+    """A grey room, an emissive square under its ceiling and a finely tessellated ball (an
+    orange diffuse one) standing in its light."""
+    room = tessellated_box(1)
+    lamp = quad([[0.4, 0.4, 0.99], [0.4, 0.6, 0.99], [0.6, 0.6, 0.99], [0.6, 0.4, 0.99]])
+    ball = uv_sphere((0.5, 0.5, 0.3), 0.2, rings=16, segments=32)
+    orange = Material(name="orange", base_color=np.array([0.8, 0.4, 0.1], np.float32),
+                      emission=np.zeros(3, np.float32))
+    return build([(room, grey(0.6)), (lamp, grey(0.0, emission=20.0, name="lamp")),
+                  (ball, orange)])
