@@ -71,7 +71,7 @@ class SourceTree:
     left, right (K,) int64  child nodes (-1 for a single root)
     centre  (K, 3) m      area-weighted centroid of the node's roots
     radius  (K,) m        sphere about `centre` holding every corner of its roots
-    tops    (C,) int64    the nodes of the normal cells (every root lies under one)
+    tops    (1,) int64    the node holding every root, where walks start
     cumulative (R + 1,) m^2  running sum of the roots' areas in `order` (area-weighted picks)
     centroids, normals (R, 3)  the roots' centroids and unit normals, by root id
     """
@@ -92,22 +92,31 @@ class SourceTree:
         return len(self.lo)
 
 
+def _runs(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(run number, position) of every position of the runs [lo[k], hi[k]) (K,), run by run."""
+    sizes = hi - lo
+    run = np.repeat(np.arange(len(lo)), sizes)
+    return run, np.arange(int(sizes.sum())) - np.repeat(np.cumsum(sizes) - sizes, sizes) + lo[run]
+
+
 def build(corners: np.ndarray, normals: np.ndarray, areas: np.ndarray) -> SourceTree:
     """The tree over roots with corners (R, 3, 3) m, unit normals (R, 3), areas (R,) m^2."""
     count = len(corners)
     centroids = corners.mean(axis=1)
     order = np.arange(count)
-    lo, hi, left, right = [0], [count], [-1], [-1]
-    tops = np.arange(1)
-    level = tops
+    # A binary tree over R roots with single roots at its ends has 2R - 1 nodes.
+    size = max(2 * count - 1, 1)
+    lo, hi = np.zeros(size, np.int64), np.zeros(size, np.int64)
+    left, right = np.full(size, -1, np.int64), np.full(size, -1, np.int64)
+    hi[0] = count
+    made = 1
+    level = np.zeros(1, np.int64)
     while level.size:
         # Split every run of two roots or more at its median along its centroids' widest axis.
-        level = level[np.asarray(hi)[level] - np.asarray(lo)[level] >= 2]
+        level = level[hi[level] - lo[level] >= 2]
         if not level.size:
             break
-        a, b = np.asarray(lo)[level], np.asarray(hi)[level]
-        run = np.repeat(np.arange(level.size), b - a)
-        at = np.concatenate([np.arange(x, y) for x, y in zip(a, b, strict=True)])
+        run, at = _runs(lo[level], hi[level])
         c = centroids[order[at]]
         low = np.full((level.size, 3), np.inf)
         high = np.full((level.size, 3), -np.inf)
@@ -116,17 +125,14 @@ def build(corners: np.ndarray, normals: np.ndarray, areas: np.ndarray) -> Source
         axis = (high - low).argmax(axis=1)
         key = c[np.arange(len(at)), axis[run]]
         order[at] = order[at][np.lexsort((key, run))]
-        mid = (a + b) // 2
-        first = len(lo)
-        lo += list(a) + list(mid)
-        hi += list(mid) + list(b)
-        left += [-1] * (2 * level.size)
-        right += [-1] * (2 * level.size)
-        kids = first + np.arange(level.size)
-        for k, node in enumerate(level):
-            left[node], right[node] = int(kids[k]), int(kids[k] + level.size)
+        mid = (lo[level] + hi[level]) // 2
+        kids = made + np.arange(level.size)
+        lo[kids], hi[kids] = lo[level], mid
+        lo[kids + level.size], hi[kids + level.size] = mid, hi[level]
+        left[level], right[level] = kids, kids + level.size
+        made += 2 * level.size
         level = np.concatenate([kids, kids + level.size])
-    lo, hi = np.asarray(lo, np.int64), np.asarray(hi, np.int64)
+    lo, hi, left, right = lo[:made], hi[:made], left[:made], right[:made]
     weighted = np.concatenate([[np.zeros(3)], np.cumsum(areas[order, None] * centroids[order],
                                                         axis=0)])
     cumulative = np.concatenate([[0.0], np.cumsum(areas[order])])
@@ -134,16 +140,14 @@ def build(corners: np.ndarray, normals: np.ndarray, areas: np.ndarray) -> Source
     plain = np.concatenate([[np.zeros(3)], np.cumsum(centroids[order], axis=0)])
     centre = np.where((area > 0.0)[:, None],
                       (weighted[hi] - weighted[lo]) / np.maximum(area, 1e-300)[:, None],
-                      (plain[hi] - plain[lo]) / (hi - lo)[:, None])
-    # Radius: the farthest corner of the node's roots from its centre, one run at a time in
-    # vectorised chunks of nodes.
+                      (plain[hi] - plain[lo]) / np.maximum(hi - lo, 1)[:, None])
+    # Radius: the farthest corner of the node's roots from its centre, every node at once.
     radius = np.zeros(len(lo))
-    run = np.repeat(np.arange(len(lo)), hi - lo)
-    at = np.concatenate([np.arange(x, y) for x, y in zip(lo, hi, strict=True)])
+    run, at = _runs(lo, hi)
     reach = np.linalg.norm(corners[order[at]] - centre[run][:, None, :], axis=2).max(axis=1)
     np.maximum.at(radius, run, reach)
-    return SourceTree(order, lo, hi, np.asarray(left, np.int64), np.asarray(right, np.int64),
-                      centre, radius, tops.astype(np.int64), cumulative, centroids, normals)
+    return SourceTree(order, lo, hi, left, right, centre, radius, np.zeros(1, np.int64),
+                      cumulative, centroids, normals)
 
 
 def far_groups(tree: SourceTree, p: np.ndarray, centre: np.ndarray, points: np.ndarray,
