@@ -42,7 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .form_factors import SHADOW_END_REL, sample_patches
+from .form_factors import SHADOW_END_REL
 
 # A node is far from a leaf when its radius is at most this share of its centre's distance to
 # the leaf's nearest point: its roots then lie within 15 degrees of that direction, and rays to
@@ -249,9 +249,3 @@ def group_share_steps(tree: SourceTree, start: np.ndarray, root: np.ndarray, fac
     total = np.bincount(group, weight, minlength=count)
     return np.divide(np.bincount(group, weight * seen, minlength=count), total,
                      out=np.ones(count), where=total > 0.0)
-
-
-def leaf_points(corners: np.ndarray, side: int) -> tuple[np.ndarray, np.ndarray]:
-    """The n x n midpoint points (L, S, 3) and weights (L, S) of leaves with corners (L, 3, 3):
-    the points every factor of the hierarchical solver integrates over."""
-    return sample_patches(corners, side, "midpoint")
