@@ -443,6 +443,10 @@ def _link(tree: _Tree, root_count: int, leaves: np.ndarray, occluded, settings, 
     if settings.cluster_sources and root_count > source_clusters.MIN_ROOTS:
         sources = source_clusters.build(tree.corners[:root_count], tree.normals[:root_count],
                                         tree.areas[:root_count])
+        # Every leaf's points once, for the walk, the far factors and the group rays.
+        leaf_points, leaf_weights = sample_patches(tree.corners[leaves], side, "midpoint")
+        row = np.full(len(tree), -1, np.int64)
+        row[leaves] = np.arange(len(leaves))
     settled, far = [], []  # exact batches (p, q, F); far batches (group p, node, group, root, F)
     step = max(1, (LINK_CHUNK if sources is None else FAR_LINK_CHUNK) // max(root_count, 1))
     for a in range(0, len(leaves), step):
@@ -451,14 +455,12 @@ def _link(tree: _Tree, root_count: int, leaves: np.ndarray, occluded, settings, 
             pp = np.repeat(chunk, root_count)
             qq = np.tile(np.arange(root_count), len(chunk))
         else:
-            leaf_points, _ = sample_patches(tree.corners[chunk], side, "midpoint")
             group_p, group_n, pp, qq = source_clusters.far_groups(
-                sources, chunk, tree.corners[chunk].mean(axis=1), leaf_points,
+                sources, chunk, tree.corners[chunk].mean(axis=1), leaf_points[row[chunk]],
                 tree.normals[chunk])
-            points, weights = sample_patches(tree.corners[group_p], side, "midpoint")
             group, root, f, close = source_clusters.member_links(
-                sources, group_p, group_n, points, weights, tree.normals[group_p],
-                tree.areas[:root_count])
+                sources, group_p, group_n, leaf_points[row[group_p]], leaf_weights[row[group_p]],
+                tree.normals[group_p], tree.areas[:root_count])
             exact = (f > eps) | close  # too bright or too near for the disc form
             pp = np.concatenate([pp, group_p[group[exact]]])
             qq = np.concatenate([qq, root[exact]])
@@ -499,11 +501,12 @@ def _link(tree: _Tree, root_count: int, leaves: np.ndarray, occluded, settings, 
         a = 0
         while a < len(group_p):  # groups of about `chunk` rays at a time
             b = max(a + 1, int(np.searchsorted(before, before[a] + chunk, side="right")) - 1)
-            points, weights = sample_patches(tree.corners[group_p[a:b]], side, "midpoint")
+            at = row[group_p[a:b]]
             share[a:b] = answer_rays(source_clusters.group_share_steps(
                 sources, start[a:b + 1] - start[a], root[start[a]:start[b]],
-                far_factor[start[a]:start[b]], points, weights, tree.normals[group_p[a:b]],
-                rays[a:b], RAY_OFFSET_REL * scale, rng), occluded, RAYS_PER_CALL)
+                far_factor[start[a]:start[b]], leaf_points[at], leaf_weights[at],
+                tree.normals[group_p[a:b]], rays[a:b], RAY_OFFSET_REL * scale, rng),
+                occluded, RAYS_PER_CALL)
             yield 0.5 + 0.5 * (len(p) + b) / total
             a = b
         far_factor = far_factor * share[group]
