@@ -523,6 +523,40 @@ def exitance(gather: FinalGather, patches: patching.Patches, tri: np.ndarray, ba
     return out
 
 
+def back_exitance(gather: FinalGather, tri: np.ndarray, bary: np.ndarray) -> np.ndarray:
+    """(M, 3) exitance W/m^2 of the BACK side of receivers (scene triangles (M,), barycentrics
+    (M, 3)): what a camera that sees a surface from behind shows, as Cycles shades every surface
+    on the side it is seen from:
+
+        B_back(x) = pi L_e + rho(x) H_direct,back(x)
+
+    with the lamps' and the gathered emitters' direct irradiance on the flipped normal, shadow
+    rays leaving on the back side (a sheet lit from behind, a wall seen from outside a lit room:
+    0). The emission counts on both sides (Cycles' emission shader glows on either face). No
+    indirect part: the patches are one-sided, so nothing is known of the light that other
+    surfaces send to a patch's back (README, "Radiosity", limits)."""
+    from .direct_light import diffuse_at
+
+    scene = gather.scene
+    tri = np.asarray(tri, np.int64)
+    bary = np.asarray(bary, np.float64)
+    out = np.zeros((len(tri), 3))
+    rng = np.random.default_rng(gather.settings.seed + 2)  # a seed per call, as `exitance`
+    occluded = _occluded(gather.bvh)
+    for a in range(0, len(tri), GATHER_CHUNK):
+        t, b = tri[a:a + GATHER_CHUNK], bary[a:a + GATHER_CHUNK]
+        inset = (1.0 - RECEIVER_INSET) * b + RECEIVER_INSET / 3.0
+        points = np.einsum("mk,mkc->mc", inset, scene.triangles[t].astype(np.float64))
+        front = gather.triangle_normals[t]
+        normals = -shading_normals(scene, t, inset, front)
+        h = emitter_irradiance(gather.emitters, points, normals, occluded, gather.offset, rng,
+                               lift=-front)
+        h += lamp_irradiance(scene, points, normals, occluded, gather.offset,
+                             gather.area_samples_per_side, lift=-front)
+        out[a:a + GATHER_CHUNK] = gather.emission[t] + diffuse_at(scene, t, b) * h
+    return out
+
+
 def shading_normals(scene: Scene, tri: np.ndarray, bary: np.ndarray, geometric: np.ndarray
                     ) -> np.ndarray:
     """(M, 3) unit shading normals at receivers (triangles (M,), barycentrics (M, 3)): the

@@ -75,7 +75,7 @@ from .radiosity_solvers import (
     ProgressiveSettings,
     ProgressiveSolver,
 )
-from .scene import Scene, triangle_emission
+from .scene import Scene, geometric_normals, triangle_emission
 
 # Below this luminance fraction of the scene's mean radiosity a patch counts as dark: relative
 # differences are measured against it, so noise in black corners does not trigger refinement.
@@ -270,6 +270,15 @@ class RadiosityResult:
         """(M, 3) outgoing radiance B / pi, W/(m^2 sr) (see `exitance_at`)."""
         return self.exitance_at(tri, bary, reflected_only, interpolated, known,
                                 visibility_out) / np.pi
+
+    def back_radiance_at(self, scene: Scene, tri: np.ndarray, bary: np.ndarray) -> np.ndarray:
+        """(M, 3) outgoing radiance W/(m^2 sr) of the back side of surface points of `scene`
+        (triangles, barycentrics): the emission and, with the final gather, the direct light
+        that reaches the back (`final_gather.back_exitance`). The solution itself is one-sided:
+        without the gather a back side shows its emission only."""
+        if self.gather is not None:
+            return final_gather.back_exitance(self.gather, tri, bary) / np.pi
+        return triangle_emission(scene)[np.asarray(tri, np.int64)]
 
 
 # --- sources ------------------------------------------------------------------------------------
@@ -1193,11 +1202,18 @@ def _radiance_steps(result: RadiosityResult, parts: list, start: float, span: fl
 def render_steps(scene: Scene, result: RadiosityResult, resolution=None,
                  out: np.ndarray | None = None) -> Iterator[float | np.ndarray]:
     """The scene camera's view of the solution: outgoing radiance B / pi at the surface each
-    pixel centre sees (rasterised), the world colour elsewhere. Yields progress, then (H, W, 3)."""
+    pixel centre sees (rasterised), the world colour elsewhere; a surface seen from behind shows
+    its back (`RadiosityResult.back_radiance_at`). Yields progress, then (H, W, 3)."""
     from .camera_view import background_and_fragments
 
     image, f = background_and_fragments(scene, resolution, out)
     yield 0.5
     if len(f):
-        image[f.rows, f.cols] = result.radiance_at(f.tri, f.bary)
+        # Cycles shades a surface on the side it is seen from; the solution is the front's.
+        back = np.einsum("mc,mc->m", geometric_normals(scene.triangles[f.tri]), f.dirs) > 0.0
+        front = ~back
+        image[f.rows[front], f.cols[front]] = result.radiance_at(f.tri[front], f.bary[front])
+        if back.any():
+            image[f.rows[back], f.cols[back]] = result.back_radiance_at(scene, f.tri[back],
+                                                                        f.bary[back])
     yield image

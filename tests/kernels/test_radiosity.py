@@ -11,6 +11,7 @@ from scene_builder import build, ortho_camera, quad, uv_sphere
 
 from classic_bake.kernels import patches as patching
 from classic_bake.kernels.bake_targets import TexelFilterSettings, lattice_plan, lightmap_targets
+from classic_bake.kernels.camera_view import camera_fragments
 from classic_bake.kernels.form_factors import parallel_rectangles, sample_patches
 from classic_bake.kernels.lights import direct_irradiance
 from classic_bake.kernels.radiosity import (
@@ -24,7 +25,13 @@ from classic_bake.kernels.radiosity import (
     resolve_auto,
     solve_radiosity,
 )
-from classic_bake.kernels.scene import Light, Material, Texture, triangle_areas
+from classic_bake.kernels.scene import (
+    Light,
+    Material,
+    Texture,
+    geometric_normals,
+    triangle_areas,
+)
 
 FAST = dict(samples_per_side=2, visibility_samples_per_side=2, hemicube_resolution=16)
 
@@ -185,6 +192,58 @@ def test_furnace_closed_box(method, solver):
     for step in bake_steps(scene, result, [0], {}, 2):
         bakes = step
     np.testing.assert_allclose(bakes[0].corners, expected / np.pi, rtol=tol)
+
+
+def _rendered(scene, result):
+    image = None
+    for step in render_steps(scene, result):
+        image = step
+    return image
+
+
+def test_camera_sees_the_back_of_a_sheet_lit_from_behind():
+    """A square sheet facing -y (rho 0.5) and a point lamp on its +y side: the solution's front
+    gets nothing, but a camera on the lamp's side sees the lit back, as Cycles shades a surface on
+    the side it is seen from: L = rho / pi x I cos(theta) / d^2 at every fragment (exact direct
+    light; tolerance 1e-3 for the receivers' inset of 1e-4 of a triangle and float32 corners).
+    Seen from the front it is black, and so is a lit room seen from outside."""
+    rho, power = 0.5, 200.0
+    sheet = quad([[-0.5, 0.0, -0.5], [0.5, 0.0, -0.5], [0.5, 0.0, 0.5], [-0.5, 0.0, 0.5]])
+    intensity = power / (4.0 * np.pi)
+    lamp = Light(name="Lamp", kind="POINT", position=np.array([0.2, 1.0, 0.1]),
+                 direction=np.array([0.0, 0.0, -1.0]), axis_x=np.array([1.0, 0.0, 0.0]),
+                 axis_y=np.array([0.0, 1.0, 0.0]), intensity=np.full(3, intensity))
+    behind = ortho_camera([0.0, 3.0, 0.0], [0, -1, 0], [0, 0, 1], 0.9, (8, 8))
+    scene = build([(sheet, grey(rho))], camera=behind, lights=[lamp])
+    assert geometric_normals(scene.triangles)[0] @ [0.0, -1.0, 0.0] > 0.999
+    result = solve_radiosity(scene, RadiositySettings(patch_budget=8, **FAST))
+    assert np.abs(result.radiosity).max() == 0.0  # its front sees no light
+    image = _rendered(scene, result)
+    f = camera_fragments(scene)
+    assert len(f) == 64  # the sheet fills the view
+    to_lamp = lamp.position - f.points
+    d2 = np.einsum("mc,mc->m", to_lamp, to_lamp)
+    expected = rho / np.pi * intensity * to_lamp[:, 1] / np.sqrt(d2) / d2
+    np.testing.assert_allclose(image[f.rows, f.cols, 0], expected, rtol=1e-3)
+    front = replace(scene, camera=ortho_camera([0.0, -3.0, 0.0], [0, 1, 0], [0, 0, 1], 0.9, (8, 8)))
+    assert np.abs(_rendered(front, result)).max() == 0.0
+    # An emissive sheet glows on both sides, as Cycles' emission shader does.
+    glowing = build([(sheet, grey(rho, emission=2.0))], camera=behind)
+    lit = solve_radiosity(glowing, RadiositySettings(patch_budget=8, **FAST))
+    np.testing.assert_allclose(_rendered(glowing, lit), 2.0, rtol=1e-6)
+
+
+def test_lit_room_seen_from_outside_is_black():
+    """An inward box with an emissive square under its ceiling, the camera outside: every
+    fragment is a wall's back, which no light reaches (the lit inside shows nowhere)."""
+    lamp = quad([[0.4, 0.4, 0.99], [0.4, 0.6, 0.99], [0.6, 0.6, 0.99], [0.6, 0.4, 0.99]])
+    outside = ortho_camera([0.5, -2.0, 0.5], [0, 1, 0], [0, 0, 1], 0.8, (6, 6))
+    scene = build([(inward_box(), grey(0.6)), (lamp, grey(0.0, emission=20.0, name="lamp"))],
+                  camera=outside)
+    result = solve_radiosity(scene, RadiositySettings(patch_budget=40, **FAST))
+    assert result.radiosity[result.patches.object_ids == 0].min() > 0.1  # the inside is lit
+    assert len(camera_fragments(scene)) == 36
+    assert np.abs(_rendered(scene, result)).max() == 0.0
 
 
 def test_lattice_keeps_texture_detail_between_lattice_texels():
