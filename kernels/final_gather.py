@@ -534,7 +534,7 @@ def back_exitance(gather: FinalGather, tri: np.ndarray, bary: np.ndarray) -> np.
     rays leaving on the back side (a sheet lit from behind, a wall seen from outside a lit room:
     0). The emission counts on both sides (Cycles' emission shader glows on either face). No
     indirect part: the patches are one-sided, so nothing is known of the light that other
-    surfaces send to a patch's back (README, "Radiosity", limits)."""
+    surfaces send to a patch's back (README, "Radiosity", one-sided patches)."""
     from .direct_light import diffuse_at
 
     scene = gather.scene
@@ -545,16 +545,26 @@ def back_exitance(gather: FinalGather, tri: np.ndarray, bary: np.ndarray) -> np.
     occluded = _occluded(gather.bvh)
     for a in range(0, len(tri), GATHER_CHUNK):
         t, b = tri[a:a + GATHER_CHUNK], bary[a:a + GATHER_CHUNK]
-        inset = (1.0 - RECEIVER_INSET) * b + RECEIVER_INSET / 3.0
-        points = np.einsum("mk,mkc->mc", inset, scene.triangles[t].astype(np.float64))
-        front = gather.triangle_normals[t]
-        normals = -shading_normals(scene, t, inset, front)
+        rho = diffuse_at(scene, t, b)
+        lit = np.flatnonzero(rho.max(axis=1) > 0.0)  # black ones cast no ray, as in `exitance`
+        inset, points = _inset_points(scene, t[lit], b[lit])
+        front = gather.triangle_normals[t[lit]]
+        normals = -shading_normals(scene, t[lit], inset, front)
         h = emitter_irradiance(gather.emitters, points, normals, occluded, gather.offset, rng,
                                lift=-front)
         h += lamp_irradiance(scene, points, normals, occluded, gather.offset,
                              gather.area_samples_per_side, lift=-front)
-        out[a:a + GATHER_CHUNK] = gather.emission[t] + diffuse_at(scene, t, b) * h
+        value = gather.emission[t]
+        value[lit] += rho[lit] * h
+        out[a:a + GATHER_CHUNK] = value
     return out
+
+
+def _inset_points(scene: Scene, t: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Receivers' barycentrics moved `RECEIVER_INSET` towards their triangle's centroid (M, 3),
+    and the world points there (M, 3), m."""
+    inset = (1.0 - RECEIVER_INSET) * b + RECEIVER_INSET / 3.0
+    return inset, np.einsum("mk,mkc->mc", inset, scene.triangles[t].astype(np.float64))
 
 
 def shading_normals(scene: Scene, tri: np.ndarray, bary: np.ndarray, geometric: np.ndarray
@@ -577,8 +587,7 @@ def _irradiance(gather: FinalGather, patches: patching.Patches, t: np.ndarray, b
     and what its rays found (`exitance`)."""
     scene = gather.scene
     found = Visibility.unknown(len(t), len(gather.emitters.triangles))
-    inset = (1.0 - RECEIVER_INSET) * b + RECEIVER_INSET / 3.0
-    points = np.einsum("mk,mkc->mc", inset, scene.triangles[t].astype(np.float64))
+    inset, points = _inset_points(scene, t, b)
     geometric = gather.triangle_normals[t]
     normals = shading_normals(scene, t, inset, geometric)
     # Located at the inset point: the one the rays leave from must lie in the patch whose shaft
