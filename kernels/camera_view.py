@@ -14,7 +14,7 @@ import numpy as np
 
 from .camera import camera_rays
 from .raster import Projection, rasterize
-from .scene import Camera, Scene
+from .scene import Camera, Scene, geometric_normals
 
 
 @dataclass(frozen=True, eq=False)
@@ -27,6 +27,8 @@ class Fragments:
     points     (N, 3)     world, m
     dirs       (N, 3)     unit view directions (camera to point)
     depth      (N,)       distance along the ray from its origin, m
+    geometric  (N, 3)     unit front normals of the triangles seen
+    back       (N,) bool  the triangle is seen from behind (its front faces away)
     """
 
     rows: np.ndarray
@@ -36,6 +38,8 @@ class Fragments:
     points: np.ndarray
     dirs: np.ndarray
     depth: np.ndarray
+    geometric: np.ndarray
+    back: np.ndarray
 
     def __len__(self) -> int:
         return int(self.rows.shape[0])
@@ -81,8 +85,10 @@ def camera_fragments(scene: Scene, resolution=None) -> Fragments:
     origins, dirs = camera_rays(camera, width, height)
     o, d = origins[rows, cols], dirs[rows, cols]
     bary, t = ray_triangle_bary(o, d, scene.triangles[tri].astype(np.float64))
+    geometric = geometric_normals(scene.triangles[tri])
     return Fragments(rows=rows, cols=cols, tri=tri, bary=bary, points=o + d * t[:, None], dirs=d,
-                     depth=t)
+                     depth=t, geometric=geometric,
+                     back=np.einsum("ij,ij->i", geometric, d) > 0.0)
 
 
 def background_and_fragments(scene: Scene, resolution=None, out: np.ndarray | None = None

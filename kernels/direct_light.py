@@ -22,7 +22,7 @@ import numpy as np
 from . import lights as light_units
 from .bake_targets import BakeTargets
 from .camera_view import background_and_fragments
-from .scene import Scene, geometric_normals, interpolated_normals
+from .scene import Scene, interpolated_normals
 from .shadowmap import (
     Receivers,
     ShadowMapSettings,
@@ -210,9 +210,8 @@ def render_steps(scene: Scene, settings: DirectLightSettings, resolution=None,
         return
     rows, cols, tri, bary, points, d, t = f.rows, f.cols, f.tri, f.bary, f.points, f.dirs, f.depth
     normals = interpolated_normals(scene, tri, bary)
-    geo = geometric_normals(scene.triangles[tri])
-    facing = np.einsum("ij,ij->i", geo, d) > 0  # seen from behind: shade the side we see
-    geo[facing] *= -1
+    geo = f.geometric.copy()
+    geo[f.back] *= -1  # seen from behind: shade the side we see
     normals[np.einsum("ij,ij->i", normals, d) > 0] *= -1
     # Pixel footprint at the receivers: the image plane's texel at distance t (PERSP) or in m.
     texel = (camera.plane_max[0] - camera.plane_min[0]) / width

@@ -75,7 +75,7 @@ from .radiosity_solvers import (
     ProgressiveSettings,
     ProgressiveSolver,
 )
-from .scene import Scene, geometric_normals, triangle_emission
+from .scene import Scene, triangle_emission
 
 # Below this luminance fraction of the scene's mean radiosity a patch counts as dark: relative
 # differences are measured against it, so noise in black corners does not trigger refinement.
@@ -1210,8 +1210,7 @@ def render_steps(scene: Scene, result: RadiosityResult, resolution=None,
     yield 0.5
     if len(f):
         # Cycles shades a surface on the side it is seen from; the solution is the front's.
-        back = np.einsum("mc,mc->m", geometric_normals(scene.triangles[f.tri]), f.dirs) > 0.0
-        front = ~back
+        front, back = ~f.back, f.back
         image[f.rows[front], f.cols[front]] = result.radiance_at(f.tri[front], f.bary[front])
         if back.any():
             image[f.rows[back], f.cols[back]] = result.back_radiance_at(scene, f.tri[back],
