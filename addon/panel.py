@@ -55,6 +55,19 @@ class CLASSICBAKE_PT_trace(_TechniquePanel, bpy.types.Panel):
         layout.operator("classic_bake.trace", icon="RENDER_STILL")
 
 
+class CLASSICBAKE_PT_envmap(_TechniquePanel, bpy.types.Panel):
+    bl_label = "Environment Mapping"
+
+    def draw(self, context):
+        layout = self.layout
+        props = context.scene.classic_bake
+        layout.use_property_split = True
+        layout.prop(props, "envmap_face_size")
+        layout.prop(props, "envmap_face_samples")
+        layout.prop(props, "envmap_selected_only")
+        layout.operator("classic_bake.envmap", icon="MAT_SPHERE_SKY")
+
+
 class CLASSICBAKE_PT_shadowmap(_TechniquePanel, bpy.types.Panel):
     bl_label = "Shadow Mapping"
 
@@ -113,7 +126,7 @@ class CLASSICBAKE_PT_radiosity(_TechniquePanel, bpy.types.Panel):
 
 
 CLASSES = (CLASSICBAKE_PT_main, CLASSICBAKE_PT_lightmap_uv, CLASSICBAKE_PT_trace,
-           CLASSICBAKE_PT_shadowmap, CLASSICBAKE_PT_radiosity, CLASSICBAKE_PT_compare)
+           CLASSICBAKE_PT_envmap, CLASSICBAKE_PT_shadowmap, CLASSICBAKE_PT_radiosity, CLASSICBAKE_PT_compare)
 
 
 # Registered in order, unregistered in reverse.

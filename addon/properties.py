@@ -31,6 +31,15 @@ class CLASSICBAKE_PG_settings(bpy.types.PropertyGroup):
     trace_adaptive: IntProperty(
         name="Edge Samples", description="N x N samples again in pixels at edges (0: off)",
         default=4, min=0, max=16)
+    envmap_face_size: IntProperty(
+        name="Face Size", description="Texels per cube-map face side; 0 chooses it per object "
+        "from its size on screen", default=0, min=0, max=4096)
+    envmap_face_samples: IntProperty(
+        name="Face Samples", description="N x N rays per face texel, averaged", default=1, min=1,
+        max=8)
+    envmap_selected_only: BoolProperty(
+        name="Selected Only", description="Map the selected objects; off: every mirror (smooth "
+        "metal)", default=False)
     shadow_map_size: IntProperty(
         name="Map Size", description="Shadow-map texels per side; 0 chooses it per light from the "
         "receivers' texel size", default=0, min=0, max=16384)
@@ -87,6 +96,8 @@ class CLASSICBAKE_PG_settings(bpy.types.PropertyGroup):
     compare_technique: EnumProperty(
         name="Technique", description="Which kernel render to compare with Cycles",
         items=[("TRACE", "Ray Tracing", "The Whitted tracer against Cycles' whitted model"),
+               ("ENVMAP", "Environment Mapping", "Cube-mapped mirrors against Cycles' whitted "
+                "model (true reflections)"),
                ("SHADOWMAP", "Shadow Mapping", "Direct light with shadow maps against Cycles' "
                 "direct-light model")], default="TRACE")
     compare_samples: IntProperty(

@@ -39,3 +39,15 @@ def radiosity_settings(props):
                              shadow_splits=props.radiosity_shadow_splits,
                              final_gather=props.radiosity_final_gather,
                              gather_rays=props.radiosity_gather_rays)
+
+
+def envmap_settings(props, selected: list[str]):
+    """`scene.classic_bake` + the selected mesh names -> EnvMapSettings (every mirror unless
+    "Selected Only" is on)."""
+    from ..kernels.envmap import EnvMapSettings
+
+    objects = tuple(selected) if props.envmap_selected_only else ()
+    if props.envmap_selected_only and not objects:
+        raise ValueError("Select the objects to environment-map (or turn off Selected Only)")
+    return EnvMapSettings(face_size=props.envmap_face_size,
+                          face_supersample=props.envmap_face_samples, objects=objects)

@@ -21,7 +21,7 @@ The whole tree is traced as a wavefront: all rays of one depth at once through t
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -61,6 +61,9 @@ TEXTURE_FILTER = 3
 GRAZING_COS = 1e-4
 # Added to the luminance sum in the contrast test so that near-black pixels do not all count as edges.
 CONTRAST_FLOOR = 1e-2
+# An environment map read for reflected rays: (N, 3) world points, (N, 3) unit directions ->
+# (N, 3) radiance W/(m^2 sr) arriving at the points along the directions.
+EnvironmentLookup = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 
 @dataclass(frozen=True)
@@ -353,11 +356,22 @@ def _ggx_specular(n, wi, wo, roughness, f0) -> np.ndarray:
     return f * (d * g / (4.0 * cos_o))[:, None]
 
 
-class _Tracer:
-    def __init__(self, scene: Scene, bvh: BVH, settings: TracerSettings):
+class Tracer:
+    """The wavefront tracer over one scene and BVH: `radiance` of any rays (camera rays, or the
+    faces of a cube map in `envmap.py`), with statistics gathered in `stats`."""
+
+    def __init__(self, scene: Scene, bvh: BVH, settings: TracerSettings,
+                 environment: Mapping[int, EnvironmentLookup] | None = None,
+                 shadow_bvh: BVH | None = None):
         self.scene = scene
         self.bvh = bvh
+        # Shadow rays may test other geometry than the rays that see: a cube map's faces see
+        # past the hidden object, whose shadow still falls on its surroundings.
+        self.shadow_bvh = shadow_bvh or bvh
         self.settings = settings
+        # Environment mapping: object index -> lookup(points, directions) -> radiance, each (N, 3).
+        # Mirror reflections off those objects read the lookup instead of spawning rays.
+        self.environment = dict(environment or {})
         self.offset = settings.offset_scale * _scene_scale(scene)
         self.tri_normals = geometric_normals(scene.triangles)
         self.emitters = _emitters(scene, settings)
@@ -375,7 +389,7 @@ class _Tracer:
 
     def _visible(self, origins, directions, t_max) -> np.ndarray:
         self.stats.shadow_rays += len(origins)
-        return ~self.bvh.occluded(origins, directions, 0.0, t_max)
+        return ~self.shadow_bvh.occluded(origins, directions, 0.0, t_max)
 
     def direct(self, h: _Hits, wo: np.ndarray, diffuse_w: np.ndarray, spec_f0, spec_rough
                ) -> tuple[np.ndarray, np.ndarray]:
@@ -438,6 +452,22 @@ class _Tracer:
                                 dist[b_idx, n_idx] * (1.0 - 1e-4) - self.offset)
             weight = em.area_radiance_da[block][b_idx] * (g[b_idx, n_idx] * vis)[:, None]
             np.add.at(out, n_idx, brdf_d[n_idx] * weight)
+        return out
+
+    def _mapped(self, tri: np.ndarray) -> np.ndarray:
+        """(N,) bool: which hit triangles belong to an environment-mapped object."""
+        return np.isin(self.scene.object_ids[tri], list(self.environment))
+
+    def _environment(self, tri: np.ndarray, p: np.ndarray, r_dir: np.ndarray,
+                     mirror_w: np.ndarray) -> np.ndarray:
+        """(N, 3) radiance the mirror part reflects off environment-mapped objects (0 elsewhere):
+        the mirror weight times the object's map read for the reflected ray (hit point p, r)."""
+        out = np.zeros_like(mirror_w)
+        objects = self.scene.object_ids[tri]
+        for k, lookup in self.environment.items():
+            rows = np.nonzero((objects == k) & (mirror_w.max(axis=1) > 0.0))[0]
+            if len(rows):
+                out[rows] = mirror_w[rows] * lookup(p[rows], r_dir[rows])
         return out
 
     def hit_ids(self, tri: np.ndarray) -> np.ndarray:
@@ -510,6 +540,23 @@ class _Tracer:
                 spec_f0 = np.where(has_spec[:, None], f0_dielectric[:, None], 0.0) * np.ones((1, 3))
             lit, lambert = self.direct(h, wo, dielectric, spec_f0, rough)
             own = self.emission[m] + lit
+            smooth = rough < s.mirror_roughness
+            # Mirror and refraction directions about the (smooth) shading normal, falling back to
+            # the geometric normal where that would send the ray to the wrong side of the surface.
+            r_dir = reflect(dirs, h.ns)
+            wrong = np.einsum("ij,ij->i", r_dir, h.ng) <= 0.0
+            r_dir[wrong] = reflect(dirs[wrong], h.ng[wrong])
+            cos_o = np.einsum("ij,ij->i", wo, h.ns)
+            # metals: a tinted mirror (Schlick with F0 = base colour)
+            metal_w = np.where((smooth & (metallic > 0))[:, None],
+                               metallic[:, None] * fresnel_schlick(cos_o, h.albedo), 0.0)
+            # dielectric specular layer of opaque surfaces: exact Fresnel at the IOR, level-scaled
+            f_d = fresnel_dielectric(cos_o, 1.0 / self.ior[m]) * np.minimum(2.0 * spec_level, 1.0)
+            spec_w = np.where((smooth & (dielectric > 0) & (spec_level > 0))[:, None],
+                              (dielectric * f_d)[:, None] * np.ones((1, 3)), 0.0)
+            mirror_w = metal_w + spec_w
+            if self.environment:  # environment-mapped mirrors: a look-up, whatever the depth
+                own = own + self._environment(hits.tri, h.p, r_dir, mirror_w)
             np.add.at(result, pixel, weight * own)
             if untextured is not None:  # white base colour at the camera hits only
                 flat_own = own + (1.0 - h.albedo) * lambert if depth == 0 else own
@@ -519,31 +566,20 @@ class _Tracer:
                     (rough < s.mirror_roughness) & ((metallic > 0) | (trans > 0) | (spec_level > 0))))
                 break
             # --- spawn the next generation: mirror reflection and refraction -----------------------
-            smooth = rough < s.mirror_roughness
-            # Mirror and refraction directions about the (smooth) shading normal, falling back to
-            # the geometric normal where that would send the ray to the wrong side of the surface.
-            r_dir = reflect(dirs, h.ns)
-            wrong = np.einsum("ij,ij->i", r_dir, h.ng) <= 0.0
-            r_dir[wrong] = reflect(dirs[wrong], h.ng[wrong])
             eta = np.where(h.front, 1.0 / self.ior[m], self.ior[m])
             t_dir, tir = refract(dirs, h.ns, eta)
             wrong = ~tir & (np.einsum("ij,ij->i", t_dir, h.ng) >= 0.0)
             if wrong.any():
                 t_dir[wrong], tir[wrong] = refract(dirs[wrong], h.ng[wrong], eta[wrong])
-            cos_o = np.einsum("ij,ij->i", wo, h.ns)
             children = []  # (origins, dirs, pixel, weight)
-            # metals: a tinted mirror (Schlick with F0 = base colour)
-            metal_w = np.where((smooth & (metallic > 0))[:, None],
-                               metallic[:, None] * fresnel_schlick(cos_o, h.albedo), 0.0)
-            # dielectric specular layer of opaque surfaces: exact Fresnel at the IOR, level-scaled
-            f_d = fresnel_dielectric(cos_o, 1.0 / self.ior[m]) * np.minimum(2.0 * spec_level, 1.0)
-            spec_w = np.where((smooth & (dielectric > 0) & (spec_level > 0))[:, None],
-                              (dielectric * f_d)[:, None] * np.ones((1, 3)), 0.0)
             # glass: Fresnel split between the reflected and the refracted ray
             glass = smooth & (trans > 0) & (metallic < 1)
             f_g = fresnel_dielectric(cos_o, eta)
             glass_w = ((1.0 - metallic) * trans)[:, None]
-            refl_w = metal_w + spec_w + np.where(glass[:, None], glass_w * f_g[:, None], 0.0)
+            refl_w = mirror_w + np.where(glass[:, None], glass_w * f_g[:, None], 0.0)
+            if self.environment:  # their mirror part was looked up above: no ray for it
+                refl_w = np.where(self._mapped(hits.tri)[:, None],
+                                  refl_w - mirror_w, refl_w)
             refr_w = np.where((glass & ~tir)[:, None], glass_w * (1.0 - f_g)[:, None] * h.albedo, 0.0)
             for w_new, d_new, side in ((refl_w, r_dir, 1.0), (refr_w, t_dir, -1.0)):
                 w_total = weight * w_new
@@ -592,17 +628,20 @@ class TraceResult:
 
 
 def trace_steps(scene: Scene, settings: TracerSettings, bvh: BVH | None = None,
-                resolution: tuple[int, int] | None = None, out: np.ndarray | None = None
+                resolution: tuple[int, int] | None = None, out: np.ndarray | None = None,
+                environment: Mapping[int, EnvironmentLookup] | None = None
                 ) -> Iterator[float | TraceResult]:
     """Trace the scene camera's view; yields progress in [0, 1), then the `TraceResult`.
 
     resolution: (W, H) pixels, default the camera's. out: optional (H, W, 3) float32 buffer.
+    environment: object index -> radiance lookup(points, directions), each (N, 3); those
+    objects' mirror reflections read it instead of tracing rays (`envmap.py`).
     """
     if scene.camera is None:
         raise ValueError("the scene has no camera to trace from")
     width, height = resolution or scene.camera.resolution
     bvh = bvh or BVH.build(scene.triangles)
-    tracer = _Tracer(scene, bvh, settings)
+    tracer = Tracer(scene, bvh, settings, environment)
     image = out if out is not None else np.empty((height, width, 3), np.float32)
     n = settings.supersample
     passes = n * n

@@ -5,7 +5,7 @@ import time
 import bpy
 
 from ..addon import bridge, cycles_reference
-from ..addon.settings import direct_light_settings, tracer_settings
+from ..addon.settings import direct_light_settings, envmap_settings, tracer_settings
 from .job import JobOperator, ScenePoll
 
 ERROR_IMAGE = "Classic Bake Error"
@@ -38,6 +38,13 @@ def compare_job(context, technique: str, samples: int, report):
         settings = tracer_settings(props, scene)
         model = cycles_reference.whitted(settings.max_depth)
         steps = tracer.trace_steps(scene, settings)
+    elif technique == "ENVMAP":
+        from ..kernels import envmap
+
+        settings = tracer_settings(props, scene)
+        model = cycles_reference.whitted(settings.max_depth)
+        steps = envmap.render_steps(scene, envmap_settings(props, [
+            o.name for o in context.selected_objects if o.type == "MESH"]), settings)
     else:
         model = cycles_reference.direct()
         steps = direct_light.render_steps(scene, direct_light_settings(props))

@@ -1,3 +1,13 @@
 """Every CLI command, one module each; importing this package registers them all."""
 
-from . import compare, demo, info, lightmap_uv, radiosity, report, shadowmap, trace  # noqa: F401
+from . import (  # noqa: F401
+    compare,
+    demo,
+    envmap,
+    info,
+    lightmap_uv,
+    radiosity,
+    report,
+    shadowmap,
+    trace,
+)

@@ -22,6 +22,8 @@ LADDERS = {
     "shadowmap": [["--map-size", "512"], ["--map-size", "0"], ["--map-size", "2048"],
                   ["--pcf", "3"]],
     "radiosity": [[]],
+    "envmap": [["--face-size", "16"], ["--face-size", "0"], ["--face-size", "128"],
+               ["--face-size", "256", "--face-samples", "2"]],
 }
 CYCLES_SAMPLES = [1, 2, 4, 8, 16, 32, 64]
 
@@ -38,6 +40,8 @@ def cycles_model(technique: str, settings: dict):
 
     if technique == "trace":
         return cr.whitted(int(settings.get("max_depth", 8)))
+    if technique == "envmap":  # true reflections: what the maps approximate
+        return cr.whitted(int(settings["tracer"].get("max_depth", 8)))
     if technique == "shadowmap":
         return cr.direct()
     return cr.radiosity()
