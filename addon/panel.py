@@ -64,6 +64,7 @@ class CLASSICBAKE_PT_envmap(_TechniquePanel, bpy.types.Panel):
         layout.use_property_split = True
         layout.prop(props, "envmap_face_size")
         layout.prop(props, "envmap_face_samples")
+        layout.prop(props, "envmap_parallax_steps")
         layout.prop(props, "envmap_selected_only")
         layout.operator("classic_bake.envmap", icon="MAT_SPHERE_SKY")
 

@@ -37,6 +37,10 @@ class CLASSICBAKE_PG_settings(bpy.types.PropertyGroup):
     envmap_face_samples: IntProperty(
         name="Face Samples", description="N x N rays per face texel, averaged", default=1, min=1,
         max=8)
+    envmap_parallax_steps: IntProperty(
+        name="Parallax Steps", description="Refinements of the search along each reflected ray "
+        "for the surface it meets (0: the lecture's look-up along the reflected direction alone)",
+        default=4, min=0, max=16)
     envmap_selected_only: BoolProperty(
         name="Selected Only", description="Map the selected objects; off: every mirror (smooth "
         "metal)", default=False)

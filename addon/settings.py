@@ -50,4 +50,5 @@ def envmap_settings(props, selected: list[str]):
     if props.envmap_selected_only and not objects:
         raise ValueError("Select the objects to environment-map (or turn off Selected Only)")
     return EnvMapSettings(face_size=props.envmap_face_size,
-                          face_supersample=props.envmap_face_samples, objects=objects)
+                          face_supersample=props.envmap_face_samples, objects=objects,
+                          parallax_steps=props.envmap_parallax_steps)

@@ -84,3 +84,16 @@ def format_table(header: list[str], rows: list[list[object]]) -> str:
 
 if __name__ == "__main__":
     print("bench/_report.py is a helper module; run bench/rays.py")
+
+
+def seconds_to_reach(error: float, ladder: list[dict], metric: str = "rel_mse") -> float | None:
+    """Seconds Cycles needs for `error` in `metric`, log-log interpolated on its ladder (None:
+    never)."""
+    pts = sorted((r["seconds"], r[metric]) for r in ladder)
+    for (t0, e0), (t1, e1) in zip(pts, pts[1:], strict=False):
+        if e1 <= error <= e0 and e0 > e1:
+            f = (np.log(error) - np.log(e0)) / (np.log(e1) - np.log(e0))
+            return float(np.exp(np.log(t0) + f * (np.log(t1) - np.log(t0))))
+    if pts and error >= pts[0][1]:
+        return pts[0][0]  # already reached by the cheapest rung
+    return None

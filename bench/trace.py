@@ -18,28 +18,14 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _report import OUT_DIR, versions, write_report  # noqa: E402
+from _report import OUT_DIR, seconds_to_reach, versions, write_report  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "sample_blends" / "raytrace.blend"
 # (supersample n, adaptive edge samples n): from plain pixel centres to dense edge sampling.
 LADDER = [(1, 0), (1, 2), (1, 4), (2, 4), (2, 8), (4, 8)]
 DEFAULT_SETTING = "1x1 + edges 4x4"  # TracerSettings() and the trace command's defaults
-
-
-def seconds_to_reach(error: float, ladder: list[dict]) -> float | None:
-    """Seconds Cycles needs for relMSE `error`, log-log interpolated on its ladder (None: never)."""
-    pts = sorted((r["seconds"], r["rel_mse"]) for r in ladder)
-    for (t0, e0), (t1, e1) in zip(pts, pts[1:], strict=False):
-        if e1 <= error <= e0 and e0 > e1:
-            f = (np.log(error) - np.log(e0)) / (np.log(e1) - np.log(e0))
-            return float(np.exp(np.log(t0) + f * (np.log(t1) - np.log(t0))))
-    if pts and error >= pts[0][1]:
-        return pts[0][0]  # already reached by the cheapest rung
-    return None
 
 
 def main() -> int:

@@ -22,8 +22,8 @@ LADDERS = {
     "shadowmap": [["--map-size", "512"], ["--map-size", "0"], ["--map-size", "2048"],
                   ["--pcf", "3"]],
     "radiosity": [[]],
-    "envmap": [["--face-size", "16"], ["--face-size", "0"], ["--face-size", "128"],
-               ["--face-size", "256", "--face-samples", "2"]],
+    "envmap": [["--parallax-steps", "0"], ["--face-size", "32"], ["--face-size", "0"],
+               ["--face-size", "128"], ["--face-size", "256", "--face-samples", "2"]],
 }
 CYCLES_SAMPLES = [1, 2, 4, 8, 16, 32, 64]
 

@@ -15,6 +15,9 @@ def add_arguments(parser) -> None:
                         help="N x N rays per face texel, averaged (default 1)")
     parser.add_argument("--objects", nargs="+", default=[], metavar="NAME",
                         help="objects to map (default: every mirror, i.e. smooth metal)")
+    parser.add_argument("--parallax-steps", type=int, default=None, metavar="K",
+                        help="refinements of the search along each reflected ray for the surface "
+                             "it meets (default 4; 0: the lecture's look-up along r alone)")
     parser.add_argument("--face-depth", type=int, default=-1,
                         help="ray-tree depth of the face renders (default -1: from the scene)")
     parser.add_argument("--adaptive", type=int, default=4, metavar="N",
@@ -26,8 +29,9 @@ def settings_from(scene, args):
     from ...kernels.tracer import auto_settings
 
     try:
+        steps = {} if args.parallax_steps is None else {"parallax_steps": args.parallax_steps}
         settings = EnvMapSettings(face_size=args.face_size, face_supersample=args.face_samples,
-                                  objects=tuple(args.objects), face_depth=args.face_depth)
+                                  objects=tuple(args.objects), face_depth=args.face_depth, **steps)
         return settings, auto_settings(scene, adaptive=args.adaptive)
     except ValueError as exc:
         raise UsageError(f"envmap: {exc}") from exc

@@ -79,8 +79,8 @@ def test_cli_envmap_refuses_an_unknown_object(tmp_path):
 def test_mapped_mirror_is_close_to_cycles_true_reflections(tmp_path, open_sample):
     """Cycles with the Whitted model (true mirror rays) at 128 samples. The mapped sphere differs
     by parallax (the sphere stands on a pedestal: the floor is a metre away) and the map's
-    resolution; the distance steps take most of the parallax away. Measured at 96 x 72: relMSE
-    over the sphere's pixels 0.041 traced, 0.118 mapped, 0.258 with the lecture's look-up alone."""
+    resolution; the parallax search takes most of the parallax away. Measured at 96 x 72: relMSE
+    over the sphere's pixels 0.041 traced, 0.081 mapped, 0.258 with the lecture's look-up alone."""
     from classic_bake.addon import cycles_reference as cr
     from classic_bake.kernels import envmap
     from classic_bake.kernels.metrics import rel_mse
@@ -103,7 +103,7 @@ def test_mapped_mirror_is_close_to_cycles_true_reflections(tmp_path, open_sample
     print(f"sphere pixels {sphere.sum()}: relMSE", errors)
     assert sphere.sum() > 50
     assert errors["traced"] < errors["mapped"] < 0.2
-    assert errors["mapped"] < 0.7 * errors["lecture"]
+    assert errors["mapped"] < errors["lecture"] / 2
     # Away from the sphere (and the edge samples next to it) the view is the tracer's own.
     near = sphere.copy()
     for axis in (0, 1):
@@ -120,3 +120,15 @@ def _hit_triangles(snap, resolution):
     hits = BVH.build(snap.triangles).intersect(o.reshape(-1, 3), d.reshape(-1, 3))
     tri = np.where(hits.tri >= 0, hits.tri, 0)
     return tri.reshape(resolution[1], resolution[0])
+
+
+def test_compare_button_measures_the_mapped_view(addon, open_sample):
+    open_sample("env_room")
+    scene = bpy.context.scene
+    scene.render.resolution_x, scene.render.resolution_y = 32, 24
+    props = scene.classic_bake
+    props.compare_technique, props.compare_samples, props.trace_adaptive = "ENVMAP", 16, 0
+    assert bpy.ops.classic_bake.compare() == {"FINISHED"}
+    assert 0 <= props.compare_rel_mse < 0.2 and props.compare_kernel_seconds > 0
+    kernel = bridge.image_pixels(bpy.data.images["Classic Bake Kernel View"])
+    assert kernel.shape == (24, 32, 4) and np.all(np.isfinite(kernel))
