@@ -69,6 +69,17 @@ class CLASSICBAKE_PT_envmap(_TechniquePanel, bpy.types.Panel):
         layout.operator("classic_bake.envmap", icon="MAT_SPHERE_SKY")
 
 
+class CLASSICBAKE_PT_bump(_TechniquePanel, bpy.types.Panel):
+    bl_label = "Bump Mapping"
+
+    def draw(self, context):
+        layout = self.layout
+        props = context.scene.classic_bake
+        layout.use_property_split = True
+        layout.prop(props, "bump_shading")
+        layout.operator("classic_bake.shading", icon="MOD_NORMALEDIT")
+
+
 class CLASSICBAKE_PT_shadowmap(_TechniquePanel, bpy.types.Panel):
     bl_label = "Shadow Mapping"
 
@@ -127,7 +138,8 @@ class CLASSICBAKE_PT_radiosity(_TechniquePanel, bpy.types.Panel):
 
 
 CLASSES = (CLASSICBAKE_PT_main, CLASSICBAKE_PT_lightmap_uv, CLASSICBAKE_PT_trace,
-           CLASSICBAKE_PT_envmap, CLASSICBAKE_PT_shadowmap, CLASSICBAKE_PT_radiosity, CLASSICBAKE_PT_compare)
+           CLASSICBAKE_PT_envmap, CLASSICBAKE_PT_bump, CLASSICBAKE_PT_shadowmap,
+           CLASSICBAKE_PT_radiosity, CLASSICBAKE_PT_compare)
 
 
 # Registered in order, unregistered in reverse.

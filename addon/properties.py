@@ -44,6 +44,13 @@ class CLASSICBAKE_PG_settings(bpy.types.PropertyGroup):
     envmap_selected_only: BoolProperty(
         name="Selected Only", description="Map the selected objects; off: every mirror (smooth "
         "metal)", default=False)
+    bump_shading: EnumProperty(
+        name="Shading", description="Which normals the camera view is shaded with",
+        items=[("BUMP", "Bump", "Interpolated normals perturbed by the materials' height (Bump "
+                "node) and normal maps, in the tangent frame"),
+               ("PHONG", "Phong", "Corner normals interpolated, light per pixel"),
+               ("GOURAUD", "Gouraud", "Light computed at the corners, interpolated"),
+               ("FLAT", "Flat", "One normal per triangle")], default="BUMP")
     shadow_map_size: IntProperty(
         name="Map Size", description="Shadow-map texels per side; 0 chooses it per light from the "
         "receivers' texel size", default=0, min=0, max=16384)
@@ -100,6 +107,8 @@ class CLASSICBAKE_PG_settings(bpy.types.PropertyGroup):
     compare_technique: EnumProperty(
         name="Technique", description="Which kernel render to compare with Cycles",
         items=[("TRACE", "Ray Tracing", "The Whitted tracer against Cycles' whitted model"),
+               ("BUMP", "Bump Mapping", "The shading mode of the Bump Mapping panel against "
+                "Cycles' whitted model (its Bump and Normal Map nodes)"),
                ("ENVMAP", "Environment Mapping", "Cube-mapped mirrors against Cycles' whitted "
                 "model (true reflections)"),
                ("SHADOWMAP", "Shadow Mapping", "Direct light with shadow maps against Cycles' "

@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import lights as light_units
+from .bump import SHADING_MODES, has_bump, perturb
 from .bvh import BVH
 from .camera import Camera, camera_ray_lines, camera_rays
 from .optics import fresnel_dielectric, fresnel_schlick, reflect, refract
@@ -78,6 +79,10 @@ class TracerSettings:
     | area_samples     | 1..16    | 4       | per side of an area light / emissive triangle grid   |
     | point_like_ratio | >= 0     | 0.05    | emitters smaller than this x distance act as points   |
     | mirror_roughness | 0..1     | 0.1     | rougher surfaces spawn no reflected/refracted ray    |
+    | shading          | flat, gouraud, | bump | normals: the triangles' own (flat); light at the  |
+    |                  | phong, bump |      | corners, interpolated (gouraud); the corners'        |
+    |                  |          |         | normals interpolated (phong); those perturbed by     |
+    |                  |          |         | normal and height maps (bump, `bump.py`)             |
     | texture_filter   | 1..16    | 3       | g: the base colour seen directly is averaged over    |
     |                  |          |         | each sample's pixel cell in g/n x g/n boxes (>= 1);   |
     |                  |          |         | 1: point sampling, no filter                          |
@@ -93,8 +98,11 @@ class TracerSettings:
     point_like_ratio: float = 0.05
     mirror_roughness: float = 0.1
     texture_filter: int = TEXTURE_FILTER
+    shading: str = "bump"
 
     def __post_init__(self):
+        if self.shading not in SHADING_MODES:
+            raise ValueError(f"shading must be one of {SHADING_MODES}, got {self.shading!r}")
         if not 0 <= self.max_depth <= 64:
             raise ValueError(f"max_depth must be in [0, 64], got {self.max_depth}")
         if not 1 <= self.supersample <= 16 or not 0 <= self.adaptive <= 16:
@@ -303,7 +311,7 @@ def _filtered_albedo(scene: Scene, tri: np.ndarray, centre: np.ndarray, fp: _Foo
     return acc.reshape(g * g, len(tri), 3).mean(axis=0)
 
 
-def _surface(scene: Scene, tri_normals, origins, dirs, hits) -> _Hits:
+def _surface(scene: Scene, tri_normals, origins, dirs, hits, shading: str = "bump") -> _Hits:
     tri = hits.tri
     t = hits.t.astype(np.float64)
     p = origins + dirs * t[:, None]
@@ -311,10 +319,25 @@ def _surface(scene: Scene, tri_normals, origins, dirs, hits) -> _Hits:
     v = hits.v.astype(np.float64)[:, None]
     w = 1.0 - u - v
     ng = tri_normals[tri]
-    cn = scene.normals[tri].astype(np.float64)
-    ns = w * cn[:, 0] + u * cn[:, 1] + v * cn[:, 2]
-    length = np.linalg.norm(ns, axis=1, keepdims=True)
-    ns = np.where(length > MIN_NORMAL_LENGTH, ns / np.maximum(length, MIN_NORMAL_LENGTH), ng)
+    material = scene.material_ids[tri]
+    uv = None
+    if shading == "flat":
+        ns = ng.copy()
+    else:
+        cn = scene.normals[tri].astype(np.float64)
+        ns = w * cn[:, 0] + u * cn[:, 1] + v * cn[:, 2]
+        length = np.linalg.norm(ns, axis=1, keepdims=True)
+        ns = np.where(length > MIN_NORMAL_LENGTH, ns / np.maximum(length, MIN_NORMAL_LENGTH), ng)
+    if shading == "bump":
+        for m in np.unique(material):
+            if not has_bump(scene.materials[m]):
+                continue
+            if uv is None:
+                cuv = scene.uv[tri].astype(np.float64)
+                uv = w * cuv[:, 0] + u * cuv[:, 1] + v * cuv[:, 2]
+            rows = np.nonzero(material == m)[0]
+            ns[rows] = perturb(scene.materials[m], ns[rows], scene.triangles[tri[rows]],
+                               scene.uv[tri[rows]], uv[rows])
     front = np.einsum("ij,ij->i", dirs, ng) < 0.0
     side = np.where(front, 1.0, -1.0)[:, None]
     ng = ng * side
@@ -322,9 +345,7 @@ def _surface(scene: Scene, tri_normals, origins, dirs, hits) -> _Hits:
     # A shading normal turned away from the viewer would shade the back: fall back to geometry.
     away = np.einsum("ij,ij->i", ns, dirs) > 0.0
     ns[away] = ng[away]
-    material = scene.material_ids[tri]
     albedo = np.empty((len(tri), 3))
-    uv = None
     for m in np.unique(material):
         rows = material == m
         mat = scene.materials[m]
@@ -430,6 +451,31 @@ class Tracer:
         out += h.albedo * lambert
         return out, lambert
 
+    def gouraud_direct(self, h: _Hits, hits, eye: np.ndarray, diffuse_w, spec_f0, spec_rough
+                       ) -> tuple[np.ndarray, np.ndarray]:
+        """Gouraud (per-vertex) shading: `direct` evaluated at the hit triangle's three corners,
+        with their own normals, shadow rays and view directions (towards `eye`, each ray's
+        origin), then interpolated with the hit's barycentrics. The base colour stays per
+        fragment (a texture modulates the interpolated light), as in fixed-function OpenGL."""
+        corners = self.scene.triangles[hits.tri].astype(np.float64)  # (N, 3, 3)
+        normals = self.scene.normals[hits.tri].astype(np.float64)
+        side = np.where(h.front, 1.0, -1.0)[:, None]
+        u = hits.u.astype(np.float64)
+        v = hits.v.astype(np.float64)
+        weights = (1.0 - u - v, u, v)
+        lit, lambert = np.zeros_like(h.p), np.zeros_like(h.p)
+        for k, w in enumerate(weights):
+            p = corners[:, k]
+            n = normals[:, k] * side
+            n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), MIN_NORMAL_LENGTH)
+            wo = eye - p
+            wo /= np.maximum(np.linalg.norm(wo, axis=1, keepdims=True), 1e-12)
+            corner = _Hits(p, h.ng, n, h.front, h.material, h.albedo)
+            lit_k, lambert_k = self.direct(corner, wo, diffuse_w, spec_f0, spec_rough)
+            lit += w[:, None] * lit_k
+            lambert += w[:, None] * lambert_k
+        return lit, lambert
+
     def _area_direct(self, origin, ns, brdf_d) -> np.ndarray:
         """Light from area lights and emissive triangles: every emitter sample against every hit,
         EMITTER_BLOCK samples at a time, with one batch of shadow rays per block."""
@@ -519,7 +565,7 @@ class Tracer:
             hits = type(hits)(t=hits.t[keep], tri=hits.tri[keep], u=hits.u[keep], v=hits.v[keep])
             if len(origins) == 0:
                 break
-            h = _surface(self.scene, self.tri_normals, origins, dirs, hits)
+            h = _surface(self.scene, self.tri_normals, origins, dirs, hits, s.shading)
             m = h.material
             if depth == 0 and footprint is not None:
                 textured = self.textured[m]
@@ -538,7 +584,10 @@ class Tracer:
             spec_f0 = None
             if has_spec.any():
                 spec_f0 = np.where(has_spec[:, None], f0_dielectric[:, None], 0.0) * np.ones((1, 3))
-            lit, lambert = self.direct(h, wo, dielectric, spec_f0, rough)
+            if s.shading == "gouraud":
+                lit, lambert = self.gouraud_direct(h, hits, origins, dielectric, spec_f0, rough)
+            else:
+                lit, lambert = self.direct(h, wo, dielectric, spec_f0, rough)
             own = self.emission[m] + lit
             smooth = rough < s.mirror_roughness
             # Mirror and refraction directions about the (smooth) shading normal, falling back to

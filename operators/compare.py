@@ -38,6 +38,12 @@ def compare_job(context, technique: str, samples: int, report):
         settings = tracer_settings(props, scene)
         model = cycles_reference.whitted(settings.max_depth)
         steps = tracer.trace_steps(scene, settings)
+    elif technique == "BUMP":
+        from dataclasses import replace
+
+        settings = replace(tracer_settings(props, scene), shading=props.bump_shading.lower())
+        model = cycles_reference.whitted(settings.max_depth)
+        steps = tracer.trace_steps(scene, settings)
     elif technique == "ENVMAP":
         from ..kernels import envmap
 

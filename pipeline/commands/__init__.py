@@ -1,6 +1,7 @@
 """Every CLI command, one module each; importing this package registers them all."""
 
 from . import (  # noqa: F401
+    bump,
     compare,
     demo,
     envmap,

@@ -22,6 +22,8 @@ LADDERS = {
     "shadowmap": [["--map-size", "512"], ["--map-size", "0"], ["--map-size", "2048"],
                   ["--pcf", "3"]],
     "radiosity": [[]],
+    "bump": [["--shading", "flat"], ["--shading", "gouraud"], ["--shading", "phong"],
+             ["--shading", "bump", "--adaptive", "0"], ["--shading", "bump"]],
     "envmap": [["--parallax-steps", "0"], ["--face-size", "32"], ["--face-size", "0"],
                ["--face-size", "128"], ["--face-size", "256", "--face-samples", "2"]],
 }
@@ -39,6 +41,8 @@ def cycles_model(technique: str, settings: dict):
     from ...addon import cycles_reference as cr
 
     if technique == "trace":
+        return cr.whitted(int(settings.get("max_depth", 8)))
+    if technique == "bump":
         return cr.whitted(int(settings.get("max_depth", 8)))
     if technique == "envmap":  # true reflections: what the maps approximate
         return cr.whitted(int(settings["tracer"].get("max_depth", 8)))
