@@ -1,0 +1,140 @@
+"""Flat, Gouraud, Phong and bump-mapped shading against Cycles, on sample_blends/bump.blend.
+
+    .venv/bin/python bench/bump.py [--quick]
+
+Cycles runs the matched `whitted` model (addon/cycles_reference.py) and renders the scene's Bump
+nodes itself: the reference for every mode is the bumped scene, so the modes without bump show
+what leaving the relief out costs. A converged Cycles render (cached in out/cache) is the
+reference; the kernel's modes and Cycles' sample ladder run alternately, and for each mode the
+time Cycles needs to reach the same relative MSE is interpolated on its ladder (log-log).
+Writes out/bench/bump.json, out/bench/bump_speed.png/svg and out/bench/bump_modes.png.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _report import OUT_DIR, seconds_to_reach, versions, write_report  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENE = ROOT / "sample_blends" / "bump.blend"
+# (shading mode, adaptive edge samples): the lecture's four, then bump with edge samples.
+LADDER = [("flat", 0), ("gouraud", 0), ("phong", 0), ("bump", 0), ("bump", 2), ("bump", 4)]
+DEFAULT_SETTING = "bump + edges 4x4"  # the bump command's defaults
+
+
+def modes_figure(images: dict, path: Path) -> None:
+    """The lecture's comparison, side by side: flat, Gouraud, Phong, bump, and Cycles."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from classic_bake.pipeline.images import preview_rgb8
+
+    fig, axes = plt.subplots(1, len(images), figsize=(3.0 * len(images), 2.6))
+    for ax, (title, image) in zip(axes, images.items(), strict=True):
+        ax.imshow(preview_rgb8(image), interpolation="nearest")
+        ax.set_title(title, fontsize=10)
+        ax.axis("off")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="short ladders (smoke run)")
+    parser.add_argument("--max-ref-samples", type=int, default=1024,
+                        help="cap of the converged Cycles reference (default 1024)")
+    args = parser.parse_args()
+
+    import bpy
+
+    from classic_bake.addon import bridge
+    from classic_bake.addon import cycles_reference as cr
+    from classic_bake.kernels.bvh import BVH
+    from classic_bake.kernels.metrics import compare, rel_mse
+    from classic_bake.kernels.tracer import auto_settings, trace
+    from classic_bake.pipeline.charts import speed_accuracy_chart
+
+    bpy.ops.wm.open_mainfile(filepath=str(SCENE), load_ui=False, use_scripts=False)
+    resolution = bridge.render_resolution(bpy.context.scene)
+    snap = bridge.snapshot(resolution=resolution)
+    model = cr.whitted(auto_settings(snap).max_depth)
+    cr.warm_up()
+    ref = cr.reference(SCENE, model, "render", resolution=resolution,
+                       samples=128 if args.quick else None, max_samples=args.max_ref_samples,
+                       target_rel_mse=1e-4)
+    reference = ref.image
+    bpy.ops.wm.open_mainfile(filepath=str(SCENE), load_ui=False, use_scripts=False)
+    snap = bridge.snapshot(resolution=resolution)
+    start = time.perf_counter()
+    bvh = BVH.build(snap.triangles)
+    build_s = time.perf_counter() - start
+    ladder = LADDER[:4] if args.quick else LADDER
+    cycles_counts = [1, 2, 4, 8, 16] if args.quick else [1, 2, 4, 8, 16, 32, 64, 128]
+    kernel_rows, cycles_rows, views = [], [], {}
+    for step in range(max(len(ladder), len(cycles_counts))):  # alternate the two sides
+        if step < len(ladder):
+            mode, adaptive = ladder[step]
+            settings = auto_settings(snap, shading=mode, adaptive=adaptive)
+            start = time.perf_counter()
+            image = trace(snap, settings, bvh=bvh, resolution=resolution).image
+            seconds = time.perf_counter() - start + build_s
+            name = f"{mode} + edges {adaptive}x{adaptive}" if adaptive else mode
+            m = compare(image, reference)
+            kernel_rows.append({"setting": name, "seconds": seconds, "rel_mse": m.rel_mse,
+                                "flip": m.flip})
+            if adaptive == 0:
+                views[mode] = image
+        if step < len(cycles_counts):
+            image, seconds = cr.render_camera(bpy.context.scene, model, cycles_counts[step],
+                                              resolution=resolution)
+            cycles_rows.append({"samples": cycles_counts[step], "seconds": seconds,
+                                "rel_mse": rel_mse(image, reference)})
+    for row in kernel_rows:
+        reach = seconds_to_reach(row["rel_mse"], cycles_rows)
+        row["cycles_seconds_to_same_error"] = reach
+        row["ratio"] = None if reach is None else reach / row["seconds"]
+    OUT_DIR.mkdir(parents=True, exist_ok=True)
+    views["Cycles"] = reference
+    modes_figure({k.capitalize() if k != "Cycles" else "Cycles (reference)": v
+                  for k, v in views.items()}, OUT_DIR / "bump_modes.png")
+    speed_accuracy_chart(kernel_rows, cycles_rows, OUT_DIR / "bump_speed",
+                         title=f"Shading modes vs Cycles' Bump nodes, {resolution[0]}x{resolution[1]}",
+                         kernel_label="tracer: flat, Gouraud, Phong, bump (+ edge samples)",
+                         cycles_label="Cycles (samples per pixel)")
+    by_name = {r["setting"]: r for r in kernel_rows}
+    reached = [r["ratio"] for r in kernel_rows if r["ratio"] is not None and "bump" in r["setting"]]
+    ratios = {"cycles_vs_bump_seconds_to_same_rel_mse": max(reached) if reached else None,
+              "cycles_vs_bump_seconds_to_same_rel_mse_default_settings":
+                  by_name.get(DEFAULT_SETTING, {}).get("ratio"),
+              "phong_vs_bump_rel_mse": by_name["phong"]["rel_mse"] / by_name["bump"]["rel_mse"],
+              "gouraud_vs_bump_rel_mse": by_name["gouraud"]["rel_mse"] / by_name["bump"]["rel_mse"]}
+    figures = {"resolution": resolution, "bvh_build_s": build_s,
+               "reference": {"samples": ref.samples, "noise_rel_mse": ref.noise_rel_mse,
+                             "seconds": ref.seconds, "cache_hit": ref.cache_hit},
+               "kernel": kernel_rows, "cycles": cycles_rows}
+    noise = ref.noise_rel_mse if ref.noise_rel_mse is not None else float("nan")
+    print(f"\n{resolution[0]}x{resolution[1]}; reference {ref.samples} samples, noise relMSE "
+          f"{noise:.2e}")
+    print(f"{'setting':20s} {'s':>6s} {'relMSE':>9s} {'FLIP':>6s} {'Cycles s':>9s} {'ratio':>6s}")
+    for r in kernel_rows:
+        reach = r["cycles_seconds_to_same_error"]
+        print(f"{r['setting']:20s} {r['seconds']:6.2f} {r['rel_mse']:9.2e} "
+              f"{(r['flip'] if r['flip'] is not None else float('nan')):6.3f} "
+              f"{(reach or float('nan')):9.2f} {(r['ratio'] or float('nan')):6.2f}")
+    print(f"{'Cycles samples':20s} {'s':>6s} {'relMSE':>9s}")
+    for r in cycles_rows:
+        print(f"{r['samples']:<20d} {r['seconds']:6.2f} {r['rel_mse']:9.2e}")
+    write_report("bump", ratios, figures, versions("bpy"))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
