@@ -30,7 +30,7 @@ from typing import Literal
 
 import numpy as np
 
-from .scene import Material, Texture
+from .scene import Material, Scene, Texture
 from .textures import sample_texture
 
 # Blender turns a colour into a float (the Bump node's Height) by its luminance weights.
@@ -166,3 +166,21 @@ def perturb(material: Material, n: np.ndarray, triangles: np.ndarray, corner_uvs
     slope = height_slope(material.height_texture, uv)
     return bumped_normals(n, dpdu, dpdv, slope, material.bump_distance,
                           max(float(material.bump_strength), 0.0))
+
+
+def scene_normals(scene: Scene, tri: np.ndarray, bary: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """(N, 3) shading normals at N points of `scene` given as triangles (N,) and barycentrics
+    (N, 3) (weights of corners 0, 1, 2): unit normals n perturbed by each point's material (`perturb`);
+    points of materials without relief keep n. What every view that shades with normals calls."""
+    materials = scene.material_ids[tri]
+    out = n
+    for m in np.unique(materials):
+        if not has_bump(scene.materials[m]):
+            continue
+        if out is n:
+            out = n.copy()
+        rows = np.nonzero(materials == m)[0]
+        corner_uvs = scene.uv[tri[rows]].astype(np.float64)
+        uv = np.einsum("nk,nkc->nc", bary[rows], corner_uvs)
+        out[rows] = perturb(scene.materials[m], n[rows], scene.triangles[tri[rows]], corner_uvs, uv)
+    return out

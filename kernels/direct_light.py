@@ -21,6 +21,7 @@ import numpy as np
 
 from . import lights as light_units
 from .bake_targets import BakeTargets
+from .bump import scene_normals
 from .camera_view import background_and_fragments
 from .scene import Scene, interpolated_normals
 from .shadowmap import (
@@ -209,7 +210,7 @@ def render_steps(scene: Scene, settings: DirectLightSettings, resolution=None,
         yield image
         return
     rows, cols, tri, bary, points, d, t = f.rows, f.cols, f.tri, f.bary, f.points, f.dirs, f.depth
-    normals = interpolated_normals(scene, tri, bary)
+    normals = scene_normals(scene, tri, bary, interpolated_normals(scene, tri, bary))
     geo = f.geometric.copy()
     geo[f.back] *= -1  # seen from behind: shade the side we see
     normals[np.einsum("ij,ij->i", normals, d) > 0] *= -1

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import lights as light_units
-from .bump import SHADING_MODES, has_bump, perturb
+from .bump import SHADING_MODES, scene_normals
 from .bvh import BVH
 from .camera import Camera, camera_ray_lines, camera_rays
 from .optics import fresnel_dielectric, fresnel_schlick, reflect, refract
@@ -320,7 +320,6 @@ def _surface(scene: Scene, tri_normals, origins, dirs, hits, shading: str = "bum
     w = 1.0 - u - v
     ng = tri_normals[tri]
     material = scene.material_ids[tri]
-    uv = None
     if shading == "flat":
         ns = ng.copy()
     else:
@@ -329,15 +328,7 @@ def _surface(scene: Scene, tri_normals, origins, dirs, hits, shading: str = "bum
         length = np.linalg.norm(ns, axis=1, keepdims=True)
         ns = np.where(length > MIN_NORMAL_LENGTH, ns / np.maximum(length, MIN_NORMAL_LENGTH), ng)
     if shading == "bump":
-        for m in np.unique(material):
-            if not has_bump(scene.materials[m]):
-                continue
-            if uv is None:
-                cuv = scene.uv[tri].astype(np.float64)
-                uv = w * cuv[:, 0] + u * cuv[:, 1] + v * cuv[:, 2]
-            rows = np.nonzero(material == m)[0]
-            ns[rows] = perturb(scene.materials[m], ns[rows], scene.triangles[tri[rows]],
-                               scene.uv[tri[rows]], uv[rows])
+        ns = scene_normals(scene, tri, np.concatenate([w, u, v], axis=1), ns)
     front = np.einsum("ij,ij->i", dirs, ng) < 0.0
     side = np.where(front, 1.0, -1.0)[:, None]
     ng = ng * side
@@ -346,6 +337,7 @@ def _surface(scene: Scene, tri_normals, origins, dirs, hits, shading: str = "bum
     away = np.einsum("ij,ij->i", ns, dirs) > 0.0
     ns[away] = ng[away]
     albedo = np.empty((len(tri), 3))
+    uv = None
     for m in np.unique(material):
         rows = material == m
         mat = scene.materials[m]
