@@ -51,6 +51,7 @@ import numpy as np
 
 from . import patches as patching
 from . import shafts
+from .bump import scene_normals
 from .form_factors import (
     RAY_OFFSET_REL,
     pair_kernel,
@@ -571,10 +572,11 @@ def shading_normals(scene: Scene, tri: np.ndarray, bary: np.ndarray, geometric: 
                     ) -> np.ndarray:
     """(M, 3) unit shading normals at receivers (triangles (M,), barycentrics (M, 3)): the
     corner normals interpolated, as Cycles shades a smooth mesh (its DIFFUSE bake weighs light by
-    the cosine to this normal, not the facet's), turned to the side of the geometric normals
-    (M, 3) where they point behind the face (a corner normal can, at a sharp fold). Flat faces'
-    corner normals are their face normal, so nothing changes there."""
-    normals = interpolated_normals(scene, tri, bary, geometric)
+    the cosine to this normal, not the facet's), perturbed by the material's Bump or Normal Map
+    node as Cycles' bake does (`bump.scene_normals`), turned to the side of the geometric
+    normals (M, 3) where they point behind the face (a corner normal can, at a sharp fold). Flat
+    faces' corner normals are their face normal, so nothing changes there."""
+    normals = scene_normals(scene, tri, bary, interpolated_normals(scene, tri, bary, geometric))
     back = np.einsum("mc,mc->m", normals, geometric) < 0.0
     normals[back] *= -1.0
     return normals

@@ -233,6 +233,32 @@ def test_camera_sees_the_back_of_a_sheet_lit_from_behind():
     np.testing.assert_allclose(_rendered(glowing, lit), 2.0, rtol=1e-6)
 
 
+def test_final_gather_shades_with_the_bump_map():
+    """A sunlit plane whose Bump node holds a height ramp (slope s per UV unit, distance D; UV = xy
+    here): the gathered light follows the tilted normal as Cycles' bake does,
+    rho / pi x E / sqrt(1 + (D s)^2) at every fragment, where the plain plane has rho / pi x E."""
+    rho, sun_e, slope, distance = 0.5, 2.0, 0.8, 1.5
+    centres = (np.arange(64) + 0.5) / 64
+    pixels = np.ones((64, 64, 4), np.float32)
+    pixels[..., :3] = slope * centres[None, :, None]
+    ramp = Texture(kind="IMAGE", pixels=pixels, extension="EXTEND")
+    plane = quad([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]])
+    sun = Light(name="Sun", kind="SUN", position=np.zeros(3), direction=np.array([0.0, 0.0, -1.0]),
+                axis_x=np.array([1.0, 0.0, 0.0]), axis_y=np.array([0.0, 1.0, 0.0]),
+                irradiance=np.full(3, sun_e))
+    cam = ortho_camera([0.5, 0.5, 2.0], [0, 0, -1], [0, 1, 0], 0.5, (6, 6))
+    results = {}
+    for d in (distance, 0.0):
+        mat = Material(name="bumpy", base_color=np.full(3, rho, np.float32), specular=0.0,
+                       height_texture=ramp, bump_distance=d)
+        scene = build([(plane, mat)], camera=cam, lights=[sun])
+        results[d] = _rendered(scene, solve_radiosity(scene, RadiositySettings(patch_budget=4,
+                                                                               **FAST)))
+    np.testing.assert_allclose(results[distance], rho / np.pi * sun_e / np.sqrt(
+        1 + (distance * slope) ** 2), rtol=2e-4)
+    np.testing.assert_allclose(results[0.0], rho / np.pi * sun_e, rtol=1e-5)
+
+
 def test_lit_room_seen_from_outside_is_black():
     """An inward box with an emissive square under its ceiling, the camera outside: every
     fragment is a wall's back, which no light reaches (the lit inside shows nowhere)."""
