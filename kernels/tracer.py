@@ -65,6 +65,8 @@ CONTRAST_FLOOR = 1e-2
 # An environment map read for reflected rays: (N, 3) world points, (N, 3) unit directions ->
 # (N, 3) radiance W/(m^2 sr) arriving at the points along the directions.
 EnvironmentLookup = Callable[[np.ndarray, np.ndarray], np.ndarray]
+# Rays that are sub-samples of pixels: (stratum of each ray (N,) int, number of strata m).
+Strata = tuple[np.ndarray, int]
 
 
 @dataclass(frozen=True)
@@ -161,6 +163,8 @@ class _Emitters:
     area_normals: np.ndarray  # (S, 3) emitting side's normal
     area_radiance_da: np.ndarray  # (S, 3) radiance times the sample's area, W/sr
     area_two_sided: np.ndarray  # (S,) bool: emissive meshes emit from both sides in Cycles
+    area_local: np.ndarray  # (S,) int: the sample's index among its emitter's samples
+    area_count: np.ndarray  # (S,) int: how many samples its emitter has
 
 
 def _scene_scale(scene: Scene) -> float:
@@ -178,7 +182,7 @@ def _stratified_unit_square(n: int) -> np.ndarray:
 
 
 def _emitters(scene: Scene, settings: TracerSettings) -> _Emitters:
-    points, normals, power, two_sided = [], [], [], []
+    points, normals, power, two_sided, local, count = [], [], [], [], [], []
     n = settings.area_samples
     for light in scene.lights:
         if light.kind != "AREA":
@@ -192,6 +196,8 @@ def _emitters(scene: Scene, settings: TracerSettings) -> _Emitters:
         normals.append(np.tile(light.direction, (len(samples), 1)))
         power.append(np.tile(light.radiance * area / len(samples), (len(samples), 1)))
         two_sided.append(np.zeros(len(samples), bool))
+        local.append(np.arange(len(samples)))
+        count.append(np.full(len(samples), len(samples)))
     emissive = [k for k, m in enumerate(scene.materials) if m.is_emissive]
     if emissive:
         tri_ids = np.nonzero(np.isin(scene.material_ids, emissive))[0]
@@ -210,11 +216,15 @@ def _emitters(scene: Scene, settings: TracerSettings) -> _Emitters:
         normals.append(np.repeat(ng, k, axis=0))
         power.append(np.repeat(radiance * (area / k)[:, None], k, axis=0))
         two_sided.append(np.ones(len(pts), bool))
+        local.append(np.tile(np.arange(k), len(tri_ids)))
+        count.append(np.full(len(pts), k))
     if points:
         return _Emitters([li for li in scene.lights if li.kind != "AREA"], np.concatenate(points),
-                         np.concatenate(normals), np.concatenate(power), np.concatenate(two_sided))
+                         np.concatenate(normals), np.concatenate(power), np.concatenate(two_sided),
+                         np.concatenate(local), np.concatenate(count))
     z = np.zeros((0, 3))
-    return _Emitters(list(scene.lights), z, z, z, np.zeros(0, bool))
+    none = np.zeros(0, np.int64)
+    return _Emitters(list(scene.lights), z, z, z, np.zeros(0, bool), none, none)
 
 
 @dataclass
@@ -404,12 +414,13 @@ class Tracer:
         self.stats.shadow_rays += len(origins)
         return ~self.shadow_bvh.occluded(origins, directions, 0.0, t_max)
 
-    def direct(self, h: _Hits, wo: np.ndarray, diffuse_w: np.ndarray, spec_f0, spec_rough
-               ) -> tuple[np.ndarray, np.ndarray]:
+    def direct(self, h: _Hits, wo: np.ndarray, diffuse_w: np.ndarray, spec_f0, spec_rough,
+               strata: Strata | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Light from every light at the hits, shadow rays included: (radiance, lambert), each (N, 3).
 
         radiance = albedo * lambert + specular; lambert is the diffuse part for a white base
-        colour (diffuse weight / pi * sum of shadowed irradiance).
+        colour (diffuse weight / pi * sum of shadowed irradiance). strata: each hit's stratum
+        and their count m, for area lights (`_area_direct`).
         """
         out = np.zeros_like(h.p)
         lambert = np.zeros_like(h.p)
@@ -439,12 +450,13 @@ class Tracer:
                     np.einsum("ij,ij->i", ns[sub], to_l[sub]), 1e-6)[:, None]
                 out[idx[sub]] += spec * vis[:, None]
         if len(self.emitters.area_points):
-            lambert[idx] += self._area_direct(origin, ns, brdf_w)
+            sub_strata = None if strata is None else (strata[0][idx], strata[1])
+            lambert[idx] += self._area_direct(origin, ns, brdf_w, sub_strata)
         out += h.albedo * lambert
         return out, lambert
 
-    def gouraud_direct(self, h: _Hits, hits, eye: np.ndarray, diffuse_w, spec_f0, spec_rough
-                       ) -> tuple[np.ndarray, np.ndarray]:
+    def gouraud_direct(self, h: _Hits, hits, eye: np.ndarray, diffuse_w, spec_f0, spec_rough,
+                       strata: Strata | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Gouraud (per-vertex) shading: `direct` evaluated at the hit triangle's three corners,
         with their own normals, shadow rays and view directions (towards `eye`, each ray's
         origin), then interpolated with the hit's barycentrics. The base colour stays per
@@ -463,16 +475,30 @@ class Tracer:
             wo = eye - p
             wo /= np.maximum(np.linalg.norm(wo, axis=1, keepdims=True), 1e-12)
             corner = _Hits(p, h.ng, n, h.front, h.material, h.albedo)
-            lit_k, lambert_k = self.direct(corner, wo, diffuse_w, spec_f0, spec_rough)
+            lit_k, lambert_k = self.direct(corner, wo, diffuse_w, spec_f0, spec_rough, strata)
             lit += w[:, None] * lit_k
             lambert += w[:, None] * lambert_k
         return lit, lambert
 
-    def _area_direct(self, origin, ns, brdf_d) -> np.ndarray:
+    def _area_direct(self, origin, ns, brdf_d, strata: Strata | None = None) -> np.ndarray:
         """Light from area lights and emissive triangles: every emitter sample against every hit,
-        EMITTER_BLOCK samples at a time, with one batch of shadow rays per block."""
+        EMITTER_BLOCK samples at a time, with one batch of shadow rays per block.
+
+        strata (stratum (N,), m): the hits are m sub-samples of their pixels, and a hit in
+        stratum k takes only its emitters' samples j with j = k (mod m), weighted m: the pixel's
+        m sub-samples share out each emitter's stratified samples instead of each casting all
+        of them (m times fewer shadow rays for the same samples per pixel). Emitters whose
+        sample count m does not divide keep every sample for every hit.
+        """
         em = self.emitters
         out = np.zeros_like(origin)
+        if strata is not None and strata[1] > 1:
+            stratum, m = strata
+            shared = em.area_count % m == 0  # (S,)
+            keep = ~shared[:, None] | (em.area_local[:, None] % m == stratum[None, :] % m)
+            scale = np.where(shared, float(m), 1.0)  # (S,)
+        else:
+            keep, scale = None, None
         for first in range(0, len(em.area_points), EMITTER_BLOCK):
             block = slice(first, first + EMITTER_BLOCK)
             delta = em.area_points[block][:, None, :] - origin[None, :, :]  # (B, N, 3)
@@ -483,6 +509,8 @@ class Tracer:
             cos_e = -np.einsum("bnj,bj->bn", to_l, em.area_normals[block])
             cos_e = np.where(em.area_two_sided[block][:, None], np.abs(cos_e), cos_e)
             g = np.clip(cos_r, 0, None) * np.clip(cos_e, 0, None) / np.maximum(d2, 1e-12)
+            if keep is not None:
+                g = g * keep[block] * scale[block][:, None]
             b_idx, n_idx = np.nonzero(g > 0)
             if len(n_idx) == 0:
                 continue
@@ -521,7 +549,8 @@ class Tracer:
 
     def radiance(self, origins: np.ndarray, dirs: np.ndarray,
                  primary_ids: np.ndarray | None = None, footprint: _Footprint | None = None,
-                 untextured: np.ndarray | None = None) -> np.ndarray:
+                 untextured: np.ndarray | None = None, strata: Strata | None = None
+                 ) -> np.ndarray:
         """Radiance (N, 3) arriving at the camera along N primary rays.
 
         primary_ids: optional (N,) int64 filled with what each camera ray hit (object and
@@ -530,6 +559,8 @@ class Tracer:
         texture's mean over the cell (`_filtered_albedo`), not its value at the ray's point.
         untextured: optional (N, 3) filled with the same radiance but a white base colour at the
         camera hits: what edge detection compares, so texture detail (filtered) is no edge.
+        strata: (stratum (N,), m) when the rays are m sub-samples of pixels: area lights' samples
+        are shared out among them (`_area_direct`).
         """
         s = self.settings
         result = np.zeros((len(origins), 3))
@@ -576,10 +607,12 @@ class Tracer:
             spec_f0 = None
             if has_spec.any():
                 spec_f0 = np.where(has_spec[:, None], f0_dielectric[:, None], 0.0) * np.ones((1, 3))
+            hit_strata = None if strata is None else (strata[0][pixel], strata[1])
             if s.shading == "gouraud":
-                lit, lambert = self.gouraud_direct(h, hits, origins, dielectric, spec_f0, rough)
+                lit, lambert = self.gouraud_direct(h, hits, origins, dielectric, spec_f0, rough,
+                                                   hit_strata)
             else:
-                lit, lambert = self.direct(h, wo, dielectric, spec_f0, rough)
+                lit, lambert = self.direct(h, wo, dielectric, spec_f0, rough, hit_strata)
             own = self.emission[m] + lit
             smooth = rough < s.mirror_roughness
             # Mirror and refraction directions about the (smooth) shading normal, falling back to
@@ -698,7 +731,8 @@ def trace_steps(scene: Scene, settings: TracerSettings, bvh: BVH | None = None,
         footprint = None if settings.texture_filter == 1 else _Footprint(
             scene.camera, width, height, col + ox, row + oy, 1.0 / n, grid)
         acc += tracer.radiance(o.reshape(-1, 3), d.reshape(-1, 3), first_ids if k == 0 else None,
-                               footprint=footprint, untextured=flat_k)
+                               footprint=footprint, untextured=flat_k,
+                               strata=(np.full(height * width, k), passes))
         flat += flat_k
         yield 0.6 * (k + 1) / passes
     pixels = acc / passes
@@ -720,9 +754,12 @@ def trace_steps(scene: Scene, settings: TracerSettings, bvh: BVH | None = None,
             dirs = np.concatenate([d.reshape(-1, 3)[sel] for _, d in rays])
             del rays
             radiance = np.empty((len(origins), 3))
+            stratum = np.repeat(np.arange(len(grid)), len(sel))  # the sub-sample of each ray
             for first in range(0, len(origins), EDGE_WAVEFRONT):
                 last = first + EDGE_WAVEFRONT
-                radiance[first:last] = tracer.radiance(origins[first:last], dirs[first:last])
+                radiance[first:last] = tracer.radiance(
+                    origins[first:last], dirs[first:last],
+                    strata=(stratum[first:last], len(grid)))
                 yield 0.6 + 0.4 * min(last, len(origins)) / len(origins)
             pixels[sel] = radiance.reshape(len(grid), len(sel), 3).mean(axis=0)
     image[...] = pixels.reshape(height, width, 3)

@@ -10,9 +10,18 @@ import numpy as np
 import pytest
 from scene_builder import build, ortho_camera, persp_camera, quad, uv_sphere
 
+from classic_bake.kernels.bvh import BVH
+from classic_bake.kernels.camera import camera_rays
 from classic_bake.kernels.metrics import rel_mse
 from classic_bake.kernels.scene import Light, Material, Texture
-from classic_bake.kernels.tracer import TracerSettings, auto_settings, point_light, trace
+from classic_bake.kernels.tracer import (
+    Tracer,
+    TracerSettings,
+    _stratified_unit_square,
+    auto_settings,
+    point_light,
+    trace,
+)
 
 REF = json.loads((Path(__file__).resolve().parents[3] / "shared/reference/fresnel_snell.json").read_text())
 EXACT = TracerSettings(max_depth=48, adaptive=0, min_weight=0.0)
@@ -236,3 +245,36 @@ def test_texture_filter_matches_supersampling_in_perspective():
     point = trace(scene, TracerSettings(max_depth=0, adaptive=0, texture_filter=1)).image
     assert rel_mse(filtered, reference) < 1.5e-3
     assert rel_mse(point, reference) > 0.1
+
+
+def test_edge_sub_samples_share_out_an_area_lights_samples():
+    # Two halves of one grey (two objects: an edge down the middle) under a square area light of
+    # 4 x 4 samples and nothing in between. Each edge pixel's 4 x 4 sub-samples take one light
+    # sample each (weighted 16) instead of all 16: one shadow ray per sub-sample, and the pixel
+    # still sums every light sample once. Against every sub-sample taking every light sample,
+    # the pixel differs by 0.36% (sub-sample position and light sample now go together); its
+    # centre sample alone by 0.06%.
+    grey_a = Material(name="a", base_color=np.full(3, 0.5, np.float32), specular=0.0)
+    grey_b = Material(name="b", base_color=np.full(3, 0.5, np.float32), specular=0.0)
+    left = quad([(-1, -1, 0), (0, -1, 0), (0, 1, 0), (-1, 1, 0)])
+    right = quad([(0, -1, 0), (1, -1, 0), (1, 1, 0), (0, 1, 0)])
+    light = Light(name="Panel", kind="AREA", position=np.array([0.3, 0.1, 2.0]),
+                  direction=np.array([0.0, 0.0, -1.0]), axis_x=np.array([1.0, 0.0, 0.0]),
+                  axis_y=np.array([0.0, 1.0, 0.0]), radiance=np.full(3, 5.0), shape="SQUARE",
+                  size_x=1.0, size_y=1.0)
+    cam = ortho_camera((0, 0, 3), (0, 0, -1), (0, 1, 0), 1.6, (16, 16))
+    scene = build([(left, grey_a), (right, grey_b)], cam, [light])
+    settings = TracerSettings(max_depth=0, adaptive=0, area_samples=4)
+    centres = trace(scene, settings)
+    edges = trace(scene, TracerSettings(max_depth=0, adaptive=4, area_samples=4))
+    count = edges.stats.edge_pixels
+    assert count == 32  # the two columns along the middle
+    assert edges.stats.shadow_rays == 256 * 16 + count * 16 * 1
+    changed = np.abs(edges.image - centres.image).max(axis=2) > 0
+    assert changed.sum() == count  # the edge pixels, resampled
+    tracer = Tracer(scene, BVH.build(scene.triangles), settings)
+    full = np.zeros((16, 16, 3))
+    for ox, oy in _stratified_unit_square(4):  # every sub-sample against every light sample
+        o, d = camera_rays(cam, 16, 16, offsets=(ox, oy))
+        full += tracer.radiance(o.reshape(-1, 3), d.reshape(-1, 3)).reshape(16, 16, 3) / 16
+    np.testing.assert_allclose(edges.image[changed], full[changed], rtol=5e-3)
