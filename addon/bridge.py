@@ -429,8 +429,12 @@ class _MaterialReader:
             tex = self._texture(tex_node, ignored, "Bump height") if tex_node else None
             if tex_node is not None and tex is None:
                 ignored.append(f"bump height from '{tex_node.bl_idname}' is not modelled")
+            if node.inputs["Normal"].is_linked:
+                ignored.append("a Bump node's Normal input (chained bumps) is not modelled")
+            distance = self._value(node.inputs["Distance"], ignored)
+            # Invert: the height pushes the surface inwards, the same as a negated distance.
             return (None, tex, self._value(node.inputs["Strength"], ignored),
-                    self._value(node.inputs["Distance"], ignored))
+                    -distance if node.invert else distance)
         ignored.append(f"normal input from '{node.bl_idname}' is not modelled")
         return None, None, 1.0, 1.0
 

@@ -75,3 +75,23 @@ def test_bumped_view_matches_cycles_bump_nodes(open_sample):
               for mode in ("phong", "bump")}
     print("relMSE against Cycles", errors)
     assert errors["bump"] < 0.002 and errors["bump"] < errors["phong"] / 4
+
+
+def test_bump_node_settings_reach_the_kernel(open_sample):
+    """Distance and Strength as set; Invert pushes the relief inwards (a negated distance); a
+    chained bump (the node's Normal input linked) is reported as not modelled."""
+    open_sample("bump")
+    bricks = bpy.data.materials["Bricks"]
+    node = next(n for n in bricks.node_tree.nodes if n.type == "BUMP")
+    node.inputs["Distance"].default_value = 0.02
+    node.inputs["Strength"].default_value = 0.5
+    mat = next(m for m in bridge.snapshot().materials if m.name == "Bricks")
+    assert mat.height_texture is not None
+    assert abs(mat.bump_distance - 0.02) < 1e-7 and abs(mat.bump_strength - 0.5) < 1e-7
+    node.invert = True
+    assert abs(next(m for m in bridge.snapshot().materials
+                    if m.name == "Bricks").bump_distance + 0.02) < 1e-7
+    chained = bricks.node_tree.nodes.new("ShaderNodeBump")
+    bricks.node_tree.links.new(chained.outputs["Normal"], node.inputs["Normal"])
+    mat = next(m for m in bridge.snapshot().materials if m.name == "Bricks")
+    assert any("chained" in why for why in mat.ignored)
