@@ -25,7 +25,7 @@ LADDERS = {
     "bump": [["--shading", "flat"], ["--shading", "gouraud"], ["--shading", "phong"],
              ["--shading", "bump", "--adaptive", "0"], ["--shading", "bump"]],
     "envmap": [["--parallax-steps", "0"], ["--face-size", "32"], ["--face-size", "0"],
-               ["--face-size", "128"], ["--face-size", "256", "--face-samples", "2"]],
+               ["--face-size", "128"]],
 }
 CYCLES_SAMPLES = [1, 2, 4, 8, 16, 32, 64]
 

@@ -74,7 +74,8 @@ def run(ctx: RunContext) -> None:
     ctx.record.settings = {**asdict(settings), "tracer": asdict(tracer)}
     ctx.record.sizes = {"width": width, "height": height, "triangles": scene.triangle_count,
                         "maps": maps, "face_rays": result.face_rays}
-    ctx.record.extra["seconds"] = result.seconds
+    # Not "seconds": metrics.json keeps that key for the phases and the total.
+    ctx.record.extra["stage_seconds"] = result.seconds
     ctx.record.extra["stats"] = result.trace.stats.as_dict()
     listed = ", ".join(f"{n} ({m['face_size']} texels per face)" for n, m in maps.items())
     ctx.say(f"cube maps of {listed}: {result.face_rays} face rays in {result.seconds['capture']:.2f} s; "

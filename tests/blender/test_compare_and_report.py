@@ -79,3 +79,15 @@ def test_compare_button_shows_figures_and_an_error_image(addon, open_sample):
     error = bridge.image_pixels(bpy.data.images["Classic Bake Error"])
     assert error.shape == (24, 32, 4) and error[..., 0].max() > 0
     assert "Classic Bake Cycles View" in bpy.data.images
+
+
+@pytest.mark.parametrize("technique, scene, rungs", [("envmap", "env_room", 4), ("bump", "bump", 5)])
+def test_compare_runs_the_ladders_of_the_mapping_techniques(tmp_path, technique, scene, rungs):
+    done = run_cli("compare", ROOT / "sample_blends" / f"{scene}.blend", "--technique", technique,
+                   "--resolution", "32", "24", "--max-samples", "2", "--out", tmp_path,
+                   env={"CLASSIC_BAKE_QUALITY_DB": str(tmp_path / "ladders.json")})
+    assert done.returncode == 0, done.stderr[-2000:]
+    comparison = json.loads((tmp_path / "metrics.json").read_text())["comparison"]
+    kernel = comparison["ladder"]["kernel"]
+    assert len(kernel) == rungs and all(r["seconds"] > 0 and r["rel_mse"] >= 0 for r in kernel)
+    assert (tmp_path / "speed_accuracy.png").stat().st_size > 0

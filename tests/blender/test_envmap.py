@@ -67,6 +67,7 @@ def test_cli_envmap_writes_view_faces_and_sizes(tmp_path):
     metrics = json.loads((tmp_path / "metrics.json").read_text())
     assert metrics["sizes"]["maps"]["MirrorSphere"]["face_size"] == 24
     assert metrics["sizes"]["face_rays"] == 6 * 26 * 26  # the faces and their one-texel borders
+    assert metrics["seconds"]["total"] > 0 and metrics["stage_seconds"]["capture"] > 0
 
 
 def test_cli_envmap_refuses_an_unknown_object(tmp_path):
