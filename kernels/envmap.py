@@ -58,6 +58,9 @@ SEARCH_OCTAVES = 12
 # larger from the near side, 2x at two radii (a floor under a ball on a stand). On the sample
 # room the mirror's error fell 0.164 -> 0.099 from 32 to 64 texels, 0.045 at 128 (README).
 PARALLAX_MAGNIFICATION = 2.0
+# The automatic face size renders at most this many face texels per camera pixel, all six faces
+# together: a map of several times the view's own rays is more than one view can show.
+VIEW_TEXEL_SHARE = 4.0
 
 
 @dataclass(frozen=True)
@@ -275,14 +278,15 @@ def auto_face_size(scene: Scene, index: int, resolution: tuple[int, int] | None 
     an object at distance d; on a sphere of radius rho the normal turns by d a / rho and the
     reflection by a + 2 d a / rho. A face texel at the face's centre spans 2 / S radians, so
     S = 2 / (a (1 + 2 d / rho)), the bounding sphere standing in for the object's curvature;
-    rounded up to a multiple of 8 and kept in [MIN_FACE_SIZE, MAX_FACE_SIZE]. Without a camera:
-    128 (one texel per 0.7 degrees).
+    rounded up to a multiple of 8 and kept in [MIN_FACE_SIZE, MAX_FACE_SIZE], and to at most
+    VIEW_TEXEL_SHARE x W x H texels over the six faces. Without a camera: 128 (one texel per
+    0.7 degrees).
     """
     factor = PARALLAX_MAGNIFICATION if corrected else 1.0
     cam = scene.camera
     if cam is None:
         return 128
-    width = (resolution or cam.resolution)[0]
+    width, height = resolution or cam.resolution
     centre, rho = object_bounds(scene, index)
     if cam.kind == "ORTHO":
         # A pixel moves the hit point by a fixed pixel width w; the reflection turns by 2 w / rho.
@@ -292,7 +296,10 @@ def auto_face_size(scene: Scene, index: int, resolution: tuple[int, int] | None 
         d = float(np.linalg.norm(centre - cam.position))
         turn = a * (1.0 + 2.0 * d / max(rho, 1e-9))
     size = int(np.ceil(2.0 * factor / turn / 8.0) * 8)
-    return int(np.clip(size, MIN_FACE_SIZE, MAX_FACE_SIZE))
+    # A mirror filling the view asks for one texel per pixel over the whole cube, most of which it
+    # never shows: no more face texels than VIEW_TEXEL_SHARE x the view's pixels.
+    budget = int(np.sqrt(VIEW_TEXEL_SHARE * width * height / 6.0) // 8 * 8)
+    return int(np.clip(size, MIN_FACE_SIZE, max(MIN_FACE_SIZE, min(MAX_FACE_SIZE, budget))))
 
 
 def hidden_bvh(scene: Scene, hidden: Sequence[int]) -> BVH:

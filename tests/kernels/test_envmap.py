@@ -3,7 +3,7 @@ shading, and the technique's failure mode (parallax) against true reflection ray
 
 import numpy as np
 import pytest
-from scene_builder import build, ortho_camera, persp_camera, tessellated_box, uv_sphere
+from scene_builder import build, ortho_camera, persp_camera, quad, tessellated_box, uv_sphere
 
 from classic_bake.kernels import cubemap, envmap
 from classic_bake.kernels.bvh import BVH
@@ -202,6 +202,12 @@ def test_auto_face_size_follows_the_object_on_screen():
     far = build(parts, persp_camera((0, -10, 0), (0, 1, 0), (0, 0, 1), np.radians(50), (640, 640)))
     assert envmap.auto_face_size(far, 1) < sizes[2]  # smaller on screen: fewer texels
     assert envmap.auto_face_size(build(parts), 1) == 128  # no camera
+    # A flat mirror filling a small view: one texel per pixel would be 1024 texels a face; the
+    # six faces stay within four times the view's pixels.
+    wall = [(quad([(-5, 1, -5), (5, 1, -5), (5, 1, 5), (-5, 1, 5)]), CHROME)]
+    near = build(wall, persp_camera((0, 0, 0), (0, 1, 0), (0, 0, 1), np.radians(50), (160, 120)))
+    size = envmap.auto_face_size(near, 0)
+    assert 6 * size**2 <= envmap.VIEW_TEXEL_SHARE * 160 * 120 and size >= 64
     for s in sizes:
         assert envmap.MIN_FACE_SIZE <= s <= envmap.MAX_FACE_SIZE and s % 8 == 0
 
