@@ -97,3 +97,45 @@ def seconds_to_reach(error: float, ladder: list[dict], metric: str = "rel_mse") 
     if pts and error >= pts[0][1]:
         return pts[0][0]  # already reached by the cheapest rung
     return None
+
+
+def whitted_reference(scene: Path, quick: bool, max_samples: int) -> tuple:
+    """Open `scene`, and fetch (or render and cache) its converged Cycles render under the
+    Whitted tracer's model at the scene's own resolution and the tracer's automatic depth.
+
+    Returns (resolution (W, H), model, reference) with the file opened again afterwards (the
+    reference render leaves Cycles' settings as it found them, but not the open file)."""
+    import bpy
+
+    from classic_bake.addon import bridge
+    from classic_bake.addon import cycles_reference as cr
+    from classic_bake.kernels.tracer import auto_settings
+
+    bpy.ops.wm.open_mainfile(filepath=str(scene), load_ui=False, use_scripts=False)
+    resolution = bridge.render_resolution(bpy.context.scene)
+    model = cr.whitted(auto_settings(bridge.snapshot(resolution=resolution)).max_depth)
+    cr.warm_up()
+    ref = cr.reference(scene, model, "render", resolution=resolution,
+                       samples=128 if quick else None, max_samples=max_samples,
+                       target_rel_mse=1e-4)
+    bpy.ops.wm.open_mainfile(filepath=str(scene), load_ui=False, use_scripts=False)
+    return resolution, model, ref
+
+
+def image_row(images: dict, path: Path, crop: tuple | None = None, width: float = 3.0) -> None:
+    """Linear images side by side, titled by their keys, as an sRGB preview figure (PNG)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from classic_bake.pipeline.images import preview_rgb8
+
+    fig, axes = plt.subplots(1, len(images), figsize=(width * len(images), 0.85 * width + 0.05))
+    for ax, (title, image) in zip(np.atleast_1d(axes), images.items(), strict=True):
+        ax.imshow(preview_rgb8(image if crop is None else image[crop]), interpolation="nearest")
+        ax.set_title(title, fontsize=10)
+        ax.axis("off")
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)

@@ -18,32 +18,20 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _report import OUT_DIR, seconds_to_reach, versions, write_report  # noqa: E402
+from _report import (  # noqa: E402
+    OUT_DIR,
+    image_row,
+    seconds_to_reach,
+    versions,
+    whitted_reference,
+    write_report,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "sample_blends" / "bump.blend"
 # (shading mode, adaptive edge samples): the lecture's four, then bump with edge samples.
 LADDER = [("flat", 0), ("gouraud", 0), ("phong", 0), ("bump", 0), ("bump", 2), ("bump", 4)]
 DEFAULT_SETTING = "bump + edges 4x4"  # the bump command's defaults
-
-
-def modes_figure(images: dict, path: Path) -> None:
-    """The lecture's comparison, side by side: flat, Gouraud, Phong, bump, and Cycles."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from classic_bake.pipeline.images import preview_rgb8
-
-    fig, axes = plt.subplots(1, len(images), figsize=(3.0 * len(images), 2.6))
-    for ax, (title, image) in zip(axes, images.items(), strict=True):
-        ax.imshow(preview_rgb8(image), interpolation="nearest")
-        ax.set_title(title, fontsize=10)
-        ax.axis("off")
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
 
 
 def main() -> int:
@@ -62,16 +50,8 @@ def main() -> int:
     from classic_bake.kernels.tracer import auto_settings, trace
     from classic_bake.pipeline.charts import speed_accuracy_chart, sweep_chart
 
-    bpy.ops.wm.open_mainfile(filepath=str(SCENE), load_ui=False, use_scripts=False)
-    resolution = bridge.render_resolution(bpy.context.scene)
-    snap = bridge.snapshot(resolution=resolution)
-    model = cr.whitted(auto_settings(snap).max_depth)
-    cr.warm_up()
-    ref = cr.reference(SCENE, model, "render", resolution=resolution,
-                       samples=128 if args.quick else None, max_samples=args.max_ref_samples,
-                       target_rel_mse=1e-4)
+    resolution, model, ref = whitted_reference(SCENE, args.quick, args.max_ref_samples)
     reference = ref.image
-    bpy.ops.wm.open_mainfile(filepath=str(SCENE), load_ui=False, use_scripts=False)
     snap = bridge.snapshot(resolution=resolution)
     start = time.perf_counter()
     bvh = BVH.build(snap.triangles)
@@ -128,8 +108,8 @@ def main() -> int:
         title="Steeper relief: bump against Cycles", marks={"scene": 1}, x_log=True)
     OUT_DIR.mkdir(parents=True, exist_ok=True)
     views["Cycles"] = reference
-    modes_figure({k.capitalize() if k != "Cycles" else "Cycles (reference)": v
-                  for k, v in views.items()}, OUT_DIR / "bump_modes.png")
+    image_row({k.capitalize() if k != "Cycles" else "Cycles (reference)": v
+               for k, v in views.items()}, OUT_DIR / "bump_modes.png")
     speed_accuracy_chart(kernel_rows, cycles_rows, OUT_DIR / "bump_speed",
                          title=f"Shading modes vs Cycles' Bump nodes, {resolution[0]}x{resolution[1]}",
                          kernel_label="tracer: flat, Gouraud, Phong, bump (+ edge samples)",

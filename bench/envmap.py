@@ -22,7 +22,14 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _report import OUT_DIR, seconds_to_reach, versions, write_report  # noqa: E402
+from _report import (  # noqa: E402
+    OUT_DIR,
+    image_row,
+    seconds_to_reach,
+    versions,
+    whitted_reference,
+    write_report,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "sample_blends" / "env_room.blend"
@@ -38,28 +45,13 @@ def label(face: int, steps: int) -> str:
 
 def comparison_figure(views: dict, sphere: np.ndarray, path: Path) -> None:
     """The mirror up close: the lecture's look-up, the parallax search, traced reflections."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from classic_bake.pipeline.images import preview_rgb8
-
     rows, cols = np.nonzero(sphere)
     pad = 12
     crop = (slice(max(rows.min() - pad, 0), rows.max() + pad),
             slice(max(cols.min() - pad, 0), cols.max() + pad))
-    panels = [("the lecture's look-up", views["auto faces, 0 steps"]),
-              ("with the parallax search", views[DEFAULT_SETTING]),
-              ("traced reflections", views["traced"])]
-    fig, axes = plt.subplots(1, 3, figsize=(9, 3.3))
-    for ax, (title, image) in zip(axes, panels, strict=True):
-        ax.imshow(preview_rgb8(image[crop]), interpolation="nearest")
-        ax.set_title(title, fontsize=10)
-        ax.axis("off")
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    image_row({"the lecture's look-up": views["auto faces, 0 steps"],
+               "with the parallax search": views[DEFAULT_SETTING],
+               "traced reflections": views["traced"]}, path, crop)
 
 
 def main() -> int:
@@ -81,18 +73,10 @@ def main() -> int:
     from classic_bake.pipeline.charts import speed_accuracy_chart, sweep_chart
     from classic_bake.pipeline.images import write_preview_png
 
-    bpy.ops.wm.open_mainfile(filepath=str(SCENE), load_ui=False, use_scripts=False)
-    resolution = bridge.render_resolution(bpy.context.scene)
+    resolution, model, ref = whitted_reference(SCENE, args.quick, args.max_ref_samples)
+    reference = ref.image
     snap = bridge.snapshot(resolution=resolution)
     tracer = auto_settings(snap)
-    model = cr.whitted(tracer.max_depth)
-    cr.warm_up()
-    ref = cr.reference(SCENE, model, "render", resolution=resolution,
-                       samples=128 if args.quick else None, max_samples=args.max_ref_samples,
-                       target_rel_mse=1e-4)
-    reference = ref.image
-    bpy.ops.wm.open_mainfile(filepath=str(SCENE), load_ui=False, use_scripts=False)
-    snap = bridge.snapshot(resolution=resolution)
     mirror = next(k for k, o in enumerate(snap.objects) if o.source_name == MIRROR)
     origins, dirs = camera_rays(snap.camera, *resolution)
     first = BVH.build(snap.triangles).intersect(origins.reshape(-1, 3), dirs.reshape(-1, 3)).tri
