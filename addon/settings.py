@@ -17,6 +17,14 @@ def tracer_settings(props, scene) -> TracerSettings:
     return auto_settings(scene, **overrides)
 
 
+def shading_settings(props, scene) -> TracerSettings:
+    """`scene.classic_bake` + the kernel scene -> TracerSettings with the Bump Mapping panel's
+    shading mode (flat, Gouraud, Phong or bump)."""
+    from dataclasses import replace
+
+    return replace(tracer_settings(props, scene), shading=props.bump_shading.lower())
+
+
 def direct_light_settings(props):
     """`scene.classic_bake` -> DirectLightSettings (shadow maps)."""
     from ..kernels.direct_light import DirectLightSettings

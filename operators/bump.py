@@ -3,8 +3,9 @@
 import bpy
 
 from ..addon import bridge
-from ..addon.settings import tracer_settings
+from ..addon.settings import shading_settings
 from .job import JobOperator, ScenePoll
+from .trace import traced_image
 
 IMAGE_NAME = "Classic Bake Shading"
 
@@ -13,15 +14,8 @@ def shading_job(scene, settings, report):
     """Trace with the settings' shading mode (yielding progress), then write the image: a cancel
     before the end changes nothing."""
     from ..kernels.bump import has_bump
-    from ..kernels.tracer import TraceResult, trace_steps
 
-    result = None
-    for step in trace_steps(scene, settings):
-        if isinstance(step, TraceResult):
-            result = step
-        else:
-            yield step
-    image = bridge.write_image(IMAGE_NAME, result.image, image=bpy.data.images.get(IMAGE_NAME))
+    image, _ = yield from traced_image(scene, settings, IMAGE_NAME)
     bumped = [m.name for m in scene.materials if has_bump(m)]
     report({"INFO"}, f"Shaded '{image.name}' ({settings.shading}); bump and normal maps on "
                      f"{', '.join(bumped) if bumped else 'no material'}")
@@ -37,14 +31,10 @@ class CLASSICBAKE_OT_shading(ScenePoll, JobOperator, bpy.types.Operator):
     needs = ("camera",)
 
     def start(self, context):
-        from dataclasses import replace
-
         scene = bridge.snapshot(context)
         if scene.camera is None:
             raise ValueError("The scene needs a camera")
-        props = context.scene.classic_bake
-        settings = replace(tracer_settings(props, scene), shading=props.bump_shading.lower())
-        return shading_job(scene, settings, self.report)
+        return shading_job(scene, shading_settings(context.scene.classic_bake, scene), self.report)
 
 
 CLASSES = (CLASSICBAKE_OT_shading,)

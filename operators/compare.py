@@ -5,7 +5,12 @@ import time
 import bpy
 
 from ..addon import bridge, cycles_reference
-from ..addon.settings import direct_light_settings, envmap_settings, tracer_settings
+from ..addon.settings import (
+    direct_light_settings,
+    envmap_settings,
+    shading_settings,
+    tracer_settings,
+)
 from .job import JobOperator, ScenePoll
 
 ERROR_IMAGE = "Classic Bake Error"
@@ -39,9 +44,7 @@ def compare_job(context, technique: str, samples: int, report):
         model = cycles_reference.whitted(settings.max_depth)
         steps = tracer.trace_steps(scene, settings)
     elif technique == "BUMP":
-        from dataclasses import replace
-
-        settings = replace(tracer_settings(props, scene), shading=props.bump_shading.lower())
+        settings = shading_settings(props, scene)
         model = cycles_reference.whitted(settings.max_depth)
         steps = tracer.trace_steps(scene, settings)
     elif technique == "ENVMAP":

@@ -9,8 +9,9 @@ from .job import JobOperator, ScenePoll
 IMAGE_NAME = "Classic Bake Trace"
 
 
-def trace_job(scene, settings, report):
-    """Trace (yielding progress), then write the image: a cancel before the end changes nothing."""
+def traced_image(scene, settings, name: str):
+    """Trace the camera's view (yielding progress), then write it into the float image `name`;
+    returns (image, TraceResult). A cancel before the end changes nothing."""
     from ..kernels.tracer import TraceResult, trace_steps
 
     result = None
@@ -19,7 +20,12 @@ def trace_job(scene, settings, report):
             result = step
         else:
             yield step
-    image = bridge.write_image(IMAGE_NAME, result.image, image=bpy.data.images.get(IMAGE_NAME))
+    return bridge.write_image(name, result.image, image=bpy.data.images.get(name)), result
+
+
+def trace_job(scene, settings, report):
+    """Trace (yielding progress), then write the image: a cancel before the end changes nothing."""
+    image, result = yield from traced_image(scene, settings, IMAGE_NAME)
     s = result.stats
     report({"INFO"}, f"Traced '{image.name}': {s.camera_rays + s.secondary_rays} rays, "
                      f"{s.shadow_rays} shadow rays, {s.pruned_branches} branches pruned")
