@@ -30,6 +30,7 @@ from typing import Literal
 
 import numpy as np
 
+from .form_factors import tangent_frames
 from .scene import Material, Scene, Texture
 from .textures import sample_texture
 
@@ -81,8 +82,7 @@ def tangent_frame(n: np.ndarray, dpdu: np.ndarray, dpdv: np.ndarray
     # A tangent parallel to n (or zero): any vector perpendicular to n will do.
     lost = np.linalg.norm(t, axis=1) <= MIN_LENGTH
     if lost.any():
-        helper = np.where(np.abs(n[lost, 0:1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
-        t[lost] = np.cross(n[lost], helper)
+        t[lost] = tangent_frames(n[lost])[0]
     t = _normalize(t)
     b = np.cross(n, t)
     mirrored = np.einsum("ij,ij->i", b, dpdv) < 0.0

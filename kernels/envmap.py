@@ -36,7 +36,7 @@ import numpy as np
 
 from .bvh import BVH
 from .cubemap import FACE_FORWARD, FACE_U, FACE_V, direction_to_face
-from .scene import Scene
+from .scene import Scene, triangle_areas
 from .tracer import Tracer, TraceResult, TracerSettings, trace_steps
 
 # Texels rendered beyond each face's edge: one is what a bilinear lookup can reach past the
@@ -196,15 +196,17 @@ class EnvMapResult:
     seconds: dict = field(default_factory=dict)
 
 
-def bordered_directions(size: int, border: int = BORDER) -> np.ndarray:
-    """(6, S + 2B, S + 2B, 3) float64 unit directions through every texel centre, borders included.
+def bordered_directions(size: int, border: int = BORDER, offset: tuple[float, float] = (0.5, 0.5)
+                        ) -> np.ndarray:
+    """(6, S + 2B, S + 2B, 3) float64 unit directions through every texel, borders included.
 
-    Texel (i, j), i and j counted from -B, has sc = 2 (j + 0.5) / S - 1 and tc = 1 - 2 (i + 0.5) / S:
-    inside the face |sc|, |tc| < 1; the border continues the same 90-degree camera's image plane.
+    Texel (i, j), i and j counted from -B, at `offset` (x, y) within it ((0.5, 0.5): its centre)
+    has sc = 2 (j + x) / S - 1 and tc = 1 - 2 (i + y) / S: inside the face |sc|, |tc| < 1; the
+    border continues the same 90-degree camera's image plane.
     """
     k = np.arange(-border, size + border)
-    sc = 2.0 * (k + 0.5) / size - 1.0
-    tc = -sc  # rows run downwards: t falls as i grows
+    sc = 2.0 * (k + offset[0]) / size - 1.0
+    tc = 1.0 - 2.0 * (k + offset[1]) / size  # rows run downwards: t falls as i grows
     dirs = (FACE_FORWARD[:, None, None, :]
             + sc[None, None, :, None] * FACE_U[:, None, None, :]
             + tc[None, :, None, None] * FACE_V[:, None, None, :])
@@ -245,9 +247,7 @@ def sample_bordered(faces: np.ndarray, border: int, directions: np.ndarray,
 def mirror_objects(scene: Scene, mirror_roughness: float = 0.1) -> list[int]:
     """Object indices whose surface is mostly a mirror (smooth metal, or a smooth specular layer
     without transmission), by area: what the technique maps by default."""
-    areas = 0.5 * np.linalg.norm(np.cross(
-        scene.triangles[:, 1].astype(np.float64) - scene.triangles[:, 0],
-        scene.triangles[:, 2].astype(np.float64) - scene.triangles[:, 0]), axis=1)
+    areas = triangle_areas(scene.triangles)
     shiny = np.array([m.roughness < mirror_roughness and m.transmission == 0.0
                       and m.metallic >= 0.5 for m in scene.materials], bool)
     if scene.triangle_count == 0 or not shiny.any():
@@ -330,23 +330,18 @@ def capture_steps(scene: Scene, index: int, size: int, tracer_settings: TracerSe
     faces = np.zeros((6, side, side, 3), np.float64)
     inverse = np.zeros((6, side, side, 1), np.float64)
     # Sub-texel offsets: n x n stratified positions in each texel of the face plane (sc, tc).
-    k = np.arange(-BORDER, size + BORDER)
     total = 6 * side * side * n * n
     done = 0
+    flat, flat_q = faces.reshape(-1, 3), inverse.reshape(-1)
     for oy in range(n):
         for ox in range(n):
-            sc = 2.0 * (k + (ox + 0.5) / n) / size - 1.0
-            tc = 1.0 - 2.0 * (k + (oy + 0.5) / n) / size
-            dirs = (FACE_FORWARD[:, None, None, :]
-                    + sc[None, None, :, None] * FACE_U[:, None, None, :]
-                    + tc[None, :, None, None] * FACE_V[:, None, None, :]).reshape(-1, 3)
-            dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
-            flat, flat_q = faces.reshape(-1, 3), inverse.reshape(-1)
+            # n x n stratified positions in each texel of the face plane.
+            dirs = bordered_directions(size, BORDER, ((ox + 0.5) / n, (oy + 0.5) / n)).reshape(-1, 3)
             for first in range(0, len(dirs), FACE_WAVEFRONT):
                 chunk = dirs[first:first + FACE_WAVEFRONT]
                 origins = np.broadcast_to(centre, chunk.shape).copy()
-                flat[first:first + len(chunk)] += tracer.radiance(origins, chunk)
-                t = hidden.intersect(origins, chunk).t.astype(np.float64)
+                t = np.empty(len(chunk))
+                flat[first:first + len(chunk)] += tracer.radiance(origins, chunk, primary_t=t)
                 flat_q[first:first + len(chunk)] += np.where(np.isfinite(t), 1.0 / np.maximum(
                     t, 1e-12), 0.0)
                 done += len(chunk)

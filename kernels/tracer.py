@@ -549,8 +549,8 @@ class Tracer:
 
     def radiance(self, origins: np.ndarray, dirs: np.ndarray,
                  primary_ids: np.ndarray | None = None, footprint: _Footprint | None = None,
-                 untextured: np.ndarray | None = None, strata: Strata | None = None
-                 ) -> np.ndarray:
+                 untextured: np.ndarray | None = None, strata: Strata | None = None,
+                 primary_t: np.ndarray | None = None) -> np.ndarray:
         """Radiance (N, 3) arriving at the camera along N primary rays.
 
         primary_ids: optional (N,) int64 filled with what each camera ray hit (object and
@@ -561,6 +561,7 @@ class Tracer:
         camera hits: what edge detection compares, so texture detail (filtered) is no edge.
         strata: (stratum (N,), m) when the rays are m sub-samples of pixels: area lights' samples
         are shared out among them (`_area_direct`).
+        primary_t: optional (N,) filled with each primary ray's hit distance (inf: none).
         """
         s = self.settings
         result = np.zeros((len(origins), 3))
@@ -580,6 +581,8 @@ class Tracer:
             miss = hits.tri < 0
             if depth == 0 and primary_ids is not None:
                 primary_ids[...] = self.hit_ids(hits.tri)
+            if depth == 0 and primary_t is not None:
+                primary_t[...] = np.where(miss, np.inf, hits.t)
             np.add.at(result, pixel[miss], weight[miss] * self.scene.world_color)
             if untextured is not None:
                 np.add.at(flat, pixel[miss], weight[miss] * self.scene.world_color)
