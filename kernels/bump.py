@@ -45,6 +45,11 @@ HEIGHT_STEP_TEXELS = 0.05
 DEGENERATE_UV_AREA = 1e-14
 # Shorter vectors than this are not normalised (they have no direction to keep).
 MIN_LENGTH = 1e-12
+# A perturbed normal turned away from the viewer is bent back until its reflection of the view
+# leaves the surface at least at this cos to the geometric normal (0.6 degrees), or at 0.9 of the
+# view's own cos when that is smaller (`valid_reflection`).
+REFLECTION_FLOOR = 0.01
+REFLECTION_FLOOR_SHARE = 0.9
 
 # The lecture's comparison: flat (one normal per triangle), Gouraud (light computed at the
 # vertices and interpolated, `tracer.Tracer.gouraud_direct`), Phong (normals interpolated, light
@@ -146,6 +151,39 @@ def normal_mapped(n: np.ndarray, dpdu: np.ndarray, dpdv: np.ndarray, rgb: np.nda
     local = 2.0 * np.asarray(rgb, np.float64)[:, :3] - 1.0
     world = _normalize(np.einsum("nji,nj->ni", frame_matrix(t, b, n), local))
     return _normalize(n + max(strength, 0.0) * (world - n)) if strength != 1.0 else world
+
+
+def valid_reflection(ng: np.ndarray, wo: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """(N, 3) unit normals n bent towards the geometric normals ng until the view wo (unit,
+    towards the viewer, on ng's side) reflected about them leaves the surface by at least
+    t = min(REFLECTION_FLOOR_SHARE wo.ng, REFLECTION_FLOOR) in cos; others are returned as they are.
+
+    The bent normal stays in the plane of ng and n's tangential direction X: n' = x X + z ng,
+    x^2 + z^2 = 1. Its reflection meets 2 z (x w_x + z w_z) - w_z = t (w_x = wo.X, w_z = wo.ng);
+    squaring, u = z^2 solves 4 a u^2 - 4 (a + t w_z) u + (t + w_z)^2 = 0 with a = w_x^2 + w_z^2,
+    and the sign of 2 z x w_x = t + w_z - 2 u w_z picks the root: the larger when w_x < 0.
+    """
+    wz = np.einsum("ij,ij->i", wo, ng)
+    r = 2.0 * np.einsum("ij,ij->i", n, wo)[:, None] * n - wo
+    t = np.minimum(REFLECTION_FLOOR_SHARE * wz, REFLECTION_FLOOR)
+    bad = np.einsum("ij,ij->i", r, ng) < t
+    if not bad.any():
+        return n
+    out = n.copy()
+    nb, gb, wb, tb, zb = n[bad], ng[bad], wo[bad], t[bad], wz[bad]
+    x_axis = nb - np.einsum("ij,ij->i", nb, gb)[:, None] * gb
+    x_len = np.linalg.norm(x_axis, axis=1, keepdims=True)
+    # n along ng already (no tangential part): the view's own tangent direction will do.
+    x_axis = np.where(x_len > MIN_LENGTH, x_axis / np.maximum(x_len, MIN_LENGTH),
+                      _normalize(wb - zb[:, None] * gb))
+    wx = np.einsum("ij,ij->i", wb, x_axis)
+    a = wx * wx + zb * zb
+    half_b = a + tb * zb
+    root = np.sqrt(np.maximum(half_b * half_b - a * (tb + zb) ** 2, 0.0))
+    u = np.clip(np.where(wx < 0.0, half_b + root, half_b - root) / (2.0 * np.maximum(a, MIN_LENGTH)),
+                0.0, 1.0)
+    out[bad] = np.sqrt(1.0 - u)[:, None] * x_axis + np.sqrt(u)[:, None] * gb
+    return out
 
 
 def has_bump(material: Material) -> bool:

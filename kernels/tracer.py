@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import lights as light_units
-from .bump import SHADING_MODES, scene_normals
+from .bump import SHADING_MODES, scene_normals, valid_reflection
 from .bvh import BVH
 from .camera import Camera, camera_ray_lines, camera_rays
 from .optics import fresnel_dielectric, fresnel_schlick, reflect, refract
@@ -343,8 +343,13 @@ def _surface(scene: Scene, tri_normals, origins, dirs, hits, shading: str = "bum
     side = np.where(front, 1.0, -1.0)[:, None]
     ng = ng * side
     ns = ns * side
-    # A shading normal turned away from the viewer would shade the back: fall back to geometry.
+    # A shading normal turned away from the viewer would shade the back: fall back to geometry;
+    # a bump or normal map's is bent back just far enough (`bump.valid_reflection`), which keeps
+    # its tilt (a normal-mapped tile facing away: relMSE against Cycles 0.015 -> 0.0063).
     away = np.einsum("ij,ij->i", ns, dirs) > 0.0
+    if shading == "bump" and away.any():
+        ns[away] = valid_reflection(ng[away], -dirs[away], ns[away])
+        away = np.einsum("ij,ij->i", ns, dirs) > 0.0
     ns[away] = ng[away]
     albedo = np.empty((len(tri), 3))
     uv = None

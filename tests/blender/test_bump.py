@@ -95,3 +95,47 @@ def test_bump_node_settings_reach_the_kernel(open_sample):
     bricks.node_tree.links.new(chained.outputs["Normal"], node.inputs["Normal"])
     mat = next(m for m in bridge.snapshot().materials if m.name == "Bricks")
     assert any("chained" in why for why in mat.ignored)
+
+
+def test_normal_map_nodes_match_cycles(open_sample):
+    """bump.blend with its Bump nodes replaced by a tangent-space Normal Map of tilted tiles (x
+    along u, y along v; Non-Color): the kernel's normal-mapped view against Cycles (`whitted`,
+    64 samples, 80 x 60): measured 0.0055 against Phong's 0.096 (the tiles left out); at
+    160 x 120, 0.0063 and 0.107. A wrong green channel or tangent would shade half the tiles the
+    wrong way."""
+    from classic_bake.addon import cycles_reference as cr
+    from classic_bake.kernels.metrics import rel_mse
+    from classic_bake.kernels.tracer import auto_settings, trace
+
+    open_sample("bump")
+    size = 128
+    i, j = np.mgrid[0:size, 0:size]
+    angle = np.where(((i // 16) + (j // 16)) % 2 == 0, 0.5, -0.3)
+    along_u = (j // 32) % 2 == 0
+    nx, ny = np.sin(angle) * along_u, np.sin(angle) * ~along_u
+    pixels = np.ones((size, size, 4), np.float32)
+    pixels[..., 0], pixels[..., 1] = 0.5 + 0.5 * nx, 0.5 + 0.5 * ny
+    pixels[..., 2] = 0.5 + 0.5 * np.sqrt(1 - nx**2 - ny**2)
+    image = bpy.data.images.new("Tiles", size, size, float_buffer=True)
+    image.colorspace_settings.name = "Non-Color"
+    image.pixels.foreach_set(pixels[::-1].ravel())  # Blender's rows run bottom-up
+    for name in ("Bricks", "OrangePeel"):
+        tree = bpy.data.materials[name].node_tree
+        for node in [n for n in tree.nodes if n.type == "BUMP"]:
+            tree.nodes.remove(node)
+        tex = tree.nodes.new("ShaderNodeTexImage")
+        tex.image = image
+        normal_map = tree.nodes.new("ShaderNodeNormalMap")
+        tree.links.new(tex.outputs["Color"], normal_map.inputs["Color"])
+        bsdf = next(n for n in tree.nodes if n.type == "BSDF_PRINCIPLED")
+        tree.links.new(normal_map.outputs["Normal"], bsdf.inputs["Normal"])
+    resolution = (80, 60)
+    snap = bridge.snapshot(resolution=resolution)
+    assert all(m.normal_texture is not None for m in snap.materials if m.name in ("Bricks",
+                                                                              "OrangePeel"))
+    reference, _ = cr.render_camera(bpy.context.scene, cr.whitted(4), 64, resolution=resolution)
+    errors = {mode: rel_mse(trace(snap, auto_settings(snap, shading=mode),
+                                  resolution=resolution).image, reference)
+              for mode in ("phong", "bump")}
+    print("relMSE against Cycles", errors)
+    assert errors["bump"] < 0.02 and errors["bump"] < errors["phong"] / 5

@@ -182,3 +182,30 @@ def test_gouraud_interpolates_the_corners_light_and_misses_a_peak_between_them()
 def test_unknown_shading_mode_is_refused():
     with pytest.raises(ValueError, match="shading"):
         TracerSettings(shading="toon")
+
+
+def test_valid_reflection_bends_normals_until_the_view_reflects_above_the_surface():
+    rng = np.random.default_rng(7)
+    ng = np.tile([0.0, 0.0, 1.0], (2000, 1))
+    wo = rng.normal(size=(2000, 3))
+    wo[:, 2] = np.abs(wo[:, 2]) * 0.3  # views from the front, many grazing
+    wo /= np.linalg.norm(wo, axis=1, keepdims=True)
+    n = rng.normal(size=(2000, 3))
+    n[:, 2] = np.abs(n[:, 2]) + 0.2
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    got = bump.valid_reflection(ng, wo, n)
+    np.testing.assert_allclose(np.linalg.norm(got, axis=1), 1.0, atol=1e-9)
+    reflect = 2 * np.einsum("ij,ij->i", got, wo)[:, None] * got - wo
+    floor = np.minimum(bump.REFLECTION_FLOOR_SHARE * wo[:, 2], bump.REFLECTION_FLOOR)
+    assert np.all(reflect[:, 2] >= floor - 1e-9)
+    before = 2 * np.einsum("ij,ij->i", n, wo)[:, None] * n - wo
+    kept = before[:, 2] >= floor
+    assert 0 < kept.sum() < 2000
+    np.testing.assert_array_equal(got[kept], n[kept])
+    # The bent ones keep their azimuth (they turn towards ng in the plane of ng and n) and stop
+    # at the floor itself, not beyond; none faces away from the viewer any more.
+    bent = ~kept
+    azimuth_turn = n[bent][:, 0] * got[bent][:, 1] - n[bent][:, 1] * got[bent][:, 0]
+    np.testing.assert_allclose(azimuth_turn, 0.0, atol=1e-9)
+    np.testing.assert_allclose(reflect[bent, 2], floor[bent], atol=1e-6)
+    assert np.all(np.einsum("ij,ij->i", got, wo) > 0)
