@@ -26,7 +26,7 @@ Arrays are (N, 3) float64 world vectors unless named otherwise; UVs are (N, 2).
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Literal, get_args
 
 import numpy as np
 
@@ -55,7 +55,7 @@ REFLECTION_FLOOR_SHARE = 0.9
 # vertices and interpolated, `tracer.Tracer.gouraud_direct`), Phong (normals interpolated, light
 # per fragment) and bump (Phong's normals perturbed here).
 ShadingMode = Literal["flat", "gouraud", "phong", "bump"]
-SHADING_MODES = ("flat", "gouraud", "phong", "bump")
+SHADING_MODES: tuple[str, ...] = get_args(ShadingMode)
 
 
 def _normalize(v: np.ndarray) -> np.ndarray:

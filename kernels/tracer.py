@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import lights as light_units
-from .bump import SHADING_MODES, scene_normals, valid_reflection
+from .bump import SHADING_MODES, ShadingMode, scene_normals, valid_reflection
 from .bvh import BVH
 from .camera import Camera, camera_ray_lines, camera_rays
 from .optics import fresnel_dielectric, fresnel_schlick, reflect, refract
@@ -100,7 +100,7 @@ class TracerSettings:
     point_like_ratio: float = 0.05
     mirror_roughness: float = 0.1
     texture_filter: int = TEXTURE_FILTER
-    shading: str = "bump"
+    shading: ShadingMode = "bump"
 
     def __post_init__(self):
         if self.shading not in SHADING_MODES:
