@@ -139,3 +139,15 @@ def image_row(images: dict, path: Path, crop: tuple | None = None, width: float 
     fig.tight_layout()
     fig.savefig(path, dpi=100)
     plt.close(fig)
+
+
+def reference_arguments(description: str):
+    """The command line of a bench against a converged Cycles reference: --quick (short ladders)
+    and --max-ref-samples (the reference's cap)."""
+    import argparse
+
+    parser = argparse.ArgumentParser(description=description)
+    parser.add_argument("--quick", action="store_true", help="short ladders (smoke run)")
+    parser.add_argument("--max-ref-samples", type=int, default=1024,
+                        help="cap of the converged Cycles reference (default 1024)")
+    return parser.parse_args()

@@ -12,7 +12,6 @@ Writes out/bench/bump.json, out/bench/bump_speed.png/svg and out/bench/bump_mode
 
 from __future__ import annotations
 
-import argparse
 import sys
 import time
 from pathlib import Path
@@ -21,6 +20,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _report import (  # noqa: E402
     OUT_DIR,
     image_row,
+    reference_arguments,
     seconds_to_reach,
     versions,
     whitted_reference,
@@ -35,11 +35,7 @@ DEFAULT_SETTING = "bump + edges 4x4"  # the bump command's defaults
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="short ladders (smoke run)")
-    parser.add_argument("--max-ref-samples", type=int, default=1024,
-                        help="cap of the converged Cycles reference (default 1024)")
-    args = parser.parse_args()
+    args = reference_arguments(__doc__.splitlines()[0])
 
     import bpy
 

@@ -14,7 +14,6 @@ Writes out/bench/envmap.json and out/bench/envmap_*.png/svg.
 
 from __future__ import annotations
 
-import argparse
 import sys
 import time
 from pathlib import Path
@@ -25,6 +24,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _report import (  # noqa: E402
     OUT_DIR,
     image_row,
+    reference_arguments,
     seconds_to_reach,
     versions,
     whitted_reference,
@@ -55,11 +55,7 @@ def comparison_figure(views: dict, sphere: np.ndarray, path: Path) -> None:
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="short ladders (smoke run)")
-    parser.add_argument("--max-ref-samples", type=int, default=1024,
-                        help="cap of the converged Cycles reference (default 1024)")
-    args = parser.parse_args()
+    args = reference_arguments(__doc__.splitlines()[0])
 
     import bpy
 
