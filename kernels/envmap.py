@@ -30,7 +30,7 @@ Faces are (6, S + 2B, S + 2B, 3) float32 radiance, W/(m^2 sr), face order and or
 from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -329,7 +329,6 @@ def capture_steps(scene: Scene, index: int, size: int, tracer_settings: TracerSe
     n = supersample
     faces = np.zeros((6, side, side, 3), np.float64)
     inverse = np.zeros((6, side, side, 1), np.float64)
-    # Sub-texel offsets: n x n stratified positions in each texel of the face plane (sc, tc).
     total = 6 * side * side * n * n
     done = 0
     flat, flat_q = faces.reshape(-1, 3), inverse.reshape(-1)
@@ -384,7 +383,7 @@ def render_steps(scene: Scene, settings: EnvMapSettings, tracer_settings: Tracer
                          "name the objects to map")
     face_tracer = tracer_settings
     if settings.face_depth >= 0:
-        face_tracer = TracerSettings(**{**tracer_settings.__dict__, "max_depth": settings.face_depth})
+        face_tracer = replace(tracer_settings, max_depth=settings.face_depth)
     seconds = {"capture": 0.0, "render": 0.0}
     start = time.perf_counter()
     bvh = bvh or BVH.build(scene.triangles)
@@ -400,7 +399,7 @@ def render_steps(scene: Scene, settings: EnvMapSettings, tracer_settings: Tracer
                 maps.append(step)
             else:
                 yield share * (number + step)
-        face_rays += 6 * (size + 2 * BORDER) ** 2 * settings.face_supersample ** 2
+        face_rays += maps[-1].faces[..., 0].size * settings.face_supersample ** 2
         seconds["capture"] += time.perf_counter() - start
     start = time.perf_counter()
     steps = settings.parallax_steps
