@@ -6,8 +6,8 @@ lightmaps and colour attributes with the wall time of Cycles' own work (`render_
 `bake_lightmaps`, `bake_color_attributes`), caches converged references on disk (`reference`) and
 runs sample ladders that can be interleaved with kernel runs (`ladder_step`, `sample_ladder`).
 
-The three models
-----------------
+The four models
+---------------
 `whitted(depth)`, for the ray tracer: diffuse surfaces see lights directly (diffuse bounces 0),
 mirrors and glass are followed up to `depth` glossy/transmission bounces, point and spot lights
 are true points (radius 0), suns are parallel (angle 0), no caustics and no glossy filter (both
@@ -38,6 +38,18 @@ points at their centre: hard shadows, intensity P cos / pi). Remaining differenc
 filter (PCF) and bias their shadow edges, Cycles' shadows are exact; emissive meshes light
 surfaces in Cycles, not in that kernel.
 
+`albedo()`, for texture mapping: the diffuse colour a surface reflects, no light at all. Bakes
+take `bake_type="ALBEDO"` (Cycles' DIFFUSE bake with the colour pass alone); camera renders return
+Cycles' Diffuse Color pass (`render_pass="DiffCol"`, read from a multilayer OpenEXR) instead of
+the combined image, 0 where the camera sees the world (measured with a world of colour (0.3, 0.6,
+0.9)). Bounces 0: the colour is the first surface's. Remaining differences: Cycles' diffuse colour
+is the Principled base colour x (1 - metallic) x (1 - transmission) x (1 - the directional albedo
+of its specular layer), so it is the kernel's albedo exactly with Specular IOR Level 0 (as the
+sample scenes set on diffuse surfaces). With the default 0.5 (F0 = 0.04) it is 3.7% lower seen
+along the normal at roughness 0.5 (4.0% at roughness 0, 1.4% at 1), and in renders lower still at
+grazing views (5% at 45 degrees, 17% at 70 degrees, roughness 0); bakes see every texel along its
+normal.
+
 Settings every model shares (`FIXED_SETTINGS`): Cycles on the CPU, denoising and adaptive
 sampling off, no sample clamping, no fast-GI approximation, no time limit, view-layer sample
 counts ignored, seed fixed (`CyclesModel.seed`), film exposure scale 1, opaque film, compositor
@@ -56,6 +68,16 @@ black world; E = sun strength x cos(incidence) is the irradiance on the plane:
 | DIFFUSE   | DIRECT, INDIRECT                  | E / pi       (radiance / albedo, i.e. irradiance / pi) |
 | COMBINED  | all                               | rho E / pi   (+ emission, glossy, transmission) |
 | SHADOW    | none, with max_bounces 0          | 1 lit, 0 shadowed       |
+| ALBEDO    | COLOR (Blender bake type DIFFUSE) | rho = base x (1 - metallic) x (1 - transmission), no light |
+
+ALBEDO, measured on a plane of base colour (0.2, 0.5, 0.8) with Specular IOR Level 0 under a sun
+or a point light and a world of (0.3, 0.6, 0.9): metallic 0.5 bakes (0.1, 0.25, 0.4), metallic
+0.5 with transmission 0.5 (0.05, 0.125, 0.2), to 6e-9, in lightmaps and colour attributes alike;
+the Diffuse Color pass of a render gives the same values on the plane's pixels and exactly 0 on
+the background's. (Default Specular IOR Level 0.5: (0.0963, 0.2407, 0.3850), see `albedo()`
+above.) Checker and Image Textures through the UVs bake their colour per texel; a bake's samples
+spread over the texel, so a texel on a texture edge may mix both sides (5.2.3: one sample of 16
+on a checker edge; 4.5.15: none), while texels inside a texture's texel match it to 1.2e-7.
 
 Baked texels get alpha 1, untouched ones keep the alpha 0 the image starts with: that alpha is
 the coverage mask returned with each lightmap (with margin 0 the texels Cycles' rasteriser gives
@@ -99,13 +121,13 @@ from typing import Any, Literal
 import bpy
 import numpy as np
 
-from ..kernels.exr import read_exr, write_exr
+from ..kernels.exr import read_exr, read_exr_pass, write_exr
 from ..kernels.lightmap_uv import LightmapUVSettings
 from ..kernels.lights import area_of_shape
 from ..kernels.metrics import rel_mse
 from . import bridge
 
-BakeType = Literal["DIFFUSE", "COMBINED", "SHADOW"]
+BakeType = Literal["DIFFUSE", "COMBINED", "SHADOW", "ALBEDO"]
 ReferenceKind = Literal["render", "bake", "attribute"]
 
 # --- named constants ------------------------------------------------------------------------------
@@ -115,6 +137,17 @@ PASS_FILTERS: dict[str, frozenset[str]] = {
     "DIFFUSE": frozenset({"DIRECT", "INDIRECT", "COLOR"}),
     "COMBINED": frozenset({"EMIT", "DIRECT", "INDIRECT", "DIFFUSE", "GLOSSY", "TRANSMISSION"}),
     "SHADOW": frozenset(),
+    "ALBEDO": frozenset({"COLOR"}),  # the diffuse colour alone: no light at all
+}
+# Blender's bake type for each of ours that Blender names differently (the rest are the same):
+# ALBEDO is Cycles' DIFFUSE bake with the colour pass alone.
+BLENDER_BAKE_TYPES: dict[str, str] = {"ALBEDO": "DIFFUSE"}
+# The camera renders a model can read besides "Combined": model name -> (the view layer property
+# that turns the pass on, the pass's layer names in a multilayer OpenEXR, Blender 4.x's first:
+# Blender 5 writes passes under their UI names).
+COMBINED_PASS = "Combined"
+RENDER_PASSES: dict[str, tuple[str, tuple[str, ...]]] = {
+    "DiffCol": ("use_pass_diffuse_color", ("DiffCol", "Diffuse Color")),
 }
 # A baked texel has alpha 1 and an untouched one alpha 0: anything above one half is baked.
 COVERED_ALPHA = 0.5
@@ -138,11 +171,23 @@ CACHE_FORMAT = 1
 TEMP_PREFIX = "classic_bake_cycles"
 
 # The render output used to read renders back: lossless float32 OpenEXR in the scene's linear
-# space. `file_format` comes first: the valid depths and modes depend on it.
+# space. `file_format` comes first: the valid depths and modes depend on it. Before it, Blender 5's
+# `media_type` (4.5 has none: skipped), whose multilayer or video setting would refuse OPEN_EXR.
 EXR_OUTPUT: tuple[tuple[str, str], ...] = (
+    ("media_type", "IMAGE"),
     ("file_format", "OPEN_EXR"),
     ("color_depth", "32"),
     ("color_mode", "RGB"),
+    ("exr_codec", "ZIP"),
+    ("color_management", "FOLLOW_SCENE"),
+)
+# The output used to read a pass other than Combined: every pass in one multilayer float32
+# OpenEXR (always scene-linear). Blender 5 writes one part per pass, 4.5 a single part:
+# `read_exr_pass` reads both.
+MULTILAYER_EXR_OUTPUT: tuple[tuple[str, str], ...] = (
+    ("media_type", "MULTI_LAYER_IMAGE"),
+    ("file_format", "OPEN_EXR_MULTILAYER"),
+    ("color_depth", "32"),
     ("exr_codec", "ZIP"),
     ("color_management", "FOLLOW_SCENE"),
 )
@@ -204,6 +249,8 @@ class CyclesModel:
     | pixel_filter         | BOX/GAUSSIAN/BLACKMAN_HARRIS | Cycles' pixel filter                   |
     | filter_width         | 0.01..10 px  | its width; BOX 1.0 = the average over the pixel        |
     | seed                 | >= 0         | Cycles' seed (convergence chunks use seed, seed+1, ...) |
+    | render_pass          | "Combined" / | what `render_camera` returns: the combined image, or   |
+    |                      | RENDER_PASSES| that render pass (e.g. "DiffCol", the diffuse colour)  |
     """
 
     name: str
@@ -223,6 +270,7 @@ class CyclesModel:
     pixel_filter: str = "BOX"
     filter_width: float = 1.0
     seed: int = 0
+    render_pass: str = COMBINED_PASS
 
     def __post_init__(self):
         counts = (self.max_bounces, self.diffuse_bounces, self.glossy_bounces,
@@ -231,10 +279,16 @@ class CyclesModel:
             raise ValueError(f"CyclesModel '{self.name}': bounce counts must be >= 0, got {counts}")
         if self.pixel_filter not in ("BOX", "GAUSSIAN", "BLACKMAN_HARRIS"):
             raise ValueError(f"CyclesModel '{self.name}': unknown pixel filter {self.pixel_filter}")
+        if self.render_pass != COMBINED_PASS and self.render_pass not in RENDER_PASSES:
+            raise ValueError(f"CyclesModel '{self.name}': unknown render pass {self.render_pass}")
 
     def fields(self) -> dict[str, Any]:
-        """The model as a plain dict (JSON, cache keys)."""
-        return dataclasses.asdict(self)
+        """The model as a plain dict (JSON, cache keys). `render_pass` is left out when it is
+        "Combined", so the cache keys of models made before it existed stay the same."""
+        out = dataclasses.asdict(self)
+        if self.render_pass == COMBINED_PASS:
+            del out["render_pass"]
+        return out
 
 
 def whitted(depth: int = 8, *, world_lighting: bool = False, seed: int = 0) -> CyclesModel:
@@ -261,8 +315,16 @@ def direct(*, area_lights_as_points: bool = True, world_lighting: bool = False,
                        world_lighting=world_lighting, seed=seed)
 
 
+def albedo(seed: int = 0) -> CyclesModel:
+    """The texture-mapping technique's model: the diffuse albedo of each surface, no light.
+    Renders return Cycles' Diffuse Color pass (0 where the camera sees the world); bake it with
+    `bake_type="ALBEDO"`. No bounces: the colour is the first surface's (see "Bake semantics")."""
+    return CyclesModel(name="albedo", max_bounces=0, diffuse_bounces=0, glossy_bounces=0,
+                       transmission_bounces=0, seed=seed, render_pass="DiffCol")
+
+
 MODELS: dict[str, Callable[..., CyclesModel]] = {
-    "whitted": whitted, "radiosity": radiosity, "direct": direct,
+    "whitted": whitted, "radiosity": radiosity, "direct": direct, "albedo": albedo,
 }
 
 
@@ -387,8 +449,11 @@ def _render_result():
     raise RuntimeError("Cycles produced no Render Result")
 
 
-def _render_once(scene, log: SettingsLog, samples: int, seed: int, folder: str):
-    """One render under already-matched settings: ((H, W, 3) float32 linear, row 0 top, s)."""
+def _render_once(scene, log: SettingsLog, samples: int, seed: int, folder: str,
+                 render_pass: str = COMBINED_PASS):
+    """One render under already-matched settings, output set up by `_exr_output` for the same
+    `render_pass`: ((H, W, 3) float32 linear of that pass, row 0 top, seconds). A pass is read
+    from `_pass_view_layer`'s layer."""
     log.set(scene.cycles, "samples", int(samples))
     log.set(scene.cycles, "seed", int(seed))
     start = time.perf_counter()
@@ -396,23 +461,48 @@ def _render_once(scene, log: SettingsLog, samples: int, seed: int, folder: str):
     seconds = time.perf_counter() - start
     path = os.path.join(folder, "render.exr")
     _render_result().save_render(path, scene=scene)
-    return read_exr(path)[:, :, :3].copy(), seconds
+    if render_pass == COMBINED_PASS:
+        pixels = read_exr(path)
+    else:
+        pixels = read_exr_pass(path, RENDER_PASSES[render_pass][1], _pass_view_layer(scene).name)
+    return pixels[:, :, :3].copy(), seconds
+
+
+def _pass_view_layer(scene):
+    """The view layer a pass is rendered in: the context's when it is `scene`'s (the layer
+    `use_single_layer` means), else the scene's first."""
+    layer = bpy.context.view_layer
+    if layer is not None and scene.view_layers.get(layer.name) == layer:
+        return layer
+    return scene.view_layers[0]
 
 
 @contextlib.contextmanager
-def _exr_output(scene, log: SettingsLog, resolution) -> Iterator[str]:
-    """Render size and a lossless float32 OpenEXR output; yields a temporary folder."""
+def _exr_output(scene, log: SettingsLog, resolution,
+                render_pass: str = COMBINED_PASS) -> Iterator[str]:
+    """Render size and a lossless float32 OpenEXR output holding `render_pass` (any pass but
+    Combined: multilayer, the pass on in `_pass_view_layer` and that layer alone rendered);
+    yields a temporary folder."""
     if resolution is not None:
         width, height = (int(v) for v in resolution)
         log.set(scene.render, "resolution_x", width)
         log.set(scene.render, "resolution_y", height)
         log.set(scene.render, "resolution_percentage", 100)
+    output = EXR_OUTPUT
+    if render_pass != COMBINED_PASS:
+        output = MULTILAYER_EXR_OUTPUT
+        chosen = _pass_view_layer(scene)
+        # Background renders ignore `use_single_layer` (measured): switch the others off.
+        for view_layer in scene.view_layers:
+            log.set(view_layer, "use", view_layer == chosen)
+        log.set(chosen, RENDER_PASSES[render_pass][0], True)
     # The output format is restored by hand: which colour depths and modes are valid depends on
     # the file format, so it must be put back first and its dependents after it.
     settings = scene.render.image_settings
-    saved = [(prop, getattr(settings, prop)) for prop, _ in EXR_OUTPUT]
+    output = [(prop, value) for prop, value in output if hasattr(settings, prop)]
+    saved = [(prop, getattr(settings, prop)) for prop, _ in output]
     try:
-        for prop, value in EXR_OUTPUT:
+        for prop, value in output:
             setattr(settings, prop, value)
         with tempfile.TemporaryDirectory(prefix="classic_bake_render_") as folder:
             yield folder
@@ -427,15 +517,18 @@ def render_camera(scene, model: CyclesModel, samples: int,
     """Render the scene camera with Cycles under `model`.
 
     Returns (pixels (H, W, 3) float32 linear Rec.709, row 0 top; seconds of the render alone).
-    `resolution` (W, H) overrides the scene's render size (percentage 100); `seed` overrides
-    `model.seed`. The image goes through a float32 OpenEXR (lossless, exact) in a temporary
-    folder; the scene is left as it was.
+    The pixels are the combined image, or the pass `model.render_pass` names (turned on for the
+    render). `resolution` (W, H) overrides the scene's render size (percentage 100); `seed`
+    overrides `model.seed`. The image goes through a float32 OpenEXR (lossless, exact; multilayer
+    for a pass) in a temporary folder; the scene is left as it was.
     """
     scene = scene or bpy.context.scene
     if scene.camera is None:
         raise ValueError(f"scene '{scene.name}' has no camera to render")
-    with matched_scene(model, scene) as log, _exr_output(scene, log, resolution) as folder:
-        return _render_once(scene, log, samples, model.seed if seed is None else seed, folder)
+    with (matched_scene(model, scene) as log,
+          _exr_output(scene, log, resolution, model.render_pass) as folder):
+        return _render_once(scene, log, samples, model.seed if seed is None else seed, folder,
+                            model.render_pass)
 
 
 def warm_up(scene=None) -> float:
@@ -566,10 +659,15 @@ def _bake_materials(stack: contextlib.ExitStack, objects: Sequence, images: dict
             tree.nodes.active = node
 
 
+def _blender_bake_type(bake_type: str) -> str:
+    """The `bpy.ops.object.bake` type that bakes our `bake_type` (see `BLENDER_BAKE_TYPES`)."""
+    return BLENDER_BAKE_TYPES.get(bake_type, bake_type)
+
+
 def _bake_settings(log: SettingsLog, scene, samples: int, seed: int, bake_type: str) -> None:
     log.set(scene.cycles, "samples", int(samples))
     log.set(scene.cycles, "seed", int(seed))
-    log.set(scene.cycles, "bake_type", bake_type)
+    log.set(scene.cycles, "bake_type", _blender_bake_type(bake_type))
     if bake_type == "SHADOW":
         # cycles_facts.md: with bounces a SHADOW bake is no 0-1 map (values up to 1.7-4.0).
         log.set(scene.cycles, "max_bounces", 0)
@@ -602,8 +700,9 @@ def bake_lightmaps(scene, model: CyclesModel, samples: int, objects: Iterable, u
     `margin` texels are dilated around the charts (0: none; the mask then is the UV coverage).
     bake_type DIFFUSE bakes direct + indirect diffuse light, times the albedo with `use_color`
     (radiance rho E / pi), without it E / pi; COMBINED everything; SHADOW a 0-1 visibility map
-    (max_bounces forced to 0). See the module docstring for the measured semantics. Temporary
-    images, Image Texture nodes and materials are removed afterwards; the scene is left as it was.
+    (max_bounces forced to 0); ALBEDO the diffuse colour alone, no light (`use_color` ignored).
+    See the module docstring for the measured semantics. Temporary images, Image Texture nodes
+    and materials are removed afterwards; the scene is left as it was.
     """
     scene = scene or bpy.context.scene
     objs = _mesh_objects(scene, objects)
@@ -623,7 +722,7 @@ def bake_lightmaps(scene, model: CyclesModel, samples: int, objects: Iterable, u
         _bake_materials(stack, objs, images)
         stack.enter_context(_selection(scene, objs))
         start = time.perf_counter()
-        bpy.ops.object.bake(type=bake_type, pass_filter=flags, target="IMAGE_TEXTURES",
+        bpy.ops.object.bake(type=_blender_bake_type(bake_type), pass_filter=flags, target="IMAGE_TEXTURES",
                             uv_layer=uv_layer, margin=margin, margin_type="EXTEND",
                             use_clear=False, use_selected_to_active=False, save_mode="INTERNAL",
                             use_split_materials=False, use_automatic_name=False)
@@ -670,7 +769,7 @@ def bake_color_attributes(scene, model: CyclesModel, samples: int, objects: Iter
             attrs.active_color = attr
         stack.enter_context(_selection(scene, objs))
         start = time.perf_counter()
-        bpy.ops.object.bake(type=bake_type, pass_filter=flags, target="VERTEX_COLORS",
+        bpy.ops.object.bake(type=_blender_bake_type(bake_type), pass_filter=flags, target="VERTEX_COLORS",
                             use_clear=False, use_selected_to_active=False)
         seconds = time.perf_counter() - start
         result = {}
@@ -702,7 +801,7 @@ class BakeSpec:
     | field        | default    | meaning                                                      |
     |--------------|------------|--------------------------------------------------------------|
     | objects      | required   | object names, in order                                       |
-    | bake_type    | "DIFFUSE"  | DIFFUSE, COMBINED or SHADOW (see `bake_lightmaps`)           |
+    | bake_type    | "DIFFUSE"  | DIFFUSE, COMBINED, SHADOW or ALBEDO (see `bake_lightmaps`)   |
     | use_color    | True       | DIFFUSE only: multiply by the albedo (radiance)              |
     | uv_layer     | "Lightmap" | lightmap UV layer (kind "bake")                              |
     | size         | 256        | lightmap texels per side, or (W, H) (kind "bake")            |
@@ -1021,7 +1120,7 @@ def reference(scene_path: str | os.PathLike, model: CyclesModel, kind: Reference
 
 
 __all__ = [
-    "BakeSpec", "CyclesModel", "CyclesRun", "MODELS", "Reference", "SettingsLog",
+    "BakeSpec", "CyclesModel", "CyclesRun", "MODELS", "Reference", "SettingsLog", "albedo",
     "bake_color_attributes", "bake_lightmaps", "cache_key", "configure", "converged_run",
     "direct", "doubling_counts", "ladder_step", "matched_scene", "radiosity", "reference",
     "render_camera", "run_cycles", "sample_ladder", "warm_up", "whitted",

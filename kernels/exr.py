@@ -3,6 +3,10 @@
 Images are (H, W, C) float32 with row 0 at the top (the file's first scanline). Channel names follow
 the OpenEXR convention: 1 channel "Y", 3 "R", "G", "B", 4 "R", "G", "B", "A". No transfer curve is
 applied: what is written is scene-linear data, as Cycles writes its renders.
+
+`read_exr_pass` reads one render pass of a multilayer file as Blender writes them: channels named
+"<view layer>.<pass>.<channel>", in one part (Blender 4.x, and 5.x's "Interleave" option) or in
+one part per pass (Blender 5.x's default multi-part files).
 """
 
 from __future__ import annotations
@@ -34,6 +38,15 @@ def write_exr(path: str | os.PathLike, pixels: np.ndarray, *, half: bool = False
         f.write(os.fspath(path))
 
 
+def _ordered(names) -> list[str]:
+    """Channel names in `CHANNEL_NAMES` order when they are Y / RGB / RGBA, else alphabetical."""
+    names = sorted(names)
+    for known in CHANNEL_NAMES.values():
+        if sorted(known) == names:
+            return list(known)
+    return names
+
+
 def read_exr(path: str | os.PathLike) -> np.ndarray:
     """Read an OpenEXR file into (H, W, C) float32, channels ordered as `CHANNEL_NAMES` when they
     match (Y / RGB / RGBA), otherwise alphabetically. Half-float files are widened to float32."""
@@ -41,9 +54,35 @@ def read_exr(path: str | os.PathLike) -> np.ndarray:
 
     with OpenEXR.File(os.fspath(path), separate_channels=True) as f:
         channels = {name: ch.pixels for name, ch in f.channels().items()}
-    names = sorted(channels)
-    for known in CHANNEL_NAMES.values():
-        if sorted(known) == names:
-            names = list(known)
-            break
-    return np.stack([channels[n].astype(np.float32, copy=False) for n in names], axis=-1)
+    return np.stack([channels[n].astype(np.float32, copy=False) for n in _ordered(channels)],
+                    axis=-1)
+
+
+def read_exr_pass(path: str | os.PathLike, pass_names: str | tuple[str, ...],
+                  layer: str | None = None) -> np.ndarray:
+    """Read one pass of a multilayer OpenEXR file into (H, W, C) float32, channels ordered as in
+    `read_exr`. The pass is the first of `pass_names` present (a pass's name can differ between
+    Blender versions, e.g. "DiffCol" in 4.x, "Diffuse Color" in 5.x), in view layer `layer`
+    (None: whichever layer holds it, which must be one). Raises KeyError when the pass is missing,
+    ValueError when `layer` is None and several layers hold it.
+    """
+    import OpenEXR
+
+    names = (pass_names,) if isinstance(pass_names, str) else tuple(pass_names)
+    found: dict[str, dict[str, dict[str, np.ndarray]]] = {}  # pass -> layer -> channel -> pixels
+    with OpenEXR.File(os.fspath(path), separate_channels=True) as f:
+        for part in f.parts:
+            for full, channel in part.channels.items():
+                prefix, _, suffix = full.rpartition(".")
+                in_layer, _, pass_name = prefix.rpartition(".")
+                if pass_name in names and layer in (None, in_layer):
+                    found.setdefault(pass_name, {}).setdefault(in_layer, {})[suffix] = channel.pixels
+    for name in names:
+        layers = found.get(name, {})
+        if len(layers) > 1:
+            raise ValueError(f"read_exr_pass: pass '{name}' is in layers {sorted(layers)} of {path}")
+        if layers:
+            channels = next(iter(layers.values()))
+            return np.stack([channels[n].astype(np.float32, copy=False) for n in _ordered(channels)],
+                            axis=-1)
+    raise KeyError(f"read_exr_pass: no pass {names} in layer {layer!r} of {path}")
