@@ -23,6 +23,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
+from typing import Literal
 
 import numpy as np
 
@@ -88,6 +89,10 @@ class TracerSettings:
     | texture_filter   | 1..16    | 3       | g: the base colour seen directly is averaged over    |
     |                  |          |         | each sample's pixel cell in g/n x g/n boxes (>= 1);   |
     |                  |          |         | 1: point sampling, no filter                          |
+    | output           | radiance,| radiance| what a camera ray returns: the light it carries, or  |
+    |                  | albedo   |         | the diffuse albedo it sees first, textures filtered  |
+    |                  |          |         | over the pixel (0 where it misses: Cycles' Diffuse   |
+    |                  |          |         | Color pass; texture mapping's view)                   |
     """
 
     max_depth: int = 8
@@ -101,8 +106,11 @@ class TracerSettings:
     mirror_roughness: float = 0.1
     texture_filter: int = TEXTURE_FILTER
     shading: ShadingMode = "bump"
+    output: Literal["radiance", "albedo"] = "radiance"
 
     def __post_init__(self):
+        if self.output not in ("radiance", "albedo"):
+            raise ValueError(f"output must be 'radiance' or 'albedo', got {self.output!r}")
         if self.shading not in SHADING_MODES:
             raise ValueError(f"shading must be one of {SHADING_MODES}, got {self.shading!r}")
         if not 0 <= self.max_depth <= 64:
@@ -588,9 +596,10 @@ class Tracer:
                 primary_ids[...] = self.hit_ids(hits.tri)
             if depth == 0 and primary_t is not None:
                 primary_t[...] = np.where(miss, np.inf, hits.t)
-            np.add.at(result, pixel[miss], weight[miss] * self.scene.world_color)
+            background = 0.0 if s.output == "albedo" else self.scene.world_color
+            np.add.at(result, pixel[miss], weight[miss] * background)
             if untextured is not None:
-                np.add.at(flat, pixel[miss], weight[miss] * self.scene.world_color)
+                np.add.at(flat, pixel[miss], weight[miss] * background)
             keep = ~miss
             origins, dirs, pixel, weight = origins[keep], dirs[keep], pixel[keep], weight[keep]
             hits = type(hits)(t=hits.t[keep], tri=hits.tri[keep], u=hits.u[keep], v=hits.v[keep])
@@ -608,6 +617,11 @@ class Tracer:
                                                       footprint, pixel[rows])
             metallic, trans, rough = self.metallic[m], self.transmission[m], self.roughness[m]
             dielectric = (1.0 - metallic) * (1.0 - trans)
+            if s.output == "albedo":  # what the first hit reflects diffusely; no light, no ray
+                np.add.at(result, pixel, weight * h.albedo * dielectric[:, None])
+                if untextured is not None:
+                    np.add.at(flat, pixel, weight * dielectric[:, None])
+                break
             wo = -dirs
             spec_level = self.specular[m]
             has_spec = (dielectric > 0) & (spec_level > 0) & (rough >= s.mirror_roughness)
@@ -763,10 +777,17 @@ def trace_steps(scene: Scene, settings: TracerSettings, bvh: BVH | None = None,
             del rays
             radiance = np.empty((len(origins), 3))
             stratum = np.repeat(np.arange(len(grid)), len(sel))  # the sub-sample of each ray
+            # Each sub-sample's textures averaged over its 1/a cell, as in pass 1: a minified
+            # texture at a silhouette would alias between a x a point samples.
+            cell_x = np.concatenate([col[sel] + ox for ox, _ in grid])
+            cell_y = np.concatenate([row[sel] + oy for _, oy in grid])
             for first in range(0, len(origins), EDGE_WAVEFRONT):
                 last = first + EDGE_WAVEFRONT
+                footprint = None if settings.texture_filter == 1 else _Footprint(
+                    scene.camera, width, height, cell_x[first:last], cell_y[first:last], 1.0 / a,
+                    max(1, settings.texture_filter // a))
                 radiance[first:last] = tracer.radiance(
-                    origins[first:last], dirs[first:last],
+                    origins[first:last], dirs[first:last], footprint=footprint,
                     strata=(stratum[first:last], len(grid)))
                 yield 0.6 + 0.4 * min(last, len(origins)) / len(origins)
             pixels[sel] = radiance.reshape(len(grid), len(sel), 3).mean(axis=0)
