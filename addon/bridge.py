@@ -8,7 +8,8 @@ the conventions that differ between Blender and the kernels:
 * images: Blender stores rows bottom-up, kernels top-down (`_flip_rows`);
 * mirrored objects (negative determinant): corners 1 and 2 are swapped so that every kernel triangle
   winds counter-clockwise around the normal Blender shades with;
-* colour: byte images in sRGB are decoded to linear here, so kernels only ever see linear data;
+* colour: byte images in sRGB are decoded to linear here, except textures, which keep their
+  encoding and decode each look-up after interpolation, as Cycles does (`Texture.encoding`);
 * lights: Blender's power is turned into radiometric quantities by `kernels/lights.py`.
 """
 
@@ -235,16 +236,22 @@ def _active_output(tree, kind: str):
     return outputs[0] if outputs else None
 
 
-def image_pixels(image) -> np.ndarray | None:
-    """An image's pixels as (H, W, 4) float32 linear, row 0 top, or None if it has no data."""
+def stored_srgb(image) -> bool:
+    """Whether Cycles keeps `image` sRGB-encoded and decodes each look-up after interpolating: an
+    8-bit image in the sRGB colour space."""
+    return not image.is_float and image.colorspace_settings.name == "sRGB"
+
+
+def image_pixels(image, decode: bool = True) -> np.ndarray | None:
+    """An image's pixels as (H, W, 4) float32, row 0 top, or None if it has no data: linear, or
+    with decode=False sRGB-encoded where the image stores them so (`stored_srgb`)."""
     width, height = image.size
     if width == 0 or height == 0:
         return None
     buf = np.empty(width * height * 4, np.float32)
     image.pixels.foreach_get(buf)
     pixels = _flip_rows(buf.reshape(height, width, 4)).copy()
-    space = image.colorspace_settings.name
-    if not image.is_float and space == "sRGB":
+    if decode and stored_srgb(image):
         pixels[..., :3] = srgb_to_linear(pixels[..., :3])
     return pixels
 
@@ -383,7 +390,7 @@ class _MaterialReader:
                 return None
             pixels = self.images.get(image.name)
             if image.name not in self.images:
-                pixels = self.images[image.name] = image_pixels(image)
+                pixels = self.images[image.name] = image_pixels(image, decode=False)
             if pixels is None:
                 ignored.append(f"{what}: image '{image.name}' has no pixels (missing file?)")
                 return None
@@ -394,6 +401,7 @@ class _MaterialReader:
                 extension=node.extension if node.extension != "MIRROR" else "MIRROR",
                 interpolation="CLOSEST" if node.interpolation == "Closest" else "LINEAR",
                 uv_layer=uv_layer,
+                encoding="sRGB" if stored_srgb(image) else "linear",
             )
         if node.type == "TEX_CHECKER":
             ok, uv_layer = self._uv_layer(node, ignored, what)

@@ -50,6 +50,10 @@ class Texture:
     color2: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))  # (3,) linear
     scale: float = 1.0  # checker squares per UV unit
     uv_layer: str | None = None  # None: the object's active render UV layer
+    # "sRGB": `pixels` hold sRGB-encoded colour, decoded after interpolation. Cycles keeps 8-bit
+    # sRGB images so and decodes each look-up after filtering; decoding the texels first gives
+    # brighter transitions (env_room's tiled floor baked: 2.5% bright, relMSE 1.4e-2 -> 7e-5).
+    encoding: Literal["linear", "sRGB"] = "linear"
 
 
 @dataclass(frozen=True, eq=False)

@@ -8,6 +8,8 @@ Cycles render of the same material agree texel for texel:
   the four nearest centres (Cycles' `kernel_tex_image_interp` with `INTERPOLATION_LINEAR`);
 * wrap modes: REPEAT (periodic), EXTEND (clamp to the edge texel), CLIP (outside [0, 1] is
   transparent black, and bilinear lookups near the border blend towards it), MIRROR;
+* 8-bit sRGB images: interpolated in their sRGB encoding and decoded after the look-up (Cycles'
+  byte textures with `compress_as_srgb`; measured against its colour bake, bench/texture.py);
 * checker: Cycles' `svm_checker` on (u, v, 0): colour1 where floor(u s) and floor(v s) have
   different parity.
 """
@@ -129,9 +131,16 @@ def sample_texture_box(texture: Texture, lo: np.ndarray, hi: np.ndarray) -> np.n
     return sample_texture(texture, 0.5 * (np.asarray(lo) + np.asarray(hi))).astype(np.float64)
 
 
+def srgb_to_linear(c: np.ndarray) -> np.ndarray:
+    """The sRGB EOTF (IEC 61966-2-1): encoded values in [0, 1] to linear."""
+    c = np.asarray(c, np.float32)
+    return np.where(c <= 0.04045, c / 12.92, np.power((np.maximum(c, 0.0) + 0.055) / 1.055, 2.4))
+
+
 def sample_texture(texture: Texture, uv: np.ndarray) -> np.ndarray:
-    """RGB (N, 3) float32 of a kernel `Texture` at (N, 2) UVs."""
+    """RGB (N, 3) float32 linear of a kernel `Texture` at (N, 2) UVs: an sRGB-encoded image is
+    interpolated as stored and decoded afterwards, as Cycles does."""
     if texture.kind == "CHECKER":
         return checker(uv, texture.color1, texture.color2, texture.scale)
-    rgba = sample_image(texture.pixels, uv, texture.extension, texture.interpolation)
-    return rgba[:, :3]
+    rgb = sample_image(texture.pixels, uv, texture.extension, texture.interpolation)[:, :3]
+    return srgb_to_linear(rgb).astype(np.float32) if texture.encoding == "sRGB" else rgb
