@@ -192,3 +192,36 @@ def radiosity_bake_job(context, settings, uv_name: str, uv_settings, attribute: 
     summary.update(result=result, lightmap_sizes=plan,
                    filtered_texels=sum(b.filtered_texels for b in bakes.values()))
     yield summary
+
+
+def texture_bake_job(context, settings, uv_name: str, uv_settings, attribute: str = "Albedo",
+                     image_prefix: str = "Texture", render: bool = True, resolution=None,
+                     render_overrides: dict | None = None):
+    """Bake every mesh's diffuse albedo, its textures mapped through its UVs and filtered over
+    each texel (`kernels/texture_bake.py`), into a lightmap image ("Texture <object>") and a
+    CORNER colour attribute (`attribute`), and (render=True) the camera's view of the albedo.
+    Yields progress, then a summary {"images", "attributes", "render", "skipped", "lightmaps",
+    "scene", "stats"}."""
+    from ..kernels import texture_bake
+
+    plan, created = _prepare_lightmaps(context, uv_name, uv_settings)
+    try:
+        scene = bridge.snapshot(context, bridge.SnapshotRequest(lightmap_uv=uv_name, textures=True),
+                                resolution=resolution)
+        targets = [k for k, o in enumerate(scene.objects) if not o.is_instance]
+        sizes = {k: plan.get(scene.objects[k].source_name, uv_settings.resolution) for k in targets}
+        bakes = yield from forward(
+            texture_bake.texture_bake_steps(scene, targets, sizes, uv_settings.padding, settings),
+            0.0, 0.6, lambda step: isinstance(step, dict))
+        image = None
+        if render and scene.camera is not None:
+            image = yield from forward(
+                texture_bake.render_steps(scene, resolution, **(render_overrides or {})), 0.6, 0.4,
+                lambda step: isinstance(step, np.ndarray))
+    except BaseException:
+        _remove_uv_layers(created, uv_name)
+        raise
+    # --- write back: everything computed ---------------------------------------------------------
+    summary = _write_back(scene, bakes, attribute, image_prefix, image, "Classic Bake Texture")
+    summary.update(stats=texture_bake.stats(bakes), lightmap_sizes=plan)
+    yield summary

@@ -42,6 +42,17 @@ class CLASSICBAKE_PT_lightmap_uv(_TechniquePanel, bpy.types.Panel):
         layout.operator("classic_bake.lightmap_uv", icon="UV")
 
 
+class CLASSICBAKE_PT_texture(_TechniquePanel, bpy.types.Panel):
+    bl_label = "Texture Mapping"
+
+    def draw(self, context):
+        layout = self.layout
+        props = context.scene.classic_bake
+        layout.use_property_split = True
+        layout.prop(props, "texture_samples")
+        layout.operator("classic_bake.texture", icon="TEXTURE")
+
+
 class CLASSICBAKE_PT_trace(_TechniquePanel, bpy.types.Panel):
     bl_label = "Ray Tracing"
 
@@ -137,7 +148,8 @@ class CLASSICBAKE_PT_radiosity(_TechniquePanel, bpy.types.Panel):
         layout.operator("classic_bake.radiosity", icon="LIGHT_AREA")
 
 
-CLASSES = (CLASSICBAKE_PT_main, CLASSICBAKE_PT_lightmap_uv, CLASSICBAKE_PT_trace,
+CLASSES = (CLASSICBAKE_PT_main, CLASSICBAKE_PT_lightmap_uv, CLASSICBAKE_PT_texture,
+           CLASSICBAKE_PT_trace,
            CLASSICBAKE_PT_envmap, CLASSICBAKE_PT_bump, CLASSICBAKE_PT_shadowmap,
            CLASSICBAKE_PT_radiosity, CLASSICBAKE_PT_compare)
 

@@ -44,6 +44,10 @@ class CLASSICBAKE_PG_settings(bpy.types.PropertyGroup):
     envmap_selected_only: BoolProperty(
         name="Selected Only", description="Map the selected objects; off: every mirror (smooth "
         "metal)", default=False)
+    texture_samples: IntProperty(
+        name="Cells per Side", description="n x n texture look-ups per lightmap texel, each "
+        "filtered over its part of the texel (0: from each texel's footprint in the texture)",
+        default=0, min=0, max=16)
     bump_shading: EnumProperty(
         name="Shading", description="Which normals the camera view is shaded with",
         items=[("BUMP", "Bump", "Interpolated normals perturbed by the materials' height (Bump "
@@ -107,6 +111,8 @@ class CLASSICBAKE_PG_settings(bpy.types.PropertyGroup):
     compare_technique: EnumProperty(
         name="Technique", description="Which kernel render to compare with Cycles",
         items=[("TRACE", "Ray Tracing", "The Whitted tracer against Cycles' whitted model"),
+               ("TEXTURE", "Texture Mapping", "The albedo seen through the camera, textures "
+                "filtered over each pixel, against Cycles' Diffuse Color pass"),
                ("BUMP", "Bump Mapping", "The shading mode of the Bump Mapping panel against "
                 "Cycles' whitted model (its Bump and Normal Map nodes)"),
                ("ENVMAP", "Environment Mapping", "Cube-mapped mirrors against Cycles' whitted "

@@ -60,3 +60,10 @@ def envmap_settings(props, selected: list[str]):
     return EnvMapSettings(face_size=props.envmap_face_size,
                           face_supersample=props.envmap_face_samples, objects=objects,
                           parallax_steps=props.envmap_parallax_steps)
+
+
+def texture_settings(props):
+    """`scene.classic_bake` -> TextureBakeSettings."""
+    from ..kernels.texture_bake import TextureBakeSettings
+
+    return TextureBakeSettings(samples_per_side=props.texture_samples)

@@ -1,8 +1,8 @@
 """Thin operators: read settings, snapshot the scene, call kernels, write back."""
 
-from . import bump, compare, envmap, lightmap_uv, radiosity, shadowmap, trace
+from . import bump, compare, envmap, lightmap_uv, radiosity, shadowmap, texture, trace
 
-_MODULES = (lightmap_uv, trace, envmap, bump, shadowmap, radiosity, compare)
+_MODULES = (lightmap_uv, texture, trace, envmap, bump, shadowmap, radiosity, compare)
 
 
 def register() -> None:

@@ -43,6 +43,11 @@ def compare_job(context, technique: str, samples: int, report):
         settings = tracer_settings(props, scene)
         model = cycles_reference.whitted(settings.max_depth)
         steps = tracer.trace_steps(scene, settings)
+    elif technique == "TEXTURE":
+        from ..kernels import texture_bake
+
+        model = cycles_reference.albedo()
+        steps = texture_bake.render_steps(scene)
     elif technique == "BUMP":
         settings = shading_settings(props, scene)
         model = cycles_reference.whitted(settings.max_depth)

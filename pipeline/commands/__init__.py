@@ -10,5 +10,6 @@ from . import (  # noqa: F401
     radiosity,
     report,
     shadowmap,
+    texture,
     trace,
 )

@@ -17,6 +17,9 @@ from ..outputs import UsageError
 
 # Each technique's ladder: command-line arguments of its rungs, cheapest first.
 LADDERS = {
+    # A centre look-up per texel and pixel (the lecture's mapping alone), then the filters.
+    "texture": [["--cells", "1", "--texture-filter", "1", "--adaptive", "0"],
+                ["--texture-filter", "1"], [], ["--texture-filter", "6"]],
     "trace": [["--adaptive", "0"], ["--adaptive", "2"], ["--adaptive", "4"],
               ["--supersample", "2", "--adaptive", "4"]],
     "shadowmap": [["--map-size", "512"], ["--map-size", "0"], ["--map-size", "2048"],
@@ -48,6 +51,8 @@ def cycles_model(technique: str, settings: dict):
         return cr.whitted(int(settings["tracer"].get("max_depth", 8)))
     if technique == "shadowmap":
         return cr.direct()
+    if technique == "texture":  # Cycles' Diffuse Color pass
+        return cr.albedo()
     return cr.radiosity()
 
 

@@ -8,7 +8,7 @@ from ..cli import COMMANDS, Command, RunContext, command, command_args, run_comm
 from ..outputs import UsageError, safe_name
 
 # The commands the demo runs on each scene, in order. Techniques join this list as they land.
-DEMO_COMMANDS = ("info", "trace", "envmap", "bump", "shadowmap", "radiosity")
+DEMO_COMMANDS = ("info", "texture", "trace", "envmap", "bump", "shadowmap", "radiosity")
 # Radiosity makes at least one patch per triangle and solves all of them: the demo bakes it only on
 # scenes this small (the Cornell box), to stay a few minutes long. `radiosity SCENE` runs any scene.
 DEMO_MAX_TRIANGLES = {"radiosity": 500}
