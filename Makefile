@@ -49,7 +49,7 @@ extension: $(VENV)/.stamp
 	$(PY) tools/build_extension.py --out dist
 
 # Every benchmark (bench/_report.py and bench/meshes.py are their shared helpers).
-BENCHES := rays trace envmap bump shadowmap radiosity
+BENCHES := rays trace texture envmap bump shadowmap radiosity
 
 bench: $(VENV)/.stamp
 	for b in $(BENCHES); do $(PY) bench/$$b.py || exit 1; done
