@@ -8,6 +8,7 @@ from pathlib import Path
 
 import bpy
 import numpy as np
+import pytest
 
 from classic_bake.addon import bridge, cycles_reference
 from classic_bake.addon.jobs import texture_bake_job
@@ -76,6 +77,10 @@ def test_cli_writes_lightmaps_render_and_metrics(tmp_path):
     assert bad.returncode == 2 and "samples_per_side" in bad.stderr
 
 
+@pytest.mark.skipif(bpy.app.version < (5, 0, 0), reason=(
+    "Cycles 4.5 filters baked texels otherwise: its 256-sample bake of this plane differs from "
+    "its 1-sample one in 54 distinct texel values against 5.2's 126, and from the kernel's "
+    "texel ∩ triangle box mean by relMSE 0.17 (5.2: 0.0004); not characterised yet"))
 def test_a_minified_checker_matches_cycles_converged_colour_bake(open_sample):
     """The checker plane on a 16-texel lightmap: a texel spans about a checker square. Against
     Cycles' colour-only DIFFUSE bake at 256 samples, the filtered bake is within 0.01 relMSE
