@@ -36,6 +36,8 @@ from _report import (  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENES = ("raytrace", "env_room")
+# The textured object each scene's pictures show.
+SHOWN = {"raytrace": "CheckerPlane", "env_room": "Floor"}
 SIZES = (256, 16)  # magnified, minified
 UV_NAME = "Lightmap"
 # (label, cells per side): one centre look-up, the footprint's choice, then finer.
@@ -119,11 +121,12 @@ def bake_case(name: str, size: int, args) -> dict:
         reach = seconds_to_reach(row["rel_mse"], cycles_rows)
         row["cycles_seconds_to_same_rel_mse"] = reach
         row["ratio"] = None if reach is None else reach / row["seconds"]
-    textured = max(plan, key=plan.get)  # the largest object: the checker plane, the tiled floor
+    shown = SHOWN[name]
+    covered = ref_masks[shown][..., None]  # Cycles' bake is not dilated: show the charts only
     return {"kernel": kernel_rows, "cycles": cycles_rows, "reference_samples": ref_samples,
             "reference_seconds": ref_seconds, "lightmap_sizes": plan,
-            "lightmaps": {k: v[textured] for k, v in lightmaps.items()},
-            "reference_lightmap": ref_images[textured], "object": textured}
+            "lightmaps": {k: v[shown] * covered for k, v in lightmaps.items()},
+            "reference_lightmap": ref_images[shown] * covered, "object": shown}
 
 
 def view_case(name: str, args) -> dict:
