@@ -157,9 +157,10 @@ def texture_units(scene: Scene, triangles: np.ndarray) -> np.ndarray:
 
 
 def cells_per_side(scene: Scene, triangles: np.ndarray, jac: np.ndarray, size: tuple[int, int],
-                   settings: TextureBakeSettings) -> np.ndarray:
+                   settings: TextureBakeSettings, edge: np.ndarray | None = None) -> np.ndarray:
     """(M,) n for texels of triangles (M,) with Jacobians jac (M, 2, 2) in a lightmap of size
-    (W, H) texels (module docstring)."""
+    (W, H) texels (module docstring); `edge` (M,) bool marks texels that straddle their
+    triangle (`straddling`), which take at least `EDGE_CELLS` where textured."""
     if settings.samples_per_side > 0:
         return np.full(len(triangles), settings.samples_per_side, np.int64)
     width, height = size
@@ -180,7 +181,11 @@ def cells_per_side(scene: Scene, triangles: np.ndarray, jac: np.ndarray, size: t
     # A checker's boxes are exact at any size: under an axis-aligned map the box IS the
     # footprint, under a skewed one a few cells narrow the band where box and footprint differ.
     n[checker] = np.where(skewed[checker], min(SKEWED_CHECKER_SIDE, settings.max_samples_per_side), 1)
-    n[units.max(axis=1) == 0.0] = 1  # no texture: nothing varies within the triangle
+    textured = units.max(axis=1) > 0.0
+    if edge is not None:  # the mean is over texel ∩ triangle: cells drop the far side
+        grow = edge & textured
+        n[grow] = np.maximum(n[grow], min(EDGE_CELLS, settings.max_samples_per_side))
+    n[~textured] = 1  # no texture: nothing varies within the triangle
     return n
 
 
@@ -234,18 +239,12 @@ def texel_albedo(scene: Scene, targets, settings: TextureBakeSettings = TextureB
     size = (width, height)
     tri = targets.triangles
     jac, degenerate = texel_jacobians(scene, tri)
-    n = cells_per_side(scene, tri, jac, size, settings)
-    if settings.samples_per_side == 0:  # auto: edge texels average their own triangle's part
-        edge = straddling(scene, targets) & (texture_units(scene, tri).max(axis=1) > 0.0)
-        n[edge] = np.maximum(n[edge], min(EDGE_CELLS, settings.max_samples_per_side))
+    edge = straddling(scene, targets) if settings.samples_per_side == 0 else None
+    n = cells_per_side(scene, tri, jac, size, settings, edge)
     n[degenerate] = 1
     half = _cell_half_extents(jac, n, size)
-    # One cell: the whole texel's box around its centre (the targets' points sit where Blender
-    # takes its first sample, `SAMPLE_SHIFT` texels off; J carries them back); a sliver thinner
-    # than the cell spacing, which keeps no cell, too.
-    shift = np.array(SAMPLE_SHIFT) / np.array(size, np.float64)  # lightmap uv
-    centre = _texture_uv(scene, tri, targets.bary) - jac @ shift
-    values = _cell_albedo(scene, tri, centre, half)
+    values = np.empty((len(tri), 3))
+    single = n == 1  # and below, slivers thinner than the cell spacing, which keep no cell
     for k in np.unique(n[n > 1]):
         which = np.flatnonzero(n == k)
         owner, cell_tri, bary = subtexel_points(scene, targets, which, int(k))
@@ -256,6 +255,13 @@ def texel_albedo(scene: Scene, targets, settings: TextureBakeSettings = TextureB
         counts = np.bincount(owner, minlength=len(which))
         kept = counts > 0
         values[which[kept]] = sums[kept] / counts[kept, None]
+        single[which[~kept]] = True
+    # One cell: the whole texel's box around its centre (the targets' points sit where Blender
+    # takes its first sample, `SAMPLE_SHIFT` texels off; J carries them back).
+    rows = np.flatnonzero(single)
+    shift = np.array(SAMPLE_SHIFT) / np.array(size, np.float64)  # lightmap uv
+    centre = _texture_uv(scene, tri[rows], targets.bary[rows]) - jac[rows] @ shift
+    values[rows] = _cell_albedo(scene, tri[rows], centre, half[rows])
     return values, n
 
 
