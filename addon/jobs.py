@@ -99,6 +99,14 @@ def _prepare_lightmaps(context, uv_name: str, uv_settings) -> tuple[dict, list]:
     return plan, create_lightmap_uvs(objects, uv_name, uv_settings, plan)
 
 
+def _bake_targets(scene, plan: dict, uv_settings) -> tuple[list[int], dict]:
+    """The objects a bake writes back (indices into scene.objects: every one but instances, which
+    share their original's mesh) and each one's lightmap size from the plan."""
+    targets = [k for k, o in enumerate(scene.objects) if not o.is_instance]
+    return targets, {k: plan.get(scene.objects[k].source_name, uv_settings.resolution)
+                     for k in targets}
+
+
 def _write_back(scene, bakes: dict, attribute: str, image_prefix: str, render_image,
                 render_name: str, wire: bool = False) -> dict:
     """Write per-object bakes (objects with .lightmap, .lightmap_mask, .corners) as lightmap images
@@ -139,8 +147,7 @@ def shadow_bake_job(context, settings, uv_name: str, uv_settings, attribute: str
                                 resolution=resolution)
         if not scene.lights:
             raise ValueError("the scene has no lights: nothing casts a shadow")
-        targets = [k for k, o in enumerate(scene.objects) if not o.is_instance]
-        sizes = {k: plan.get(scene.objects[k].source_name, uv_settings.resolution) for k in targets}
+        targets, sizes = _bake_targets(scene, plan, uv_settings)
         results = yield from forward(
             direct_light.shadow_bake_steps(scene, targets, sizes, uv_settings.padding, settings),
             0.0, 0.8, lambda step: isinstance(step, dict))
@@ -174,8 +181,7 @@ def radiosity_bake_job(context, settings, uv_name: str, uv_settings, attribute: 
                                 resolution=resolution)
         result = yield from forward(radiosity.radiosity_steps(scene, settings), 0.0, 0.85,
                                       lambda step: isinstance(step, radiosity.RadiosityResult))
-        targets = [k for k, o in enumerate(scene.objects) if not o.is_instance]
-        sizes = {k: plan.get(scene.objects[k].source_name, uv_settings.resolution) for k in targets}
+        targets, sizes = _bake_targets(scene, plan, uv_settings)
         bakes = yield from forward(
             radiosity.bake_steps(scene, result, targets, sizes, uv_settings.padding), 0.85, 0.1,
             lambda step: isinstance(step, dict))
@@ -208,8 +214,7 @@ def texture_bake_job(context, settings, uv_name: str, uv_settings, attribute: st
     try:
         scene = bridge.snapshot(context, bridge.SnapshotRequest(lightmap_uv=uv_name, textures=True),
                                 resolution=resolution)
-        targets = [k for k, o in enumerate(scene.objects) if not o.is_instance]
-        sizes = {k: plan.get(scene.objects[k].source_name, uv_settings.resolution) for k in targets}
+        targets, sizes = _bake_targets(scene, plan, uv_settings)
         bakes = yield from forward(
             texture_bake.texture_bake_steps(scene, targets, sizes, uv_settings.padding, settings),
             0.0, 0.6, lambda step: isinstance(step, dict))

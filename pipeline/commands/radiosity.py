@@ -76,11 +76,8 @@ def run(ctx: RunContext) -> None:
 
     import bpy
 
-    from ...addon import bridge
     from ...addon.jobs import radiosity_bake_job, run_to_end
-    from ...kernels.exr import write_exr
-    from ..images import write_preview_png
-    from ..outputs import safe_name
+    from ..bake_outputs import write_bake_outputs
 
     settings, uv, value = settings_from(ctx.args)
     with ctx.phase("bake"):
@@ -89,16 +86,10 @@ def run(ctx: RunContext) -> None:
                                            resolution=ctx.resolution, wire=value["wire"]))
         except ValueError as exc:
             raise UsageError(str(exc)) from exc
+    if summary["render"] is None:
+        raise UsageError("radiosity: the scene has no camera, so there is no render.exr")
     with ctx.phase("write"):
-        for name, (lightmap, _mask) in summary["lightmaps"].items():
-            write_exr(ctx.output(f"lightmaps/{safe_name(name)}_radiosity.exr"), lightmap)
-        if summary["render"] is None:
-            raise UsageError("radiosity: the scene has no camera, so there is no render.exr")
-        ctx.write_render(summary["render"])
-        write_preview_png(ctx.output("render.png"), summary["render"])
-        if getattr(ctx.args, "save_blend", False):
-            for image in summary["images"].values():
-                bridge.pack_image(image)
+        write_bake_outputs(ctx, summary, "radiosity")
     stats = summary["result"].stats
     scene = summary["scene"]
     ctx.record.settings = {**asdict(settings), "lightmap_size": uv.resolution,

@@ -51,9 +51,7 @@ def run(ctx: RunContext) -> None:
 
     from ...addon import bridge
     from ...addon.jobs import run_to_end, shadow_bake_job
-    from ...kernels.exr import write_exr
-    from ..images import write_preview_png
-    from ..outputs import safe_name
+    from ..bake_outputs import write_bake_outputs
     from ..quality import apply_target
 
     if ctx.args.target_error is not None:
@@ -67,14 +65,7 @@ def run(ctx: RunContext) -> None:
         except ValueError as exc:
             raise UsageError(str(exc)) from exc
     with ctx.phase("write"):
-        for name, (lightmap, _mask) in summary["lightmaps"].items():
-            write_exr(ctx.output(f"lightmaps/{safe_name(name)}_shadow.exr"), lightmap)
-        if summary["render"] is not None:
-            ctx.write_render(summary["render"])
-            write_preview_png(ctx.output("render.png"), summary["render"])
-        if ctx.args.save_blend:
-            for image in summary["images"].values():
-                bridge.pack_image(image)
+        write_bake_outputs(ctx, summary, "shadow")
     scene = summary["scene"]
     texels = {n: int(m.sum()) for n, (_, m) in summary["lightmaps"].items()}
     ctx.record.settings = {**asdict(settings.shadow), "auto_resolution": settings.auto_resolution,

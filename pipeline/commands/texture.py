@@ -29,13 +29,10 @@ def run(ctx: RunContext) -> None:
 
     import bpy
 
-    from ...addon import bridge
     from ...addon.jobs import run_to_end, texture_bake_job
-    from ...kernels.exr import write_exr
     from ...kernels.lightmap_uv import LightmapUVSettings
     from ...kernels.texture_bake import TextureBakeSettings
-    from ..images import write_preview_png
-    from ..outputs import safe_name
+    from ..bake_outputs import write_bake_outputs
 
     try:
         settings = TextureBakeSettings(samples_per_side=ctx.args.cells)
@@ -51,15 +48,7 @@ def run(ctx: RunContext) -> None:
         except ValueError as exc:
             raise UsageError(str(exc)) from exc
     with ctx.phase("write"):
-        for name, (lightmap, _mask) in summary["lightmaps"].items():
-            write_exr(ctx.output(f"lightmaps/{safe_name(name)}_albedo.exr"), lightmap)
-            write_preview_png(ctx.output(f"lightmaps/{safe_name(name)}_albedo.png"), lightmap)
-        if summary["render"] is not None:
-            ctx.write_render(summary["render"])
-            write_preview_png(ctx.output("render.png"), summary["render"])
-        if ctx.args.save_blend:
-            for image in summary["images"].values():
-                bridge.pack_image(image)
+        write_bake_outputs(ctx, summary, "albedo", previews=True)
     scene, stats = summary["scene"], summary["stats"]
     textured = sorted({m.name for m in scene.materials if m.base_color_texture is not None})
     ctx.record.settings = {**asdict(settings), "texture_filter": ctx.args.texture_filter,
