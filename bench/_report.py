@@ -86,6 +86,12 @@ if __name__ == "__main__":
     print("bench/_report.py is a helper module; run bench/rays.py")
 
 
+def stack_texels(images: dict, masks: dict, names) -> np.ndarray:
+    """Every masked texel of the lightmaps `names` ({name: (H, W, 3)}, masks {name: (H, W)}) as
+    one (N, 1, 3) image, for one relative MSE over several objects."""
+    return np.concatenate([images[n][masks[n]] for n in names])[:, None, :]
+
+
 def seconds_to_reach(error: float, ladder: list[dict], metric: str = "rel_mse") -> float | None:
     """Seconds Cycles needs for `error` in `metric`, log-log interpolated on its ladder (None:
     never)."""

@@ -29,17 +29,13 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _report import OUT_DIR, format_table, versions, write_report  # noqa: E402
+from _report import stack_texels as stack  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "sample_blends" / "cornell_box.blend"
 UV_NAME = "Lightmap"
 EMITTER = "Light"
 RENDER_SIZE = (80, 60)
-
-
-def stack(images: dict, masks: dict, names) -> np.ndarray:
-    """Every valid texel of `names` as one (N, 1, 3) image."""
-    return np.concatenate([images[n][masks[n]] for n in names])[:, None, :]
 
 
 def seconds_to_reach(ladder: list[dict], error: float) -> tuple[float, bool]:

@@ -21,8 +21,6 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _report import (  # noqa: E402
     OUT_DIR,
@@ -30,6 +28,7 @@ from _report import (  # noqa: E402
     image_row,
     reference_arguments,
     seconds_to_reach,
+    stack_texels,
     versions,
     write_report,
 )
@@ -46,10 +45,6 @@ BAKE_LADDER = [("centre look-up", 1), ("auto (footprint)", 0), ("4x4 cells", 4),
 # (label, texture filter, silhouette samples) of the camera view.
 VIEW_LADDER = [("centre look-up", 1, 0), ("centre + edges", 1, 4), ("default (3x3 boxes)", 3, 4),
                ("6x6 boxes", 6, 4)]
-
-
-def stacked(images: dict, masks: dict) -> np.ndarray:
-    return np.concatenate([images[n][masks[n]] for n in sorted(images)])[:, None, :]
 
 
 def bake_case(name: str, size: int, args) -> dict:
@@ -107,16 +102,16 @@ def bake_case(name: str, size: int, args) -> dict:
             masks = {n: ref_masks[n] & bakes_mask for n, bakes_mask in
                      ((scene.objects[k].source_name, b.lightmap_mask) for k, b in bakes.items())}
             kernel_rows.append({"setting": label, "seconds": seconds,
-                                "rel_mse": rel_mse(stacked(images, masks),
-                                                   stacked(ref_images, masks)),
+                                "rel_mse": rel_mse(stack_texels(images, masks, sorted(images)),
+                                                   stack_texels(ref_images, masks, sorted(images))),
                                 "look_ups": stats(bakes)["cells"]})
             lightmaps[label] = images
         if step < len(counts):
             images, masks, seconds = cycles(counts[step])
             both = {n: masks[n] & ref_masks[n] for n in images}
             cycles_rows.append({"samples": counts[step], "seconds": seconds,
-                                "rel_mse": rel_mse(stacked(images, both),
-                                                   stacked(ref_images, both))})
+                                "rel_mse": rel_mse(stack_texels(images, both, sorted(images)),
+                                                   stack_texels(ref_images, both, sorted(images)))})
     for row in kernel_rows:
         reach = seconds_to_reach(row["rel_mse"], cycles_rows)
         row["cycles_seconds_to_same_rel_mse"] = reach
