@@ -325,8 +325,15 @@ class ProgressiveSolver:
 
     State: `radiosity` (N, 3) shot so far (starts at E), `unshot` (N, 3) radiosity not yet
     shot; `display()` adds rho x ambient, the 1988 estimate of what the unshot power will
-    still add, spread evenly: ambient = R sum_j dB_j A_j / sum_j A_j with the interreflection
-    factor R = 1 / (1 - rho_avg), rho_avg the area-weighted mean reflectance (per channel).
+    still add, spread evenly:
+
+        ambient = c sum_j dB_j A_j / sum_j A_j / (1 - c rho_avg)
+
+    rho_avg the area-weighted mean reflectance (per channel), c the scene's closure: the share of
+    shot power that landed on patches, sum_j F_ij weighted by each shot's power (1 before the
+    first shot). The 1988 paper's R = 1 / (1 - rho_avg) is c = 1: a closed room. In an open
+    scene (a lamp-lit ground under an empty sky) most unshot power leaves, and c = 1 displayed
+    shadows.blend after one shot ~2.4x too bright (relMSE 5.9 against Cycles).
     """
 
     def __init__(
@@ -355,8 +362,9 @@ class ProgressiveSolver:
         self.shots = 0
         self._emitted = (self.emission * a[:, None]).sum(axis=0)  # (3,) W per channel
         self._cache: OrderedDict[int, np.ndarray] = OrderedDict()
-        rho_avg = (self.reflectance * a[:, None]).sum(axis=0) / a.sum()  # (3,)
-        self._interreflection = 1.0 / (1.0 - rho_avg)
+        self._rho_avg = (self.reflectance * a[:, None]).sum(axis=0) / a.sum()  # (3,)
+        self._shot_power = np.zeros(3)  # W per channel, every shot so far
+        self._caught_power = np.zeros(3)  # W per channel of it that landed on patches
 
     @property
     def unshot_fraction(self) -> float:
@@ -371,10 +379,16 @@ class ProgressiveSolver:
     def converged(self) -> bool:
         return self.unshot_fraction <= self.settings.tolerance
 
+    def closure(self) -> np.ndarray:
+        """(3,) share of the shot power that landed on patches (1 where nothing was shot yet)."""
+        shot = self._shot_power > ZERO_ENERGY
+        return np.divide(self._caught_power, self._shot_power, out=np.ones(3), where=shot)
+
     def ambient(self) -> np.ndarray:
-        """(3,) ambient radiosity estimate of the unshot power."""
+        """(3,) ambient radiosity estimate of the unshot power (class docstring)."""
         unshot_power = (self.unshot * self.areas[:, None]).sum(axis=0)  # (3,)
-        return self._interreflection * unshot_power / self.areas.sum()
+        c = self.closure()
+        return c * unshot_power / self.areas.sum() / (1.0 - c * self._rho_avg)
 
     def display(self, out: np.ndarray | None = None) -> np.ndarray:
         """(N, 3) radiosity for display: shot radiosity + rho x ambient."""
@@ -403,8 +417,11 @@ class ProgressiveSolver:
             return 1.0
         shooting = self.unshot[i].copy()  # (3,)
         self.unshot[i] = 0.0
+        row = self._row(i)
+        self._shot_power += shooting * self.areas[i]
+        self._caught_power += shooting * self.areas[i] * min(float(row.sum()), 1.0)
         # Reciprocity: F_ji = F_ij A_i / A_j, so patch j receives rho_j dB_i F_ij A_i / A_j.
-        f_ji = self._row(i) * (self.areas[i] / self.areas)  # (N,)
+        f_ji = row * (self.areas[i] / self.areas)  # (N,)
         received = self.reflectance * (f_ji[:, None] * shooting[None, :])  # (N, 3)
         self.radiosity += received
         self.unshot += received
