@@ -420,6 +420,8 @@ class ProgressiveSolver:
         self.unshot[i] = 0.0
         row = self._row(i)
         self._shot_power += shooting * self.areas[i]
+        # Capped at 1: a closed box's estimated rows may sum a little above it, and a closure
+        # above 1 would take 1 - c rho_avg towards 0 at high reflectance.
         self._caught_power += shooting * self.areas[i] * min(float(row.sum()), 1.0)
         # Reciprocity: F_ji = F_ij A_i / A_j, so patch j receives rho_j dB_i F_ij A_i / A_j.
         f_ji = row * (self.areas[i] / self.areas)  # (N,)
