@@ -8,6 +8,8 @@ it was. The last value yielded is a summary dict.
 
 from __future__ import annotations
 
+from contextlib import contextmanager
+
 import bpy
 import numpy as np
 
@@ -89,14 +91,21 @@ def run_to_end(job) -> dict:
     return summary
 
 
-def _prepare_lightmaps(context, uv_name: str, uv_settings) -> tuple[dict, list]:
-    """Every renderable mesh's lightmap size at one texel density, and the lightmap UV layers
-    created for the meshes that lacked one (to remove again if the job stops early)."""
+@contextmanager
+def _lightmap_uvs(context, uv_name: str, uv_settings):
+    """Every renderable mesh's lightmap size at one texel density ({name: texels}), with lightmap
+    UV layers `uv_name` created for the meshes that lack one; those layers are removed again if
+    the block stops early (an error, or the job closed by Esc), so the scene is left as it was."""
     objects = mesh_objects(context)
     if not objects:
         raise ValueError("the scene has no mesh objects to bake")
     plan = lightmap_plan(objects, uv_settings)
-    return plan, create_lightmap_uvs(objects, uv_name, uv_settings, plan)
+    created = create_lightmap_uvs(objects, uv_name, uv_settings, plan)
+    try:
+        yield plan
+    except BaseException:
+        _remove_uv_layers(created, uv_name)
+        raise
 
 
 def _bake_targets(scene, plan: dict, uv_settings) -> tuple[list[int], dict]:
@@ -141,8 +150,7 @@ def shadow_bake_job(context, settings, uv_name: str, uv_settings, attribute: str
     summary {"images": {...}, "attributes": [...], "render": image or None, "skipped": [...]}."""
     from ..kernels import direct_light
 
-    plan, created = _prepare_lightmaps(context, uv_name, uv_settings)
-    try:
+    with _lightmap_uvs(context, uv_name, uv_settings) as plan:
         scene = bridge.snapshot(context, bridge.SnapshotRequest(lightmap_uv=uv_name, textures=render),
                                 resolution=resolution)
         if not scene.lights:
@@ -155,9 +163,6 @@ def shadow_bake_job(context, settings, uv_name: str, uv_settings, attribute: str
         if render and scene.camera is not None:
             image = yield from forward(direct_light.render_steps(scene, settings, resolution),
                                          0.8, 0.2, lambda step: isinstance(step, np.ndarray))
-    except BaseException:
-        _remove_uv_layers(created, uv_name)
-        raise
     # --- write back: everything computed ---------------------------------------------------------
     summary = _write_back(scene, results, attribute, image_prefix, image, "Classic Bake Shadows")
     summary["per_light"] = {scene.objects[k].source_name: bake.per_light_lightmaps
@@ -175,8 +180,7 @@ def radiosity_bake_job(context, settings, uv_name: str, uv_settings, attribute: 
     "result", "scene"}."""
     from ..kernels import radiosity
 
-    plan, created = _prepare_lightmaps(context, uv_name, uv_settings)
-    try:
+    with _lightmap_uvs(context, uv_name, uv_settings) as plan:
         scene = bridge.snapshot(context, bridge.SnapshotRequest(lightmap_uv=uv_name, textures=True),
                                 resolution=resolution)
         result = yield from forward(radiosity.radiosity_steps(scene, settings), 0.0, 0.85,
@@ -189,9 +193,6 @@ def radiosity_bake_job(context, settings, uv_name: str, uv_settings, attribute: 
         if render and scene.camera is not None:
             image = yield from forward(radiosity.render_steps(scene, result, resolution), 0.95,
                                          0.05, lambda step: isinstance(step, np.ndarray))
-    except BaseException:
-        _remove_uv_layers(created, uv_name)
-        raise
     # --- write back: everything computed ---------------------------------------------------------
     summary = _write_back(scene, bakes, attribute, image_prefix, image, "Classic Bake Radiosity",
                           wire=wire)
@@ -210,8 +211,7 @@ def texture_bake_job(context, settings, uv_name: str, uv_settings, attribute: st
     "scene", "stats"}."""
     from ..kernels import texture_bake
 
-    plan, created = _prepare_lightmaps(context, uv_name, uv_settings)
-    try:
+    with _lightmap_uvs(context, uv_name, uv_settings) as plan:
         scene = bridge.snapshot(context, bridge.SnapshotRequest(lightmap_uv=uv_name, textures=True),
                                 resolution=resolution)
         targets, sizes = _bake_targets(scene, plan, uv_settings)
@@ -223,9 +223,6 @@ def texture_bake_job(context, settings, uv_name: str, uv_settings, attribute: st
             image = yield from forward(
                 texture_bake.render_steps(scene, resolution, **(render_overrides or {})), 0.6, 0.4,
                 lambda step: isinstance(step, np.ndarray))
-    except BaseException:
-        _remove_uv_layers(created, uv_name)
-        raise
     # --- write back: everything computed ---------------------------------------------------------
     summary = _write_back(scene, bakes, attribute, image_prefix, image, "Classic Bake Texture")
     summary.update(stats=texture_bake.stats(bakes), lightmap_sizes=plan)
