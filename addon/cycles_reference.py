@@ -44,11 +44,11 @@ Cycles' Diffuse Color pass (`render_pass="DiffCol"`, read from a multilayer Open
 the combined image, 0 where the camera sees the world (measured with a world of colour (0.3, 0.6,
 0.9)). Bounces 0: the colour is the first surface's. Remaining differences: Cycles' diffuse colour
 is the Principled base colour x (1 - metallic) x (1 - transmission) x (1 - the directional albedo
-of its specular layer), so it is the kernel's albedo exactly with Specular IOR Level 0 (as the
-sample scenes set on diffuse surfaces). With the default 0.5 (F0 = 0.04) it is 3.7% lower seen
+of its specular layer). With the default Specular IOR Level 0.5 (F0 = 0.04) it is 3.7% lower seen
 along the normal at roughness 0.5 (4.0% at roughness 0, 1.4% at 1), and in renders lower still at
 grazing views (5% at 45 degrees, 17% at 70 degrees, roughness 0); bakes see every texel along its
-normal.
+normal. The kernels' bakes model it (`kernels/specular_layer.py`, to 0.11%); their camera views
+do not yet darken with the view angle.
 
 Settings every model shares (`FIXED_SETTINGS`): Cycles on the CPU, denoising and adaptive
 sampling off, no sample clamping, no fast-GI approximation, no time limit, view-layer sample

@@ -33,6 +33,7 @@ from .shadowmap import (
     receivers_visibility,
     render_shadow_map_steps,
 )
+from .specular_layer import diffuse_factor
 from .textures import sample_texture
 from .vec import bounds, row_norms
 
@@ -180,18 +181,22 @@ def albedo_at(scene: Scene, tri: np.ndarray, bary: np.ndarray) -> np.ndarray:
     return out
 
 
-def diffuse_weight(material) -> float:
+def diffuse_weight(material, under_layer: bool = True) -> float:
     """The Principled BSDF's diffuse weight, (1 - metallic)(1 - transmission): how much of the
     base colour a surface reflects diffusely. A metal or a glass reflects nothing diffusely: its
     light leaves along specular paths, which a diffuse solver does not follow (Cycles' DIFFUSE
-    bake of it is black too)."""
-    return (1.0 - material.metallic) * (1.0 - material.transmission)
+    bake of it is black too). `under_layer`: times the share the specular layer leaves the base
+    seen along the normal, as a bake sees every texel (`specular_layer.diffuse_factor`; 1 at
+    Specular IOR Level 0)."""
+    weight = (1.0 - material.metallic) * (1.0 - material.transmission)
+    return weight * diffuse_factor(material) if under_layer and weight > 0.0 else weight
 
 
-def diffuse_at(scene: Scene, tri: np.ndarray, bary: np.ndarray) -> np.ndarray:
+def diffuse_at(scene: Scene, tri: np.ndarray, bary: np.ndarray, under_layer: bool = True
+               ) -> np.ndarray:
     """(N, 3) diffuse reflectance at barycentric points of triangles: the base colour
     (`albedo_at`) times its material's `diffuse_weight`."""
-    weight = np.array([diffuse_weight(m) for m in scene.materials], np.float64)
+    weight = np.array([diffuse_weight(m, under_layer) for m in scene.materials], np.float64)
     return albedo_at(scene, tri, bary) * weight[scene.material_ids[tri]][:, None]
 
 

@@ -32,9 +32,9 @@ the image is under-filtered; `stats` counts the texels per n). Texels that strad
 triangle's edge take at least `EDGE_CELLS` (the mean is over texel ∩ triangle).
 
 The albedo is what the diffuse lobe reflects: base colour x (1 - metallic) x (1 - transmission)
-(`direct_light.diffuse_at`), the quantity Cycles' Diffuse Color pass and colour-only DIFFUSE
-bake hold. Mesh corners take the value at the corner itself (a colour-attribute bake samples the
-vertex).
+x (1 - the specular layer's albedo along the normal) (`direct_light.diffuse_at`,
+`specular_layer.py`), the quantity Cycles' Diffuse Color pass and colour-only DIFFUSE bake hold.
+Mesh corners take the value at the corner itself (a colour-attribute bake samples the vertex).
 """
 
 from __future__ import annotations

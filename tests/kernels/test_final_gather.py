@@ -14,7 +14,8 @@ from classic_bake.kernels.scene import Material, geometric_normals
 
 
 def grey(rho, emission=0.0, name="grey"):
-    return Material(name=name, base_color=np.full(3, rho, np.float32),
+    """Lambertian (Specular IOR Level 0: no specular layer over the base)."""
+    return Material(name=name, base_color=np.full(3, rho, np.float32), specular=0.0,
                     emission=np.full(3, emission, np.float32))
 
 

@@ -15,7 +15,7 @@ SMOOTH = np.radians(30.0)
 
 
 def grey():
-    return Material(name="grey", base_color=np.full(3, 0.5, np.float32))
+    return Material(name="grey", base_color=np.full(3, 0.5, np.float32), specular=0.0)
 
 
 def square_patches(size=0.1):

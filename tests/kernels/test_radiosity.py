@@ -32,6 +32,7 @@ from classic_bake.kernels.scene import (
     geometric_normals,
     triangle_areas,
 )
+from classic_bake.kernels.specular_layer import diffuse_factor
 
 FAST = dict(samples_per_side=2, visibility_samples_per_side=2, hemicube_resolution=16)
 
@@ -45,7 +46,8 @@ def inward_box(size=1.0):
 
 
 def grey(rho, emission=0.0, name="grey"):
-    return Material(name=name, base_color=np.full(3, rho, np.float32),
+    """Lambertian (Specular IOR Level 0: no specular layer over the base)."""
+    return Material(name=name, base_color=np.full(3, rho, np.float32), specular=0.0,
                     emission=np.full(3, emission, np.float32))
 
 
@@ -121,9 +123,9 @@ def test_metal_and_glass_reflect_nothing_diffusely():
     a clear glass of base colour 1 is not refused but black to the solution, a half-metallic
     grey reflects half its base colour. Furnace: a closed box of emission 1 whose walls reflect
     rho has B = pi / (1 - rho) (within the solver's 1%)."""
-    glass = Material(name="Glass", base_color=np.ones(3, np.float32),
+    glass = Material(name="Glass", base_color=np.ones(3, np.float32), specular=0.0,
                      emission=np.ones(3, np.float32), transmission=1.0)
-    half = Material(name="Satin", base_color=np.full(3, 0.6, np.float32),
+    half = Material(name="Satin", base_color=np.full(3, 0.6, np.float32), specular=0.0,
                     emission=np.ones(3, np.float32), metallic=0.5)
     for material, rho in ((glass, 0.0), (half, 0.3)):
         result = solve_radiosity(build([(inward_box(), material)]),
@@ -142,7 +144,7 @@ def test_surfaces_that_send_nothing_are_solved_without(solver):
     |difference| 0.3% and 0.9%, where two seeds of the full solve differ by 0.4%."""
     ball = uv_sphere((0.5, 0.5, 0.3), 0.2, rings=8, segments=16)
     chrome = Material(name="Chrome", base_color=np.full(3, 0.9, np.float32), metallic=1.0)
-    soot = Material(name="Soot", base_color=np.full(3, 1e-6, np.float32))
+    soot = Material(name="Soot", base_color=np.full(3, 1e-6, np.float32), specular=0.0)
     settings = RadiositySettings(solver=solver, patch_budget=150, refine_levels=0, **FAST)
     lamp = Light(name="Lamp", kind="POINT", position=np.array([0.5, 0.5, 0.9]),
                  direction=np.array([0, 0, -1.0]), axis_x=np.array([1.0, 0, 0]),
@@ -192,6 +194,31 @@ def test_furnace_closed_box(method, solver):
     for step in bake_steps(scene, result, [0], {}, 2):
         bakes = step
     np.testing.assert_allclose(bakes[0].corners, expected / np.pi, rtol=tol)
+
+
+@pytest.mark.parametrize("final_gather", [True, False])
+def test_furnace_under_a_specular_layer(final_gather):
+    """Principled walls with the default specular layer (level 0.5, roughness 0.5): the solver
+    exchanges light with the layer-free reflectance, B = E / (1 - rho) as in the plain furnace
+    (what the layer takes from the base it reflects, and Cycles follows that light:
+    `radiosity.patch_reflectance`), while a texel shows its reflected part under the layer,
+    E + (B - E)(1 - E_layer), E_layer the layer's albedo along the normal."""
+    rho, radiance = 0.5, 1.0
+    layered = Material(name="satin", base_color=np.full(3, rho, np.float32), specular=0.5,
+                       roughness=0.5, emission=np.full(3, radiance, np.float32))
+    scene = build([(inward_box(), layered)])
+    settings = RadiositySettings(solver="gauss_seidel", patch_budget=60, refine_levels=0,
+                                 tolerance=1e-6, final_gather=final_gather, **FAST)
+    result = solve_radiosity(scene, settings)
+    emitted = np.pi * radiance
+    expected = emitted / (1.0 - rho)
+    np.testing.assert_allclose(result.radiosity, expected, rtol=0.01)
+    shown = emitted + (expected - emitted) * diffuse_factor(layered)
+    assert diffuse_factor(layered) < 0.97
+    bakes = None
+    for step in bake_steps(scene, result, [0], {}, 2):
+        bakes = step
+    np.testing.assert_allclose(bakes[0].corners, shown / np.pi, rtol=0.01)
 
 
 def _rendered(scene, result):
@@ -281,7 +308,7 @@ def test_lattice_keeps_texture_detail_between_lattice_texels():
     size = 64
     checker = Texture(kind="CHECKER", color1=np.array([0.7, 0.6, 0.5], np.float32),
                       color2=np.array([0.1, 0.2, 0.05], np.float32), scale=size / 2)
-    floor = Material(name="checker", base_color=np.full(3, 0.5, np.float32),
+    floor = Material(name="checker", base_color=np.full(3, 0.5, np.float32), specular=0.0,
                      base_color_texture=checker)
     lamp = quad([[0.3, 0.3, 0.6], [0.3, 0.7, 0.6], [0.7, 0.7, 0.6], [0.7, 0.3, 0.6]])
     scene = build([(floor_quad(), floor), (lamp, grey(0.0, emission=5.0, name="Lamp"))])

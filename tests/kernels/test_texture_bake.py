@@ -29,6 +29,12 @@ def checker_texture(scale):
     return Texture(kind="CHECKER", color1=WHITE, color2=BLACK, scale=scale)
 
 
+def lambertian(**fields) -> Material:
+    """A material without the Principled specular layer (Specular IOR Level 0): its albedo is
+    base colour x (1 - metallic) x (1 - transmission) exactly."""
+    return Material(specular=0.0, **fields)
+
+
 def unit_square(material, angle=0.0):
     """The square [0, 1]^2 (texture UV = xy); its lightmap UVs the square turned by `angle` about
     its centre and shrunk to fit inside [0, 1]^2 (0: the identity)."""
@@ -57,7 +63,7 @@ def test_an_axis_aligned_checker_is_exactly_its_box_mean(scale):
     """Magnified (4 texels a square) each texel is one colour; minified (2.37 squares a texel) a
     centre look-up aliases to black or white, the box mean is each texel's true grey. Texels on
     the square's diagonal average their own triangle's part only, as Cycles does (brute force)."""
-    scene = unit_square(Material(name="c", base_color_texture=checker_texture(scale)))
+    scene = unit_square(lambertian(name="c", base_color_texture=checker_texture(scale)))
     targets = lightmap_targets(scene, 0, SIZE)
     values, n = texel_albedo(scene, targets)
     edge = straddling(scene, targets)
@@ -78,7 +84,7 @@ def test_a_rotated_lightmap_chart_is_filtered_over_its_turned_texels():
     picks 2 x 2 or more cells; the texels stay within 0.03 of the brute-force mean on average
     (a centre look-up: 0.1)."""
     scale = 5.3
-    scene = unit_square(Material(name="c", base_color_texture=checker_texture(scale)),
+    scene = unit_square(lambertian(name="c", base_color_texture=checker_texture(scale)),
                         angle=np.radians(30.0))
     targets = lightmap_targets(scene, 0, SIZE)
     values, n = texel_albedo(scene, targets)
@@ -97,7 +103,7 @@ def test_an_image_is_sampled_as_finely_as_its_footprint_needs():
     rng = np.random.default_rng(3)
     pixels = np.concatenate([rng.random((128, 128, 3)), np.ones((128, 128, 1))], 2).astype(np.float32)
     image = Texture(kind="IMAGE", pixels=pixels)
-    scene = unit_square(Material(name="i", base_color_texture=image))
+    scene = unit_square(lambertian(name="i", base_color_texture=image))
     targets = lightmap_targets(scene, 0, SIZE)
     values, n = texel_albedo(scene, targets)
     assert (n == 8).all()  # the diagonal's texels too: 8 > the 4 an edge texel takes
@@ -106,7 +112,7 @@ def test_an_image_is_sampled_as_finely_as_its_footprint_needs():
     err, err_one = np.abs(values - truth).mean(), np.abs(one - truth).mean()
     assert err < 0.01 and err_one > 10 * err
     small = replace(image, pixels=pixels[:4, :4].copy())
-    scene = unit_square(Material(name="i", base_color_texture=small))
+    scene = unit_square(lambertian(name="i", base_color_texture=small))
     targets = lightmap_targets(scene, 0, SIZE)
     _, n = texel_albedo(scene, targets)
     assert (n[~straddling(scene, targets)] == 1).all()
@@ -115,7 +121,7 @@ def test_an_image_is_sampled_as_finely_as_its_footprint_needs():
 def test_untextured_materials_take_one_cell_and_their_diffuse_albedo():
     """No texture: nothing varies, one cell; the albedo is what the diffuse lobe reflects, base
     colour x (1 - metallic) x (1 - transmission)."""
-    mat = Material(name="m", base_color=np.array([0.2, 0.5, 0.8], np.float32), metallic=0.5,
+    mat = lambertian(name="m", base_color=np.array([0.2, 0.5, 0.8], np.float32), metallic=0.5,
                    transmission=0.5)
     scene = unit_square(mat)
     targets = lightmap_targets(scene, 0, SIZE)
@@ -127,8 +133,8 @@ def test_untextured_materials_take_one_cell_and_their_diffuse_albedo():
 def test_a_texel_on_a_triangle_edge_takes_its_own_triangles_part_only():
     """Two triangles of different colours meeting on the square's diagonal: Cycles gives each
     texel to one triangle and keeps that triangle's samples, so no texel mixes the two colours."""
-    red = Material(name="r", base_color=np.array([1.0, 0.0, 0.0], np.float32))
-    blue = Material(name="b", base_color=np.array([0.0, 0.0, 1.0], np.float32))
+    red = lambertian(name="r", base_color=np.array([1.0, 0.0, 0.0], np.float32))
+    blue = lambertian(name="b", base_color=np.array([0.0, 0.0, 1.0], np.float32))
     scene = unit_square(red)
     scene = replace(scene, materials=scene.materials + (blue,),
                     material_ids=np.array([1, 2], np.int32))
@@ -140,7 +146,7 @@ def test_a_texel_on_a_triangle_edge_takes_its_own_triangles_part_only():
 
 def test_jacobian_of_a_scaled_and_turned_map():
     """Lightmap UV = the texture UV turned by +90 degrees and halved: J = 2 R(-90 degrees)."""
-    scene = unit_square(Material(name="c"))
+    scene = unit_square(lambertian(name="c"))
     tex = scene.uv.astype(np.float64)
     lm = 0.25 + 0.5 * (tex - 0.5) @ np.array([[0.0, 1.0], [-1.0, 0.0]]) + 0.25
     scene = replace(scene, lightmap_uv=lm.astype(np.float32))
@@ -154,7 +160,7 @@ def test_jacobian_of_a_scaled_and_turned_map():
 
 
 def test_bake_steps_give_lightmaps_corners_and_progress():
-    mat = Material(name="c", base_color_texture=checker_texture(2.0))
+    mat = lambertian(name="c", base_color_texture=checker_texture(2.0))
     scene = unit_square(mat)
     steps = list(texture_bake_steps(scene, [0], {0: SIZE}, padding=2))
     progress, out = steps[:-1], steps[-1]
@@ -179,7 +185,7 @@ def test_the_camera_view_is_the_albedo_box_filtered_over_each_pixel():
     pixel the checker's exact mean over the pixel's square; the background 0 (not the world)."""
     scale = 8 * 3.3
     scene = build([(quad([(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)]),
-                    Material(name="c", base_color_texture=checker_texture(scale)))],
+                    lambertian(name="c", base_color_texture=checker_texture(scale)))],
                   camera=ortho_camera((0.5, 0.5, 1.0), (0, 0, -1), (0, 1, 0), 1.25, (10, 10)),
                   world=(0.3, 0.3, 0.3))
     image = trace(scene, TracerSettings(max_depth=0, output="albedo", texture_filter=4)).image

@@ -34,7 +34,7 @@ def uv_sphere(centre, radius, rings=48, segments=96, inward=False) -> np.ndarray
 
 def build(parts, camera=None, lights=(), world=(0.0, 0.0, 0.0)) -> Scene:
     """parts: list of (triangles (T, 3, 3), Material). Flat shading normals; UV = xy of the corner."""
-    tris, mats, mids, oids, objects = [], [Material(name="(default)")], [], [], []
+    tris, mats, mids, oids, objects = [], [Material(name="(default)", specular=0.0)], [], [], []
     start = 0
     for k, (t, mat) in enumerate(parts):
         t = np.asarray(t, np.float64)
@@ -81,8 +81,9 @@ def persp_camera(position, forward, up, fov_x_rad, resolution=(8, 8)) -> Camera:
 
 
 def grey(rho, emission=0.0, name="grey"):
-    """A grey diffuse material of reflectance rho, emitting radiance `emission` (W/(m^2 sr))."""
-    return Material(name=name, base_color=np.full(3, rho, np.float32),
+    """A grey Lambertian material (Specular IOR Level 0) of reflectance rho, emitting radiance
+    `emission` (W/(m^2 sr))."""
+    return Material(name=name, base_color=np.full(3, rho, np.float32), specular=0.0,
                     emission=np.full(3, emission, np.float32))
 
 
@@ -111,7 +112,7 @@ def lamp_room_with_ball():
     room = tessellated_box(1)
     lamp = quad([[0.4, 0.4, 0.99], [0.4, 0.6, 0.99], [0.6, 0.6, 0.99], [0.6, 0.4, 0.99]])
     ball = uv_sphere((0.5, 0.5, 0.3), 0.2, rings=16, segments=32)
-    orange = Material(name="orange", base_color=np.array([0.8, 0.4, 0.1], np.float32),
+    orange = Material(name="orange", base_color=np.array([0.8, 0.4, 0.1], np.float32), specular=0.0,
                       emission=np.zeros(3, np.float32))
     return build([(room, grey(0.6)), (lamp, grey(0.0, emission=20.0, name="lamp")),
                   (ball, orange)])
