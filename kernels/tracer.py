@@ -33,6 +33,7 @@ from .bvh import BVH
 from .camera import Camera, camera_ray_lines, camera_rays
 from .optics import fresnel_dielectric, fresnel_schlick, reflect, refract
 from .scene import Light, Scene, geometric_normals
+from .specular_layer import view_factors, view_tables
 from .textures import sample_texture, sample_texture_box
 
 # A new ray starts this fraction of the scene's size off its surface, along the geometric normal:
@@ -418,6 +419,7 @@ class Tracer:
         self.roughness = np.array([m.roughness for m in mats])
         self.ior = np.array([max(m.ior, 1.0 + 1e-6) for m in mats])
         self.specular = np.array([m.specular for m in mats])
+        self.layer_tables = view_tables(mats)
         self.emission = np.array([m.emission for m in mats], np.float64).reshape(-1, 3)
         self.textured = np.array([m.base_color_texture is not None for m in mats], bool)
 
@@ -617,10 +619,14 @@ class Tracer:
                                                       footprint, pixel[rows])
             metallic, trans, rough = self.metallic[m], self.transmission[m], self.roughness[m]
             dielectric = (1.0 - metallic) * (1.0 - trans)
+            # The diffuse base shows through the specular layer less the layer's albedo at this
+            # view (`specular_layer.py`), in Cycles' Diffuse Color pass and diffuse lobe alike.
+            diffuse_w = dielectric * view_factors(self.layer_tables, m,
+                                                  np.einsum("ij,ij->i", dirs, h.ns))
             if s.output == "albedo":  # what the first hit reflects diffusely; no light, no ray
-                np.add.at(result, pixel, weight * h.albedo * dielectric[:, None])
+                np.add.at(result, pixel, weight * h.albedo * diffuse_w[:, None])
                 if untextured is not None:
-                    np.add.at(flat, pixel, weight * dielectric[:, None])
+                    np.add.at(flat, pixel, weight * diffuse_w[:, None])
                 break
             wo = -dirs
             spec_level = self.specular[m]
@@ -631,10 +637,10 @@ class Tracer:
                 spec_f0 = np.where(has_spec[:, None], f0_dielectric[:, None], 0.0) * np.ones((1, 3))
             hit_strata = None if strata is None else (strata[0][pixel], strata[1])
             if s.shading == "gouraud":
-                lit, lambert = self.gouraud_direct(h, hits, origins, dielectric, spec_f0, rough,
+                lit, lambert = self.gouraud_direct(h, hits, origins, diffuse_w, spec_f0, rough,
                                                    hit_strata)
             else:
-                lit, lambert = self.direct(h, wo, dielectric, spec_f0, rough, hit_strata)
+                lit, lambert = self.direct(h, wo, diffuse_w, spec_f0, rough, hit_strata)
             own = self.emission[m] + lit
             smooth = rough < s.mirror_roughness
             # Mirror and refraction directions about the (smooth) shading normal, falling back to
@@ -643,6 +649,15 @@ class Tracer:
             wrong = np.einsum("ij,ij->i", r_dir, h.ng) <= 0.0
             r_dir[wrong] = reflect(dirs[wrong], h.ng[wrong])
             cos_o = np.einsum("ij,ij->i", wo, h.ns)
+            if has_spec.any() and np.any(self.scene.world_color > 0.0):
+                # A rough layer reflects the world as well (Cycles' glossy rays see it): the
+                # layer's albedo at this view times the world's radiance, where one ray along the
+                # mirror direction, standing for the lobe, leaves the scene.
+                rows = np.flatnonzero(has_spec)
+                layer = dielectric[rows] * (1.0 - view_factors(self.layer_tables, m[rows],
+                                                               cos_o[rows]))
+                sky = self._visible(h.p[rows] + h.ng[rows] * self.offset, r_dir[rows], np.inf)
+                own[rows] += (layer * sky)[:, None] * self.scene.world_color
             # metals: a tinted mirror (Schlick with F0 = base colour)
             metal_w = np.where((smooth & (metallic > 0))[:, None],
                                metallic[:, None] * fresnel_schlick(cos_o, h.albedo), 0.0)

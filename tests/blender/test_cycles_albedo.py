@@ -3,76 +3,24 @@
 The texture-mapping technique bakes each surface's diffuse albedo, base colour x (1 - metallic) x
 (1 - transmission), and renders the camera's view of it. Cycles' counterparts: a DIFFUSE bake
 with the colour pass alone, and the Diffuse Color render pass. Surfaces here are Principled with
-Specular IOR Level 0: with the default 0.5, Cycles' diffuse colour is lower by the specular
-layer's albedo (3.7% at roughness 0.5 facing the camera; module docstring, "Bake semantics").
+Specular IOR Level 0 but for the specular-layer test: with a layer, Cycles' diffuse colour is
+lower by the layer's albedo (3.7% at roughness 0.5 and the default level 0.5 facing the camera;
+module docstring, "Bake semantics"), which kernels/specular_layer.py models.
 """
 
 import bpy
 import numpy as np
 import pytest
+from blender_parts import BASE, checker, lit_scene, plane, principled
 
 from classic_bake.addon import bridge
 from classic_bake.addon import cycles_reference as cr
 from classic_bake.kernels.direct_light import diffuse_weight
 
-BASE = (0.2, 0.5, 0.8)
-WORLD = (0.3, 0.6, 0.9)  # non-zero: a background pixel of 0 is not the world's colour
-SUN_E = 3.0  # any light: the albedo must not depend on it
 EXACT = 1e-3  # the bound for uniform colours (they agree to ~1e-7 in practice)
 
 
 # --- scene building -------------------------------------------------------------------------------
-
-
-def principled(name, base=BASE, metallic=0.0):
-    """A Principled material with Specular IOR Level 0 (no specular layer over the diffuse one)."""
-    mat = bpy.data.materials.new(name)
-    if bpy.app.version < (5, 0, 0):
-        mat.use_nodes = True
-    bsdf = next(n for n in mat.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
-    bsdf.inputs["Base Color"].default_value = (*base, 1.0)
-    bsdf.inputs["Metallic"].default_value = metallic
-    bsdf.inputs["Specular IOR Level"].default_value = 0.0
-    return mat, bsdf
-
-
-def checker(mat, bsdf, scale=4.0):
-    """Drive the base colour with a white/black Checker Texture over the mesh's UVs."""
-    tree = mat.node_tree
-    coords = tree.nodes.new("ShaderNodeTexCoord")
-    tex = tree.nodes.new("ShaderNodeTexChecker")
-    tex.inputs["Scale"].default_value = scale
-    tex.inputs["Color1"].default_value = (1.0, 1.0, 1.0, 1.0)
-    tex.inputs["Color2"].default_value = (0.0, 0.0, 0.0, 1.0)
-    tree.links.new(coords.outputs["UV"], tex.inputs["Vector"])
-    tree.links.new(tex.outputs["Color"], bsdf.inputs["Base Color"])
-
-
-def plane(mat, size=2.0):
-    """A size x size quad in z = 0 facing +z, UV layer "Lightmap" spanning [0, 1]^2."""
-    h = size / 2
-    mesh = bpy.data.meshes.new("Plane")
-    mesh.from_pydata([(-h, -h, 0), (h, -h, 0), (h, h, 0), (-h, h, 0)], [], [(0, 1, 2, 3)])
-    mesh.uv_layers.new(name="Lightmap").uv.foreach_set("vector", [0, 0, 1, 0, 1, 1, 0, 1])
-    mesh.materials.append(mat)
-    obj = bpy.data.objects.new("Plane", mesh)
-    bpy.context.scene.collection.objects.link(obj)
-    return obj
-
-
-def lit_scene():
-    """A sun and a non-black world (which must not reach the albedo)."""
-    scene = bpy.context.scene
-    scene.world = bpy.data.worlds.new("World")
-    if bpy.app.version < (5, 0, 0):
-        scene.world.use_nodes = True
-    scene.world.node_tree.nodes["Background"].inputs["Color"].default_value = (*WORLD, 1.0)
-    sun = bpy.data.lights.new("Sun", "SUN")
-    sun.energy = SUN_E
-    obj = bpy.data.objects.new("Sun", sun)
-    obj.rotation_euler = (0.5, 0.0, 0.0)
-    scene.collection.objects.link(obj)
-    return scene
 
 
 def ortho_camera(width_m):

@@ -1,0 +1,61 @@
+"""Blender scene parts for tests against Cycles: Principled planes under a sun and a world.
+
+Imported by tests that run real Blender (the pip `bpy` module) only.
+"""
+
+import bpy
+
+BASE = (0.2, 0.5, 0.8)
+WORLD = (0.3, 0.6, 0.9)  # non-zero: a background pixel of 0 is not the world's colour
+SUN_E = 3.0  # any light: the albedo must not depend on it
+
+
+def principled(name, base=BASE, metallic=0.0):
+    """A Principled material with Specular IOR Level 0 (no specular layer over the diffuse one)."""
+    mat = bpy.data.materials.new(name)
+    if bpy.app.version < (5, 0, 0):
+        mat.use_nodes = True
+    bsdf = next(n for n in mat.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
+    bsdf.inputs["Base Color"].default_value = (*base, 1.0)
+    bsdf.inputs["Metallic"].default_value = metallic
+    bsdf.inputs["Specular IOR Level"].default_value = 0.0
+    return mat, bsdf
+
+
+def checker(mat, bsdf, scale=4.0):
+    """Drive the base colour with a white/black Checker Texture over the mesh's UVs."""
+    tree = mat.node_tree
+    coords = tree.nodes.new("ShaderNodeTexCoord")
+    tex = tree.nodes.new("ShaderNodeTexChecker")
+    tex.inputs["Scale"].default_value = scale
+    tex.inputs["Color1"].default_value = (1.0, 1.0, 1.0, 1.0)
+    tex.inputs["Color2"].default_value = (0.0, 0.0, 0.0, 1.0)
+    tree.links.new(coords.outputs["UV"], tex.inputs["Vector"])
+    tree.links.new(tex.outputs["Color"], bsdf.inputs["Base Color"])
+
+
+def plane(mat, size=2.0):
+    """A size x size quad in z = 0 facing +z, UV layer "Lightmap" spanning [0, 1]^2."""
+    h = size / 2
+    mesh = bpy.data.meshes.new("Plane")
+    mesh.from_pydata([(-h, -h, 0), (h, -h, 0), (h, h, 0), (-h, h, 0)], [], [(0, 1, 2, 3)])
+    mesh.uv_layers.new(name="Lightmap").uv.foreach_set("vector", [0, 0, 1, 0, 1, 1, 0, 1])
+    mesh.materials.append(mat)
+    obj = bpy.data.objects.new("Plane", mesh)
+    bpy.context.scene.collection.objects.link(obj)
+    return obj
+
+
+def lit_scene():
+    """A sun and a non-black world (which must not reach the albedo)."""
+    scene = bpy.context.scene
+    scene.world = bpy.data.worlds.new("World")
+    if bpy.app.version < (5, 0, 0):
+        scene.world.use_nodes = True
+    scene.world.node_tree.nodes["Background"].inputs["Color"].default_value = (*WORLD, 1.0)
+    sun = bpy.data.lights.new("Sun", "SUN")
+    sun.energy = SUN_E
+    obj = bpy.data.objects.new("Sun", sun)
+    obj.rotation_euler = (0.5, 0.0, 0.0)
+    scene.collection.objects.link(obj)
+    return scene
