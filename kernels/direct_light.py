@@ -33,7 +33,7 @@ from .shadowmap import (
     receivers_visibility,
     render_shadow_map_steps,
 )
-from .specular_layer import diffuse_factor
+from .specular_layer import diffuse_factor, view_factors, view_tables
 from .textures import sample_texture
 from .vec import bounds, row_norms
 
@@ -226,7 +226,13 @@ def render_steps(scene: Scene, settings: DirectLightSettings, resolution=None,
     for p in light_visibility_steps(scene, points, geo, spacing, settings, vis):
         yield 0.2 + 0.7 * p
     e = irradiance_per_light(scene, points, normals)
-    albedo = albedo_at(scene, tri, bary)
+    # What reflects diffusely toward the eye: no metal or glass, and the base under the specular
+    # layer darkened at this view (`specular_layer.py`), as Cycles' diffuse lobe.
+    mids = scene.material_ids[tri]
+    weight = np.array([diffuse_weight(m, under_layer=False) for m in scene.materials])[mids]
+    weight = weight * view_factors(view_tables(scene.materials), mids,
+                                   np.einsum("ij,ij->i", normals, d))
+    albedo = albedo_at(scene, tri, bary) * weight[:, None]
     emission = np.array([m.emission for m in scene.materials], np.float64)[scene.material_ids[tri]]
     image[rows, cols] = emission + albedo / np.pi * np.einsum("lnc,ln->nc", e, vis)
     yield image

@@ -93,6 +93,29 @@ def test_unoccluded_sun_render_is_exact():
     np.testing.assert_allclose(image, 0.8 / np.pi * 3.0 * cos, rtol=1e-5)
 
 
+def test_the_view_shows_only_diffuse_reflection():
+    """Metal and glass reflect nothing diffusely (black, as Cycles' direct-light render but for
+    their highlights); under a specular layer of roughness 0 the base shows 1 - F(cos) of its
+    colour at the view angle (`specular_layer.py`). An orthographic camera 60 degrees off the
+    normal, a vertical sun: lambertian 0.8 E / pi, layered 0.8 (1 - F(0.5)) E / pi."""
+    from classic_bake.kernels.optics import fresnel_dielectric
+
+    ground = quad([(-2, -2, 0), (2, -2, 0), (2, 2, 0), (-2, 2, 0)])
+    forward = np.array([0.0, -np.sin(np.radians(60)), -np.cos(np.radians(60))])
+    cam = ortho_camera(-5.0 * forward, forward, (0, 0, 1), 0.5, (4, 4))
+    expected = {
+        "metal": 0.0, "glass": 0.0, "lambertian": 0.8 * 3.0 / np.pi,
+        "layered": 0.8 * (1.0 - fresnel_dielectric(np.array([0.5]), 1.0 / 1.5)[0]) * 3.0 / np.pi}
+    for name, value in expected.items():
+        mat = Material(name=name, base_color=np.full(3, 0.8, np.float32), roughness=0.0,
+                       specular=0.0 if name == "lambertian" else 0.5,
+                       metallic=1.0 if name == "metal" else 0.0,
+                       transmission=1.0 if name == "glass" else 0.0)
+        scene = build([(ground, mat)], camera=cam, lights=[sun([0, 0, -1])])
+        image = list(dl.render_steps(scene, dl.DirectLightSettings()))[-1]
+        np.testing.assert_allclose(image, value, rtol=1e-3, atol=1e-9, err_msg=name)
+
+
 def test_square_occluder_shadow_mask_matches_geometry():
     # A 1 m plate 1 m above the ground under a vertical sun: a 1 m^2 shadow right below it.
     scene = ground_with_lightmap()
