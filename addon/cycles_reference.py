@@ -47,9 +47,8 @@ is the Principled base colour x (1 - metallic) x (1 - transmission) x (1 - the d
 of its specular layer). With the default Specular IOR Level 0.5 (F0 = 0.04) it is 3.7% lower seen
 along the normal at roughness 0.5 (4.0% at roughness 0, 1.4% at 1), and in renders lower still at
 grazing views (5% at 45 degrees, 17% at 70 degrees, roughness 0); bakes see every texel along its
-normal. The kernels model it (`kernels/specular_layer.py`: bakes to 0.11%, and the tracer's
-camera views at each pixel's view angle); the radiosity and shadow-map camera views do not (nor
-do they show the layer's highlights).
+normal. The kernels model it (`kernels/specular_layer.py`): bakes to 0.11%, camera views at each
+pixel's view angle; only the tracer draws the layer's highlights.
 
 Settings every model shares (`FIXED_SETTINGS`): Cycles on the CPU, denoising and adaptive
 sampling off, no sample clamping, no fast-GI approximation, no time limit, view-layer sample

@@ -1194,6 +1194,26 @@ def _texel_neighbourhood(targets, seen: final_gather.Visibility, which: np.ndarr
     return seen.agreed(sources)
 
 
+def _at_view(scene: Scene, tri: np.ndarray, bary: np.ndarray, dirs: np.ndarray,
+             radiance: np.ndarray) -> np.ndarray:
+    """(M, 3) radiance (M, 3) W/(m^2 sr) of surface points (triangles, barycentrics) as a
+    camera looking along dirs (M, 3) sees it: the reflected part, which the texels show under
+    the specular layer along the normal (`layer_factors`), rescaled to the layer at the view
+    angle (`specular_layer.view_factors`), as Cycles' diffuse lobe darkens towards grazing.
+    The layer's own highlights are not drawn."""
+    from .scene import interpolated_normals
+    from .specular_layer import view_factors, view_tables
+
+    mids = scene.material_ids[tri]
+    tables = view_tables(scene.materials)
+    if not (tables < 1.0).any():  # no layer anywhere
+        return radiance
+    normals = interpolated_normals(scene, tri, bary)
+    ratio = view_factors(tables, mids, np.einsum("ij,ij->i", normals, dirs)) / tables[mids, -1]
+    emitted = triangle_emission(scene)[tri]
+    return emitted + (radiance - emitted) * ratio[:, None]
+
+
 def _radiance_steps(result: RadiosityResult, parts: list, start: float, span: float,
                     known: list | None = None):
     """Generator: yields progress in [start, start + span] while it evaluates B / pi at every
@@ -1232,7 +1252,9 @@ def render_steps(scene: Scene, result: RadiosityResult, resolution=None,
     if len(f):
         # Cycles shades a surface on the side it is seen from; the solution is the front's.
         front, back = ~f.back, f.back
-        image[f.rows[front], f.cols[front]] = result.radiance_at(f.tri[front], f.bary[front])
+        values = result.radiance_at(f.tri[front], f.bary[front])
+        image[f.rows[front], f.cols[front]] = _at_view(scene, f.tri[front], f.bary[front],
+                                                       f.dirs[front], values)
         if back.any():
             image[f.rows[back], f.cols[back]] = result.back_radiance_at(scene, f.tri[back],
                                                                         f.bary[back])

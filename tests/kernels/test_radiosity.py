@@ -11,7 +11,7 @@ from scene_builder import build, ortho_camera, quad, uv_sphere
 
 from classic_bake.kernels import patches as patching
 from classic_bake.kernels.bake_targets import TexelFilterSettings, lattice_plan, lightmap_targets
-from classic_bake.kernels.camera_view import camera_fragments
+from classic_bake.kernels.camera_view import background_and_fragments, camera_fragments
 from classic_bake.kernels.form_factors import parallel_rectangles, sample_patches
 from classic_bake.kernels.lights import direct_irradiance
 from classic_bake.kernels.radiosity import (
@@ -32,7 +32,7 @@ from classic_bake.kernels.scene import (
     geometric_normals,
     triangle_areas,
 )
-from classic_bake.kernels.specular_layer import diffuse_factor
+from classic_bake.kernels.specular_layer import albedo_curve, diffuse_factor
 
 FAST = dict(samples_per_side=2, visibility_samples_per_side=2, hemicube_resolution=16)
 
@@ -198,14 +198,14 @@ def test_furnace_closed_box(method, solver):
 
 @pytest.mark.parametrize("final_gather", [True, False])
 def test_furnace_under_a_specular_layer(final_gather):
-    """Principled walls with the default specular layer (level 0.5, roughness 0.5): the solver
+    """Principled walls with the default specular layer (level 0.5, roughness 0.1): the solver
     exchanges light with the layer-free reflectance, B = E / (1 - rho) as in the plain furnace
     (what the layer takes from the base it reflects, and Cycles follows that light:
     `radiosity.patch_reflectance`), while a texel shows its reflected part under the layer,
     E + (B - E)(1 - E_layer), E_layer the layer's albedo along the normal."""
     rho, radiance = 0.5, 1.0
     layered = Material(name="satin", base_color=np.full(3, rho, np.float32), specular=0.5,
-                       roughness=0.5, emission=np.full(3, radiance, np.float32))
+                       roughness=0.1, emission=np.full(3, radiance, np.float32))
     scene = build([(inward_box(), layered)])
     settings = RadiositySettings(solver="gauss_seidel", patch_budget=60, refine_levels=0,
                                  tolerance=1e-6, final_gather=final_gather, **FAST)
@@ -219,6 +219,19 @@ def test_furnace_under_a_specular_layer(final_gather):
     for step in bake_steps(scene, result, [0], {}, 2):
         bakes = step
     np.testing.assert_allclose(bakes[0].corners, shown / np.pi, rtol=0.01)
+    # A camera inside the box, 65 degrees off the vertical, sees the layer at each pixel's view
+    # angle: Cycles' diffuse lobe darkens towards grazing, (1 - E(mu)) instead of (1 - E(1)).
+    forward = np.array([0.0, np.sin(np.radians(65)), -np.cos(np.radians(65))])
+    camera = ortho_camera([0.5, 0.3, 0.3], forward, [0, 0, 1], 0.4, (8, 8))
+    scene = replace(scene, camera=camera)
+    image = _rendered(scene, result)
+    _, seen = background_and_fragments(scene, (8, 8))
+    mu = np.abs(np.einsum("ij,ij->i", seen.geometric, seen.dirs))
+    factor = 1.0 - albedo_curve(mu, 0.1, 0.04)
+    expected_view = radiance + (expected / np.pi - radiance) * factor
+    assert np.ptp(factor) > 0.03  # the floor seen at 65 degrees, the far wall at 25
+    np.testing.assert_allclose(image[seen.rows, seen.cols], np.repeat(expected_view[:, None], 3, 1),
+                               rtol=0.01)
 
 
 def _rendered(scene, result):
