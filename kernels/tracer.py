@@ -649,15 +649,6 @@ class Tracer:
             wrong = np.einsum("ij,ij->i", r_dir, h.ng) <= 0.0
             r_dir[wrong] = reflect(dirs[wrong], h.ng[wrong])
             cos_o = np.einsum("ij,ij->i", wo, h.ns)
-            if has_spec.any() and np.any(self.scene.world_color > 0.0):
-                # A rough layer reflects the world as well (Cycles' glossy rays see it): the
-                # layer's albedo at this view times the world's radiance, where one ray along the
-                # mirror direction, standing for the lobe, leaves the scene.
-                rows = np.flatnonzero(has_spec)
-                layer = dielectric[rows] * (1.0 - view_factors(self.layer_tables, m[rows],
-                                                               cos_o[rows]))
-                sky = self._visible(h.p[rows] + h.ng[rows] * self.offset, r_dir[rows], np.inf)
-                own[rows] += (layer * sky)[:, None] * self.scene.world_color
             # metals: a tinted mirror (Schlick with F0 = base colour)
             metal_w = np.where((smooth & (metallic > 0))[:, None],
                                metallic[:, None] * fresnel_schlick(cos_o, h.albedo), 0.0)
@@ -665,7 +656,12 @@ class Tracer:
             f_d = fresnel_dielectric(cos_o, 1.0 / self.ior[m]) * np.minimum(2.0 * spec_level, 1.0)
             spec_w = np.where((smooth & (dielectric > 0) & (spec_level > 0))[:, None],
                               (dielectric * f_d)[:, None] * np.ones((1, 3)), 0.0)
-            mirror_w = metal_w + spec_w
+            # A rough layer reflects its surroundings too (Cycles' glossy rays see them; its
+            # lamps' highlights come from `direct`): one ray along the mirror direction stands
+            # for the lobe, weighted by the layer's albedo at this view, so the energy is right
+            # and the blur is not drawn.
+            gloss = np.where(has_spec, dielectric - diffuse_w, 0.0)  # dielectric x E(mu)
+            mirror_w = metal_w + spec_w + gloss[:, None]
             if self.environment:  # environment-mapped mirrors: a look-up, whatever the depth
                 own = own + self._environment(hits.tri, h.p, r_dir, mirror_w)
             np.add.at(result, pixel, weight * own)

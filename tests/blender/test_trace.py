@@ -83,9 +83,10 @@ def test_tracer_matches_cycles_on_the_sample_scene(tmp_path, open_sample):
 def test_a_plane_under_the_specular_layer_matches_cycles():
     """A plane with the default specular layer (level 0.5, roughness 0.2 and 0.5) under a sun and
     a blue world, seen at 72 degrees, against Cycles' render of the Whitted model: its base
-    darkens towards grazing views by the layer's albedo, and the layer reflects the world
-    (kernels/specular_layer.py). Measured relMSE 1.0e-4 and 9.9e-4 (before the layer was
-    modelled: 7.5e-3 and 3.1e-3; with a black world 0.062 and 0.013, now 2e-4 and 3.5e-4)."""
+    darkens towards grazing views by the layer's albedo, and the layer reflects the world through
+    one mirror-direction ray weighted by that albedo (kernels/specular_layer.py). Measured relMSE
+    1.0e-4 and 9.9e-4 (before the layer was modelled: 7.5e-3 and 3.1e-3; with a black world
+    0.062 and 0.013, now 2e-4 and 3.5e-4)."""
     from blender_parts import lit_scene, plane, principled
 
     from classic_bake.addon import cycles_reference
