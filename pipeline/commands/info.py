@@ -10,6 +10,7 @@ from ..cli import Command, RunContext, command
 def describe(scene) -> dict:
     """A JSON-ready summary of a kernel Scene."""
     from ...kernels.scene import triangle_areas
+    from ...kernels.specular_layer import diffuse_factor
 
     areas = triangle_areas(scene.triangles)
     objects = []
@@ -38,6 +39,8 @@ def describe(scene) -> dict:
             "ior": mat.ior,
             "transmission": mat.transmission,
             "specular": mat.specular,
+            # What a bake shows of the base under the specular layer (1 without one).
+            "diffuse_under_layer": diffuse_factor(mat),
             "emission_radiance": mat.emission,
             "normal_map": None if mat.normal_texture is None else mat.normal_texture.name,
             "bump_height": None if mat.height_texture is None else mat.height_texture.name,
@@ -97,6 +100,9 @@ def _print(ctx: RunContext, d: dict) -> None:
             if m[key]:
                 parts.append(f"{key} {m[key]:.3g}")
         parts.append(f"roughness {m['roughness']:.3g}")
+        if m["diffuse_under_layer"] < 1.0 and m["metallic"] < 1.0 and m["transmission"] < 1.0:
+            parts.append(f"specular layer {m['specular']:.3g} (a bake shows "
+                         f"{100 * m['diffuse_under_layer']:.1f}% of the base)")
         if np.any(np.asarray(m["emission_radiance"]) > 0):
             parts.append(f"emits {_fmt(m['emission_radiance'])} W/(m^2 sr)")
         if m["normal_map"] or m["bump_height"]:
