@@ -652,16 +652,13 @@ class Tracer:
             # metals: a tinted mirror (Schlick with F0 = base colour)
             metal_w = np.where((smooth & (metallic > 0))[:, None],
                                metallic[:, None] * fresnel_schlick(cos_o, h.albedo), 0.0)
-            # dielectric specular layer of opaque surfaces: exact Fresnel at the IOR, level-scaled
-            f_d = fresnel_dielectric(cos_o, 1.0 / self.ior[m]) * np.minimum(2.0 * spec_level, 1.0)
-            spec_w = np.where((smooth & (dielectric > 0) & (spec_level > 0))[:, None],
-                              (dielectric * f_d)[:, None] * np.ones((1, 3)), 0.0)
-            # A rough layer reflects its surroundings too (Cycles' glossy rays see them; its
-            # lamps' highlights come from `direct`): one ray along the mirror direction stands
-            # for the lobe, weighted by the layer's albedo at this view, so the energy is right
-            # and the blur is not drawn.
-            gloss = np.where(has_spec, dielectric - diffuse_w, 0.0)  # dielectric x E(mu)
-            mirror_w = metal_w + spec_w + gloss[:, None]
+            # The dielectric specular layer of opaque surfaces reflects its surroundings along
+            # the mirror direction with its albedo at this view, what the base lost under it:
+            # exact Fresnel at the level-scaled F0 when smooth (`specular_layer.py`). A rough
+            # layer's one ray stands for its lobe (Cycles' glossy rays see the surroundings; the
+            # lamps' highlights come from `direct`): the energy is right, the blur is not drawn.
+            layer_w = np.where((dielectric > 0) & (spec_level > 0), dielectric - diffuse_w, 0.0)
+            mirror_w = metal_w + layer_w[:, None]
             if self.environment:  # environment-mapped mirrors: a look-up, whatever the depth
                 own = own + self._environment(hits.tri, h.p, r_dir, mirror_w)
             np.add.at(result, pixel, weight * own)
@@ -670,7 +667,7 @@ class Tracer:
                 np.add.at(flat, pixel, weight * flat_own)
             if depth == s.max_depth:
                 self.stats.depth_limited += int(np.count_nonzero(
-                    (rough < s.mirror_roughness) & ((metallic > 0) | (trans > 0) | (spec_level > 0))))
+                    ((rough < s.mirror_roughness) & ((metallic > 0) | (trans > 0))) | (layer_w > 0)))
                 break
             # --- spawn the next generation: mirror reflection and refraction -----------------------
             eta = np.where(h.front, 1.0 / self.ior[m], self.ior[m])

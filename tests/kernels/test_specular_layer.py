@@ -89,16 +89,19 @@ def test_the_camera_sees_the_base_darken_towards_grazing(tilt_deg):
     np.testing.assert_allclose(image, expected, rtol=1e-3)
 
 
-def test_a_rough_layer_reflects_its_surroundings():
-    """A black plane under a rough layer (roughness 0.5) seen 60 degrees off its normal, facing
-    a large emissive wall of radiance 2 across the mirror direction: each pixel shows the layer's
-    albedo at that view times the wall, E(0.5) x 2, through one mirror-direction ray (Cycles'
-    glossy rays see the wall; the lobe's blur is not drawn)."""
+@pytest.mark.parametrize("roughness, level", [(0.5, 0.5), (0.0, 1.0)])
+def test_a_layer_reflects_its_surroundings(roughness, level):
+    """A black plane under a specular layer seen 60 degrees off its normal, facing a large
+    emissive wall of radiance 2 across the mirror direction: each pixel shows the layer's albedo
+    at that view times the wall, E(0.5) x 2, through one mirror-direction ray. Rough (0.5): the
+    ray stands for the lobe (Cycles' glossy rays see the wall; the blur is not drawn). Smooth at
+    level 1: Fresnel's reflectance at the doubled F0 (0.08)."""
     from scene_builder import build, ortho_camera, quad
 
     from classic_bake.kernels.tracer import TracerSettings, trace
 
-    black = Material(name="b", base_color=np.zeros(3, np.float32), specular=0.5, roughness=0.5)
+    black = Material(name="b", base_color=np.zeros(3, np.float32), specular=level,
+                     roughness=roughness)
     wall = Material(name="w", base_color=np.zeros(3, np.float32), specular=0.0,
                     emission=np.full(3, 2.0, np.float32))
     t = np.radians(60.0)
@@ -109,4 +112,5 @@ def test_a_rough_layer_reflects_its_surroundings():
                    (quad([(20, 4, -1), (20, 4, 40), (-20, 4, 40), (-20, 4, -1)]), wall)],
                   camera=camera)
     image = trace(scene, TracerSettings(max_depth=1, adaptive=0)).image
-    np.testing.assert_allclose(image, 2.0 * directional_albedo(0.5, 0.5, F0_GLASS), rtol=2e-3)
+    expected = 2.0 * directional_albedo(0.5, roughness, layer_f0(1.5, level))
+    np.testing.assert_allclose(image, expected, rtol=2e-3)
