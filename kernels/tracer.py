@@ -6,11 +6,14 @@ spawn "a single reflected ray", and the ray tree has a "pre-fixed number of boun
 
 At every hit this kernel adds
 * emission of emissive surfaces (what the eye sees of a light);
-* direct light from every light by shadow rays: Lambert diffuse rho/pi * E, plus a GGX specular
-  highlight for rough dielectrics; area lights and emissive triangles on a fixed stratified
-  pattern (soft shadows), or as points where they are small against their distance;
+* direct light from every light by shadow rays: Lambert diffuse rho/pi * E (the base under a
+  Principled specular layer darkened by the layer's albedo at the view, `specular_layer.py`),
+  plus a GGX specular highlight for rough dielectrics; area lights and emissive triangles on a
+  fixed stratified pattern (soft shadows), or as points where they are small against their
+  distance;
 and spawns
-* a mirror ray for metals and smooth dielectric specular (Schlick / exact Fresnel weight);
+* a mirror ray for metals (Schlick weight) and for dielectric specular layers (the layer's
+  albedo at the view: exact Fresnel when smooth; for a rough layer the ray stands for its lobe);
 * for glass, a reflected and a refracted ray weighted by the exact Fresnel reflectance, with
   total internal reflection.
 Escaping rays see the world colour. A branch whose weight (throughput) falls below `min_weight`
