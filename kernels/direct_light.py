@@ -33,7 +33,7 @@ from .shadowmap import (
     receivers_visibility,
     render_shadow_map_steps,
 )
-from .specular_layer import diffuse_factor, view_factors, view_tables
+from .specular_layer import diffuse_factor, lamp_highlights, view_factors, view_tables
 from .textures import sample_texture
 from .vec import bounds, row_norms
 
@@ -234,7 +234,12 @@ def render_steps(scene: Scene, settings: DirectLightSettings, resolution=None,
                                    np.einsum("ij,ij->i", normals, d))
     albedo = albedo_at(scene, tri, bary) * weight[:, None]
     emission = np.array([m.emission for m in scene.materials], np.float64)[scene.material_ids[tri]]
-    image[rows, cols] = emission + albedo / np.pi * np.einsum("lnc,ln->nc", e, vis)
+    # The layer's highlights, as Cycles' direct-light render draws them (lights as points).
+    shine = np.zeros_like(points)
+    for k, light in enumerate(scene.lights):
+        to_light, _ = light_units.light_vectors(light, points)
+        shine += lamp_highlights(scene.materials, mids, normals, -d, to_light, e[k]) * vis[k, :, None]
+    image[rows, cols] = emission + albedo / np.pi * np.einsum("lnc,ln->nc", e, vis) + shine
     yield image
 
 

@@ -33,7 +33,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from .optics import fresnel_dielectric
+from .optics import fresnel_dielectric, fresnel_schlick
 
 # Midpoint-rule points of the (u, phi) square: within 3e-4 (absolute) of 512 x 256 points at
 # roughness 0.1 to 1 and mu 0.2 to 1 (64 x 32: 4e-4).
@@ -43,6 +43,9 @@ PHI_STEPS = 64
 # spreads them where E climbs towards grazing: linear interpolation is within 1e-3 of the
 # integral at roughness 0 to 1 and F0 up to 0.5 (33 views evenly in mu: 5e-3).
 MU_STEPS = 65
+# Below this roughness a layer is a mirror: a point light's highlight shrinks to a point that no
+# pixel sees (Cycles draws none either), and the tracer follows the mirror ray instead.
+MIRROR_ROUGHNESS = 0.1
 
 
 def layer_f0(ior: float, level: float) -> float:
@@ -115,3 +118,44 @@ def view_factors(tables: np.ndarray, material: np.ndarray, mu: np.ndarray) -> np
     lo = np.minimum(x.astype(np.int64), MU_STEPS - 2)
     frac = x - lo
     return tables[material, lo] * (1.0 - frac) + tables[material, lo + 1] * frac
+
+
+def ggx_highlight(n, wi, wo, roughness, f0) -> np.ndarray:
+    """The layer's GGX microfacet BRDF (Trowbridge-Reitz D, separable Smith G, Schlick F) times
+    cos_i, (N, 3), for unit normals n, light directions wi and view directions wo (N, 3),
+    Blender roughness (N,) and F0 (N, 3): a lamp's highlight is this times E / cos_i."""
+    alpha2 = np.maximum(roughness, 1e-3) ** 4  # Blender: alpha = roughness^2
+    h = wi + wo
+    h /= np.maximum(np.linalg.norm(h, axis=1, keepdims=True), 1e-12)
+    cos_i = np.clip(np.einsum("ij,ij->i", n, wi), 0.0, 1.0)
+    cos_o = np.clip(np.einsum("ij,ij->i", n, wo), 1e-6, 1.0)
+    cos_h = np.clip(np.einsum("ij,ij->i", n, h), 0.0, 1.0)
+    d = alpha2 / (np.pi * (cos_h * cos_h * (alpha2 - 1.0) + 1.0) ** 2)
+
+    def g1(c):
+        return 2.0 * c / (c + np.sqrt(alpha2 + (1.0 - alpha2) * c * c))
+
+    g = g1(cos_i) * g1(cos_o)
+    f = fresnel_schlick(np.einsum("ij,ij->i", wi, h), f0)
+    return f * (d * g / (4.0 * cos_o))[:, None]
+
+
+def lamp_highlights(materials, material: np.ndarray, normals: np.ndarray, wo: np.ndarray,
+                    to_light: np.ndarray, irradiance: np.ndarray) -> np.ndarray:
+    """(N, 3) radiance W/(m^2 sr) a lamp's light leaves toward the eye by the specular layer of
+    surfaces of `material` (N,) (rows of `materials`): unit shading normals, directions to the
+    eye wo and to the lamp (N, 3), and the lamp's irradiance there (N, 3, cosine included).
+    Only layers of roughness >= MIRROR_ROUGHNESS over a dielectric base: metal and glass lobes
+    are not drawn."""
+    rough = np.array([m.roughness for m in materials], np.float64)[material]
+    weight = np.array([(1.0 - m.metallic) * (1.0 - m.transmission)
+                       * (m.roughness >= MIRROR_ROUGHNESS) for m in materials])[material]
+    f0 = np.array([layer_f0(m.ior, m.specular) for m in materials])[material]
+    rows = np.flatnonzero((weight > 0.0) & (f0 > 0.0))
+    out = np.zeros((len(material), 3))
+    if rows.size:
+        cos_i = np.einsum("ij,ij->i", normals[rows], to_light[rows])
+        brdf = ggx_highlight(normals[rows], to_light[rows], wo[rows], rough[rows],
+                             np.repeat(f0[rows, None], 3, axis=1))
+        out[rows] = (weight[rows] / np.maximum(cos_i, 1e-6))[:, None] * brdf * irradiance[rows]
+    return out

@@ -36,7 +36,7 @@ from .bvh import BVH
 from .camera import Camera, camera_ray_lines, camera_rays
 from .optics import fresnel_dielectric, fresnel_schlick, reflect, refract
 from .scene import Light, Scene, geometric_normals
-from .specular_layer import view_factors, view_tables
+from .specular_layer import MIRROR_ROUGHNESS, ggx_highlight, view_factors, view_tables
 from .textures import sample_texture, sample_texture_box
 
 # A new ray starts this fraction of the scene's size off its surface, along the geometric normal:
@@ -85,7 +85,8 @@ class TracerSettings:
     | offset_scale     | >= 0     | 1e-5    | ray offset, fraction of the scene's size (0: acne)   |
     | area_samples     | 1..16    | 4       | per side of an area light / emissive triangle grid   |
     | point_like_ratio | >= 0     | 0.05    | emitters smaller than this x distance act as points   |
-    | mirror_roughness | 0..1     | 0.1     | rougher surfaces spawn no reflected/refracted ray    |
+    | mirror_roughness | 0..1     | 0.1     | rougher metals and glass spawn no reflected or       |
+    |                  |          |         | refracted ray; rougher layers get lamp highlights    |
     | shading          | flat, gouraud, | bump | normals: the triangles' own (flat); light at the  |
     |                  | phong, bump |      | corners, interpolated (gouraud); the corners'        |
     |                  |          |         | normals interpolated (phong); those perturbed by     |
@@ -107,7 +108,7 @@ class TracerSettings:
     offset_scale: float = DEFAULT_OFFSET_SCALE
     area_samples: int = 4
     point_like_ratio: float = 0.05
-    mirror_roughness: float = 0.1
+    mirror_roughness: float = MIRROR_ROUGHNESS
     texture_filter: int = TEXTURE_FILTER
     shading: ShadingMode = "bump"
     output: Literal["radiance", "albedo"] = "radiance"
@@ -378,24 +379,6 @@ def _surface(scene: Scene, tri_normals, origins, dirs, hits, shading: str = "bum
     return _Hits(p, ng, ns, front, material, albedo)
 
 
-def _ggx_specular(n, wi, wo, roughness, f0) -> np.ndarray:
-    """GGX microfacet BRDF (Trowbridge-Reitz D, Smith G, Schlick F) times cos_i: (N, 3)."""
-    alpha2 = np.maximum(roughness, 1e-3) ** 4  # Blender: alpha = roughness^2
-    h = wi + wo
-    h /= np.maximum(np.linalg.norm(h, axis=1, keepdims=True), 1e-12)
-    cos_i = np.clip(np.einsum("ij,ij->i", n, wi), 0.0, 1.0)
-    cos_o = np.clip(np.einsum("ij,ij->i", n, wo), 1e-6, 1.0)
-    cos_h = np.clip(np.einsum("ij,ij->i", n, h), 0.0, 1.0)
-    d = alpha2 / (np.pi * (cos_h * cos_h * (alpha2 - 1.0) + 1.0) ** 2)
-
-    def g1(c):
-        return 2.0 * c / (c + np.sqrt(alpha2 + (1.0 - alpha2) * c * c))
-
-    g = g1(cos_i) * g1(cos_o)
-    f = fresnel_schlick(np.einsum("ij,ij->i", wi, h), f0)
-    return f * (d * g / (4.0 * cos_o))[:, None]
-
-
 class Tracer:
     """The wavefront tracer over one scene and BVH: `radiance` of any rays (camera rays, or the
     faces of a cube map in `envmap.py`), with statistics gathered in `stats`."""
@@ -463,7 +446,7 @@ class Tracer:
                 vis = np.ones(len(sub), bool)
             lambert[idx[sub]] += brdf_w[sub] * e[sub] * vis[:, None]
             if spec_f0 is not None:
-                spec = _ggx_specular(ns[sub], to_l[sub], wo[idx][sub], spec_rough[idx][sub],
+                spec = ggx_highlight(ns[sub], to_l[sub], wo[idx][sub], spec_rough[idx][sub],
                                      spec_f0[idx][sub]) * e[sub] / np.maximum(
                     np.einsum("ij,ij->i", ns[sub], to_l[sub]), 1e-6)[:, None]
                 out[idx[sub]] += spec * vis[:, None]
