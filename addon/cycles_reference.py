@@ -48,8 +48,8 @@ of its specular layer). With the default Specular IOR Level 0.5 (F0 = 0.04) it i
 along the normal at roughness 0.5 (4.0% at roughness 0, 1.4% at 1), and in renders lower still at
 grazing views (5% at 45 degrees, 17% at 70 degrees, roughness 0); bakes see every texel along its
 normal. The kernels model it (`kernels/specular_layer.py`): bakes to 0.11%, camera views at each
-pixel's view angle; the tracer and the shadow-map view draw the layer's lamp highlights, the
-radiosity view does not.
+pixel's view angle, and every camera view draws the layer's lamp highlights (the tracer's
+reflections of the surroundings too).
 
 Settings every model shares (`FIXED_SETTINGS`): Cycles on the CPU, denoising and adaptive
 sampling off, no sample clamping, no fast-GI approximation, no time limit, view-layer sample

@@ -1214,6 +1214,38 @@ def _at_view(scene: Scene, tri: np.ndarray, bary: np.ndarray, dirs: np.ndarray,
     return emitted + (radiance - emitted) * ratio[:, None]
 
 
+def _lamp_highlights(scene: Scene, result: RadiosityResult, tri: np.ndarray, bary: np.ndarray,
+                     points: np.ndarray, dirs: np.ndarray) -> np.ndarray:
+    """(M, 3) radiance W/(m^2 sr) the lamps' light leaves toward a camera looking along dirs
+    (M, 3) by the rough specular layers of surface points (triangles, barycentrics, world points
+    (M, 3)): each lamp's shadowed irradiance (area lamps over their grid, their highlight aimed
+    from the centre) times the layer's GGX lobe (`specular_layer.lamp_highlights`), as Cycles
+    lights the glossy lobe directly at the camera's first hit. Emissive meshes draw none."""
+    from .bvh import BVH
+    from .scene import geometric_normals, interpolated_normals
+    from .specular_layer import MIRROR_ROUGHNESS, lamp_highlights, layer_f0
+
+    out = np.zeros((len(tri), 3))
+    shiny = [m.roughness >= MIRROR_ROUGHNESS and layer_f0(m.ior, m.specular) > 0.0
+             and m.metallic < 1.0 and m.transmission < 1.0 for m in scene.materials]
+    if not scene.lights or not any(shiny) or not len(tri):
+        return out
+    geometric = geometric_normals(scene.triangles[tri])
+    normals = interpolated_normals(scene, tri, bary, geometric)
+    normals[np.einsum("ij,ij->i", normals, geometric) < 0.0] *= -1.0
+    bvh = result.gather.bvh if result.gather is not None else BVH.build(scene.triangles)
+    flat = scene.triangles.reshape(-1, 3).astype(np.float64)
+    offset = RAY_OFFSET_REL * float(np.linalg.norm(flat.max(axis=0) - flat.min(axis=0)))
+    samples = result.gather.area_samples_per_side if result.gather is not None else 4
+    for light in scene.lights:
+        e, _ = shadowed_irradiance(light, points, normals, points + offset * geometric,
+                                   bvh.occluded, samples)
+        to_light, _ = light_units.light_vectors(light, points)
+        out += lamp_highlights(scene.materials, scene.material_ids[tri], normals, -dirs,
+                               to_light, e)
+    return out
+
+
 def _radiance_steps(result: RadiosityResult, parts: list, start: float, span: float,
                     known: list | None = None):
     """Generator: yields progress in [start, start + span] while it evaluates B / pi at every
@@ -1253,8 +1285,10 @@ def render_steps(scene: Scene, result: RadiosityResult, resolution=None,
         # Cycles shades a surface on the side it is seen from; the solution is the front's.
         front, back = ~f.back, f.back
         values = result.radiance_at(f.tri[front], f.bary[front])
-        image[f.rows[front], f.cols[front]] = _at_view(scene, f.tri[front], f.bary[front],
-                                                       f.dirs[front], values)
+        values = _at_view(scene, f.tri[front], f.bary[front], f.dirs[front], values)
+        values += _lamp_highlights(scene, result, f.tri[front], f.bary[front], f.points[front],
+                                   f.dirs[front])
+        image[f.rows[front], f.cols[front]] = values
         if back.any():
             image[f.rows[back], f.cols[back]] = result.back_radiance_at(scene, f.tri[back],
                                                                         f.bary[back])

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from scene_builder import build, ortho_camera, quad
+from scene_builder import build, mirror_highlight, mirror_view, ortho_camera, quad
 
 from classic_bake.kernels import direct_light as dl
 from classic_bake.kernels.bake_targets import (
@@ -119,20 +119,14 @@ def test_the_view_shows_only_diffuse_reflection():
 def test_the_view_draws_the_layers_lamp_highlight():
     """A black plane under a specular layer (roughness 0.3, F0 0.04), a sun 45 degrees off the
     normal and an orthographic camera in the mirror direction: every pixel sees the half vector
-    along the normal, radiance F D G1^2 S / (4 cos_o) with D = 1 / (pi alpha^2), Smith's G1 and
-    Schlick's F at 45 degrees (Cycles' direct-light render draws the highlight too)."""
-    alpha2 = 0.3 ** 4
-    c = np.cos(np.radians(45.0))
-    g1 = 2.0 * c / (c + np.sqrt(alpha2 + (1.0 - alpha2) * c * c))
-    fresnel = 0.04 + 0.96 * (1.0 - c) ** 5
-    expected = fresnel / (np.pi * alpha2) * g1 * g1 * 3.0 / (4.0 * c)
+    along the normal, the analytic GGX highlight (`mirror_highlight`); Cycles' direct-light
+    render draws the highlight too."""
     black = Material(name="b", base_color=np.zeros(3, np.float32), specular=0.5, roughness=0.3)
     ground = quad([(-2, -2, 0), (2, -2, 0), (2, 2, 0), (-2, 2, 0)])
-    forward = np.array([0.0, c, -c])  # the camera looks along +y and down; the sun shines so too
-    cam = ortho_camera(-5.0 * forward, forward, (0, 0, 1), 0.5, (4, 4))
-    scene = build([(ground, black)], camera=cam, lights=[sun([0.0, -c, -c])])
+    cam, sun_dir = mirror_view(45.0)
+    scene = build([(ground, black)], camera=cam, lights=[sun(sun_dir)])
     image = list(dl.render_steps(scene, dl.DirectLightSettings()))[-1]
-    np.testing.assert_allclose(image, expected, rtol=1e-6)
+    np.testing.assert_allclose(image, mirror_highlight(0.3, 0.04, 3.0, 45.0), rtol=1e-6)
 
 
 def test_square_occluder_shadow_mask_matches_geometry():

@@ -7,7 +7,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from scene_builder import build, ortho_camera, quad, uv_sphere
+from scene_builder import build, mirror_highlight, mirror_view, ortho_camera, quad, uv_sphere
 
 from classic_bake.kernels import patches as patching
 from classic_bake.kernels.bake_targets import TexelFilterSettings, lattice_plan, lightmap_targets
@@ -232,6 +232,31 @@ def test_furnace_under_a_specular_layer(final_gather):
     assert np.ptp(factor) > 0.03  # the floor seen at 65 degrees, the far wall at 25
     np.testing.assert_allclose(image[seen.rows, seen.cols], np.repeat(expected_view[:, None], 3, 1),
                                rtol=0.01)
+
+
+@pytest.mark.parametrize("final_gather", [True, False])
+def test_the_view_draws_the_layers_lamp_highlight(final_gather):
+    """A black plane under a rough specular layer lit by a sun 45 degrees off its normal, the
+    camera in the mirror direction: the solution is black (nothing diffuse), and each pixel shows
+    the layer's GGX highlight (`mirror_highlight`), which Cycles lights at the camera's first
+    hit; where a plate shades the plane from the sun, none."""
+    black = Material(name="b", base_color=np.zeros(3, np.float32), specular=0.5, roughness=0.3)
+    ground = quad([(-2, -2, 0), (2, -2, 0), (2, 2, 0), (-2, 2, 0)])
+    cam, sun_dir = mirror_view(45.0, width=0.5, resolution=(4, 4))
+    light = replace(sun_down(3.0), direction=sun_dir / np.linalg.norm(sun_dir))
+    scene = build([(ground, black)], camera=cam, lights=[light])
+    settings = RadiositySettings(patch_budget=8, final_gather=final_gather, **FAST)
+    image = _rendered(scene, solve_radiosity(scene, settings))
+    shine = mirror_highlight(0.3, 0.04, 3.0, 45.0)
+    np.testing.assert_allclose(image, shine, rtol=1e-6)
+    # A black plate 1 m up on the sun's side shades the ground for |y| < 0.25: the two middle
+    # rows of pixels (ground y = +-0.09) lose their highlight, the outer ones (+-0.27) keep it.
+    plate = quad([(-2, 0.75, 1), (2, 0.75, 1), (2, 1.25, 1), (-2, 1.25, 1)])
+    soot = Material(name="soot", base_color=np.zeros(3, np.float32), specular=0.0)
+    scene = build([(ground, black), (plate, soot)], camera=cam, lights=[light])
+    image = _rendered(scene, solve_radiosity(scene, settings))
+    np.testing.assert_allclose(image[[0, 3]], shine, rtol=1e-6)
+    np.testing.assert_array_equal(image[[1, 2]], 0.0)
 
 
 def _rendered(scene, result):

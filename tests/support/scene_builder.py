@@ -116,3 +116,23 @@ def lamp_room_with_ball():
                       emission=np.zeros(3, np.float32))
     return build([(room, grey(0.6)), (lamp, grey(0.0, emission=20.0, name="lamp")),
                   (ball, orange)])
+
+
+def mirror_highlight(roughness: float, f0: float, strength: float, degrees: float) -> float:
+    """Radiance of a sun of `strength` W/m^2 reflected by a GGX layer (Blender roughness, F0)
+    seen in the mirror direction, both `degrees` off the normal (half vector = normal):
+    F D G1^2 S / (4 cos) with D = 1 / (pi alpha^2), Smith's G1, Schlick's F (the tracer's lobe)."""
+    alpha2 = roughness ** 4
+    c = np.cos(np.radians(degrees))
+    g1 = 2.0 * c / (c + np.sqrt(alpha2 + (1.0 - alpha2) * c * c))
+    fresnel = f0 + (1.0 - f0) * (1.0 - c) ** 5
+    return fresnel / (np.pi * alpha2) * g1 * g1 * strength / (4.0 * c)
+
+
+def mirror_view(degrees: float, width: float = 0.5, resolution=(4, 4)):
+    """An orthographic camera and a sun direction `degrees` either side of +z in the yz plane,
+    mirror images of each other about the ground's normal: (camera, sun direction)."""
+    c, s = np.cos(np.radians(degrees)), np.sin(np.radians(degrees))
+    forward = np.array([0.0, s, -c])
+    return ortho_camera(-5.0 * forward, forward, (0, 0, 1), width, resolution), np.array([0.0, -s, -c])
+
