@@ -415,17 +415,18 @@ class Tracer:
         self.stats.shadow_rays += len(origins)
         return ~self.shadow_bvh.occluded(origins, directions, 0.0, t_max)
 
-    def direct(self, h: _Hits, wo: np.ndarray, diffuse_w: np.ndarray, spec_f0, spec_rough,
+    def direct(self, h: _Hits, wo: np.ndarray, diffuse_w: np.ndarray, spec, spec_rough,
                strata: Strata | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Light from every light at the hits, shadow rays included: (radiance, lambert), each (N, 3).
 
         radiance = albedo * lambert + specular; lambert is the diffuse part for a white base
-        colour (diffuse weight / pi * sum of shadowed irradiance). strata: each hit's stratum
-        and their count m, for area lights (`_area_direct`).
+        colour (diffuse weight / pi * sum of shadowed irradiance). spec: None, or each hit's
+        layer F0 (N, 3) and weight (N,), (1 - metallic)(1 - transmission), for the highlights.
+        strata: each hit's stratum and their count m, for area lights (`_area_direct`).
         """
         out = np.zeros_like(h.p)
         lambert = np.zeros_like(h.p)
-        shading = (diffuse_w > 0) | (spec_f0 is not None)
+        shading = (diffuse_w > 0) | (spec is not None)
         if not shading.any():
             return out, lambert
         idx = np.nonzero(shading)[0]
@@ -445,18 +446,18 @@ class Tracer:
             else:
                 vis = np.ones(len(sub), bool)
             lambert[idx[sub]] += brdf_w[sub] * e[sub] * vis[:, None]
-            if spec_f0 is not None:
-                spec = ggx_highlight(ns[sub], to_l[sub], wo[idx][sub], spec_rough[idx][sub],
-                                     spec_f0[idx][sub]) * e[sub] / np.maximum(
-                    np.einsum("ij,ij->i", ns[sub], to_l[sub]), 1e-6)[:, None]
-                out[idx[sub]] += spec * vis[:, None]
+            if spec is not None:
+                f0, weight = spec[0][idx][sub], spec[1][idx][sub]
+                shine = ggx_highlight(ns[sub], to_l[sub], wo[idx][sub], spec_rough[idx][sub], f0)
+                cos_i = np.maximum(np.einsum("ij,ij->i", ns[sub], to_l[sub]), 1e-6)
+                out[idx[sub]] += shine * e[sub] * (weight * vis / cos_i)[:, None]
         if len(self.emitters.area_points):
             sub_strata = None if strata is None else (strata[0][idx], strata[1])
             lambert[idx] += self._area_direct(origin, ns, brdf_w, sub_strata)
         out += h.albedo * lambert
         return out, lambert
 
-    def gouraud_direct(self, h: _Hits, hits, eye: np.ndarray, diffuse_w, spec_f0, spec_rough,
+    def gouraud_direct(self, h: _Hits, hits, eye: np.ndarray, diffuse_w, spec, spec_rough,
                        strata: Strata | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Gouraud (per-vertex) shading: `direct` evaluated at the hit triangle's three corners,
         with their own normals, shadow rays and view directions (towards `eye`, each ray's
@@ -476,7 +477,7 @@ class Tracer:
             wo = eye - p
             wo /= np.maximum(np.linalg.norm(wo, axis=1, keepdims=True), 1e-12)
             corner = _Hits(p, h.ng, n, h.front, h.material, h.albedo)
-            lit_k, lambert_k = self.direct(corner, wo, diffuse_w, spec_f0, spec_rough, strata)
+            lit_k, lambert_k = self.direct(corner, wo, diffuse_w, spec, spec_rough, strata)
             lit += w[:, None] * lit_k
             lambert += w[:, None] * lambert_k
         return lit, lambert
@@ -618,15 +619,16 @@ class Tracer:
             spec_level = self.specular[m]
             has_spec = (dielectric > 0) & (spec_level > 0) & (rough >= s.mirror_roughness)
             f0_dielectric = ((self.ior[m] - 1.0) / (self.ior[m] + 1.0)) ** 2 * 2.0 * spec_level
-            spec_f0 = None
+            spec = None
             if has_spec.any():
-                spec_f0 = np.where(has_spec[:, None], f0_dielectric[:, None], 0.0) * np.ones((1, 3))
+                spec = (np.where(has_spec[:, None], f0_dielectric[:, None], 0.0) * np.ones((1, 3)),
+                        np.where(has_spec, dielectric, 0.0))
             hit_strata = None if strata is None else (strata[0][pixel], strata[1])
             if s.shading == "gouraud":
-                lit, lambert = self.gouraud_direct(h, hits, origins, diffuse_w, spec_f0, rough,
+                lit, lambert = self.gouraud_direct(h, hits, origins, diffuse_w, spec, rough,
                                                    hit_strata)
             else:
-                lit, lambert = self.direct(h, wo, diffuse_w, spec_f0, rough, hit_strata)
+                lit, lambert = self.direct(h, wo, diffuse_w, spec, rough, hit_strata)
             own = self.emission[m] + lit
             smooth = rough < s.mirror_roughness
             # Mirror and refraction directions about the (smooth) shading normal, falling back to

@@ -114,3 +114,27 @@ def test_a_layer_reflects_its_surroundings(roughness, level):
     image = trace(scene, TracerSettings(max_depth=1, adaptive=0)).image
     expected = 2.0 * directional_albedo(0.5, roughness, layer_f0(1.5, level))
     np.testing.assert_allclose(image, expected, rtol=2e-3)
+
+
+@pytest.mark.parametrize("metallic", [0.0, 0.5])
+def test_the_tracers_highlight_is_the_layers_share(metallic):
+    """A black plane under a rough layer (roughness 0.3), a sun 45 degrees off its normal, the
+    camera in the mirror direction: the tracer draws the analytic GGX highlight
+    (`mirror_highlight`), times the layer's share (1 - metallic) of a half-metal surface (its
+    metal lobe, rough, is not drawn)."""
+    from scene_builder import build, mirror_highlight, mirror_view, quad
+
+    from classic_bake.kernels.scene import Light
+    from classic_bake.kernels.tracer import TracerSettings, trace
+
+    black = Material(name="b", base_color=np.zeros(3, np.float32), specular=0.5, roughness=0.3,
+                     metallic=metallic)
+    cam, sun_dir = mirror_view(45.0)
+    sun = Light(name="Sun", kind="SUN", position=np.zeros(3),
+                direction=sun_dir / np.linalg.norm(sun_dir), axis_x=np.array([1.0, 0, 0]),
+                axis_y=np.array([0, 1.0, 0]), irradiance=np.full(3, 3.0))
+    scene = build([(quad([(-2, -2, 0), (2, -2, 0), (2, 2, 0), (-2, 2, 0)]), black)], camera=cam,
+                  lights=[sun])
+    image = trace(scene, TracerSettings(max_depth=1, adaptive=0)).image
+    expected = (1.0 - metallic) * mirror_highlight(0.3, 0.04, 3.0, 45.0)
+    np.testing.assert_allclose(image, expected, rtol=1e-6)
