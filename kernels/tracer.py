@@ -8,12 +8,14 @@ At every hit this kernel adds
 * emission of emissive surfaces (what the eye sees of a light);
 * direct light from every light by shadow rays: Lambert diffuse rho/pi * E (the base under a
   Principled specular layer darkened by the layer's albedo at the view, `specular_layer.py`),
-  plus a GGX specular highlight for rough dielectrics; area lights and emissive triangles on a
-  fixed stratified pattern (soft shadows), or as points where they are small against their
-  distance;
+  plus GGX highlights of rough glossy lobes (a specular layer's, a metal's) from lamps and area
+  lights; area lights and emissive triangles on a fixed stratified pattern (soft shadows; an
+  emissive mesh of many triangles is one light of a fixed number of points), or as points where
+  they are small against their distance;
 and spawns
 * a mirror ray for metals (Schlick weight) and for dielectric specular layers (the layer's
-  albedo at the view: exact Fresnel when smooth; for a rough layer the ray stands for its lobe);
+  albedo at the view: exact Fresnel when smooth); on a rough surface the one ray stands for its
+  lobe (the energy right, the blur not drawn);
 * for glass, a reflected and a refracted ray weighted by the exact Fresnel reflectance, with
   total internal reflection.
 Escaping rays see the world colour. A branch whose weight (throughput) falls below `min_weight`
@@ -46,6 +48,10 @@ DEFAULT_OFFSET_SCALE = 1e-5
 # Shading normals are renormalised; below this length (degenerate corner normals) the geometric
 # normal is used instead.
 MIN_NORMAL_LENGTH = 1e-8
+# An emissive object of more triangles than this is one light of this many triangles' samples
+# (`_mesh_light_samples`): each triangle its own n x n grid would make an emissive ball of 80
+# triangles cast 1280 shadow rays a hit (a test studio's 80 x 60 view: 7.3M shadow rays, 25 s).
+MESH_LIGHT_TRIANGLES = 4
 # Emitter samples handled together in area lighting: B x hits arrays stay a few MB per block for
 # a typical wavefront of ~100k hits.
 EMITTER_BLOCK = 8
@@ -194,6 +200,46 @@ def _stratified_unit_square(n: int) -> np.ndarray:
     return np.stack([gx.ravel(), gy.ravel()], 1)
 
 
+def _mesh_light_samples(scene: Scene, tri_ids: np.ndarray, n: int
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
+    """Shadow-ray targets on one object's emissive triangles `tri_ids`: points (S, 3), their
+    faces' normals (S, 3), radiance x the area each stands for (S, 3, W/sr), each one's index
+    among its emitter's samples (S,) and that emitter's sample count (a triangle's, or the
+    object's when it is one light).
+
+    Up to MESH_LIGHT_TRIANGLES triangles, n x n stratified points on each (a folded square
+    grid). A finer mesh is one light of MESH_LIGHT_TRIANGLES x n x n points in all, spread
+    along the triangles' cumulative area (systematic sampling: a triangle gets points in
+    proportion to its area, a small one maybe none, each standing for an equal share of the
+    total): an emissive ball of 80 triangles casts 64 shadow rays a hit, not 1280."""
+    tris = scene.triangles[tri_ids].astype(np.float64)
+    ng = geometric_normals(tris)
+    area = 0.5 * np.linalg.norm(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]), axis=1)
+    radiance = np.stack([scene.materials[m].emission for m in scene.material_ids[tri_ids]])
+    if len(tri_ids) <= MESH_LIGHT_TRIANGLES:
+        st = _stratified_unit_square(n)
+        fold = st[:, 0] + st[:, 1] > 1.0
+        st[fold] = 1.0 - st[fold][:, ::-1]
+        bary = np.stack([1.0 - st[:, 0] - st[:, 1], st[:, 0], st[:, 1]], 1)  # (K, 3)
+        k = len(bary)
+        pts = np.einsum("kc,tcj->tkj", bary, tris).reshape(-1, 3)
+        return (pts, np.repeat(ng, k, axis=0), np.repeat(radiance * (area / k)[:, None], k, axis=0),
+                np.tile(np.arange(k), len(tri_ids)), k)
+    total = MESH_LIGHT_TRIANGLES * n * n
+    cdf = np.cumsum(area) / area.sum()
+    position = (np.arange(total) + 0.5) / total
+    t = np.minimum(np.searchsorted(cdf, position, side="right"), len(area) - 1)
+    start = np.concatenate([[0.0], cdf[:-1]])[t]
+    # Where in its triangle: the position within the triangle's stretch of the CDF, and a
+    # golden-ratio sequence across, mapped by the area-preserving square-root map.
+    u = np.clip((position - start) / np.maximum(cdf[t] - start, 1e-300), 0.0, 1.0)
+    v = (np.arange(total) * 0.6180339887498949 + 0.5) % 1.0
+    root = np.sqrt(u)
+    bary = np.stack([1.0 - root, root * (1.0 - v), root * v], axis=1)
+    pts = np.einsum("sc,scj->sj", bary, tris[t])
+    return pts, ng[t], radiance[t] * (area.sum() / total), np.arange(total), total
+
+
 def _emitters(scene: Scene, settings: TracerSettings) -> _Emitters:
     points, normals, power, two_sided, local, count = [], [], [], [], [], []
     n = settings.area_samples
@@ -214,23 +260,15 @@ def _emitters(scene: Scene, settings: TracerSettings) -> _Emitters:
     emissive = [k for k, m in enumerate(scene.materials) if m.is_emissive]
     if emissive:
         tri_ids = np.nonzero(np.isin(scene.material_ids, emissive))[0]
-        tris = scene.triangles[tri_ids].astype(np.float64)
-        ng = geometric_normals(tris)
-        area = 0.5 * np.linalg.norm(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]), axis=1)
-        # Stratified points on each triangle: a square grid folded into the triangle.
-        st = _stratified_unit_square(n)
-        fold = st[:, 0] + st[:, 1] > 1.0
-        st[fold] = 1.0 - st[fold][:, ::-1]
-        bary = np.stack([1.0 - st[:, 0] - st[:, 1], st[:, 0], st[:, 1]], 1)  # (K, 3)
-        pts = np.einsum("kc,tcj->tkj", bary, tris).reshape(-1, 3)
-        radiance = np.stack([scene.materials[m].emission for m in scene.material_ids[tri_ids]])
-        k = bary.shape[0]
-        points.append(pts)
-        normals.append(np.repeat(ng, k, axis=0))
-        power.append(np.repeat(radiance * (area / k)[:, None], k, axis=0))
-        two_sided.append(np.ones(len(pts), bool))
-        local.append(np.tile(np.arange(k), len(tri_ids)))
-        count.append(np.full(len(pts), k))
+        for obj in np.unique(scene.object_ids[tri_ids]):
+            own = tri_ids[scene.object_ids[tri_ids] == obj]
+            pts, ng, radiance_da, index, per_emitter = _mesh_light_samples(scene, own, n)
+            points.append(pts)
+            normals.append(ng)
+            power.append(radiance_da)
+            two_sided.append(np.ones(len(pts), bool))
+            local.append(index)
+            count.append(np.full(len(pts), per_emitter))
     if points:
         return _Emitters([li for li in scene.lights if li.kind != "AREA"], np.concatenate(points),
                          np.concatenate(normals), np.concatenate(power), np.concatenate(two_sided),
@@ -408,6 +446,8 @@ class Tracer:
         self.layer_tables = view_tables(mats)
         self.emission = np.array([m.emission for m in mats], np.float64).reshape(-1, 3)
         self.textured = np.array([m.base_color_texture is not None for m in mats], bool)
+        self.black = np.array([m.base_color_texture is None and not np.any(m.base_color > 0)
+                               for m in mats], bool)
 
     # --- direct light ---------------------------------------------------------------------------
 
@@ -415,18 +455,20 @@ class Tracer:
         self.stats.shadow_rays += len(origins)
         return ~self.shadow_bvh.occluded(origins, directions, 0.0, t_max)
 
-    def direct(self, h: _Hits, wo: np.ndarray, diffuse_w: np.ndarray, spec, spec_rough,
+    def direct(self, h: _Hits, wo: np.ndarray, diffuse_w: np.ndarray, lobes: list, rough,
                strata: Strata | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Light from every light at the hits, shadow rays included: (radiance, lambert), each (N, 3).
 
-        radiance = albedo * lambert + specular; lambert is the diffuse part for a white base
-        colour (diffuse weight / pi * sum of shadowed irradiance). spec: None, or each hit's
-        layer F0 (N, 3) and weight (N,), (1 - metallic)(1 - transmission), for the highlights.
-        strata: each hit's stratum and their count m, for area lights (`_area_direct`).
+        radiance = albedo * lambert + highlights; lambert is the diffuse part for a white base
+        colour (diffuse weight / pi * sum of shadowed irradiance). lobes: the rough glossy lobes
+        lit directly, [(F0 (N, 3), weight (N,))] (a specular layer's, a metal's), GGX of each
+        hit's roughness (N,): lamps' and area lights' highlights (emissive meshes are met by the
+        lobe's mirror ray instead). strata: each hit's stratum and their count m, for area
+        lights (`_area_direct`).
         """
         out = np.zeros_like(h.p)
         lambert = np.zeros_like(h.p)
-        shading = (diffuse_w > 0) | (spec is not None)
+        shading = (diffuse_w > 0) | np.any([w > 0 for _, w in lobes], axis=0)
         if not shading.any():
             return out, lambert
         idx = np.nonzero(shading)[0]
@@ -446,18 +488,22 @@ class Tracer:
             else:
                 vis = np.ones(len(sub), bool)
             lambert[idx[sub]] += brdf_w[sub] * e[sub] * vis[:, None]
-            if spec is not None:
-                f0, weight = spec[0][idx][sub], spec[1][idx][sub]
-                shine = ggx_highlight(ns[sub], to_l[sub], wo[idx][sub], spec_rough[idx][sub], f0)
-                cos_i = np.maximum(np.einsum("ij,ij->i", ns[sub], to_l[sub]), 1e-6)
-                out[idx[sub]] += shine * e[sub] * (weight * vis / cos_i)[:, None]
+            rows = idx[sub]
+            cos_i = np.maximum(np.einsum("ij,ij->i", ns[sub], to_l[sub]), 1e-6)
+            for f0, weight in lobes:
+                shine = ggx_highlight(ns[sub], to_l[sub], wo[rows], rough[rows], f0[rows])
+                out[rows] += shine * e[sub] * (weight[rows] * vis / cos_i)[:, None]
         if len(self.emitters.area_points):
             sub_strata = None if strata is None else (strata[0][idx], strata[1])
-            lambert[idx] += self._area_direct(origin, ns, brdf_w, sub_strata)
+            area_lobes = [(f0[idx], weight[idx]) for f0, weight in lobes]
+            diffuse, shine = self._area_direct(origin, ns, brdf_w, sub_strata, wo[idx], area_lobes,
+                                               rough[idx])
+            lambert[idx] += diffuse
+            out[idx] += shine
         out += h.albedo * lambert
         return out, lambert
 
-    def gouraud_direct(self, h: _Hits, hits, eye: np.ndarray, diffuse_w, spec, spec_rough,
+    def gouraud_direct(self, h: _Hits, hits, eye: np.ndarray, diffuse_w, lobes, rough,
                        strata: Strata | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Gouraud (per-vertex) shading: `direct` evaluated at the hit triangle's three corners,
         with their own normals, shadow rays and view directions (towards `eye`, each ray's
@@ -477,14 +523,17 @@ class Tracer:
             wo = eye - p
             wo /= np.maximum(np.linalg.norm(wo, axis=1, keepdims=True), 1e-12)
             corner = _Hits(p, h.ng, n, h.front, h.material, h.albedo)
-            lit_k, lambert_k = self.direct(corner, wo, diffuse_w, spec, spec_rough, strata)
+            lit_k, lambert_k = self.direct(corner, wo, diffuse_w, lobes, rough, strata)
             lit += w[:, None] * lit_k
             lambert += w[:, None] * lambert_k
         return lit, lambert
 
-    def _area_direct(self, origin, ns, brdf_d, strata: Strata | None = None) -> np.ndarray:
+    def _area_direct(self, origin, ns, brdf_d, strata: Strata | None = None, wo=None,
+                     lobes: tuple | list = (), rough=None) -> tuple[np.ndarray, np.ndarray]:
         """Light from area lights and emissive triangles: every emitter sample against every hit,
-        EMITTER_BLOCK samples at a time, with one batch of shadow rays per block.
+        EMITTER_BLOCK samples at a time, with one batch of shadow rays per block. Returns the
+        diffuse part (N, 3) (brdf_d weighted) and the area lights' highlights in the glossy
+        `lobes` (as `direct`'s; view directions wo (N, 3), roughness (N,)).
 
         strata (stratum (N,), m): the hits are m sub-samples of their pixels, and a hit in
         stratum k takes only its emitters' samples j with j = k (mod m), weighted m: the pixel's
@@ -494,6 +543,7 @@ class Tracer:
         """
         em = self.emitters
         out = np.zeros_like(origin)
+        shine = np.zeros_like(origin)
         if strata is not None and strata[1] > 1:
             stratum, m = strata
             shared = em.area_count % m == 0  # (S,)
@@ -520,7 +570,15 @@ class Tracer:
                                 dist[b_idx, n_idx] * (1.0 - 1e-4) - self.offset)
             weight = em.area_radiance_da[block][b_idx] * (g[b_idx, n_idx] * vis)[:, None]
             np.add.at(out, n_idx, brdf_d[n_idx] * weight)
-        return out
+            lamp = ~em.area_two_sided[block][b_idx]  # area lights: no ray meets them
+            for f0, w in lobes:
+                pick = np.flatnonzero(lamp & (w[n_idx] > 0.0))
+                if pick.size:
+                    rows, l_dir = n_idx[pick], to_l[b_idx[pick], n_idx[pick]]
+                    brdf_cos = ggx_highlight(ns[rows], l_dir, wo[rows], rough[rows], f0[rows])
+                    cos_r = np.maximum(np.einsum("ij,ij->i", ns[rows], l_dir), 1e-6)
+                    np.add.at(shine, rows, brdf_cos * (weight[pick] * (w[rows] / cos_r)[:, None]))
+        return out, shine
 
     def _mapped(self, tri: np.ndarray) -> np.ndarray:
         """(N,) bool: which hit triangles belong to an environment-mapped object."""
@@ -619,16 +677,27 @@ class Tracer:
             spec_level = self.specular[m]
             has_spec = (dielectric > 0) & (spec_level > 0) & (rough >= s.mirror_roughness)
             f0_dielectric = ((self.ior[m] - 1.0) / (self.ior[m] + 1.0)) ** 2 * 2.0 * spec_level
-            spec = None
+            # Rough glossy lobes lit directly: the specular layer's and a rough metal's.
+            lobes = []
             if has_spec.any():
-                spec = (np.where(has_spec[:, None], f0_dielectric[:, None], 0.0) * np.ones((1, 3)),
-                        np.where(has_spec, dielectric, 0.0))
+                lobes.append((np.where(has_spec[:, None], f0_dielectric[:, None], 0.0)
+                              * np.ones((1, 3)), np.where(has_spec, dielectric, 0.0)))
+            rough_metal = (metallic > 0) & (rough >= s.mirror_roughness)
+            if rough_metal.any():
+                lobes.append((h.albedo, np.where(rough_metal, metallic, 0.0)))
             hit_strata = None if strata is None else (strata[0][pixel], strata[1])
+            # A black base reflects nothing diffusely: no shadow rays for it. A dark texel of a
+            # coloured or textured material keeps them at the camera hits when the white-base
+            # image (edge detection) needs their light; a black material never does.
+            dark = h.albedo.max(axis=1) <= 0.0
+            if untextured is not None and depth == 0:
+                dark &= self.black[m]
+            lit_w = np.where(dark, 0.0, diffuse_w)
             if s.shading == "gouraud":
-                lit, lambert = self.gouraud_direct(h, hits, origins, diffuse_w, spec, rough,
+                lit, lambert = self.gouraud_direct(h, hits, origins, lit_w, lobes, rough,
                                                    hit_strata)
             else:
-                lit, lambert = self.direct(h, wo, diffuse_w, spec, rough, hit_strata)
+                lit, lambert = self.direct(h, wo, lit_w, lobes, rough, hit_strata)
             own = self.emission[m] + lit
             smooth = rough < s.mirror_roughness
             # Mirror and refraction directions about the (smooth) shading normal, falling back to
@@ -637,8 +706,9 @@ class Tracer:
             wrong = np.einsum("ij,ij->i", r_dir, h.ng) <= 0.0
             r_dir[wrong] = reflect(dirs[wrong], h.ng[wrong])
             cos_o = np.einsum("ij,ij->i", wo, h.ns)
-            # metals: a tinted mirror (Schlick with F0 = base colour)
-            metal_w = np.where((smooth & (metallic > 0))[:, None],
+            # Metals: a tinted mirror (Schlick with F0 = base colour); a rough metal's one ray
+            # stands for its lobe, as a rough layer's does (its lamps' highlights: `direct`).
+            metal_w = np.where((metallic > 0)[:, None],
                                metallic[:, None] * fresnel_schlick(cos_o, h.albedo), 0.0)
             # The dielectric specular layer of opaque surfaces reflects its surroundings along
             # the mirror direction with its albedo at this view, what the base lost under it:
@@ -655,7 +725,7 @@ class Tracer:
                 np.add.at(flat, pixel, weight * flat_own)
             if depth == s.max_depth:
                 self.stats.depth_limited += int(np.count_nonzero(
-                    ((rough < s.mirror_roughness) & ((metallic > 0) | (trans > 0))) | (layer_w > 0)))
+                    ((rough < s.mirror_roughness) & (trans > 0)) | (metallic > 0) | (layer_w > 0)))
                 break
             # --- spawn the next generation: mirror reflection and refraction -----------------------
             eta = np.where(h.front, 1.0 / self.ior[m], self.ior[m])

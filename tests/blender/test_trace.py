@@ -112,3 +112,35 @@ def test_a_plane_under_the_specular_layer_matches_cycles():
         assert on_plane.sum() > 300
         assert rel_mse(ours[on_plane], cycles[on_plane]) < 3e-3
         assert abs(ours[on_plane].mean() / cycles[on_plane].mean() - 1.0) < 0.03
+
+
+def test_a_rough_metal_plane_matches_cycles():
+    """A gold metal plane (roughness 0.2 and 0.5) under the sun and the blue world, seen at 72
+    degrees, against Cycles' Whitted-model render: the rough metal reflects through one mirror
+    ray weighted by Schlick's Fresnel of its base colour, and draws the sun's GGX highlight (it
+    was black before: only roughness below 0.1 made a metal a mirror). Measured relMSE 1.1e-4
+    at 0.2; 0.0127 at 0.5, where Cycles' wide lobe keeps the gold at grazing views that one
+    Schlick ray turns white (blue channel 17% bright)."""
+    from blender_parts import lit_scene, plane, principled
+
+    from classic_bake.addon import cycles_reference
+    from classic_bake.kernels.metrics import rel_mse
+    from classic_bake.kernels.tracer import TracerSettings, trace
+
+    for roughness, bound in ((0.2, 2e-3), (0.5, 0.03)):
+        bpy.ops.wm.read_factory_settings(use_empty=True)
+        scene = lit_scene()
+        mat, bsdf = principled("Gold", base=(0.9, 0.7, 0.4), metallic=1.0)
+        bsdf.inputs["Roughness"].default_value = roughness
+        plane(mat, size=6.0)
+        cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
+        cam.location, cam.rotation_euler = (0.0, -4.0, 1.2), (np.radians(72.0), 0.0, 0.0)
+        scene.collection.objects.link(cam)
+        scene.camera = cam
+        cycles, _ = cycles_reference.render_camera(scene, cycles_reference.whitted(2), 256,
+                                                   resolution=(32, 24))
+        snap = bridge.snapshot(resolution=(32, 24))
+        ours = trace(snap, TracerSettings(max_depth=2)).image
+        on_plane = np.abs(ours - snap.world_color).sum(axis=2) > 1e-6
+        assert on_plane.sum() > 300
+        assert rel_mse(ours[on_plane], cycles[on_plane]) < bound

@@ -19,9 +19,10 @@ WALL_COLOURS = np.array([[1.0, 0.2, 0.2], [0.2, 1.0, 0.2], [0.2, 0.2, 1.0],
 
 
 def emissive(colour, name="wall"):
-    """A wall that only glows: black rough metal reflects nothing, so no shadow rays are cast
-    from it towards the other glowing walls (which would only add zero, slowly)."""
-    return Material(name=name, base_color=np.zeros(3, np.float32), metallic=1.0, roughness=1.0,
+    """A wall that only glows: black and Lambertian (no specular layer), it reflects nothing, so
+    no shadow rays are cast from it towards the other glowing walls (which would only add zero,
+    slowly)."""
+    return Material(name=name, base_color=np.zeros(3, np.float32), specular=0.0,
                     emission=np.asarray(colour, np.float32))
 
 

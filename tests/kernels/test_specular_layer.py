@@ -120,8 +120,8 @@ def test_a_layer_reflects_its_surroundings(roughness, level):
 def test_the_tracers_highlight_is_the_layers_share(metallic):
     """A black plane under a rough layer (roughness 0.3), a sun 45 degrees off its normal, the
     camera in the mirror direction: the tracer draws the analytic GGX highlight
-    (`mirror_highlight`), times the layer's share (1 - metallic) of a half-metal surface (its
-    metal lobe, rough, is not drawn)."""
+    (`mirror_highlight`) of each lobe times its share: the layer's (F0 0.04) 1 - metallic, the
+    metal's (F0 = the black base colour: Schlick's grazing term alone) metallic."""
     from scene_builder import build, mirror_highlight, mirror_view, quad
 
     from classic_bake.kernels.scene import Light
@@ -136,5 +136,6 @@ def test_the_tracers_highlight_is_the_layers_share(metallic):
     scene = build([(quad([(-2, -2, 0), (2, -2, 0), (2, 2, 0), (-2, 2, 0)]), black)], camera=cam,
                   lights=[sun])
     image = trace(scene, TracerSettings(max_depth=1, adaptive=0)).image
-    expected = (1.0 - metallic) * mirror_highlight(0.3, 0.04, 3.0, 45.0)
+    expected = ((1.0 - metallic) * mirror_highlight(0.3, 0.04, 3.0, 45.0)
+                + metallic * mirror_highlight(0.3, 0.0, 3.0, 45.0))
     np.testing.assert_allclose(image, expected, rtol=1e-6)

@@ -278,3 +278,21 @@ def test_edge_sub_samples_share_out_an_area_lights_samples():
         o, d = camera_rays(cam, 16, 16, offsets=(ox, oy))
         full += tracer.radiance(o.reshape(-1, 3), d.reshape(-1, 3)).reshape(16, 16, 3) / 16
     np.testing.assert_allclose(edges.image[changed], full[changed], rtol=5e-3)
+
+
+def test_a_rough_metal_reflects_its_surroundings():
+    """A rough gold plane (roughness 0.4) seen 60 degrees off its normal, facing a large emissive
+    wall of radiance 2 across the mirror direction: one mirror ray stands for the metal's lobe,
+    weighted by Schlick's Fresnel of the base colour at the view (it used to be black: only
+    roughness below `mirror_roughness` made a metal reflect)."""
+    gold = np.array([0.9, 0.7, 0.4])
+    metal = Material(name="gold", base_color=gold.astype(np.float32), metallic=1.0, roughness=0.4)
+    t = np.radians(60.0)
+    forward = np.array([0.0, np.sin(t), -np.cos(t)])
+    cam = ortho_camera(-3.0 * forward, forward, (0, 0, 1), 0.4, (4, 4))
+    wall = quad([(20, 4, -1), (20, 4, 40), (-20, 4, 40), (-20, 4, -1)])
+    scene = build([(quad([(-2, -2, 0), (2, -2, 0), (2, 2, 0), (-2, 2, 0)]), metal),
+                   (wall, emitter(2.0))], cam)
+    image = trace(scene, TracerSettings(max_depth=1, adaptive=0)).image
+    expected = 2.0 * (gold + (1.0 - gold) * (1.0 - np.cos(t)) ** 5)
+    np.testing.assert_allclose(image, np.broadcast_to(expected, image.shape), rtol=1e-5)
