@@ -232,13 +232,16 @@ def render_steps(scene: Scene, settings: DirectLightSettings, resolution=None,
     weight = np.array([diffuse_weight(m, under_layer=False) for m in scene.materials])[mids]
     weight = weight * view_factors(view_tables(scene.materials), mids,
                                    np.einsum("ij,ij->i", normals, d))
-    albedo = albedo_at(scene, tri, bary) * weight[:, None]
+    base = albedo_at(scene, tri, bary)
+    albedo = base * weight[:, None]
     emission = np.array([m.emission for m in scene.materials], np.float64)[scene.material_ids[tri]]
-    # The layer's highlights, as Cycles' direct-light render draws them (lights as points).
+    # The rough lobes' highlights (a layer's, a metal's), as Cycles' direct-light render draws
+    # them (lights as points).
     shine = np.zeros_like(points)
     for k, light in enumerate(scene.lights):
         to_light, _ = light_units.light_vectors(light, points)
-        shine += lamp_highlights(scene.materials, mids, normals, -d, to_light, e[k]) * vis[k, :, None]
+        shine += lamp_highlights(scene.materials, mids, normals, -d, to_light, e[k],
+                                 base) * vis[k, :, None]
     image[rows, cols] = emission + albedo / np.pi * np.einsum("lnc,ln->nc", e, vis) + shine
     yield image
 

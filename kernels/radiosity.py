@@ -1217,17 +1217,19 @@ def _at_view(scene: Scene, tri: np.ndarray, bary: np.ndarray, dirs: np.ndarray,
 def _lamp_highlights(scene: Scene, result: RadiosityResult, tri: np.ndarray, bary: np.ndarray,
                      points: np.ndarray, dirs: np.ndarray) -> np.ndarray:
     """(M, 3) radiance W/(m^2 sr) the lamps' light leaves toward a camera looking along dirs
-    (M, 3) by the rough specular layers of surface points (triangles, barycentrics, world points
-    (M, 3)): each lamp's shadowed irradiance (area lamps over their grid, their highlight aimed
-    from the centre) times the layer's GGX lobe (`specular_layer.lamp_highlights`), as Cycles
-    lights the glossy lobe directly at the camera's first hit. Emissive meshes draw none."""
+    (M, 3) by the rough glossy lobes (specular layers, metals) of surface points (triangles,
+    barycentrics, world points (M, 3)): each lamp's shadowed irradiance (area lamps over their
+    grid, their highlight aimed from the centre) times the GGX lobes
+    (`specular_layer.lamp_highlights`), as Cycles lights the glossy lobes directly at the
+    camera's first hit. Emissive meshes draw none."""
     from .bvh import BVH
+    from .direct_light import albedo_at
     from .scene import geometric_normals, interpolated_normals
     from .specular_layer import MIRROR_ROUGHNESS, lamp_highlights, layer_f0
 
     out = np.zeros((len(tri), 3))
-    shiny = [m.roughness >= MIRROR_ROUGHNESS and layer_f0(m.ior, m.specular) > 0.0
-             and m.metallic < 1.0 and m.transmission < 1.0 for m in scene.materials]
+    shiny = [m.roughness >= MIRROR_ROUGHNESS and (m.metallic > 0.0 or (
+        layer_f0(m.ior, m.specular) > 0.0 and m.transmission < 1.0)) for m in scene.materials]
     if not scene.lights or not any(shiny) or not len(tri):
         return out
     geometric = geometric_normals(scene.triangles[tri])
@@ -1237,12 +1239,13 @@ def _lamp_highlights(scene: Scene, result: RadiosityResult, tri: np.ndarray, bar
     flat = scene.triangles.reshape(-1, 3).astype(np.float64)
     offset = RAY_OFFSET_REL * float(np.linalg.norm(flat.max(axis=0) - flat.min(axis=0)))
     samples = result.gather.area_samples_per_side if result.gather is not None else 4
+    base = albedo_at(scene, tri, bary)  # a metal's F0
     for light in scene.lights:
         e, _ = shadowed_irradiance(light, points, normals, points + offset * geometric,
                                    bvh.occluded, samples)
         to_light, _ = light_units.light_vectors(light, points)
         out += lamp_highlights(scene.materials, scene.material_ids[tri], normals, -dirs,
-                               to_light, e)
+                               to_light, e, base)
     return out
 
 

@@ -121,7 +121,7 @@ def view_factors(tables: np.ndarray, material: np.ndarray, mu: np.ndarray) -> np
 
 
 def ggx_highlight(n, wi, wo, roughness, f0) -> np.ndarray:
-    """The layer's GGX microfacet BRDF (Trowbridge-Reitz D, separable Smith G, Schlick F) times
+    """A glossy lobe's GGX microfacet BRDF (Trowbridge-Reitz D, separable Smith G, Schlick F) times
     cos_i, (N, 3), for unit normals n, light directions wi and view directions wo (N, 3),
     Blender roughness (N,) and F0 (N, 3): a lamp's highlight is this times E / cos_i."""
     alpha2 = np.maximum(roughness, 1e-3) ** 4  # Blender: alpha = roughness^2
@@ -141,21 +141,28 @@ def ggx_highlight(n, wi, wo, roughness, f0) -> np.ndarray:
 
 
 def lamp_highlights(materials, material: np.ndarray, normals: np.ndarray, wo: np.ndarray,
-                    to_light: np.ndarray, irradiance: np.ndarray) -> np.ndarray:
-    """(N, 3) radiance W/(m^2 sr) a lamp's light leaves toward the eye by the specular layer of
-    surfaces of `material` (N,) (rows of `materials`): unit shading normals, directions to the
+                    to_light: np.ndarray, irradiance: np.ndarray,
+                    base: np.ndarray | None = None) -> np.ndarray:
+    """(N, 3) radiance W/(m^2 sr) a lamp's light leaves toward the eye by the rough glossy lobes
+    of surfaces of `material` (N,) (rows of `materials`): unit shading normals, directions to the
     eye wo and to the lamp (N, 3), and the lamp's irradiance there (N, 3, cosine included).
-    Only layers of roughness >= MIRROR_ROUGHNESS over a dielectric base: metal and glass lobes
-    are not drawn."""
+    Lobes of roughness >= MIRROR_ROUGHNESS: the specular layer over a dielectric base (F0 from
+    the IOR and level, weight (1 - metallic)(1 - transmission)) and a metal's (F0 the base colour,
+    `base` (N, 3) where textures set it, weight metallic); glass lobes are not drawn."""
     rough = np.array([m.roughness for m in materials], np.float64)[material]
-    weight = np.array([(1.0 - m.metallic) * (1.0 - m.transmission)
-                       * (m.roughness >= MIRROR_ROUGHNESS) for m in materials])[material]
-    f0 = np.array([layer_f0(m.ior, m.specular) for m in materials])[material]
-    rows = np.flatnonzero((weight > 0.0) & (f0 > 0.0))
+    glossy = np.array([m.roughness >= MIRROR_ROUGHNESS for m in materials])[material]
+    layer_w = np.array([(1.0 - m.metallic) * (1.0 - m.transmission) for m in materials])[material]
+    layer_f = np.array([layer_f0(m.ior, m.specular) for m in materials])[material]
+    metal_w = np.array([m.metallic for m in materials], np.float64)[material]
+    if base is None:
+        base = np.array([m.base_color for m in materials], np.float64).reshape(-1, 3)[material]
     out = np.zeros((len(material), 3))
-    if rows.size:
-        cos_i = np.einsum("ij,ij->i", normals[rows], to_light[rows])
-        brdf = ggx_highlight(normals[rows], to_light[rows], wo[rows], rough[rows],
-                             np.repeat(f0[rows, None], 3, axis=1))
-        out[rows] = (weight[rows] / np.maximum(cos_i, 1e-6))[:, None] * brdf * irradiance[rows]
+    lobes = ((layer_w * (layer_f > 0.0), np.repeat(layer_f[:, None], 3, axis=1)),
+             (metal_w, np.asarray(base, np.float64)))
+    for weight, f0 in lobes:
+        rows = np.flatnonzero(glossy & (weight > 0.0))
+        if rows.size:
+            cos_i = np.einsum("ij,ij->i", normals[rows], to_light[rows])
+            brdf = ggx_highlight(normals[rows], to_light[rows], wo[rows], rough[rows], f0[rows])
+            out[rows] += (weight[rows] / np.maximum(cos_i, 1e-6))[:, None] * brdf * irradiance[rows]
     return out
