@@ -436,6 +436,7 @@ class Tracer:
         self.offset = settings.offset_scale * _scene_scale(scene)
         self.tri_normals = geometric_normals(scene.triangles)
         self.emitters = _emitters(scene, settings)
+        self.area_lamps = [li for li in scene.lights if li.kind == "AREA"]
         self.stats = TraceStats()
         mats = scene.materials
         self.metallic = np.array([m.metallic for m in mats])
@@ -580,6 +581,24 @@ class Tracer:
                     np.add.at(shine, rows, brdf_cos * (weight[pick] * (w[rows] / cos_r)[:, None]))
         return out, shine
 
+    def _area_lamps_seen(self, origins: np.ndarray, dirs: np.ndarray, t_hit: np.ndarray
+                         ) -> np.ndarray:
+        """(N, 3) radiance of the area lamps rays (origins, unit dirs (N, 3)) meet before their
+        hit distance t_hit (N,) (inf: none), on the lamp's emitting side (its -Z)."""
+        out = np.zeros((len(origins), 3))
+        for lamp in self.area_lamps:
+            facing = dirs @ lamp.direction  # < 0: the ray meets the emitting side
+            t = np.divide((lamp.position - origins) @ lamp.direction, facing,
+                          out=np.full(len(origins), -1.0), where=facing < 0.0)
+            q = origins + t[:, None] * dirs - lamp.position
+            x = (q @ lamp.axis_x) / max(lamp.size_x, 1e-12)
+            y = (q @ lamp.axis_y) / max(lamp.size_y, 1e-12)
+            inside = (x * x + y * y <= 0.25) if lamp.shape in ("DISK", "ELLIPSE") else (
+                (np.abs(x) <= 0.5) & (np.abs(y) <= 0.5))
+            seen = inside & (t > 0.0) & (t < t_hit)
+            out[seen] += np.asarray(lamp.radiance, np.float64)
+        return out
+
     def _mapped(self, tri: np.ndarray) -> np.ndarray:
         """(N,) bool: which hit triangles belong to an environment-mapped object."""
         return np.isin(self.scene.object_ids[tri], list(self.environment))
@@ -610,7 +629,7 @@ class Tracer:
     def radiance(self, origins: np.ndarray, dirs: np.ndarray,
                  primary_ids: np.ndarray | None = None, footprint: _Footprint | None = None,
                  untextured: np.ndarray | None = None, strata: Strata | None = None,
-                 primary_t: np.ndarray | None = None) -> np.ndarray:
+                 primary_t: np.ndarray | None = None, glossy: bool = False) -> np.ndarray:
         """Radiance (N, 3) arriving at the camera along N primary rays.
 
         primary_ids: optional (N,) int64 filled with what each camera ray hit (object and
@@ -622,6 +641,9 @@ class Tracer:
         strata: (stratum (N,), m) when the rays are m sub-samples of pixels: area lights' samples
         are shared out among them (`_area_direct`).
         primary_t: optional (N,) filled with each primary ray's hit distance (inf: none).
+        glossy: the primary rays see area lights, as rays a mirror reflects do (a cube map's
+        faces: what the mirror will show); a camera does not see them (Cycles' lights are
+        invisible to camera rays, visible to glossy and transmission rays).
         """
         s = self.settings
         result = np.zeros((len(origins), 3))
@@ -630,6 +652,7 @@ class Tracer:
         pixel = np.arange(len(origins))
         weight = np.ones((len(origins), 3))
         t_min = np.zeros(len(origins))
+        sees_lamps = np.full(len(origins), glossy)
         self.stats.camera_rays += len(origins)
         for depth in range(s.max_depth + 1):
             if len(origins) == 0:
@@ -639,6 +662,11 @@ class Tracer:
                 self.stats.secondary_rays += len(origins)
             hits = self.bvh.intersect(origins, dirs, t_min, np.inf)
             miss = hits.tri < 0
+            if sees_lamps.any() and self.area_lamps:
+                rows = np.flatnonzero(sees_lamps)
+                lamps = self._area_lamps_seen(origins[rows], dirs[rows],
+                                              np.where(miss[rows], np.inf, hits.t[rows]))
+                np.add.at(result, pixel[rows], weight[rows] * lamps)
             if depth == 0 and primary_ids is not None:
                 primary_ids[...] = self.hit_ids(hits.tri)
             if depth == 0 and primary_t is not None:
@@ -649,6 +677,7 @@ class Tracer:
                 np.add.at(flat, pixel[miss], weight[miss] * background)
             keep = ~miss
             origins, dirs, pixel, weight = origins[keep], dirs[keep], pixel[keep], weight[keep]
+            sees_lamps = sees_lamps[keep]
             hits = type(hits)(t=hits.t[keep], tri=hits.tri[keep], u=hits.u[keep], v=hits.v[keep])
             if len(origins) == 0:
                 break
@@ -733,7 +762,7 @@ class Tracer:
             wrong = ~tir & (np.einsum("ij,ij->i", t_dir, h.ng) >= 0.0)
             if wrong.any():
                 t_dir[wrong], tir[wrong] = refract(dirs[wrong], h.ng[wrong], eta[wrong])
-            children = []  # (origins, dirs, pixel, weight)
+            children = []  # (origins, dirs, pixel, weight, sees area lamps)
             # glass: Fresnel split between the reflected and the refracted ray
             glass = smooth & (trans > 0) & (metallic < 1)
             f_g = fresnel_dielectric(cos_o, eta)
@@ -743,20 +772,24 @@ class Tracer:
                 refl_w = np.where(self._mapped(hits.tri)[:, None],
                                   refl_w - mirror_w, refl_w)
             refr_w = np.where((glass & ~tir)[:, None], glass_w * (1.0 - f_g)[:, None] * h.albedo, 0.0)
-            for w_new, d_new, side in ((refl_w, r_dir, 1.0), (refr_w, t_dir, -1.0)):
+            # Rays off smooth surfaces see area lamps; a rough lobe's ray does not (its lamps'
+            # highlights come from `direct`, which would count them twice).
+            for w_new, d_new, side, sees in ((refl_w, r_dir, 1.0, smooth), (refr_w, t_dir, -1.0, smooth)):
                 w_total = weight * w_new
                 alive = np.max(w_total, axis=1) > 0.0
                 strong = alive & (np.max(w_total, axis=1) >= s.min_weight)
                 self.stats.pruned_branches += int(np.count_nonzero(alive & ~strong))
                 if strong.any():
                     o_new = h.p[strong] + side * h.ng[strong] * self.offset
-                    children.append((o_new, d_new[strong], pixel[strong], w_total[strong]))
+                    children.append((o_new, d_new[strong], pixel[strong], w_total[strong],
+                                     sees[strong]))
             if not children:
                 break
             origins = np.concatenate([c[0] for c in children])
             dirs = np.concatenate([c[1] for c in children])
             pixel = np.concatenate([c[2] for c in children])
             weight = np.concatenate([c[3] for c in children])
+            sees_lamps = np.concatenate([c[4] for c in children])
             t_min = np.zeros(len(origins))
         return result
 

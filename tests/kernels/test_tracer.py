@@ -296,3 +296,29 @@ def test_a_rough_metal_reflects_its_surroundings():
     image = trace(scene, TracerSettings(max_depth=1, adaptive=0)).image
     expected = 2.0 * (gold + (1.0 - gold) * (1.0 - np.cos(t)) ** 5)
     np.testing.assert_allclose(image, np.broadcast_to(expected, image.shape), rtol=1e-5)
+
+
+def test_mirrors_and_glass_show_area_lamps_the_camera_does_not():
+    """A 1 m area lamp of radiance 5 hangs 2 m over a chrome floor, facing down, and an
+    orthographic camera looks at the floor 30 degrees off vertical: the rays it reflects meet the
+    lamp, which shows with Schlick's Fresnel of the chrome (Cycles' lamps are visible to glossy
+    and transmission rays); the camera looking at the lamp itself sees the black world."""
+    lamp = Light(name="Panel", kind="AREA", position=np.array([0.0, 0.0, 2.0]),
+                 direction=np.array([0.0, 0.0, -1.0]), axis_x=np.array([1.0, 0.0, 0.0]),
+                 axis_y=np.array([0.0, 1.0, 0.0]), radiance=np.full(3, 5.0), size_x=1.0,
+                 size_y=1.0)
+    chrome = Material(name="chrome", base_color=np.full(3, 0.9, np.float32), metallic=1.0,
+                      roughness=0.0)
+    floor = quad([(-5, -5, 0), (5, -5, 0), (5, 5, 0), (-5, 5, 0)])
+    t = np.radians(30.0)
+    forward = np.array([0.0, np.sin(t), -np.cos(t)])
+    # Aimed at the floor 1.15 m before the lamp's foot: the mirror rays rise to it at (0, 0, 2).
+    target = np.array([0.0, -2.0 * np.tan(t), 0.0])
+    cam = ortho_camera(target - 3.0 * forward, forward, (0, 0, 1), 0.2, (2, 2))
+    scene = build([(floor, chrome)], cam, [lamp])
+    image = trace(scene, TracerSettings(max_depth=1, adaptive=0)).image
+    fresnel = 0.9 + 0.1 * (1.0 - np.cos(t)) ** 5
+    np.testing.assert_allclose(image, 5.0 * fresnel, rtol=1e-6)
+    up = ortho_camera((0.0, 0.0, 0.5), (0, 0, 1), (0, 1, 0), 0.2, (2, 2))
+    looking_up = trace(build([(floor, chrome)], up, [lamp]), TracerSettings(max_depth=1, adaptive=0))
+    assert looking_up.image.max() == 0.0
