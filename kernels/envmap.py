@@ -340,9 +340,8 @@ def capture_steps(scene: Scene, index: int, size: int, tracer_settings: TracerSe
                 chunk = dirs[first:first + FACE_WAVEFRONT]
                 origins = np.broadcast_to(centre, chunk.shape).copy()
                 t = np.empty(len(chunk))
-                # What the mirror will reflect: glossy rays, which see area lamps.
-                flat[first:first + len(chunk)] += tracer.radiance(origins, chunk, primary_t=t,
-                                                                  glossy=True)
+                # The surfaces only: the mirror meets area lamps exactly (`Tracer._environment`).
+                flat[first:first + len(chunk)] += tracer.radiance(origins, chunk, primary_t=t)
                 flat_q[first:first + len(chunk)] += np.where(np.isfinite(t), 1.0 / np.maximum(
                     t, 1e-12), 0.0)
                 done += len(chunk)

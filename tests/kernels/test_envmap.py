@@ -7,7 +7,7 @@ from scene_builder import build, ortho_camera, persp_camera, quad, tessellated_b
 
 from classic_bake.kernels import cubemap, envmap
 from classic_bake.kernels.bvh import BVH
-from classic_bake.kernels.scene import Material
+from classic_bake.kernels.scene import Light, Material
 from classic_bake.kernels.tracer import Tracer, TracerSettings, point_light, trace
 
 CHROME = Material(name="chrome", base_color=np.array([0.9, 0.7, 0.5], np.float32), metallic=1.0,
@@ -124,6 +124,25 @@ def test_env_mapped_mirror_equals_traced_mirror_in_a_uniform_room():
     np.testing.assert_allclose(mapped, exact, rtol=1e-5, atol=1e-6)
     sphere = exact[..., 2] < 0.9  # the tinted reflection (blue 0.5 at normal incidence)
     assert sphere.sum() > 100
+
+
+def test_env_mapped_mirror_shows_an_area_lamp_as_a_traced_mirror_does():
+    """The glowing room with an area lamp of radiance 20 hanging under its ceiling: Cycles' lamps
+    are visible to glossy rays, so the traced mirror shows it, and the environment-mapped one adds
+    it exactly (not from the map, whose texels would smear it): the two agree pixel for pixel,
+    and the lamp shows (pixels far above the room's reflected 1)."""
+    lamp = Light(name="Panel", kind="AREA", position=np.array([0.0, 0.0, 1.9]),
+                 direction=np.array([0.0, 0.0, -1.0]), axis_x=np.array([1.0, 0.0, 0.0]),
+                 axis_y=np.array([0.0, 1.0, 0.0]), radiance=np.full(3, 20.0), size_x=1.0,
+                 size_y=1.0)
+    parts = [(room(2.0), emissive(np.full(3, 1.0))), (uv_sphere((0, 0, 0), 0.5, 24, 48), CHROME)]
+    cam = ortho_camera((0, -1.5, 0.2), (0, 1, -0.1), (0, 0, 1), 1.2, (24, 24))
+    scene = build(parts, cam, [lamp])
+    tracer_settings = TracerSettings(max_depth=1, adaptive=0)
+    exact = trace(scene, tracer_settings).image
+    mapped = envmap.render(scene, envmap.EnvMapSettings(face_size=8), tracer_settings).image
+    np.testing.assert_allclose(mapped, exact, rtol=1e-5, atol=1e-6)
+    assert (exact[..., 0] > 5.0).sum() >= 4
 
 
 def test_env_mapped_mirror_needs_no_ray_depth():
