@@ -571,7 +571,7 @@ class Tracer:
                                 dist[b_idx, n_idx] * (1.0 - 1e-4) - self.offset)
             weight = em.area_radiance_da[block][b_idx] * (g[b_idx, n_idx] * vis)[:, None]
             np.add.at(out, n_idx, brdf_d[n_idx] * weight)
-            lamp = ~em.area_two_sided[block][b_idx]  # area lights: no ray meets them
+            lamp = ~em.area_two_sided[block][b_idx]  # area lamps: no rough lobe's ray meets them
             for f0, w in lobes:
                 pick = np.flatnonzero(lamp & (w[n_idx] > 0.0))
                 if pick.size:
@@ -581,15 +581,11 @@ class Tracer:
                     np.add.at(shine, rows, brdf_cos * (weight[pick] * (w[rows] / cos_r)[:, None]))
         return out, shine
 
-    def _area_lamps_seen(self, origins: np.ndarray, dirs: np.ndarray, t_hit: np.ndarray
-                         ) -> np.ndarray:
-        """(N, 3) radiance of the area lamps rays (origins, unit dirs (N, 3)) meet before their
-        hit distance t_hit (N,) (inf: none), on the lamp's emitting side (its -Z)."""
-        return self._area_lamp_hits(origins, dirs, t_hit)[0]
-
     def _area_lamp_hits(self, origins: np.ndarray, dirs: np.ndarray, t_hit: np.ndarray
                         ) -> tuple[np.ndarray, np.ndarray]:
-        """`_area_lamps_seen`, and the distance (N,) to the nearest lamp met (inf: none)."""
+        """(N, 3) radiance of the area lamps rays (origins, unit dirs (N, 3)) meet before their
+        hit distance t_hit (N,) (inf: none), on the lamp's emitting side (its -Z), and the
+        distance (N,) to the nearest lamp met (inf: none)."""
         out = np.zeros((len(origins), 3))
         nearest = np.full(len(origins), np.inf)
         for lamp in self.area_lamps:
@@ -683,8 +679,8 @@ class Tracer:
             miss = hits.tri < 0
             if sees_lamps.any() and self.area_lamps:
                 rows = np.flatnonzero(sees_lamps)
-                lamps = self._area_lamps_seen(origins[rows], dirs[rows],
-                                              np.where(miss[rows], np.inf, hits.t[rows]))
+                lamps, _ = self._area_lamp_hits(origins[rows], dirs[rows],
+                                                np.where(miss[rows], np.inf, hits.t[rows]))
                 np.add.at(result, pixel[rows], weight[rows] * lamps)
             if depth == 0 and primary_ids is not None:
                 primary_ids[...] = self.hit_ids(hits.tri)
