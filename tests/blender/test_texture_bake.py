@@ -118,7 +118,7 @@ def test_the_view_darkens_under_the_specular_layer_as_cycles_does():
     Cycles' Diffuse Color pass falls from 91% of the base colour at the near rows to 67% at the
     far ones (the layer's albedo rises towards grazing views, kernels/specular_layer.py); the
     tracer's albedo view follows it (measured relMSE 3.5e-4 over the plane, rows within 0.1%)."""
-    from blender_parts import BASE, lit_scene, plane, principled
+    from blender_parts import BASE, lit_scene, oblique_camera, plane, principled
 
     from classic_bake.kernels.tracer import TracerSettings, trace
 
@@ -127,10 +127,7 @@ def test_the_view_darkens_under_the_specular_layer_as_cycles_does():
     bsdf.inputs["Specular IOR Level"].default_value = 0.5
     bsdf.inputs["Roughness"].default_value = 0.2
     plane(mat, size=6.0)
-    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
-    cam.location, cam.rotation_euler = (0.0, -4.0, 1.2), (np.radians(72.0), 0.0, 0.0)
-    scene.collection.objects.link(cam)
-    scene.camera = cam
+    oblique_camera(scene)
     cycles, _ = cycles_reference.render_camera(scene, cycles_reference.albedo(), 64,
                                                resolution=(32, 24))
     ours = trace(bridge.snapshot(resolution=(32, 24)),

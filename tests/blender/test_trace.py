@@ -80,6 +80,27 @@ def test_tracer_matches_cycles_on_the_sample_scene(tmp_path, open_sample):
     assert rel_mse(ours, reference) < 0.01
 
 
+def _plane_against_cycles(material):
+    """A 6 m plane of `material` (bpy) under the sun and the blue world, seen obliquely, traced
+    and rendered by Cycles' Whitted model (256 samples, 32 x 24): (ours, Cycles' pixels) on
+    the plane."""
+    from blender_parts import lit_scene, oblique_camera, plane
+
+    from classic_bake.addon import cycles_reference
+    from classic_bake.kernels.tracer import TracerSettings, trace
+
+    scene = lit_scene()
+    plane(material, size=6.0)
+    oblique_camera(scene)
+    cycles, _ = cycles_reference.render_camera(scene, cycles_reference.whitted(2), 256,
+                                               resolution=(32, 24))
+    snap = bridge.snapshot(resolution=(32, 24))
+    ours = trace(snap, TracerSettings(max_depth=2)).image
+    on_plane = np.abs(ours - snap.world_color).sum(axis=2) > 1e-6
+    assert on_plane.sum() > 300
+    return ours[on_plane], cycles[on_plane]
+
+
 def test_a_plane_under_the_specular_layer_matches_cycles():
     """A plane with the default specular layer (level 0.5, roughness 0.2 and 0.5) under a sun and
     a blue world, seen at 72 degrees, against Cycles' render of the Whitted model: its base
@@ -87,31 +108,18 @@ def test_a_plane_under_the_specular_layer_matches_cycles():
     one mirror-direction ray weighted by that albedo (kernels/specular_layer.py). Measured relMSE
     1.0e-4 and 9.9e-4 (before the layer was modelled: 7.5e-3 and 3.1e-3; with a black world
     0.062 and 0.013, now 2e-4 and 3.5e-4)."""
-    from blender_parts import lit_scene, plane, principled
+    from blender_parts import principled
 
-    from classic_bake.addon import cycles_reference
     from classic_bake.kernels.metrics import rel_mse
-    from classic_bake.kernels.tracer import TracerSettings, trace
 
     for roughness in (0.2, 0.5):
         bpy.ops.wm.read_factory_settings(use_empty=True)
-        scene = lit_scene()
         mat, bsdf = principled("Layered")
         bsdf.inputs["Specular IOR Level"].default_value = 0.5
         bsdf.inputs["Roughness"].default_value = roughness
-        plane(mat, size=6.0)
-        cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
-        cam.location, cam.rotation_euler = (0.0, -4.0, 1.2), (np.radians(72.0), 0.0, 0.0)
-        scene.collection.objects.link(cam)
-        scene.camera = cam
-        cycles, _ = cycles_reference.render_camera(scene, cycles_reference.whitted(2), 256,
-                                                   resolution=(32, 24))
-        snap = bridge.snapshot(resolution=(32, 24))
-        ours = trace(snap, TracerSettings(max_depth=2)).image
-        on_plane = np.abs(ours - snap.world_color).sum(axis=2) > 1e-6
-        assert on_plane.sum() > 300
-        assert rel_mse(ours[on_plane], cycles[on_plane]) < 3e-3
-        assert abs(ours[on_plane].mean() / cycles[on_plane].mean() - 1.0) < 0.03
+        ours, cycles = _plane_against_cycles(mat)
+        assert rel_mse(ours, cycles) < 3e-3
+        assert abs(ours.mean() / cycles.mean() - 1.0) < 0.03
 
 
 def test_a_rough_metal_plane_matches_cycles():
@@ -121,26 +129,13 @@ def test_a_rough_metal_plane_matches_cycles():
     was black before: only roughness below 0.1 made a metal a mirror). Measured relMSE 1.1e-4
     at 0.2; 0.0127 at 0.5, where Cycles' wide lobe keeps the gold at grazing views that one
     Schlick ray turns white (blue channel 17% bright)."""
-    from blender_parts import lit_scene, plane, principled
+    from blender_parts import principled
 
-    from classic_bake.addon import cycles_reference
     from classic_bake.kernels.metrics import rel_mse
-    from classic_bake.kernels.tracer import TracerSettings, trace
 
     for roughness, bound in ((0.2, 2e-3), (0.5, 0.03)):
         bpy.ops.wm.read_factory_settings(use_empty=True)
-        scene = lit_scene()
         mat, bsdf = principled("Gold", base=(0.9, 0.7, 0.4), metallic=1.0)
         bsdf.inputs["Roughness"].default_value = roughness
-        plane(mat, size=6.0)
-        cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
-        cam.location, cam.rotation_euler = (0.0, -4.0, 1.2), (np.radians(72.0), 0.0, 0.0)
-        scene.collection.objects.link(cam)
-        scene.camera = cam
-        cycles, _ = cycles_reference.render_camera(scene, cycles_reference.whitted(2), 256,
-                                                   resolution=(32, 24))
-        snap = bridge.snapshot(resolution=(32, 24))
-        ours = trace(snap, TracerSettings(max_depth=2)).image
-        on_plane = np.abs(ours - snap.world_color).sum(axis=2) > 1e-6
-        assert on_plane.sum() > 300
-        assert rel_mse(ours[on_plane], cycles[on_plane]) < bound
+        ours, cycles = _plane_against_cycles(mat)
+        assert rel_mse(ours, cycles) < bound
