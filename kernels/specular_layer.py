@@ -60,15 +60,12 @@ def _smith_lambda(cos_theta: np.ndarray, alpha: float) -> np.ndarray:
     return 0.5 * (np.sqrt(1.0 + alpha * alpha * (1.0 - cos2) / cos2) - 1.0)
 
 
-def albedo_curve(mu: np.ndarray, roughness: float, f0: float) -> np.ndarray:
-    """E(mu) (module docstring) at views cos(theta_i) = mu (K,) in (0, 1], Blender roughness in
-    [0, 1] and layer F0 in [0, 1); all 0 when f0 is 0 (no layer). Returns (K,) in [0, 1]."""
-    mu = np.clip(np.atleast_1d(np.asarray(mu, np.float64)), 1e-4, 1.0)
-    if f0 <= 0.0:
-        return np.zeros(mu.shape)
+def _lobe_terms(mu: np.ndarray, roughness: float) -> tuple[np.ndarray, np.ndarray]:
+    """The half-vector integrand of E (module docstring) without its Fresnel factor, on the
+    (u, phi) grid for views mu (K,): terms (K, U, PHI) = G2 (i.h) / (mu cos(theta_h)), 0 where
+    the mirrored direction falls below the horizon, and i.h (K, U, PHI), at which F is read.
+    The mean of terms x F over the grid is E."""
     alpha = float(np.clip(roughness, 0.0, 1.0)) ** 2
-    root = np.sqrt(min(f0, 1.0 - 1e-9))
-    eta = (1.0 + root) / (1.0 - root)  # the IOR whose F0 this is
     u = (np.arange(U_STEPS) + 0.5) / U_STEPS
     phi = (np.arange(PHI_STEPS) + 0.5) / PHI_STEPS * 2.0 * np.pi
     tan2 = alpha * alpha * u / (1.0 - u)
@@ -81,9 +78,32 @@ def albedo_curve(mu: np.ndarray, roughness: float, f0: float) -> np.ndarray:
     out_z = 2.0 * i_dot_h * h[..., 2] - m  # cos(theta_o) of the mirrored direction
     above = (out_z > 0.0) & (i_dot_h > 0.0)
     g2 = 1.0 / (1.0 + _smith_lambda(m, alpha) + _smith_lambda(np.where(above, out_z, 1.0), alpha))
-    fresnel = fresnel_dielectric(np.where(above, i_dot_h, 1.0), 1.0 / eta)
-    terms = np.where(above, g2 * fresnel * i_dot_h / (m * cos_h), 0.0)
-    return terms.mean(axis=(1, 2))
+    terms = np.where(above, g2 * i_dot_h / (m * cos_h), 0.0)
+    return terms, np.where(above, i_dot_h, 1.0)
+
+
+def albedo_curve(mu: np.ndarray, roughness: float, f0: float) -> np.ndarray:
+    """E(mu) (module docstring) at views cos(theta_i) = mu (K,) in (0, 1], Blender roughness in
+    [0, 1] and layer F0 in [0, 1); all 0 when f0 is 0 (no layer). Returns (K,) in [0, 1]."""
+    mu = np.clip(np.atleast_1d(np.asarray(mu, np.float64)), 1e-4, 1.0)
+    if f0 <= 0.0:
+        return np.zeros(mu.shape)
+    root = np.sqrt(min(f0, 1.0 - 1e-9))
+    eta = (1.0 + root) / (1.0 - root)  # the IOR whose F0 this is
+    terms, i_dot_h = _lobe_terms(mu, roughness)
+    return (terms * fresnel_dielectric(i_dot_h, 1.0 / eta)).mean(axis=(1, 2))
+
+
+def schlick_grazing_curve(mu: np.ndarray, roughness: float) -> np.ndarray:
+    """(K,) the mean over a GGX lobe (roughness, views mu (K,)) of Schlick's grazing term
+    (1 - i.h)^5, weighted as the lobe reflects: a rough metal of F0 (its base colour) reflects
+    F0 + (1 - F0) x this of what its lobe would with F = 1. Roughness 0: (1 - mu)^5 exactly;
+    a wide lobe's microfacets see the view less obliquely, so less. Normalised by the lobe's own
+    albedo (F = 1): Cycles' multiple-scattering GGX keeps the energy single scattering loses."""
+    mu = np.clip(np.atleast_1d(np.asarray(mu, np.float64)), 1e-4, 1.0)
+    terms, i_dot_h = _lobe_terms(mu, roughness)
+    grazing = (terms * (1.0 - np.clip(i_dot_h, 0.0, 1.0)) ** 5).mean(axis=(1, 2))
+    return grazing / np.maximum(terms.mean(axis=(1, 2)), 1e-300)
 
 
 @lru_cache(maxsize=256)
@@ -166,3 +186,15 @@ def lamp_highlights(materials, material: np.ndarray, normals: np.ndarray, wo: np
             brdf = ggx_highlight(normals[rows], to_light[rows], wo[rows], rough[rows], f0[rows])
             out[rows] += (weight[rows] / np.maximum(cos_i, 1e-6))[:, None] * brdf * irradiance[rows]
     return out
+
+
+@lru_cache(maxsize=64)
+def _grazing_table(roughness: float) -> tuple[float, ...]:
+    return tuple(schlick_grazing_curve(np.linspace(0.0, 1.0, MU_STEPS) ** 2, roughness))
+
+
+def metal_tables(materials) -> np.ndarray:
+    """(M, MU_STEPS) per material, `schlick_grazing_curve` at sqrt(mu) = 0, ..., 1, for
+    `view_factors`: a metal's reflectance at a view is F0 + (1 - F0) x the row's value there."""
+    rows = [_grazing_table(float(m.roughness)) for m in materials]
+    return np.array(rows).reshape(len(rows), MU_STEPS)

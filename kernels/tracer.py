@@ -36,9 +36,15 @@ from . import lights as light_units
 from .bump import SHADING_MODES, ShadingMode, scene_normals, valid_reflection
 from .bvh import BVH
 from .camera import Camera, camera_ray_lines, camera_rays
-from .optics import fresnel_dielectric, fresnel_schlick, reflect, refract
+from .optics import fresnel_dielectric, reflect, refract
 from .scene import Light, Scene, geometric_normals
-from .specular_layer import MIRROR_ROUGHNESS, ggx_highlight, view_factors, view_tables
+from .specular_layer import (
+    MIRROR_ROUGHNESS,
+    ggx_highlight,
+    metal_tables,
+    view_factors,
+    view_tables,
+)
 from .textures import sample_texture, sample_texture_box
 
 # A new ray starts this fraction of the scene's size off its surface, along the geometric normal:
@@ -445,6 +451,7 @@ class Tracer:
         self.ior = np.array([max(m.ior, 1.0 + 1e-6) for m in mats])
         self.specular = np.array([m.specular for m in mats])
         self.layer_tables = view_tables(mats)
+        self.metal_tables = metal_tables(mats)
         self.emission = np.array([m.emission for m in mats], np.float64).reshape(-1, 3)
         self.textured = np.array([m.base_color_texture is not None for m in mats], bool)
         self.black = np.array([m.base_color_texture is None and not np.any(m.base_color > 0)
@@ -752,9 +759,13 @@ class Tracer:
             r_dir[wrong] = reflect(dirs[wrong], h.ng[wrong])
             cos_o = np.einsum("ij,ij->i", wo, h.ns)
             # Metals: a tinted mirror (Schlick with F0 = base colour); a rough metal's one ray
-            # stands for its lobe, as a rough layer's does (its lamps' highlights: `direct`).
-            metal_w = np.where((metallic > 0)[:, None],
-                               metallic[:, None] * fresnel_schlick(cos_o, h.albedo), 0.0)
+            # stands for its lobe, as a rough layer's does (its lamps' highlights: `direct`),
+            # with Schlick's grazing term averaged over the lobe (`schlick_grazing_curve`: a
+            # wide lobe keeps the tint at grazing views).
+            grazing = np.where(smooth, (1.0 - np.clip(np.abs(cos_o), 0.0, 1.0)) ** 5,
+                               view_factors(self.metal_tables, m, cos_o))
+            metal_w = np.where((metallic > 0)[:, None], metallic[:, None] * (
+                h.albedo + (1.0 - h.albedo) * grazing[:, None]), 0.0)
             # The dielectric specular layer of opaque surfaces reflects its surroundings along
             # the mirror direction with its albedo at this view, what the base lost under it:
             # exact Fresnel at the level-scaled F0 when smooth (`specular_layer.py`). A rough

@@ -6,7 +6,12 @@ import pytest
 from classic_bake.kernels.direct_light import diffuse_at, diffuse_weight
 from classic_bake.kernels.optics import fresnel_dielectric
 from classic_bake.kernels.scene import Material
-from classic_bake.kernels.specular_layer import diffuse_factor, directional_albedo, layer_f0
+from classic_bake.kernels.specular_layer import (
+    diffuse_factor,
+    directional_albedo,
+    layer_f0,
+    schlick_grazing_curve,
+)
 
 F0_GLASS = 0.04  # IOR 1.5 at the default level 0.5
 
@@ -139,3 +144,14 @@ def test_the_tracers_highlight_is_the_layers_share(metallic):
     expected = ((1.0 - metallic) * mirror_highlight(0.3, 0.04, 3.0, 45.0)
                 + metallic * mirror_highlight(0.3, 0.0, 3.0, 45.0))
     np.testing.assert_allclose(image, expected, rtol=1e-6)
+
+
+def test_schlicks_grazing_term_over_a_lobe():
+    """Roughness 0: exactly (1 - mu)^5. Rougher, the lobe's microfacets face the view less
+    obliquely, so at grazing views the term is smaller (a wide lobe keeps a metal's tint):
+    roughness 0.5 at mu 0.1 gives well under half of the mirror's 0.59."""
+    mu = np.array([1.0, 0.5, 0.3, 0.1])
+    np.testing.assert_allclose(schlick_grazing_curve(mu, 0.0), (1.0 - mu) ** 5, atol=1e-12)
+    wide = schlick_grazing_curve(mu, 0.5)
+    assert wide[-1] < 0.5 * (1.0 - mu[-1]) ** 5
+    assert np.all(np.diff(wide) > 0.0)  # still rising towards grazing
