@@ -182,9 +182,19 @@ def print_case(title: str, case: dict) -> None:
                        [[r["samples"], r["seconds"], r["rel_mse"]] for r in case["cycles"]]))
 
 
+def _report_case(case: dict, key: str, heading: str, title: str, kernel_label: str,
+                 cycles_label: str) -> dict:
+    """Print one case's table, draw its speed-accuracy chart; its kernel rows by setting."""
+    from classic_bake.pipeline.charts import speed_accuracy_chart
+
+    print_case(heading, case)
+    speed_accuracy_chart(case["kernel"], case["cycles"], OUT_DIR / f"texture_speed_{key}",
+                         title=title, kernel_label=kernel_label, cycles_label=cycles_label)
+    return {r["setting"]: r for r in case["kernel"]}
+
+
 def main() -> int:
     args = reference_arguments(__doc__.splitlines()[0])
-    from classic_bake.pipeline.charts import speed_accuracy_chart
 
     OUT_DIR.mkdir(parents=True, exist_ok=True)
     figures, ratios, pictures = {}, {}, {}
@@ -192,17 +202,15 @@ def main() -> int:
         for size in SIZES:
             case = bake_case(name, size, args)
             key = f"{name}_bake_{size}"
-            print_case(f"{name}: lightmaps, {size} texels (object {case['object']})", case)
-            speed_accuracy_chart(case["kernel"], case["cycles"], OUT_DIR / f"texture_speed_{key}",
-                                 title=f"{name} albedo lightmaps at {size} texels vs Cycles",
-                                 kernel_label="texture bake (cells per texel)",
-                                 cycles_label="Cycles colour bake (samples)")
+            by = _report_case(case, key, f"{name}: lightmaps, {size} texels (object "
+                              f"{case['object']})", f"{name} albedo lightmaps at {size} texels vs "
+                              "Cycles", "texture bake (cells per texel)",
+                              "Cycles colour bake (samples)")
             if size == min(SIZES):
                 pictures[f"{name}: centre look-up"] = case["lightmaps"]["centre look-up"]
                 pictures[f"{name}: filtered (auto)"] = case["lightmaps"]["auto (footprint)"]
                 pictures[f"{name}: Cycles {case['reference_samples']} spp"] = \
                     case["reference_lightmap"]
-            by = {r["setting"]: r for r in case["kernel"]}
             ratios[f"cycles_bake_vs_texture_{key}_seconds_to_same_rel_mse"] = \
                 by["auto (footprint)"]["ratio"]
             ratios[f"centre_vs_filtered_{key}_rel_mse"] = (
@@ -211,12 +219,9 @@ def main() -> int:
                             if k not in ("lightmaps", "reference_lightmap")}
         case = view_case(name, args)
         key = f"{name}_view"
-        print_case(f"{name}: camera view {case['resolution']}", case)
-        speed_accuracy_chart(case["kernel"], case["cycles"], OUT_DIR / f"texture_speed_{key}",
-                             title=f"{name} albedo view vs Cycles' Diffuse Color pass",
-                             kernel_label="texture view (filter, edges)",
-                             cycles_label="Cycles (samples per pixel)")
-        by = {r["setting"]: r for r in case["kernel"]}
+        by = _report_case(case, key, f"{name}: camera view {case['resolution']}",
+                          f"{name} albedo view vs Cycles' Diffuse Color pass",
+                          "texture view (filter, edges)", "Cycles (samples per pixel)")
         ratios[f"cycles_render_vs_texture_{key}_seconds_to_same_rel_mse"] = \
             by["default (3x3 boxes)"]["ratio"]
         figures[key] = {k: v for k, v in case.items() if k not in ("views", "reference_image")}
