@@ -13,7 +13,10 @@ filter. Where the baked function is linear across a texel that mean is the centr
 jumps (a block standing on the floor, a hard shadow edge) the centre alone is off by the whole
 step: 0 against Cycles' half-lit 0.15 in a texel the block's edge crosses. `box_filter` finds those
 texels from the centre values (a second difference along a row or column of the image, relative
-to the texels' level) and replaces each by the mean over k x k sub-texel points of its triangle.
+to the texels' level) and replaces each by the mean over k^2 sub-texel points of its triangle,
+placed as n rooks (`rook_offsets`): no two share a row or a column of the texel, so the many
+steps that run along a chart's axes (xatlas lays a rectangular face square to the texels: a
+wall meeting the floor, a block's foot) are found to 1 / (2 k^2) of the texel, not 1 / (2 k).
 Finding the covering triangle is rasterisation in UV space: the lightmap is an orthographic image
 of the UV triangles, drawn by `raster.py` with its top-left rule (no texel claimed twice). Where
 UV triangles overlap (a packer's sliver across other charts) the last triangle of the mesh wins,
@@ -63,23 +66,26 @@ LATTICE_MIDPOINT_REL = 1e-2
 # ... and when its normal and theirs are this parallel (cos 2.6 degrees): a crease between them
 # bends the light's cosine, which the mean of the two sides does not follow.
 LATTICE_NORMAL_COS = 0.999
-# The texel filter's k x k points (auto) where every edge is a ramp a few texels wide (area lights'
-# penumbrae, contact shading): the ramp's mean over a texel is close to its 2 x 2 points' mean.
-# Cornell box lightmaps (600 patches): relMSE 0.0032 unfiltered; 0.0024 with 2 x 2 points, 0.0023
-# with 3 x 3 at 1.6x their extra seconds; 4 x 4 (74 to 300 patches): 1-2% lower for 0.03 s more.
+# The texel filter's k^2 points (auto) where every edge is a ramp a few texels wide (area lights'
+# penumbrae, contact shading): the ramp's mean over a texel is close to its 4 points' mean.
+# Cornell box lightmaps (300 patches, rook points): relMSE 0.00227 unfiltered; 0.00159 with 4
+# points, 0.00153 with 16 and 0.00148 with 36 for 0.02 and 0.07 s more (a 0.13 s bake).
 SOFT_EDGE_SAMPLES = 2
-# ... and where lamps cast hard shadows: a step through a texel, whose covered fraction k x k
-# stratified points find to about 1 / (2k). shadows.blend (sun, spot and point lamp, 64-texel
-# lightmaps, defaults): relMSE 0.00101 with 2 x 2, 0.00083 with 3 x 3, 0.00079 with 4 x 4,
-# 0.00074 with 6 x 6, for 0.09 -> 0.10 s of bake (4 x 4).
-HARD_EDGE_SAMPLES = 4
+# ... and where lamps cast hard shadows: a step through a texel, whose covered fraction k^2 rook
+# points find to about 1 / (2 k^2). Defaults, 64-texel lightmaps, relMSE against 256-sample
+# Cycles bakes with 16 / 36 / 64 points: shadows.blend (sun, spot and point lamp)
+# 0.00073 / 0.00066 / 0.00065, raytrace.blend 3.1e-4 / 1.0e-4 / 3.3e-5, a lamp-lit room of
+# default materials 0.00141 / 0.00102 / 0.00092; the bakes' seconds 0.06 / 0.07 / 0.09, 0.14 /
+# 0.29 / 0.51, 0.09 / 0.12 / 0.18 (after a 0.3-1.4 s solve).
+HARD_EDGE_SAMPLES = 6
 
 
 @dataclass(frozen=True)
 class TexelFilterSettings:
     """| field            | range | default | meaning                                          |
     |------------------|-------|---------|--------------------------------------------------|
-    | samples_per_side | >= 0  | 0       | k x k sub-texel points averaged in an edge texel |
+    | samples_per_side | >= 0  | 0       | k: k^2 sub-texel points (`rook_offsets`)         |
+    |                  |       |         | averaged in an edge texel                        |
     |                  |       |         | (1: centre values only, no filter; 0 auto:       |
     |                  |       |         | `resolved` by the bake, HARD_EDGE_SAMPLES where  |
     |                  |       |         | lamps cast hard shadows, else SOFT_EDGE_SAMPLES) |
@@ -268,18 +274,46 @@ def _shifted(a: np.ndarray, step: int, axis: int) -> np.ndarray:
     return out
 
 
-def subtexel_points(scene: Scene, targets: BakeTargets, which: np.ndarray, k: int
-                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """k x k stratified points over each lightmap texel `which` (M,) indexes, kept where they lie
-    in the texel's own triangle (as Cycles keeps its jittered samples). Returns owner (P,) int64
+def grid_offsets(k: int) -> tuple[np.ndarray, np.ndarray]:
+    """(k^2,) and (k^2,) offsets across and down a texel, 0..1 from its top-left corner: the
+    centres of a k x k grid of equal cells (a texture bake's cells tile the texel)."""
+    offset = (np.arange(k) + 0.5) / k
+    du, dv = np.meshgrid(offset, offset)
+    return du.ravel(), dv.ravel()
+
+
+def rook_offsets(k: int) -> tuple[np.ndarray, np.ndarray]:
+    """(k^2,) and (k^2,) offsets across and down a texel for n = k^2 points, 0..1 from its top-left
+    corner: the Hammersley set (i + 1/2) / n against the base-2 radical inverse of i, its values
+    replaced by their ranks so that both columns are evenly spaced for any n. No two points
+    share a column or a row (n rooks), so a step along either axis, such as the line where a
+    wall meets the floor in an xatlas chart, is found to 1 / (2n) of the texel, where a k x k
+    grid finds it to 1 / (2k) only; for n = 2^m every k x k cell holds one point as well (a
+    (0, m, 2)-net)."""
+    n = k * k
+    i = np.arange(n)
+    radical, bit, rest = np.zeros(n), 0.5, i.copy()
+    while rest.any():
+        radical += bit * (rest & 1)
+        rest >>= 1
+        bit *= 0.5
+    rank = np.empty(n)
+    rank[np.argsort(radical, kind="stable")] = i
+    return (i + 0.5) / n, (rank + 0.5) / n
+
+
+def subtexel_points(scene: Scene, targets: BakeTargets, which: np.ndarray, k: int,
+                    pattern=grid_offsets) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """k^2 points over each lightmap texel `which` (M,) indexes, placed by `pattern` (k ->
+    offsets across and down the texel: `grid_offsets`, `rook_offsets`), kept where they lie in
+    the texel's own triangle (as Cycles keeps its jittered samples). Returns owner (P,) int64
     positions into `which`, triangles (P,) int64 and barycentrics (P, 3) float64."""
     height, width = targets.mask.shape
     tri = targets.triangles[which]
     uv = scene.lightmap_uv[tri].astype(np.float64)  # (M, 3, 2)
-    offset = (np.arange(k) + 0.5) / k  # within the texel, 0..1 from its top-left corner
-    du, dv = np.meshgrid(offset, offset)
-    u = (targets.cols[which][:, None] + du.ravel()) / width  # (M, k^2)
-    v = 1.0 - (targets.rows[which][:, None] + dv.ravel()) / height
+    du, dv = pattern(k)
+    u = (targets.cols[which][:, None] + du) / width  # (M, k^2)
+    v = 1.0 - (targets.rows[which][:, None] + dv) / height
     points = np.stack([u, v], axis=-1).reshape(-1, 2)
     bary = _barycentric_2d(np.repeat(uv, k * k, axis=0), points, clamp=False).reshape(-1, k * k, 3)
     inside = (bary >= 0.0).all(axis=-1)
@@ -315,7 +349,8 @@ def filter_samples(scene: Scene, targets: BakeTargets, values: np.ndarray,
     which = np.flatnonzero(edge_texels(targets, values, settings.edge_threshold))
     if which.size == 0:
         return FilterSamples(which, none, none, np.zeros((0, 3)))
-    return FilterSamples(which, *subtexel_points(scene, targets, which, settings.samples_per_side))
+    return FilterSamples(which, *subtexel_points(scene, targets, which, settings.samples_per_side,
+                                                 rook_offsets))
 
 
 def apply_box_filter(values: np.ndarray, samples: FilterSamples, sampled: np.ndarray

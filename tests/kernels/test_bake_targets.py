@@ -14,6 +14,7 @@ from classic_bake.kernels.bake_targets import (
     lattice_fill,
     lattice_plan,
     lightmap_targets,
+    rook_offsets,
     subtexel_points,
 )
 from classic_bake.kernels.scene import Material
@@ -57,6 +58,19 @@ def test_subtexel_points_lie_in_their_texel_and_triangle():
     assert counts.max() == 9 and 0 < counts.min()
 
 
+@pytest.mark.parametrize("k", [1, 2, 3, 4, 6, 8])
+def test_rook_points_share_no_row_or_column_and_fill_every_cell(k):
+    """k^2 points, each alone in its column and its row of k^2, so a step along either axis of
+    the texel is placed to 1 / (2 k^2); with k^2 a power of two each k x k cell holds one."""
+    du, dv = rook_offsets(k)
+    n = k * k
+    for offsets in (du, dv):
+        np.testing.assert_allclose(np.sort(offsets), (np.arange(n) + 0.5) / n)
+    if n & (n - 1) == 0:
+        cells = np.floor(du * k).astype(int) * k + np.floor(dv * k).astype(int)
+        np.testing.assert_array_equal(np.sort(cells), np.arange(n))
+
+
 @pytest.mark.parametrize("k", [2, 4])
 def test_a_step_is_box_filtered_to_the_covered_fraction(k):
     scene = ground()
@@ -77,8 +91,8 @@ def test_a_step_is_box_filtered_to_the_covered_fraction(k):
     owner, _, _ = subtexel_points(scene, t, np.arange(len(t)), 3)
     whole = crossed & (np.bincount(owner, minlength=len(t)) == 9)
     assert whole.sum() >= crossed.sum() - 3  # the diagonal meets the column in a few texels
-    # Stratified points in k columns: the covered fraction to within half a column.
-    np.testing.assert_allclose(values[whole, 0], exact[whole], atol=0.5 / k + 1e-9)
+    # k^2 rook points in k^2 columns: the covered fraction to within half a column.
+    np.testing.assert_allclose(values[whole, 0], exact[whole], atol=0.5 / k**2 + 1e-9)
     assert np.abs(centre[crossed, 0] - exact[crossed]).max() > 0.5 / k  # the centre alone is off
     np.testing.assert_array_equal(values[~crossed], centre[~crossed])  # far from it: untouched
 

@@ -373,8 +373,8 @@ def test_hard_lamp_shadows_get_more_points_per_edge_texel():
     """A sun straight down over a floor and a plate at z = 0.5 over [0.3, 0.7]^2 (seen from below
     it is a back face: the floor gets the sun alone). Its lit fraction in a texel one shadow edge
     crosses is what Cycles' bake converges to; auto's texel filter takes HARD_EDGE_SAMPLES^2
-    points there (a lamp's shadow is a step), which find it to half a column, 1 / 8, where
-    SOFT_EDGE_SAMPLES^2 points are off by up to 1 / 4."""
+    rook points there (a lamp's shadow is a step), which find it to half of one of their
+    HARD_EDGE_SAMPLES^2 columns, 1 / 72, where SOFT_EDGE_SAMPLES^2 points are off by up to 1 / 8."""
     from classic_bake.kernels.bake_targets import HARD_EDGE_SAMPLES, SOFT_EDGE_SAMPLES
 
     assert TexelFilterSettings().resolved(hard_edges=True).samples_per_side == HARD_EDGE_SAMPLES
@@ -404,7 +404,7 @@ def test_hard_lamp_shadows_get_more_points_per_edge_texel():
     one_edge = (((inside_x > 0) & (inside_x < 1) & (inside_y == 1))
                 | ((inside_y > 0) & (inside_y < 1) & (inside_x == 1)))
     assert one_edge.sum() == 4 * 6  # 6 texels along each of the 4 edges
-    np.testing.assert_allclose(lit[one_edge], exact[one_edge], atol=1 / 8 + 0.01)
+    np.testing.assert_allclose(lit[one_edge], exact[one_edge], atol=0.5 / HARD_EDGE_SAMPLES**2 + 0.01)
     clear = (inside_x == 0) | (inside_y == 0)
     np.testing.assert_allclose(lit[clear], 1.0, rtol=0.01)  # the sun alone, nothing in the way
 
