@@ -16,9 +16,9 @@ average over its area, the limit the tracer's n x n supersampling converges to.
 Remaining differences: Cycles' glass picks reflection or refraction at random with the Fresnel
 weight where a Whitted tracer follows both rays weighted: the same expectation, only noise.
 Cycles' shadow rays stop at glass as Whitted's do. The world lights no diffuse surface (it is
-hidden from diffuse rays, `world_lighting=False`, the default of every model: no kernel uses the
-sky as a light) and stays visible to the camera, mirrors and glass, as the tracer returns the
-world colour for rays that miss. Area lights keep their size (the tracer samples them on a
+hidden from diffuse rays, `world_lighting=False`, the default of every model: only the radiosity
+solve uses the sky as a light, `radiosity(world_lighting=True)`) and stays visible to the camera,
+mirrors and glass, as the tracer returns the world colour for rays that miss. Area lights keep their size (the tracer samples them on a
 grid). Cycles lights the Principled specular lobe of non-mirror surfaces directly (the
 sample scenes set Specular IOR Level 0 on diffuse surfaces, which is exactly Lambertian).
 
@@ -246,7 +246,8 @@ class CyclesModel:
     |                      |              | same power: one-sided points of intensity P cos / pi   |
     | world_lighting       | bool         | False (default): the world is invisible to diffuse     |
     |                      |              | rays, so it lights no diffuse surface, as in every     |
-    |                      |              | kernel (still seen by the camera, mirrors and glass)   |
+    |                      |              | kernel but the radiosity solve's world light (still    |
+    |                      |              | seen by the camera, mirrors and glass)                 |
     | pixel_filter         | BOX/GAUSSIAN/BLACKMAN_HARRIS | Cycles' pixel filter                   |
     | filter_width         | 0.01..10 px  | its width; BOX 1.0 = the average over the pixel        |
     | seed                 | >= 0         | Cycles' seed (convergence chunks use seed, seed+1, ...) |

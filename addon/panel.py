@@ -144,6 +144,7 @@ class CLASSICBAKE_PT_radiosity(_TechniquePanel, bpy.types.Panel):
         row = layout.row()
         row.enabled = props.radiosity_final_gather
         row.prop(props, "radiosity_gather_rays")
+        layout.prop(props, "radiosity_world_rays")
         layout.prop(props, "radiosity_wire")
         layout.operator("classic_bake.radiosity", icon="LIGHT_AREA")
 

@@ -105,6 +105,10 @@ class CLASSICBAKE_PG_settings(bpy.types.PropertyGroup):
     radiosity_gather_rays: IntProperty(
         name="Gather Rays", description="Final gather: shadow rays per receiver to the emissive "
         "surfaces (more: smoother penumbrae)", default=16, min=1, soft_max=256)
+    radiosity_world_rays: IntProperty(
+        name="World Rays", description="Rays per patch that find its share of open sky, which "
+        "the world's colour lights as Cycles does (0: the world lights no surface)", default=64,
+        min=0, soft_max=1024)
     radiosity_wire: BoolProperty(
         name="Show in Materials", description="Wire the 'Radiosity' attribute into the materials "
         "(Emission) so viewport and renders show the bake", default=False)

@@ -46,7 +46,8 @@ def radiosity_settings(props):
                              refine_levels=props.radiosity_refine,
                              shadow_splits=props.radiosity_shadow_splits,
                              final_gather=props.radiosity_final_gather,
-                             gather_rays=props.radiosity_gather_rays)
+                             gather_rays=props.radiosity_gather_rays,
+                             world_rays=props.radiosity_world_rays)
 
 
 def envmap_settings(props, selected: list[str]):

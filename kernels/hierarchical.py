@@ -346,7 +346,8 @@ def solve_links(tree: _Tree, leaves: np.ndarray, p: np.ndarray, q: np.ndarray, f
 
 
 def hierarchical_steps(scene: Scene, roots: patching.Patches, depth: int, occluded, settings,
-                       scale: float, lamp_irradiance, emitters=None) -> Iterator[float | tuple]:
+                       scale: float, lamp_irradiance, emitters=None,
+                       world_irradiance=None) -> Iterator[float | tuple]:
     """Build, link, refine, solve. Yields progress, then (leaf Patches, B, emitted, reflectance,
     direct irradiance of the leaves, stats).
 
@@ -354,7 +355,9 @@ def hierarchical_steps(scene: Scene, roots: patching.Patches, depth: int, occlud
 
     occluded: the BVH callback or None; lamp_irradiance(leaf Patches) -> (H (N, 3), shadow
     boundary (N,) bool), the first shot; emitters: the emissive triangles whose light it
-    includes (`radiosity.shot_emitters`), whose emission is not carried again; settings:
+    includes (`radiosity.shot_emitters`), whose emission is not carried again;
+    world_irradiance(leaf Patches) -> (N, 3), when given: the world's light on the leaves
+    (`radiosity.world_shot`), a source like the first shot but not part of it; settings:
     RadiositySettings (link_epsilon, max_depth, samples_per_side, tolerance, refine_levels,
     refine_threshold, max_patches, smooth_angle; shadow_splits and light_samples_per_side for
     the splits at lamps' shadow edges made before any link).
@@ -396,6 +399,9 @@ def hierarchical_steps(scene: Scene, roots: patching.Patches, depth: int, occlud
         rho = patch_reflectance(scene, elements)
         direct = np.zeros((len(tree), 3))
         direct[leaves], boundary = lamp_irradiance(leaf_patches)
+        world = np.zeros((len(tree), 3))
+        if world_irradiance is not None:
+            world[leaves] = world_irradiance(leaf_patches)
         base, span = level / levels, 1.0 / levels
         links = None
         for step in _link(tree, len(roots), leaves, occluded, settings, scale):
@@ -405,7 +411,7 @@ def hierarchical_steps(scene: Scene, roots: patching.Patches, depth: int, occlud
                 yield base + span * 0.9 * step
         p, q, factor, near, clustering = links
         b, iterations, change = solve_links(tree, leaves, p, q, factor,
-                                            emitted - shot + rho * direct, rho,
+                                            emitted - shot + rho * (direct + world), rho,
                                             settings.tolerance, MAX_ITERATIONS)
         b += shot
         per_level.append({"leaves": int(leaves.size), "links": int(len(p)),

@@ -76,6 +76,7 @@ from .radiosity_solvers import (
     ProgressiveSolver,
 )
 from .scene import Scene, triangle_emission
+from .world_light import WORLD_RAYS, world_irradiance
 
 # Below this luminance fraction of the scene's mean radiosity a patch counts as dark: relative
 # differences are measured against it, so noise in black corners does not trigger refinement.
@@ -158,6 +159,11 @@ class RadiositySettings:
     | gather_rays                 | >= 1                | 16       | final gather: shadow rays  |
     |                             |                     |          | per receiver to emissive   |
     |                             |                     |          | triangles                  |
+    | world_rays                  | >= 0                | 64       | rays per patch that find   |
+    |                             |                     |          | its share of open sky, lit |
+    |                             |                     |          | by the world colour        |
+    |                             |                     |          | (world_light.py; 0: the    |
+    |                             |                     |          | world lights no surface)   |
     | seed                        | int                 | 0        | RNG seed of the estimators |
     | clusters                    | bool                | True     | auto may solve the patches |
     |                             |                     |          | of finely tessellated      |
@@ -190,6 +196,7 @@ class RadiositySettings:
     max_shots: int = 0
     final_gather: bool = True
     gather_rays: int = 16
+    world_rays: int = WORLD_RAYS
     seed: int = 0
     clusters: bool = True
     cluster_sources: bool = True
@@ -217,6 +224,8 @@ class RadiositySettings:
             raise ValueError("sample counts must be >= 1 (samples_per_side >= 0, 0: auto)")
         if self.gather_rays < 1:
             raise ValueError(f"gather_rays must be >= 1, got {self.gather_rays}")
+        if self.world_rays < 0:
+            raise ValueError(f"world_rays must be >= 0, got {self.world_rays}")
         if self.max_shots < 0:
             raise ValueError(f"max_shots must be >= 0, got {self.max_shots}")
         if self.hemicube_resolution < 2 or self.hemicube_resolution % 2:
@@ -426,6 +435,19 @@ def first_shot(scene: Scene, patches: patching.Patches, occluded, settings: Radi
             clear=None if clear is None else np.repeat(clear, samples, axis=0))
         add(e, share)
     return irradiance, boundary
+
+
+def world_shot(scene: Scene, patches: patching.Patches, occluded, settings: RadiositySettings,
+               scale: float) -> np.ndarray:
+    """(N, 3) W/m^2: the world's irradiance on every patch, pi L_w times its share of open sky
+    (`world_light.py`, `world_rays` rays each). The solver carries it as it carries the first
+    shot, but the final gather counts it as indirect light, so it stays out of `direct`. Zero
+    for a black world, `world_rays` 0, or no shadows (occluded None: nothing is known of the
+    sky, and an unshadowed sky would light a closed room)."""
+    if occluded is None:
+        return np.zeros((len(patches), 3))
+    return world_irradiance(scene.world_color, patches.corners, patches.normals, occluded, scale,
+                            settings.world_rays, np.random.default_rng(settings.seed + 3))
 
 
 def hard_shadow_edges(scene: Scene, patches: patching.Patches, occluded,
@@ -939,7 +961,8 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
         clear = final_gather.clear_shafts(patches, emitters, bvh, RAY_OFFSET_REL * scale,
                                           clusters.CLUSTER_AREA_SHARE * size * size)
         direct, boundary = first_shot(scene, patches, occluded, settings, scale, emitters, clear)
-        sources = emitted - shot + rho * direct
+        sources = emitted - shot + rho * (direct + world_shot(scene, patches, occluded, settings,
+                                                              scale))
         if groups is not None and (patches.level > 0).any():
             # Split children, known lit or shadowed now, group apart (`clusters.light_bucket`);
             # without any, these are the first patches and their groups as they were.
@@ -1020,8 +1043,11 @@ def _hierarchical(scene, size, bvh, settings, scale, t0, exchanging, roots, dept
         last_clear["leaves"] = clear
         return first_shot(scene, leaves, occluded, settings, scale, emitters, clear)
 
+    def world(leaves):
+        return world_shot(scene, leaves, occluded, settings, scale)
+
     for step in hierarchical_steps(scene, roots, depth, occluded, settings, scale, lamps,
-                                   emitters):
+                                   emitters, world):
         if isinstance(step, tuple):
             leaves, b, emitted, rho, direct, info = step
         else:

@@ -53,7 +53,8 @@ def cycles_model(technique: str, settings: dict):
         return cr.direct()
     if technique == "texture":  # Cycles' Diffuse Color pass
         return cr.albedo()
-    return cr.radiosity()
+    # The world lights the solve unless its rays are off (kernels/world_light.py).
+    return cr.radiosity(world_lighting=int(settings.get("world_rays", 0)) > 0)
 
 
 def run(ctx: RunContext) -> None:

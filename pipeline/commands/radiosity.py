@@ -9,7 +9,8 @@ from ..outputs import UsageError
 
 # Defaults of the options, also used when another command (demo) runs this one without them.
 DEFAULTS = {"method": "raycast", "solver": "auto", "patches": 400, "patch_size": 0.0,
-            "refine": -1, "shadow_splits": -1, "final_gather": True, "gather_rays": 16, "lightmap_size": 128,
+            "refine": -1, "shadow_splits": -1, "final_gather": True, "gather_rays": 16, "world_rays": 64,
+            "lightmap_size": 128,
             "padding": 2, "uv_name": "Lightmap", "wire": False}
 # kernels.radiosity.SOLVERS, written out: the kernels load only when a command runs.
 SOLVERS = ("auto", "gauss_seidel", "progressive", "hierarchical", "clustered")
@@ -43,6 +44,9 @@ def add_arguments(parser) -> None:
     parser.add_argument("--gather-rays", type=int, default=DEFAULTS["gather_rays"], metavar="N",
                         help="final gather: shadow rays per receiver to emissive surfaces "
                              "(default 16)")
+    parser.add_argument("--world-rays", type=int, default=DEFAULTS["world_rays"], metavar="N",
+                        help="rays per patch that find its share of open sky, which the world's "
+                             "colour lights (default 64; 0: the world lights no surface)")
     parser.add_argument("--lightmap-size", type=int, default=DEFAULTS["lightmap_size"],
                         metavar="TEXELS", help="lightmap of the largest object (default 128)")
     parser.add_argument("--padding", type=int, default=DEFAULTS["padding"], metavar="TEXELS",
@@ -64,7 +68,8 @@ def settings_from(args):
                                      refine_levels=value["refine"],
                                      shadow_splits=value["shadow_splits"],
                                      final_gather=value["final_gather"],
-                                     gather_rays=value["gather_rays"])
+                                     gather_rays=value["gather_rays"],
+                                     world_rays=value["world_rays"])
         uv = LightmapUVSettings(resolution=value["lightmap_size"], padding=value["padding"])
     except ValueError as exc:
         raise UsageError(f"radiosity: {exc}") from exc

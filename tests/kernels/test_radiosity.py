@@ -7,7 +7,17 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from scene_builder import build, mirror_highlight, mirror_view, ortho_camera, quad, uv_sphere
+from scene_builder import (
+    build,
+    floor_quad,
+    grey,
+    inward_box,
+    mirror_highlight,
+    mirror_view,
+    ortho_camera,
+    quad,
+    uv_sphere,
+)
 
 from classic_bake.kernels import patches as patching
 from classic_bake.kernels.bake_targets import TexelFilterSettings, lattice_plan, lightmap_targets
@@ -35,24 +45,6 @@ from classic_bake.kernels.scene import (
 from classic_bake.kernels.specular_layer import albedo_curve, diffuse_factor
 
 FAST = dict(samples_per_side=2, visibility_samples_per_side=2, hemicube_resolution=16)
-
-
-def inward_box(size=1.0):
-    """(12, 3, 3) triangles of a cube [0, size]^3 with normals pointing inside."""
-    v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0],
-                  [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]], float) * size
-    faces = [[0, 1, 2, 3], [4, 7, 6, 5], [0, 4, 5, 1], [1, 5, 6, 2], [2, 6, 7, 3], [3, 7, 4, 0]]
-    return np.concatenate([quad(v[f]) for f in faces])
-
-
-def grey(rho, emission=0.0, name="grey"):
-    """Lambertian (Specular IOR Level 0: no specular layer over the base)."""
-    return Material(name=name, base_color=np.full(3, rho, np.float32), specular=0.0,
-                    emission=np.full(3, emission, np.float32))
-
-
-def floor_quad(z=0.0, lo=0.0, hi=1.0):
-    return quad([[lo, lo, z], [hi, lo, z], [hi, hi, z], [lo, hi, z]])
 
 
 def sun_down(strength=1.0):

@@ -87,6 +87,19 @@ def grey(rho, emission=0.0, name="grey"):
                     emission=np.full(3, emission, np.float32))
 
 
+def inward_box(size=1.0):
+    """(12, 3, 3) triangles of a cube [0, size]^3 with normals pointing inside."""
+    v = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0],
+                  [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]], float) * size
+    faces = [[0, 1, 2, 3], [4, 7, 6, 5], [0, 4, 5, 1], [1, 5, 6, 2], [2, 6, 7, 3], [3, 7, 4, 0]]
+    return np.concatenate([quad(v[f]) for f in faces])
+
+
+def floor_quad(z=0.0, lo=0.0, hi=1.0):
+    """(2, 3, 3) triangles of the square [lo, hi]^2 at height z, facing +z."""
+    return quad([[lo, lo, z], [hi, lo, z], [hi, hi, z], [lo, hi, z]])
+
+
 def tessellated_box(n: int, size: float = 1.0) -> np.ndarray:
     """(6 x 2 n^2, 3, 3) triangles of the cube [0, size]^3, each face an n x n grid of quads,
     normals inward."""

@@ -1,0 +1,98 @@
+"""World light: the uniform background as a source at infinity, for the radiosity solve.
+
+Cycles lights every diffuse surface with its world: radiance L_w from each direction that meets no
+geometry. A surface point x with normal n receives from it
+
+    H_w(x) = L_w * integral over escaping w of cos(theta) dw = pi L_w s(x),
+
+s(x) in [0, 1] the cosine-weighted share of its hemisphere open to the sky: 1 on an open floor, 1/2
+at the foot of an endless wall, 0 inside a closed room. In an open scene s is 1 minus the patch's
+row sum of form factors, but the backs of one-sided surfaces block the sky as well and carry no
+factor, so s is found with rays, which meet faces from either side.
+
+Estimator (Malley's method): points spread evenly over the unit disc, lifted onto the hemisphere,
+are directions with density cos(theta) / pi, so the share of such rays that escape is s itself,
+with no weights. Each patch casts `rays` of them from points spread over its triangle, the disc
+points stratified on an m x m grid (jittered, a random rotation per patch), so a patch's s
+carries little noise: 64 rays give s to about +-0.02 where a wall's edge cuts its sky.
+
+The solver carries H_w like the lamps' first shot (rho H_w is a source of every patch), and it
+bounces on from there; the final gather treats it as indirect light, interpolated from the
+patches (the sky's share changes on the scale of the geometry, as indirect light does), so no
+receiver casts rays at the sky. What is left out: the sky's contact darkening finer than a patch,
+and the backs of one-sided surfaces (their patches face one way).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .form_factors import RAY_OFFSET_REL, tangent_frames
+
+# Rays per patch by default: +-0.02 in s where an edge halves a patch's sky (stratified).
+WORLD_RAYS = 64
+# Rays handed to the BVH at once: bounds the (R, 3) origin and direction temporaries (48 MB).
+RAYS_PER_CALL = 1 << 20
+
+
+def sky_factors(corners: np.ndarray, normals: np.ndarray, occluded, scale: float, rays: int,
+                rng: np.random.Generator) -> np.ndarray:
+    """(N,) s in [0, 1]: the cosine-weighted share of each patch's hemisphere that meets no
+    geometry (module docstring).
+
+    | parameter | shape / range     | unit    | meaning                                         |
+    |-----------|-------------------|---------|-------------------------------------------------|
+    | corners   | (N, 3, 3)         | m world | the patches' triangles                          |
+    | normals   | (N, 3) unit       |         | their front normals (the hemisphere's pole)     |
+    | occluded  | callable          |         | (origins, dirs, t_min, t_max) -> (R,) bool: the |
+    |           |                   |         | BVH's any-hit query                             |
+    | scale     | > 0               | m       | the scene's extent: rays start RAY_OFFSET_REL x |
+    |           |                   |         | scale off the surface                           |
+    | rays      | >= 1 (WORLD_RAYS) |         | rays per patch, rounded up to a square m x m    |
+    | rng       |                   |         | jitter, rotations and points                    |
+    """
+    corners = np.asarray(corners, np.float64)
+    normals = np.asarray(normals, np.float64)
+    count = len(corners)
+    out = np.zeros(count)
+    if count == 0:
+        return out
+    m = int(np.ceil(np.sqrt(max(rays, 1))))
+    k = m * m
+    offset = RAY_OFFSET_REL * scale
+    per_call = max(1, RAYS_PER_CALL // k)
+    grid = (np.arange(k) // m, np.arange(k) % m)  # the strata of the unit square
+    for a in range(0, count, per_call):
+        c, n = corners[a:a + per_call], normals[a:a + per_call]
+        p = len(c)
+        # Disc points: u1 -> radius sqrt(u1) (even over the disc), u2 -> angle, per patch a
+        # random rotation so neighbouring patches' strata do not line up.
+        u1 = (grid[0] + rng.random((p, k))) / m
+        u2 = (grid[1] + rng.random((p, k))) / m + rng.random((p, 1))
+        radius, angle = np.sqrt(u1), 2.0 * np.pi * u2
+        t1, t2 = tangent_frames(n)
+        local = np.stack([radius * np.cos(angle), radius * np.sin(angle),
+                          np.sqrt(np.maximum(1.0 - u1, 0.0))], axis=-1)  # (p, k, 3)
+        dirs = (local[..., :1] * t1[:, None] + local[..., 1:2] * t2[:, None]
+                + local[..., 2:] * n[:, None])
+        # Uniform points of each triangle (the square root folds the unit square onto it).
+        r1, r2 = np.sqrt(rng.random((p, k, 1))), rng.random((p, k, 1))
+        points = ((1.0 - r1) * c[:, None, 0] + r1 * (1.0 - r2) * c[:, None, 1]
+                  + r1 * r2 * c[:, None, 2])
+        origins = points + offset * n[:, None]
+        hit = occluded(np.ascontiguousarray(origins.reshape(-1, 3)),
+                       np.ascontiguousarray(dirs.reshape(-1, 3)), 0.0, np.inf)
+        out[a:a + p] = 1.0 - np.asarray(hit, bool).reshape(p, k).mean(axis=1)
+    return out
+
+
+def world_irradiance(world_color: np.ndarray, corners: np.ndarray, normals: np.ndarray, occluded,
+                     scale: float, rays: int, rng: np.random.Generator) -> np.ndarray:
+    """(N, 3) W/m^2: pi L_w s of each patch (`sky_factors`), L_w = world_color (3,) radiance
+    W/(m^2 sr). Zero, with no ray cast, for a black world or rays = 0."""
+    color = np.asarray(world_color, np.float64)
+    count = len(corners)
+    if rays <= 0 or not (color > 0.0).any() or count == 0:
+        return np.zeros((count, 3))
+    s = sky_factors(corners, normals, occluded, scale, rays, rng)
+    return np.pi * s[:, None] * color[None, :]

@@ -1,0 +1,120 @@
+"""The world as a light at infinity (kernels/world_light.py): each patch's share of open sky against
+closed forms, and the radiosity solve that carries pi L_w s as a source."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from scene_builder import build, floor_quad, grey, inward_box, quad
+
+from classic_bake.kernels import patches as patching
+from classic_bake.kernels.bvh import BVH
+from classic_bake.kernels.form_factors import parallel_rectangles, point_to_polygon
+from classic_bake.kernels.radiosity import RadiositySettings, bake_steps, solve_radiosity
+from classic_bake.kernels.world_light import sky_factors, world_irradiance
+
+FAST = dict(samples_per_side=2, visibility_samples_per_side=2, hemicube_resolution=16)
+WORLD = (0.2, 0.5, 1.0)  # radiance W/(m^2 sr), distinct per channel
+
+
+def _occluded(triangles):
+    bvh = BVH.build(np.asarray(triangles, np.float32))
+    return lambda o, d, t0, t1: bvh.occluded(o, d, t0, t1)
+
+
+def _plate_over_floor():
+    """A unit floor facing up and a black unit plate 1 m above it facing down."""
+    plate = quad([[0, 0, 1], [0, 1, 1], [1, 1, 1], [1, 0, 1]])
+    return floor_quad(), plate
+
+
+def test_an_open_plane_sees_the_whole_sky_and_a_closed_box_none():
+    floor = floor_quad()
+    normals = np.tile([0.0, 0.0, 1.0], (2, 1))
+    rng = np.random.default_rng(0)
+    s = sky_factors(floor, normals, _occluded(floor), 1.0, 64, rng)
+    np.testing.assert_array_equal(s, 1.0)
+    box = inward_box()
+    n = np.cross(box[:, 1] - box[:, 0], box[:, 2] - box[:, 0])
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    np.testing.assert_array_equal(sky_factors(box, n, _occluded(box), 1.0, 64, rng), 0.0)
+
+
+def test_sky_share_under_a_plate_is_one_minus_the_form_factor():
+    """Each floor patch's s against 1 - F(centroid -> plate) (exact point-to-polygon factor), and
+    the floor's area mean against 1 - F12 of directly opposed unit squares 1 m apart, 0.19982
+    (form_factors.json, C-11). 1024 rays per patch: s to about 0.01."""
+    floor, plate = _plate_over_floor()
+    scene = build([(floor, grey(0.5)), (plate, grey(0.0))])
+    patches = patching.make_patches(scene, 0.2)
+    on_floor = patches.normals[:, 2] > 0.5
+    s = sky_factors(patches.corners[on_floor], patches.normals[on_floor],
+                    _occluded(scene.triangles), 1.0, 1024, np.random.default_rng(1))
+    centroids = patches.corners[on_floor].mean(axis=1)
+    up = np.tile([0.0, 0.0, 1.0], (len(centroids), 1))
+    square = np.array([[0, 0, 1], [0, 1, 1], [1, 1, 1], [1, 0, 1]], float)  # CCW facing down
+    exact = 1.0 - point_to_polygon(centroids, up, square[None], np.array([[0, 0, -1.0]]))
+    np.testing.assert_allclose(s, exact, atol=0.03)
+    areas = patches.areas[on_floor]
+    mean = float((s * areas).sum() / areas.sum())
+    np.testing.assert_allclose(mean, 1.0 - parallel_rectangles(1.0, 1.0, 1.0), atol=0.005)
+
+
+def test_no_rays_for_a_black_world_or_none_asked():
+    floor = floor_quad()
+    normals = np.tile([0.0, 0.0, 1.0], (2, 1))
+
+    def refuse(*args):
+        raise AssertionError("no ray may be cast")
+
+    rng = np.random.default_rng(0)
+    np.testing.assert_array_equal(world_irradiance(np.zeros(3), floor, normals, refuse, 1.0, 64,
+                                                   rng), 0.0)
+    np.testing.assert_array_equal(world_irradiance(np.array(WORLD), floor, normals, refuse, 1.0, 0,
+                                                   rng), 0.0)
+
+
+@pytest.mark.parametrize("solver", ["gauss_seidel", "progressive", "hierarchical"])
+def test_the_solve_carries_the_world_light_onto_an_open_floor(solver):
+    """A grey floor under a black plate, lit by the world alone: every floor patch's B is
+    rho pi L_w s, its mean rho pi L_w (1 - F12); the plate, black, sends nothing back. With
+    world_rays 0 the floor stays black."""
+    floor, plate = _plate_over_floor()
+    scene = build([(floor, grey(0.5)), (plate, grey(0.0))], world=WORLD)
+    settings = RadiositySettings(solver=solver, patch_budget=60, refine_levels=0,
+                                 final_gather=False, world_rays=256, **FAST)
+    result = solve_radiosity(scene, settings)
+    on_floor = result.patches.normals[:, 2] > 0.5
+    areas = result.patches.areas[on_floor]
+    mean = (result.radiosity[on_floor] * areas[:, None]).sum(axis=0) / areas.sum()
+    expected = 0.5 * np.pi * np.array(WORLD) * (1.0 - parallel_rectangles(1.0, 1.0, 1.0))
+    np.testing.assert_allclose(mean, expected, rtol=0.01)
+    dark = solve_radiosity(scene, RadiositySettings(solver=solver, patch_budget=60,
+                                                    refine_levels=0, final_gather=False,
+                                                    world_rays=0, **FAST))
+    np.testing.assert_array_equal(dark.radiosity, 0.0)
+
+
+def test_a_closed_room_is_not_lit_by_the_world_outside():
+    """Furnace box: B = E / (1 - rho) with or without a bright world (its every ray is blocked)."""
+    scene = build([(inward_box(), grey(0.5, emission=1.0))], world=(5.0, 5.0, 5.0))
+    result = solve_radiosity(scene, RadiositySettings(patch_budget=40, refine_levels=0, **FAST))
+    np.testing.assert_allclose(result.radiosity, np.pi / 0.5, rtol=0.01)
+
+
+def test_the_gather_reads_the_world_light_at_every_texel():
+    """The final gather counts the world's light as indirect, interpolated from the patches: an
+    open floor's lightmap (no lamp, no plate) is rho L_w everywhere, B / pi."""
+    floor = floor_quad()
+    scene = build([(floor, grey(0.5))], world=WORLD)
+    scene = replace(scene, lightmap_uv=scene.uv.copy(),
+                    objects=[replace(o, has_lightmap_uv=True) for o in scene.objects])
+    result = solve_radiosity(scene, RadiositySettings(patch_budget=16, **FAST))
+    bakes = None
+    for step in bake_steps(scene, result, [0], {0: 8}, 1):
+        bakes = step
+    texels = bakes[0].lightmap[bakes[0].lightmap_mask]
+    np.testing.assert_allclose(texels, np.broadcast_to(0.5 * np.array(WORLD), texels.shape),
+                               rtol=1e-3)
