@@ -18,9 +18,10 @@ weight where a Whitted tracer follows both rays weighted: the same expectation, 
 Cycles' shadow rays stop at glass as Whitted's do. The world lights no diffuse surface (it is
 hidden from diffuse rays, `world_lighting=False`, the default of every model: only the radiosity
 solve uses the sky as a light, `radiosity(world_lighting=True)`) and stays visible to the camera,
-mirrors and glass, as the tracer returns the world colour for rays that miss. Area lights keep their size (the tracer samples them on a
-grid). Cycles lights the Principled specular lobe of non-mirror surfaces directly (the
-sample scenes set Specular IOR Level 0 on diffuse surfaces, which is exactly Lambertian).
+mirrors and glass, as the tracer returns the world colour for rays that miss. Area lights keep
+their size (the tracer samples them on a grid). Cycles lights the Principled specular lobe of
+non-mirror surfaces directly (the sample scenes set Specular IOR Level 0 on diffuse surfaces,
+which is exactly Lambertian).
 
 `radiosity(diffuse_bounces)`, for diffuse global illumination: glossy and transmission bounces 0,
 `diffuse_bounces` diffuse bounces (default 32: a closed box of albedo 0.8 keeps 0.8^32 < 0.1% of
