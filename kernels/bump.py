@@ -50,6 +50,13 @@ MIN_LENGTH = 1e-12
 # view's own cos when that is smaller (`valid_reflection`).
 REFLECTION_FLOOR = 0.01
 REFLECTION_FLOOR_SHARE = 0.9
+# Cycles' bump terminator softening (`bump_shadowing`): the relief's roughness alpha^2 is this
+# times tan^2 of the bumped normal's tilt from the smooth one (Conty Estevez, Lecocq and Stein,
+# "A Microfacet-Based Shadowing Function to Solve the Bump Terminator Problem", Ray Tracing Gems
+# 2019: tilts spread like a GGX of alpha^2 = tan^2 / 8), capped at 1.
+BUMP_ALPHA2_PER_TAN2 = 0.125
+# Below this cos to the smooth normal a light grazes the surface: Cycles gives it nothing.
+GRAZING_COS = 1e-6
 
 # The lecture's comparison: flat (one normal per triangle), Gouraud (light computed at the
 # vertices and interpolated, `tracer.Tracer.gouraud_direct`), Phong (normals interpolated, light
@@ -183,6 +190,35 @@ def valid_reflection(ng: np.ndarray, wo: np.ndarray, n: np.ndarray) -> np.ndarra
     u = np.clip(np.where(wx < 0.0, half_b + root, half_b - root) / (2.0 * np.maximum(a, MIN_LENGTH)),
                 0.0, 1.0)
     out[bad] = np.sqrt(1.0 - u)[:, None] * x_axis + np.sqrt(u)[:, None] * gb
+    return out
+
+
+def bump_shadowing(smooth: np.ndarray, bumped: np.ndarray, to_light: np.ndarray) -> np.ndarray:
+    """(N,) factor in [0, 1] on the diffuse light arriving from unit directions to_light (N, 3)
+    at points whose smooth (interpolated, unperturbed) unit normals are smooth (N, 3) and whose
+    relief tilts them to bumped (N, 3): Cycles' bump shadowing term for diffuse closures.
+
+    A tilted normal would take light from directions below the real surface, and more of it than
+    the smooth surface gets at a low sun: the relief's own facets hide part of it. Cycles
+    (Blender 4.x and 5.x, `bump_shadowing_term` under the material's Bump Map Correction, on by
+    default) treats the tilts as a GGX microfacet surface of alpha^2 = tan^2(d) / 8
+    (`BUMP_ALPHA2_PER_TAN2`, d the tilt) and weighs the light by its masking term
+    G1 = 2 / (1 + sqrt(1 + alpha^2 tan^2 theta_i)), theta_i the light's angle to the smooth
+    normal; a light on the other side of the smooth surface than the bumped normal sends
+    nothing. Untilted normals (d = 0) give 1 exactly, so unbumped points are left as they are."""
+    cos_si = np.einsum("ij,ij->i", smooth, to_light)
+    cos_sn = np.einsum("ij,ij->i", smooth, bumped)
+    cos_ni = np.einsum("ij,ij->i", bumped, to_light)
+    out = np.ones(len(smooth))
+    cos_i, cos_d = np.abs(cos_si), np.abs(cos_sn)
+    tilted = (cos_d < 1.0) & (cos_i < 1.0)
+    tan2_d = 1.0 / np.maximum(cos_d[tilted], MIN_LENGTH) ** 2 - 1.0
+    alpha2 = np.clip(BUMP_ALPHA2_PER_TAN2 * tan2_d, 0.0, 1.0)
+    c = np.maximum(cos_i[tilted], GRAZING_COS)
+    tan2_i = 1.0 / (c * c) - 1.0
+    out[tilted] = 2.0 / (1.0 + np.sqrt(1.0 + alpha2 * tan2_i))
+    out[tilted & (cos_i < GRAZING_COS)] = 0.0
+    out[(cos_si * cos_sn * cos_ni < 0.0) & (cos_sn < 1.0)] = 0.0
     return out
 
 

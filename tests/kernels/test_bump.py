@@ -133,6 +133,42 @@ def test_a_sunlit_ramp_is_lambert_with_the_tilted_normal():
         np.testing.assert_allclose(plain, RHO / np.pi * SUN_E, rtol=1e-5)
 
 
+@pytest.mark.parametrize("sun_side", [1.0, -1.0])
+def test_a_low_sun_on_a_ramp_is_masked_by_the_relief(sun_side):
+    """The ramp's normal tilted by d = atan(D s) towards -x, the sun 60 degrees from the zenith on
+    either side: Lambert with the tilted normal times Cycles' bump shadowing term, the GGX masking
+    G1 = 2 / (1 + sqrt(1 + alpha^2 tan^2 60)) of alpha^2 = tan^2(d) / 8 (`bump.bump_shadowing`),
+    0.892 here. Turned from the sun (behind the tilted normal) it is dark either way."""
+    slope, distance = 0.8, 1.5
+    scene = sunlit_plane(ramp(slope=slope), distance)
+    theta = np.radians(60.0)
+    to_sun = np.array([sun_side * np.sin(theta), 0.0, np.cos(theta)])
+    sun = scene.lights[0]
+    from dataclasses import replace
+
+    scene = replace(scene, lights=(replace(sun, direction=-to_sun),))
+    tilted = np.array([-distance * slope, 0.0, 1.0]) / np.hypot(distance * slope, 1.0)
+    alpha2 = (distance * slope) ** 2 / 8.0
+    masking = 2.0 / (1.0 + np.sqrt(1.0 + alpha2 * np.tan(theta) ** 2))
+    expected = RHO / np.pi * SUN_E * max(tilted @ to_sun, 0.0) * masking
+    got = bump.bump_shadowing(np.array([[0.0, 0.0, 1.0]]), tilted[None], to_sun[None])
+    np.testing.assert_allclose(got, masking if tilted @ to_sun > 0.0 else 0.0, rtol=1e-12)
+    image = trace(scene, TracerSettings(max_depth=0, adaptive=0)).image
+    np.testing.assert_allclose(image, expected, rtol=2e-4)
+
+
+def test_bump_shadowing_leaves_untilted_normals_and_blocks_light_under_the_surface():
+    up = np.array([[0.0, 0.0, 1.0]])
+    low = np.array([[np.sin(1.4), 0.0, np.cos(1.4)]])
+    np.testing.assert_array_equal(bump.bump_shadowing(up, up, low), 1.0)  # no relief: 1
+    # A normal tilted towards +x sees a light just below the smooth surface's horizon (cos to
+    # the tilted normal > 0): Cycles sends it nothing.
+    tilted = np.array([[np.sin(0.5), 0.0, np.cos(0.5)]])
+    below = np.array([[np.cos(0.1), 0.0, -np.sin(0.1)]])
+    assert (tilted @ below[0])[0] > 0.0
+    np.testing.assert_array_equal(bump.bump_shadowing(up, tilted, below), 0.0)
+
+
 def test_bump_leaves_the_silhouette_alone():
     # The lecture: bump mapping changes the normals, never the outline. A bumpy square seen
     # against black: the same pixels are covered with and without the bump.
