@@ -566,12 +566,42 @@ def read_world(scene) -> tuple[np.ndarray, list[str]]:
     if node.type != "BACKGROUND":
         return np.zeros(3, np.float32), [f"world shader '{node.bl_idname}' is not modelled: black"]
     ignored = []
+    color = np.array(node.inputs["Color"].default_value[:3], np.float32)
     color_node, _ = _follow(node.inputs["Color"])
-    if color_node is not None:
-        ignored.append(f"world colour from '{color_node.bl_idname}' (e.g. an HDRI) is not "
-                       "modelled: its default colour used")
+    mean = environment_mean(color_node) if color_node is not None else None
+    if mean is not None:
+        color = mean
+        ignored.append(f"world colour from the Environment Texture '{color_node.image.name}' "
+                       f"taken as its mean over the sphere {np.round(mean, 4).tolist()}: the "
+                       "kernels see a uniform world, not its directions")
+    elif color_node is not None:
+        ignored.append(f"world colour from '{color_node.bl_idname}' is not modelled: the "
+                       "socket's own colour used")
     strength = float(node.inputs["Strength"].default_value)
-    return np.array(node.inputs["Color"].default_value[:3], np.float32) * strength, ignored
+    return color * strength, ignored
+
+
+def environment_mean(node) -> np.ndarray | None:
+    """(3,) float32: the mean radiance over all directions of an Environment Texture node's
+    image (linear), or None for any other node or one without pixels. An equirectangular row at
+    latitude phi covers a solid angle in proportion to cos(phi), so rows are weighted by it (a
+    plain pixel mean would count the poles' few steradians as much as the equator's); a mirror
+    ball's pixels are averaged inside its disc."""
+    if node is None or node.type != "TEX_ENVIRONMENT" or node.image is None:
+        return None
+    pixels = image_pixels(node.image)
+    if pixels is None:
+        return None
+    rgb = pixels[..., :3].astype(np.float64)
+    height, width = rgb.shape[:2]
+    if node.projection == "EQUIRECTANGULAR":
+        latitude = (0.5 - (np.arange(height) + 0.5) / height) * np.pi  # row 0 at the top
+        weight = np.broadcast_to(np.cos(latitude)[:, None], (height, width))
+    else:  # MIRROR_BALL: the disc inscribed in the image
+        y, x = np.mgrid[0:height, 0:width]
+        weight = ((2.0 * (x + 0.5) / width - 1.0) ** 2
+                  + (2.0 * (y + 0.5) / height - 1.0) ** 2 <= 1.0).astype(np.float64)
+    return (np.einsum("hw,hwc->c", weight, rgb) / weight.sum()).astype(np.float32)
 
 
 # --- the snapshot ---------------------------------------------------------------------------------

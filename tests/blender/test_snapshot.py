@@ -178,3 +178,30 @@ def test_sample_scene_snapshot_matches_blender(path):
     assert agree.mean() > 0.99
     assert snap.camera is not None
     assert snap.lights or any(m.is_emissive for m in snap.materials)
+
+
+def test_an_environment_texture_world_is_read_as_its_mean_over_the_sphere():
+    """An equirectangular float image bright in its upper half (2.0) and black below, strength
+    1.5: the upper and lower halves of the sphere hold equal solid angles, so the mean radiance is
+    1.0 x 1.5 whatever the rows' count (rows weighted by cos(latitude)); a plain pixel mean would
+    give the same here, so a second image bright only in its top quarter of rows (the polar cap
+    above 45 degrees: (1 - sin 45) / 2 = 14.6% of the sphere) tells them apart."""
+    scene = bpy.context.scene
+    scene.world = bpy.data.worlds.new("HDRI")
+    if bpy.app.version < (5, 0, 0):
+        scene.world.use_nodes = True
+    tree = scene.world.node_tree
+    env = tree.nodes.new("ShaderNodeTexEnvironment")
+    background = tree.nodes["Background"]
+    background.inputs["Strength"].default_value = 1.5
+    tree.links.new(env.outputs["Color"], background.inputs["Color"])
+    for rows, expected in ((16, 1.0), (8, 2.0 * (1.0 - np.sin(np.pi / 4)) / 2.0)):
+        image = bpy.data.images.new(f"sky{rows}", 64, 32, alpha=True, float_buffer=True)
+        pixels = np.zeros((32, 64, 4), np.float32)
+        pixels[:rows, :, :3] = 2.0  # rows counted from the top
+        pixels[..., 3] = 1.0
+        image.pixels.foreach_set(pixels[::-1].ravel())  # Blender stores the bottom row first
+        env.image = image
+        color, ignored = bridge.read_world(scene)
+        np.testing.assert_allclose(color, 1.5 * expected, rtol=0.01)
+        assert any("Environment Texture" in why for why in ignored)
