@@ -15,7 +15,7 @@ the conventions that differ between Blender and the kernels:
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import bpy
 import numpy as np
@@ -571,14 +571,41 @@ def read_world(scene) -> tuple[np.ndarray, list[str]]:
     mean = environment_mean(color_node) if color_node is not None else None
     if mean is not None:
         color = mean
-        ignored.append(f"world colour from the Environment Texture '{color_node.image.name}' "
-                       f"taken as its mean over the sphere {np.round(mean, 4).tolist()}: the "
-                       "kernels see a uniform world, not its directions")
+        if color_node.projection != "EQUIRECTANGULAR":
+            ignored.append(f"world colour from the mirror-ball Environment Texture "
+                           f"'{color_node.image.name}' taken as its mean "
+                           f"{np.round(mean, 4).tolist()}: the kernels see a uniform world")
+        elif color_node.inputs["Vector"].is_linked:
+            ignored.append(f"world: the Environment Texture '{color_node.image.name}' is read "
+                           "along world directions; what feeds its Vector (a Mapping's "
+                           "rotation) is not modelled")
     elif color_node is not None:
         ignored.append(f"world colour from '{color_node.bl_idname}' is not modelled: the "
                        "socket's own colour used")
     strength = float(node.inputs["Strength"].default_value)
     return color * strength, ignored
+
+
+def read_world_texture(scene):
+    """The world's equirectangular radiance map, a kernel `Texture` (linear RGB times the
+    Background's strength), when an Environment Texture of that projection feeds the world's
+    Background colour; else None (the kernels use `read_world`'s uniform colour)."""
+    world = scene.world
+    tree = _node_tree(world) if world is not None else None
+    output = _active_output(tree, "OUTPUT_WORLD") if tree is not None else None
+    node = _follow(output.inputs["Surface"])[0] if output is not None else None
+    if node is None or node.type != "BACKGROUND":
+        return None
+    env = _follow(node.inputs["Color"])[0]
+    if env is None or env.type != "TEX_ENVIRONMENT" or env.image is None \
+            or env.projection != "EQUIRECTANGULAR":
+        return None
+    pixels = image_pixels(env.image)
+    if pixels is None:
+        return None
+    pixels[..., :3] *= float(node.inputs["Strength"].default_value)
+    return Texture(kind="IMAGE", name=env.image.name, pixels=pixels, extension="REPEAT",
+                   interpolation="CLOSEST" if env.interpolation == "Closest" else "LINEAR")
 
 
 def environment_mean(node) -> np.ndarray | None:
@@ -683,7 +710,8 @@ def snapshot(context=None, request: SnapshotRequest = SnapshotRequest(),
             camera = read_camera(scene, scene.camera, resolution)
     world, why = read_world(scene)
     ignored.extend(why)
-    return _assemble(chunks, materials, lights, camera, world, request, ignored)
+    return replace(_assemble(chunks, materials, lights, camera, world, request, ignored),
+                   world_texture=read_world_texture(scene))
 
 
 def _assemble(chunks, materials, lights, camera, world, request, ignored) -> Scene:

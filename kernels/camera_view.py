@@ -99,5 +99,11 @@ def background_and_fragments(scene: Scene, resolution=None, out: np.ndarray | No
         raise ValueError("the scene has no camera")
     width, height = resolution or scene.camera.resolution
     image = np.empty((height, width, 3), np.float32) if out is None else out
-    image[...] = scene.world_color
+    if scene.world_texture is None:
+        image[...] = scene.world_color
+    else:  # the world's map along each pixel's ray
+        from .world_light import world_radiance
+
+        _, dirs = camera_rays(scene.camera, width, height)
+        image[...] = world_radiance(scene, dirs.reshape(-1, 3)).reshape(height, width, 3)
     return image, camera_fragments(scene, (width, height))

@@ -76,7 +76,7 @@ from .radiosity_solvers import (
     ProgressiveSolver,
 )
 from .scene import Scene, triangle_emission
-from .world_light import WORLD_RAYS, world_irradiance
+from .world_light import WORLD_RAYS, world_irradiance, world_radiance
 
 # Below this luminance fraction of the scene's mean radiosity a patch counts as dark: relative
 # differences are measured against it, so noise in black corners does not trigger refinement.
@@ -444,9 +444,11 @@ def world_shot(scene: Scene, patches: patching.Patches, occluded, settings: Radi
     shot, but the final gather counts it as indirect light, so it stays out of `direct`. Zero
     for a black world, `world_rays` 0, or no shadows (occluded None: nothing is known of the
     sky, and an unshadowed sky would light a closed room)."""
-    if occluded is None:
+    if occluded is None or not (np.asarray(scene.world_color) > 0.0).any():
         return np.zeros((len(patches), 3))
-    return world_irradiance(scene.world_color, patches.corners, patches.normals, occluded, scale,
+    world = scene.world_color if scene.world_texture is None else (
+        lambda dirs: world_radiance(scene, dirs))
+    return world_irradiance(world, patches.corners, patches.normals, occluded, scale,
                             settings.world_rays, np.random.default_rng(settings.seed + 3))
 
 

@@ -209,6 +209,10 @@ class Scene:
     world_color: np.ndarray  # (3,) float32, radiance W/(m^2 sr) of the uniform background
     # What the snapshot met but does not model, one human-readable reason per entry.
     ignored: tuple[str, ...] = ()
+    # The world's equirectangular map of radiance W/(m^2 sr) (an Environment Texture times the
+    # Background's strength; `world_light.world_radiance` reads it), world_color its mean over
+    # the sphere; None: the world is world_color everywhere.
+    world_texture: Texture | None = None
 
     @property
     def triangle_count(self) -> int:

@@ -46,6 +46,7 @@ from .specular_layer import (
     view_tables,
 )
 from .textures import sample_texture, sample_texture_box
+from .world_light import world_radiance
 
 # A new ray starts this fraction of the scene's size off its surface, along the geometric normal:
 # float32 triangles locate a hit to ~1e-7 of the coordinates' magnitude, so 1e-5 clears the surface
@@ -711,7 +712,12 @@ class Tracer:
                 primary_ids[...] = self.hit_ids(hits.tri)
             if depth == 0 and primary_t is not None:
                 primary_t[...] = np.where(miss, np.inf, hits.t)
-            background = 0.0 if s.output == "albedo" else self.scene.world_color
+            if s.output == "albedo":
+                background = 0.0
+            elif self.scene.world_texture is None:
+                background = self.scene.world_color
+            else:  # the world's map along each escaping ray
+                background = world_radiance(self.scene, dirs[miss])
             np.add.at(result, pixel[miss], weight[miss] * background)
             if untextured is not None:
                 np.add.at(flat, pixel[miss], weight[miss] * background)

@@ -28,6 +28,8 @@ from __future__ import annotations
 import numpy as np
 
 from .form_factors import RAY_OFFSET_REL, tangent_frames
+from .scene import Scene
+from .textures import sample_texture
 
 # Rays per patch by default: +-0.02 in s where an edge halves a patch's sky (stratified).
 WORLD_RAYS = 64
@@ -35,28 +37,32 @@ WORLD_RAYS = 64
 RAYS_PER_CALL = 1 << 20
 
 
-def sky_factors(corners: np.ndarray, normals: np.ndarray, occluded, scale: float, rays: int,
-                rng: np.random.Generator) -> np.ndarray:
-    """(N,) s in [0, 1]: the cosine-weighted share of each patch's hemisphere that meets no
-    geometry (module docstring).
+def equirect_uv(dirs: np.ndarray) -> np.ndarray:
+    """(N, 2) image UVs (v = 0 at the bottom row) of unit world directions (N, 3) on an
+    equirectangular map, as Cycles' Environment Texture reads it (`direction_to_equirectangular`):
+    u = 1/2 - atan2(y, x) / (2 pi) (+x at the centre, +y a quarter to the left), v = 1 -
+    acos(z) / pi (+z at the top)."""
+    d = np.asarray(dirs, np.float64)
+    d = d / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-300)
+    u = 0.5 - np.arctan2(d[:, 1], d[:, 0]) / (2.0 * np.pi)
+    v = 1.0 - np.arccos(np.clip(d[:, 2], -1.0, 1.0)) / np.pi
+    return np.stack([u, v], axis=1)
 
-    | parameter | shape / range     | unit    | meaning                                         |
-    |-----------|-------------------|---------|-------------------------------------------------|
-    | corners   | (N, 3, 3)         | m world | the patches' triangles                          |
-    | normals   | (N, 3) unit       |         | their front normals (the hemisphere's pole)     |
-    | occluded  | callable          |         | (origins, dirs, t_min, t_max) -> (R,) bool: the |
-    |           |                   |         | BVH's any-hit query                             |
-    | scale     | > 0               | m       | the scene's extent: rays start RAY_OFFSET_REL x |
-    |           |                   |         | scale off the surface                           |
-    | rays      | >= 1 (WORLD_RAYS) |         | rays per patch, rounded up to a square m x m    |
-    | rng       |                   |         | jitter, rotations and points                    |
-    """
-    corners = np.asarray(corners, np.float64)
-    normals = np.asarray(normals, np.float64)
+
+def world_radiance(scene: Scene, dirs: np.ndarray) -> np.ndarray:
+    """(N, 3) float64 radiance W/(m^2 sr) the world sends along -dirs, for unit directions (N, 3)
+    away from the scene: its equirectangular map (`Scene.world_texture`) where it has one, else
+    the uniform `world_color`."""
+    if scene.world_texture is None:
+        return np.broadcast_to(np.asarray(scene.world_color, np.float64), (len(dirs), 3)).copy()
+    return sample_texture(scene.world_texture, equirect_uv(dirs)).astype(np.float64)
+
+
+def _sky_rays(corners: np.ndarray, normals: np.ndarray, occluded, scale: float, rays: int,
+              rng: np.random.Generator):
+    """Yields (slice of patches, their ray directions (P, k, 3), escaped (P, k) bool): `rays`
+    cosine-distributed rays per patch (module docstring), a chunk of patches at a time."""
     count = len(corners)
-    out = np.zeros(count)
-    if count == 0:
-        return out
     m = int(np.ceil(np.sqrt(max(rays, 1))))
     k = m * m
     offset = RAY_OFFSET_REL * scale
@@ -82,17 +88,51 @@ def sky_factors(corners: np.ndarray, normals: np.ndarray, occluded, scale: float
         origins = points + offset * n[:, None]
         hit = occluded(np.ascontiguousarray(origins.reshape(-1, 3)),
                        np.ascontiguousarray(dirs.reshape(-1, 3)), 0.0, np.inf)
-        out[a:a + p] = 1.0 - np.asarray(hit, bool).reshape(p, k).mean(axis=1)
+        yield slice(a, a + p), dirs, ~np.asarray(hit, bool).reshape(p, k)
+
+
+def sky_factors(corners: np.ndarray, normals: np.ndarray, occluded, scale: float, rays: int,
+                rng: np.random.Generator) -> np.ndarray:
+    """(N,) s in [0, 1]: the cosine-weighted share of each patch's hemisphere that meets no
+    geometry (module docstring).
+
+    | parameter | shape / range     | unit    | meaning                                         |
+    |-----------|-------------------|---------|-------------------------------------------------|
+    | corners   | (N, 3, 3)         | m world | the patches' triangles                          |
+    | normals   | (N, 3) unit       |         | their front normals (the hemisphere's pole)     |
+    | occluded  | callable          |         | (origins, dirs, t_min, t_max) -> (R,) bool: the |
+    |           |                   |         | BVH's any-hit query                             |
+    | scale     | > 0               | m       | the scene's extent: rays start RAY_OFFSET_REL x |
+    |           |                   |         | scale off the surface                           |
+    | rays      | >= 1 (WORLD_RAYS) |         | rays per patch, rounded up to a square m x m    |
+    | rng       |                   |         | jitter, rotations and points                    |
+    """
+    out = np.zeros(len(corners))
+    for rows, _, escaped in _sky_rays(np.asarray(corners, np.float64),
+                                      np.asarray(normals, np.float64), occluded, scale, rays, rng):
+        out[rows] = escaped.mean(axis=1)
     return out
 
 
-def world_irradiance(world_color: np.ndarray, corners: np.ndarray, normals: np.ndarray, occluded,
-                     scale: float, rays: int, rng: np.random.Generator) -> np.ndarray:
-    """(N, 3) W/m^2: pi L_w s of each patch (`sky_factors`), L_w = world_color (3,) radiance
-    W/(m^2 sr). Zero, with no ray cast, for a black world or rays = 0."""
-    color = np.asarray(world_color, np.float64)
+def world_irradiance(world, corners: np.ndarray, normals: np.ndarray, occluded, scale: float,
+                     rays: int, rng: np.random.Generator) -> np.ndarray:
+    """(N, 3) W/m^2: the world's irradiance on each patch, pi times the mean radiance of its
+    cosine-distributed rays that escape (0 for those that meet geometry): pi L_w s for a uniform
+    world. world: its radiance, a (3,) colour W/(m^2 sr) or a callable (M, 3) directions ->
+    (M, 3) radiance (`world_radiance` of a mapped world). Zero, with no ray cast, for a black
+    colour or rays = 0."""
     count = len(corners)
-    if rays <= 0 or not (color > 0.0).any() or count == 0:
-        return np.zeros((count, 3))
-    s = sky_factors(corners, normals, occluded, scale, rays, rng)
-    return np.pi * s[:, None] * color[None, :]
+    out = np.zeros((count, 3))
+    uniform = not callable(world)
+    if rays <= 0 or count == 0 or (uniform and not (np.asarray(world) > 0.0).any()):
+        return out
+    for rows, dirs, escaped in _sky_rays(np.asarray(corners, np.float64),
+                                         np.asarray(normals, np.float64), occluded, scale, rays,
+                                         rng):
+        if uniform:
+            out[rows] = escaped.mean(axis=1)[:, None] * np.asarray(world, np.float64)
+            continue
+        seen = np.zeros(escaped.shape + (3,))
+        seen[escaped] = world(dirs[escaped])
+        out[rows] = seen.mean(axis=1)
+    return np.pi * out

@@ -75,6 +75,9 @@ def describe(scene) -> dict:
         "lights": lights,
         "camera": camera,
         "world_radiance": scene.world_color,
+        "world_map": None if scene.world_texture is None else {
+            "image": scene.world_texture.name,
+            "size": list(scene.world_texture.pixels.shape[1::-1])},
         "ignored": list(scene.ignored),
     }
 
@@ -117,7 +120,12 @@ def _print(ctx: RunContext, d: dict) -> None:
     if cam:
         ctx.say(f"  camera: {cam['kind']} at {_fmt(cam['position'])}, "
                 f"{cam['resolution'][0]}x{cam['resolution'][1]} px")
-    ctx.say(f"  world radiance {_fmt(d['world_radiance'])}")
+    if d["world_map"]:
+        ctx.say(f"  world: equirectangular map '{d['world_map']['image']}' "
+                f"({d['world_map']['size'][0]}x{d['world_map']['size'][1]}), mean radiance "
+                f"{_fmt(d['world_radiance'])}")
+    else:
+        ctx.say(f"  world radiance {_fmt(d['world_radiance'])}")
     for why in d["ignored"]:
         ctx.say(f"  ignored: {why}")
 

@@ -118,3 +118,42 @@ def test_the_gather_reads_the_world_light_at_every_texel():
     texels = bakes[0].lightmap[bakes[0].lightmap_mask]
     np.testing.assert_allclose(texels, np.broadcast_to(0.5 * np.array(WORLD), texels.shape),
                                rtol=1e-3)
+
+
+def test_equirectangular_directions_land_where_cycles_reads_them():
+    """Cycles' direction_to_equirectangular: +x at the image's centre, +y a quarter to the left,
+    -y a quarter to the right, +z along the top row, -z along the bottom."""
+    from classic_bake.kernels.world_light import equirect_uv
+
+    dirs = np.array([[1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1], [1, 0, 1]], float)
+    uv = equirect_uv(dirs)
+    np.testing.assert_allclose(uv[:3], [[0.5, 0.5], [0.25, 0.5], [0.75, 0.5]], atol=1e-12)
+    np.testing.assert_allclose(uv[3:5, 1], [1.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(uv[5], [0.5, 0.75], atol=1e-12)  # 45 degrees up: 3/4 of the way
+
+
+def _sky_map(upper, lower, width=64, height=32):
+    """An equirectangular Texture, `upper` above the horizon and `lower` below."""
+    from classic_bake.kernels.scene import Texture
+
+    pixels = np.ones((height, width, 4), np.float32)
+    pixels[: height // 2, :, :3] = upper
+    pixels[height // 2:, :, :3] = lower
+    return Texture(kind="IMAGE", pixels=pixels, extension="REPEAT")
+
+
+def test_a_mapped_world_lights_a_floor_with_its_upper_half_only():
+    """Under a sky of radiance 2 above the horizon and 0 below (mean 1 over the sphere), an open
+    floor receives pi x 2 and reflects rho x 2 (B / pi): the uniform mean would give half. A plate
+    facing down receives only what the map's bilinear filter spreads below the horizon row."""
+    from dataclasses import replace
+
+    floor = floor_quad()
+    under = quad([[0, 0, -1], [0, 1, -1], [1, 1, -1], [1, 0, -1]])  # facing down, 1 m below
+    scene = build([(floor, grey(0.5)), (under, grey(0.5))], world=(1.0, 1.0, 1.0))
+    scene = replace(scene, world_texture=_sky_map(2.0, 0.0))
+    result = solve_radiosity(scene, RadiositySettings(patch_budget=16, final_gather=False,
+                                                      world_rays=256, **FAST))
+    up = result.patches.normals[:, 2] > 0.5
+    np.testing.assert_allclose(result.radiosity[up], 0.5 * np.pi * 2.0, rtol=0.02)
+    assert result.radiosity[~up].max() < 0.01 * result.radiosity[up].min()
