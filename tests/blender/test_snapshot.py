@@ -187,24 +187,14 @@ def test_an_environment_texture_world_is_read_as_its_mean_over_the_sphere():
     give the same here, so a second image bright only in its top quarter of rows (the polar cap
     above 45 degrees: (1 - sin 45) / 2 = 14.6% of the sphere) tells them apart. The map itself
     reaches the kernels as a Texture of radiance, the strength applied."""
-    scene = bpy.context.scene
-    scene.world = bpy.data.worlds.new("HDRI")
-    if bpy.app.version < (5, 0, 0):
-        scene.world.use_nodes = True
-    tree = scene.world.node_tree
-    env = tree.nodes.new("ShaderNodeTexEnvironment")
-    background = tree.nodes["Background"]
-    background.inputs["Strength"].default_value = 1.5
-    tree.links.new(env.outputs["Color"], background.inputs["Color"])
+    from blender_parts import hdri_world
+
     for rows, expected in ((16, 1.0), (8, 2.0 * (1.0 - np.sin(np.pi / 4)) / 2.0)):
-        image = bpy.data.images.new(f"sky{rows}", 64, 32, alpha=True, float_buffer=True)
-        pixels = np.zeros((32, 64, 4), np.float32)
-        pixels[:rows, :, :3] = 2.0  # rows counted from the top
-        pixels[..., 3] = 1.0
-        image.pixels.foreach_set(pixels[::-1].ravel())  # Blender stores the bottom row first
-        env.image = image
+        pixels = np.zeros((32, 64, 3), np.float32)
+        pixels[:rows] = 2.0  # rows counted from the top
+        scene = hdri_world(pixels, strength=1.5)
         color, ignored = bridge.read_world(scene)
         np.testing.assert_allclose(color, 1.5 * expected, rtol=0.01)
         assert not ignored  # an equirectangular map is modelled whole (`read_world_texture`)
         texture = bridge.read_world_texture(scene)
-        np.testing.assert_allclose(texture.pixels[..., :3], 1.5 * pixels[..., :3], rtol=1e-6)
+        np.testing.assert_allclose(texture.pixels[..., :3], 1.5 * pixels, rtol=1e-6)

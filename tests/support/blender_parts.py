@@ -72,3 +72,26 @@ def oblique_camera(scene):
     scene.camera = cam
     return cam
 
+
+
+def hdri_world(pixels, strength=1.0):
+    """The scene's world: an Environment Texture (equirectangular) of float pixels (H, W, 3),
+    row 0 at the top, times `strength`."""
+    import numpy as np
+
+    height, width = pixels.shape[:2]
+    image = bpy.data.images.new("Sky", width, height, alpha=True, float_buffer=True)
+    rgba = np.ones((height, width, 4), np.float32)
+    rgba[..., :3] = pixels
+    image.pixels.foreach_set(rgba[::-1].ravel())  # Blender stores the bottom row first
+    scene = bpy.context.scene
+    scene.world = bpy.data.worlds.new("HDRI")
+    if bpy.app.version < (5, 0, 0):
+        scene.world.use_nodes = True
+    tree = scene.world.node_tree
+    env = tree.nodes.new("ShaderNodeTexEnvironment")
+    env.image = image
+    background = tree.nodes["Background"]
+    background.inputs["Strength"].default_value = strength
+    tree.links.new(env.outputs["Color"], background.inputs["Color"])
+    return scene
