@@ -575,15 +575,25 @@ def read_world(scene) -> tuple[np.ndarray, list[str]]:
             ignored.append(f"world colour from the mirror-ball Environment Texture "
                            f"'{color_node.image.name}' taken as its mean "
                            f"{np.round(mean, 4).tolist()}: the kernels see a uniform world")
-        elif color_node.inputs["Vector"].is_linked:
+        elif color_node.inputs["Vector"].is_linked and world_mapping(color_node) is None:
             ignored.append(f"world: the Environment Texture '{color_node.image.name}' is read "
-                           "along world directions; what feeds its Vector (a Mapping's "
-                           "rotation) is not modelled")
+                           "along world directions; what feeds its Vector (other than a Mapping "
+                           "of Generated coordinates) is not modelled")
     elif color_node is not None:
         ignored.append(f"world colour from '{color_node.bl_idname}' is not modelled: the "
                        "socket's own colour used")
     strength = float(node.inputs["Strength"].default_value)
     return color * strength, ignored
+
+
+def _world_env_mapping(scene) -> np.ndarray | None:
+    """`world_mapping` of the Environment Texture feeding the world's Background, None where it
+    is the identity or not modelled (then the map is read along the world direction)."""
+    tree = _node_tree(scene.world)
+    background = _follow(_active_output(tree, "OUTPUT_WORLD").inputs["Surface"])[0]
+    mapping = world_mapping(_follow(background.inputs["Color"])[0])
+    identity = np.hstack([np.eye(3), np.zeros((3, 1))])
+    return None if mapping is None or np.allclose(mapping, identity) else mapping
 
 
 def read_world_texture(scene):
@@ -606,6 +616,39 @@ def read_world_texture(scene):
     pixels[..., :3] *= float(node.inputs["Strength"].default_value)
     return Texture(kind="IMAGE", name=env.image.name, pixels=pixels, extension="REPEAT",
                    interpolation="CLOSEST" if env.interpolation == "Closest" else "LINEAR")
+
+
+def world_mapping(env) -> np.ndarray | None:
+    """(3, 4) affine map [A | t] that a Mapping node between the world's Generated coordinates
+    (the view direction d) and the Environment Texture `env` applies, the map read along
+    normalize(A d + t) as Cycles does; the identity when nothing feeds the texture's Vector, None
+    when something else does. Cycles' Mapping: Point R (S o d) + T, Vector R (S o d), Texture the
+    inverse of Point, R = Rz Ry Rx of the Euler angles."""
+    identity = np.hstack([np.eye(3), np.zeros((3, 1))])
+    mapping, _ = _follow(env.inputs["Vector"])
+    if mapping is None:
+        return identity
+    if mapping.type != "MAPPING" or mapping.vector_type not in ("POINT", "VECTOR", "TEXTURE"):
+        return None
+    source, socket = _follow(mapping.inputs["Vector"])
+    if source is None or source.type != "TEX_COORD" or socket.name != "Generated":
+        return None
+
+    def value(name):
+        sock = mapping.inputs.get(name)
+        return np.array(sock.default_value[:3], np.float64) if sock is not None else None
+
+    x, y, z = value("Rotation")
+    cx, sx, cy, sy, cz, sz = np.cos(x), np.sin(x), np.cos(y), np.sin(y), np.cos(z), np.sin(z)
+    rx = np.array([[1, 0, 0], [0, cx, -sx], [0, sx, cx]])
+    ry = np.array([[cy, 0, sy], [0, 1, 0], [-sy, 0, cy]])
+    rz = np.array([[cz, -sz, 0], [sz, cz, 0], [0, 0, 1]])
+    linear = rz @ ry @ rx @ np.diag(value("Scale"))
+    offset = value("Location") if mapping.vector_type == "POINT" else np.zeros(3)
+    if mapping.vector_type == "TEXTURE":  # the inverse of Point: S^-1 o R^-1 (d - T)
+        inverse = np.linalg.inv(linear)
+        linear, offset = inverse, -inverse @ value("Location")
+    return np.hstack([linear, offset[:, None]])
 
 
 def environment_mean(node) -> np.ndarray | None:
@@ -710,8 +753,10 @@ def snapshot(context=None, request: SnapshotRequest = SnapshotRequest(),
             camera = read_camera(scene, scene.camera, resolution)
     world, why = read_world(scene)
     ignored.extend(why)
+    texture = read_world_texture(scene)
     return replace(_assemble(chunks, materials, lights, camera, world, request, ignored),
-                   world_texture=read_world_texture(scene))
+                   world_texture=texture,
+                   world_transform=None if texture is None else _world_env_mapping(scene))
 
 
 def _assemble(chunks, materials, lights, camera, world, request, ignored) -> Scene:

@@ -213,6 +213,9 @@ class Scene:
     # Background's strength; `world_light.world_radiance` reads it), world_color its mean over
     # the sphere; None: the world is world_color everywhere.
     world_texture: Texture | None = None
+    # (3, 4) affine [A | t]: the map is read along normalize(A d + t) for a world direction d (a
+    # Mapping node turning it); None: along d
+    world_transform: np.ndarray | None = None
 
     @property
     def triangle_count(self) -> int:

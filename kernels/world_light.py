@@ -51,10 +51,14 @@ def equirect_uv(dirs: np.ndarray) -> np.ndarray:
 
 def world_radiance(scene: Scene, dirs: np.ndarray) -> np.ndarray:
     """(N, 3) float64 radiance W/(m^2 sr) the world sends along -dirs, for unit directions (N, 3)
-    away from the scene: its equirectangular map (`Scene.world_texture`) where it has one, else
-    the uniform `world_color`."""
+    away from the scene: its equirectangular map (`Scene.world_texture`, read along
+    normalize(A d + t) where a Mapping node turns it, `Scene.world_transform`) where it has one,
+    else the uniform `world_color`."""
     if scene.world_texture is None:
         return np.broadcast_to(np.asarray(scene.world_color, np.float64), (len(dirs), 3)).copy()
+    dirs = np.asarray(dirs, np.float64)
+    if scene.world_transform is not None:  # a Mapping node: A d + t, normalised by the look-up
+        dirs = dirs @ scene.world_transform[:, :3].T + scene.world_transform[:, 3]
     return sample_texture(scene.world_texture, equirect_uv(dirs)).astype(np.float64)
 
 
