@@ -570,6 +570,9 @@ class _BruteForce:
                         self.bvh._prepared.boxes,
                         sub[_T_MIN],
                     )
+                    if queue.skip is not None:
+                        keep = tri != queue.skip[ids[rows[pos]]]
+                        pos, tri, t, bu, bv = pos[keep], tri[keep], t[keep], bu[keep], bv[keep]
                     if self.any_hit:
                         occluded[rows[pos]] = True
                     else:
@@ -582,11 +585,13 @@ class _BruteForce:
 class _RayQueue:
     """Hands out batches of rays to the worker pools (thread-safe) and counts answered rays."""
 
-    def __init__(self, origins, directions, t_min, t_max, batch: int):
+    def __init__(self, origins, directions, t_min, t_max, batch: int,
+                 skip: np.ndarray | None = None):
         self.origins = origins
         self.directions = directions
         self.t_min = t_min
         self.t_max = t_max
+        self.skip = skip  # (R,) int: a triangle each ray does not see (its own surface), or None
         self.count = int(origins.shape[0])
         self.batch = batch
         self.answered = 0
@@ -641,6 +646,7 @@ class _Pool:
         self.leaf_slots = bvh._leaf_slots
         self.depth = bvh._stack_size
         self.leaf_batch = max(1, int(size * LEAF_BATCH))
+        self.skip: np.ndarray | None = None  # the query's triangle per ray to pass through
         self.rays = np.zeros((_RAY_ROWS, size), np.float32)  # see the _ORIGIN... row names
         self.rays[_INV_DIR] = 1.0
         self.kz = np.zeros(size, np.int64)
@@ -686,6 +692,7 @@ class _Pool:
 
     def run(self, queue: _RayQueue, sink) -> Iterator[None]:
         """Trace until the queue is dry; `sink(pool, slots)` receives every answered slot."""
+        self.skip = queue.skip
         free = np.arange(self.size)
         act = np.zeros(0, np.int64)
         low_water = max(1, int(self.size * REFILL_AT))
@@ -815,6 +822,9 @@ class _Pool:
             self.bvh._prepared.boxes,
             None,
         )
+        if self.skip is not None:
+            keep = tri != self.skip[self.ray[slot[pos]]]
+            pos, tri, t, bu, bv = pos[keep], tri[keep], t[keep], bu[keep], bv[keep]
         r = slot[pos]
         if self.any_hit:
             self.occluded[r] = True
@@ -857,8 +867,10 @@ class BVH:
 
     # ---------------------------------------------------------------------------------------
 
-    def _run(self, origins, directions, t_min, t_max, any_hit: bool, sink) -> Iterator[float]:
-        """Trace every ray through worker pools; yields progress in [0, 1] while they run."""
+    def _run(self, origins, directions, t_min, t_max, any_hit: bool, sink,
+             skip=None) -> Iterator[float]:
+        """Trace every ray through worker pools; yields progress in [0, 1] while they run.
+        skip (R,) int, when given: a triangle index each ray passes through (-1: none)."""
         origins = np.asarray(origins)
         directions = np.asarray(directions)
         if origins.shape != directions.shape or origins.ndim != 2 or origins.shape[1] != 3:
@@ -871,7 +883,11 @@ class BVH:
         settings = self.settings
         threads = max(1, min(settings.thread_count, -(-count // QUEUE_BATCH)))
         pool_size = min(settings.chunk_size, -(-count // threads))
-        queue = _RayQueue(origins, directions, lo, hi, min(QUEUE_BATCH, pool_size))
+        if skip is not None:
+            skip = np.asarray(skip, np.int64)
+            if skip.shape != (count,):
+                raise ValueError(f"skip must be ({count},), got {skip.shape}")
+        queue = _RayQueue(origins, directions, lo, hi, min(QUEUE_BATCH, pool_size), skip)
 
         def runner():
             if self._tree.leaf_count == 1 and self._tree.nodes.shape[0] == 0:
@@ -948,7 +964,8 @@ class BVH:
         return hits
 
     def occluded_steps(
-        self, origins, directions, t_min=0.0, t_max=np.inf, out: np.ndarray | None = None
+        self, origins, directions, t_min=0.0, t_max=np.inf, out: np.ndarray | None = None,
+        skip: np.ndarray | None = None,
     ) -> Iterator[float]:
         """`occluded` as a generator: yields progress in [0, 1] while tracing; fills `out`."""
         count = np.asarray(origins).shape[0]
@@ -958,17 +975,20 @@ class BVH:
         def sink(ray, best, u, v, occluded) -> None:
             result[ray] = occluded
 
-        yield from self._run(origins, directions, t_min, t_max, True, sink)
+        yield from self._run(origins, directions, t_min, t_max, True, sink, skip)
 
-    def occluded(self, origins, directions, t_min=0.0, t_max=np.inf, out=None) -> np.ndarray:
+    def occluded(self, origins, directions, t_min=0.0, t_max=np.inf, out=None,
+                 skip=None) -> np.ndarray:
         """(R,) bool: whether anything is hit on [t_min, t_max] (shadow and visibility rays).
 
         Same parameters as `intersect`; `out` may be a caller-owned (R,) bool array. A ray stops
-        at the first hit it finds.
+        at the first hit it finds. skip (R,) int, when given: one triangle per ray that it
+        passes through (-1: none), so a ray may start on its own surface, or just behind it,
+        and still meet a surface lying flat against that one (`world_light.py`).
         """
         count = np.asarray(origins).shape[0]
         result = out if out is not None else np.zeros(count, bool)
-        for _ in self.occluded_steps(origins, directions, t_min, t_max, result):
+        for _ in self.occluded_steps(origins, directions, t_min, t_max, result, skip):
             pass
         return result
 

@@ -437,19 +437,18 @@ def first_shot(scene: Scene, patches: patching.Patches, occluded, settings: Radi
     return irradiance, boundary
 
 
-def world_shot(scene: Scene, patches: patching.Patches, occluded, settings: RadiositySettings,
+def world_shot(scene: Scene, patches: patching.Patches, bvh, settings: RadiositySettings,
                scale: float) -> np.ndarray:
     """(N, 3) W/m^2: the world's irradiance on every patch, pi L_w times its share of open sky
     (`world_light.py`, `world_rays` rays each). The solver carries it as it carries the first
     shot, but the final gather counts it as indirect light, so it stays out of `direct`. Zero
-    for a black world, `world_rays` 0, or no shadows (occluded None: nothing is known of the
-    sky, and an unshadowed sky would light a closed room)."""
-    if occluded is None or not (np.asarray(scene.world_color) > 0.0).any():
+    for a black world or `world_rays` 0. bvh: `kernels.bvh.BVH` over the scene's triangles."""
+    if not (np.asarray(scene.world_color) > 0.0).any():
         return np.zeros((len(patches), 3))
     world = scene.world_color if scene.world_texture is None else (
         lambda dirs: world_radiance(scene, dirs))
-    return world_irradiance(world, patches.corners, patches.normals, occluded, scale,
-                            settings.world_rays, np.random.default_rng(settings.seed + 3))
+    return world_irradiance(world, patches.corners, patches.normals, patches.parent, bvh.occluded,
+                            scale, settings.world_rays, np.random.default_rng(settings.seed + 3))
 
 
 def hard_shadow_edges(scene: Scene, patches: patching.Patches, occluded,
@@ -963,7 +962,7 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
         clear = final_gather.clear_shafts(patches, emitters, bvh, RAY_OFFSET_REL * scale,
                                           clusters.CLUSTER_AREA_SHARE * size * size)
         direct, boundary = first_shot(scene, patches, occluded, settings, scale, emitters, clear)
-        sources = emitted - shot + rho * (direct + world_shot(scene, patches, occluded, settings,
+        sources = emitted - shot + rho * (direct + world_shot(scene, patches, bvh, settings,
                                                               scale))
         if groups is not None and (patches.level > 0).any():
             # Split children, known lit or shadowed now, group apart (`clusters.light_bucket`);
@@ -1046,7 +1045,7 @@ def _hierarchical(scene, size, bvh, settings, scale, t0, exchanging, roots, dept
         return first_shot(scene, leaves, occluded, settings, scale, emitters, clear)
 
     def world(leaves):
-        return world_shot(scene, leaves, occluded, settings, scale)
+        return world_shot(scene, leaves, bvh, settings, scale)
 
     for step in hierarchical_steps(scene, roots, depth, occluded, settings, scale, lamps,
                                    emitters, world):

@@ -14,7 +14,10 @@ Estimator (Malley's method): points spread evenly over the unit disc, lifted ont
 are directions with density cos(theta) / pi, so the share of such rays that escape is s itself,
 with no weights. Each patch casts `rays` of them from points spread over its triangle, the disc
 points stratified on an m x m grid (jittered, a random rotation per patch), so a patch's s
-carries little noise: 64 rays give s to about +-0.02 where a wall's edge cuts its sky.
+carries little noise: 64 rays give s to about +-0.02 where a wall's edge cuts its sky. Rays start
+a hair behind the surface and pass through its own triangle (`BVH.occluded(skip=)`), so a face
+lying flat on another, a box's base on the floor, meets it at once as in Cycles, whose rays start
+on the surface (lifted in front, they slipped past the floor into the sky below it).
 
 The solver carries H_w like the lamps' first shot (rho H_w is a source of every patch), and it
 bounces on from there; the final gather treats it as indirect light, interpolated from the
@@ -62,11 +65,12 @@ def world_radiance(scene: Scene, dirs: np.ndarray) -> np.ndarray:
     return sample_texture(scene.world_texture, equirect_uv(dirs)).astype(np.float64)
 
 
-def _sky_rays(corners: np.ndarray, normals: np.ndarray, occluded, scale: float, rays: int,
-              rng: np.random.Generator):
+def _sky_rays(corners: np.ndarray, normals: np.ndarray, parents: np.ndarray, occluded,
+              scale: float, rays: int, rng: np.random.Generator):
     """Yields (slice of patches, their ray directions (P, k, 3), escaped (P, k) bool): `rays`
     cosine-distributed rays per patch (module docstring), a chunk of patches at a time."""
     count = len(corners)
+    parents = np.asarray(parents, np.int64)
     m = int(np.ceil(np.sqrt(max(rays, 1))))
     k = m * m
     offset = RAY_OFFSET_REL * scale
@@ -89,14 +93,18 @@ def _sky_rays(corners: np.ndarray, normals: np.ndarray, occluded, scale: float, 
         r1, r2 = np.sqrt(rng.random((p, k, 1))), rng.random((p, k, 1))
         points = ((1.0 - r1) * c[:, None, 0] + r1 * (1.0 - r2) * c[:, None, 1]
                   + r1 * r2 * c[:, None, 2])
-        origins = points + offset * n[:, None]
+        # Rays start just BEHIND the surface and pass through its own triangle: a face lying
+        # flat on another (a box's base on the floor) meets that one at once, as Cycles' rays,
+        # which start on the surface, do; lifted in front of it they would slip past.
+        origins = points - offset * n[:, None]
         hit = occluded(np.ascontiguousarray(origins.reshape(-1, 3)),
-                       np.ascontiguousarray(dirs.reshape(-1, 3)), 0.0, np.inf)
+                       np.ascontiguousarray(dirs.reshape(-1, 3)), 0.0, np.inf,
+                       skip=np.repeat(parents[a:a + p], k))
         yield slice(a, a + p), dirs, ~np.asarray(hit, bool).reshape(p, k)
 
 
-def sky_factors(corners: np.ndarray, normals: np.ndarray, occluded, scale: float, rays: int,
-                rng: np.random.Generator) -> np.ndarray:
+def sky_factors(corners: np.ndarray, normals: np.ndarray, parents: np.ndarray, occluded,
+                scale: float, rays: int, rng: np.random.Generator) -> np.ndarray:
     """(N,) s in [0, 1]: the cosine-weighted share of each patch's hemisphere that meets no
     geometry (module docstring).
 
@@ -104,8 +112,10 @@ def sky_factors(corners: np.ndarray, normals: np.ndarray, occluded, scale: float
     |-----------|-------------------|---------|-------------------------------------------------|
     | corners   | (N, 3, 3)         | m world | the patches' triangles                          |
     | normals   | (N, 3) unit       |         | their front normals (the hemisphere's pole)     |
-    | occluded  | callable          |         | (origins, dirs, t_min, t_max) -> (R,) bool: the |
-    |           |                   |         | BVH's any-hit query                             |
+    | parents   | (N,) int          |         | each patch's scene triangle, which its rays     |
+    |           |                   |         | pass through                                    |
+    | occluded  | callable          |         | (origins, dirs, t_min, t_max, skip=) -> (R,)    |
+    |           |                   |         | bool: the BVH's any-hit query (`BVH.occluded`)  |
     | scale     | > 0               | m       | the scene's extent: rays start RAY_OFFSET_REL x |
     |           |                   |         | scale off the surface                           |
     | rays      | >= 1 (WORLD_RAYS) |         | rays per patch, rounded up to a square m x m    |
@@ -113,26 +123,27 @@ def sky_factors(corners: np.ndarray, normals: np.ndarray, occluded, scale: float
     """
     out = np.zeros(len(corners))
     for rows, _, escaped in _sky_rays(np.asarray(corners, np.float64),
-                                      np.asarray(normals, np.float64), occluded, scale, rays, rng):
+                                      np.asarray(normals, np.float64), parents, occluded, scale,
+                                      rays, rng):
         out[rows] = escaped.mean(axis=1)
     return out
 
 
-def world_irradiance(world, corners: np.ndarray, normals: np.ndarray, occluded, scale: float,
-                     rays: int, rng: np.random.Generator) -> np.ndarray:
+def world_irradiance(world, corners: np.ndarray, normals: np.ndarray, parents: np.ndarray,
+                     occluded, scale: float, rays: int, rng: np.random.Generator) -> np.ndarray:
     """(N, 3) W/m^2: the world's irradiance on each patch, pi times the mean radiance of its
     cosine-distributed rays that escape (0 for those that meet geometry): pi L_w s for a uniform
     world. world: its radiance, a (3,) colour W/(m^2 sr) or a callable (M, 3) directions ->
-    (M, 3) radiance (`world_radiance` of a mapped world). Zero, with no ray cast, for a black
-    colour or rays = 0."""
+    (M, 3) radiance (`world_radiance` of a mapped world); the rest as `sky_factors`. Zero, with
+    no ray cast, for a black colour or rays = 0."""
     count = len(corners)
     out = np.zeros((count, 3))
     uniform = not callable(world)
     if rays <= 0 or count == 0 or (uniform and not (np.asarray(world) > 0.0).any()):
         return out
     for rows, dirs, escaped in _sky_rays(np.asarray(corners, np.float64),
-                                         np.asarray(normals, np.float64), occluded, scale, rays,
-                                         rng):
+                                         np.asarray(normals, np.float64), parents, occluded,
+                                         scale, rays, rng):
         if uniform:
             out[rows] = escaped.mean(axis=1)[:, None] * np.asarray(world, np.float64)
             continue

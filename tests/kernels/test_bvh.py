@@ -97,6 +97,39 @@ def test_bvh_equals_brute_force_on_a_mesh(width):
     np.testing.assert_array_equal(bvh.occluded(o, d, 0.0, t_max), occluded_all(tris, o, d, 0.0, t_max))
 
 
+@pytest.mark.parametrize("mesh", ["sphere", "two triangles"])
+def test_occluded_passes_through_the_triangle_each_ray_skips(mesh):
+    """`BVH.occluded(skip=)`: each ray ignores one triangle (its own surface), on the tree's pool
+    and on a one-leaf scene's brute force alike: the same answers as testing every ray against
+    all triangles but its own."""
+    if mesh == "sphere":
+        tris = meshes.lumpy_sphere(3)
+    else:
+        tris = np.array([[[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 0, 1], [1, 0, 1], [0, 1, 1]]],
+                        np.float32)
+    rng = np.random.default_rng(7)
+    count = 400
+    # Rays from just behind a random triangle's centre, out through it.
+    own = rng.integers(0, len(tris), count)
+    centre = tris[own].astype(np.float64).mean(axis=1)
+    normal = np.cross(tris[own, 1] - tris[own, 0], tris[own, 2] - tris[own, 0]).astype(np.float64)
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    o = (centre - 1e-4 * normal).astype(np.float32)
+    d = normal + 0.5 * rng.normal(size=(count, 3))
+    d = (d * np.sign(np.einsum("ij,ij->i", d, normal))[:, None]).astype(np.float32)  # outwards
+    skip = np.where(rng.random(count) < 0.8, own, -1)  # some rays skip nothing
+    bvh = BVH.build(tris, BVHSettings(threads=1, chunk_size=256))
+    expected = np.zeros(count, bool)
+    for k in np.unique(skip):
+        rows = skip == k
+        kept = tris if k < 0 else np.delete(tris, k, axis=0)
+        expected[rows] = occluded_all(kept, o[rows], d[rows], 0.0, np.inf)
+    got = bvh.occluded(o, d, 0.0, np.inf, skip=skip)
+    np.testing.assert_array_equal(got, expected)
+    assert got[skip < 0].all()  # without the skip each ray meets its own triangle first
+    assert not np.array_equal(got, bvh.occluded(o, d, 0.0, np.inf))
+
+
 def test_watertight_icosphere_two_million_rays():
     """2,000,000 rays through the shared vertices and edges of a closed icosphere (5120 triangles):
     1M from inside it, 1M from outside aimed at the near side. Every ray crosses the surface at
