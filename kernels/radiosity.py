@@ -1276,6 +1276,53 @@ def _lamp_highlights(scene: Scene, result: RadiosityResult, tri: np.ndarray, bar
     return out
 
 
+def _world_highlights(scene: Scene, result: RadiosityResult, tri: np.ndarray, bary: np.ndarray,
+                      points: np.ndarray, dirs: np.ndarray) -> np.ndarray:
+    """(M, 3) radiance W/(m^2 sr) the world leaves toward a camera looking along dirs (M, 3) by
+    the rough glossy lobes of surface points (triangles, barycentrics, world points (M, 3)), as
+    Cycles lights them directly from the world at the camera's first hit (the sky is a light; no
+    glossy bounce is needed): one ray along each point's mirror direction stands for the lobe,
+    the world's radiance there if it escapes, times the lobe's reflectance at the view: the
+    specular layer's directional albedo E(mu) (weight (1 - metallic)(1 - transmission)) and a
+    metal's base colour (weight metallic; its Fresnel rise at grazing views left out). Smooth
+    lobes (roughness below MIRROR_ROUGHNESS) reflect the world only along a glossy bounce, which
+    this model does not follow, as `_lamp_highlights` leaves them out."""
+    from .bvh import BVH
+    from .direct_light import albedo_at
+    from .optics import reflect
+    from .scene import geometric_normals, interpolated_normals
+    from .specular_layer import MIRROR_ROUGHNESS, layer_f0, view_factors, view_tables
+
+    out = np.zeros((len(tri), 3))
+    mats = scene.materials
+    layer_w = np.array([(1.0 - m.metallic) * (1.0 - m.transmission)
+                        if m.roughness >= MIRROR_ROUGHNESS and layer_f0(m.ior, m.specular) > 0.0
+                        else 0.0 for m in mats])
+    metal_w = np.array([m.metallic if m.roughness >= MIRROR_ROUGHNESS else 0.0 for m in mats])
+    mids = scene.material_ids[tri]
+    rows = np.flatnonzero((layer_w[mids] > 0.0) | (metal_w[mids] > 0.0))
+    if not (np.asarray(scene.world_color) > 0.0).any() or rows.size == 0:
+        return out
+    t, b, d, m = tri[rows], bary[rows], dirs[rows], mids[rows]
+    geometric = geometric_normals(scene.triangles[t])
+    geometric[np.einsum("ij,ij->i", geometric, d) > 0.0] *= -1.0  # the side the camera sees
+    normals = interpolated_normals(scene, t, b, geometric)
+    normals[np.einsum("ij,ij->i", normals, geometric) < 0.0] *= -1.0
+    r = reflect(d, normals)
+    up = np.einsum("ij,ij->i", r, geometric) > 0.0  # a mirror direction into the surface: none
+    bvh = result.gather.bvh if result.gather is not None else BVH.build(scene.triangles)
+    flat = scene.triangles.reshape(-1, 3).astype(np.float64)
+    offset = RAY_OFFSET_REL * float(np.linalg.norm(flat.max(axis=0) - flat.min(axis=0)))
+    sky = np.zeros(len(rows), bool)
+    sky[up] = ~bvh.occluded(points[rows][up] + offset * geometric[up], r[up])
+    if not sky.any():
+        return out
+    albedo = 1.0 - view_factors(view_tables(mats), m, np.einsum("ij,ij->i", normals, d))
+    weight = (layer_w[m] * albedo)[:, None] + metal_w[m][:, None] * albedo_at(scene, t, b)
+    out[rows[sky]] = weight[sky] * world_radiance(scene, r[sky])
+    return out
+
+
 def _radiance_steps(result: RadiosityResult, parts: list, start: float, span: float,
                     known: list | None = None):
     """Generator: yields progress in [start, start + span] while it evaluates B / pi at every
@@ -1318,6 +1365,8 @@ def render_steps(scene: Scene, result: RadiosityResult, resolution=None,
         values = _at_view(scene, f.tri[front], f.bary[front], f.dirs[front], values)
         values += _lamp_highlights(scene, result, f.tri[front], f.bary[front], f.points[front],
                                    f.dirs[front])
+        values += _world_highlights(scene, result, f.tri[front], f.bary[front], f.points[front],
+                                    f.dirs[front])
         image[f.rows[front], f.cols[front]] = values
         if back.any():
             image[f.rows[back], f.cols[back]] = result.back_radiance_at(scene, f.tri[back],
