@@ -76,7 +76,7 @@ from .radiosity_solvers import (
     ProgressiveSolver,
 )
 from .scene import Scene, triangle_emission
-from .world_light import WORLD_RAYS, world_irradiance, world_radiance
+from .world_light import WORLD_RAYS, extract_suns, world_irradiance, world_radiance
 
 # Below this luminance fraction of the scene's mean radiosity a patch counts as dark: relative
 # differences are measured against it, so noise in black corners does not trigger refinement.
@@ -435,6 +435,19 @@ def first_shot(scene: Scene, patches: patching.Patches, occluded, settings: Radi
             clear=None if clear is None else np.repeat(clear, samples, axis=0))
         add(e, share)
     return irradiance, boundary
+
+
+def with_world_suns(scene: Scene) -> Scene:
+    """The scene as the solve lights it: a world map's suns (`world_light.extract_suns`: spots far
+    brighter than the sky, which cosine rays would find on a few patches only) as sun lamps,
+    which the first shot and the final gather light with shadow rays like any sun, and the map
+    without them for the sky rays. Scenes without such a map are returned as they are."""
+    if scene.world_texture is None:
+        return scene
+    suns, residual = extract_suns(scene.world_texture, scene.world_transform)
+    if not suns:
+        return scene
+    return replace(scene, lights=tuple(scene.lights) + suns, world_texture=residual)
 
 
 def world_shot(scene: Scene, patches: patching.Patches, bvh, settings: RadiositySettings,
@@ -914,6 +927,7 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
     if scene.triangle_count == 0:
         raise ValueError("the scene has no triangles")
     t0 = time.perf_counter()
+    scene = with_world_suns(scene)
     flat = scene.triangles.reshape(-1, 3).astype(np.float64)
     scale = float(np.linalg.norm(flat.max(axis=0) - flat.min(axis=0)))
     size = settings.patch_size or patching.auto_patch_size(scene, settings.patch_budget)
@@ -1149,7 +1163,8 @@ def bake_steps(scene: Scene, result: RadiosityResult, objects, lightmap_sizes: d
         centre[k][todo[k]] = got
         texel_seen[k].put(todo[k], found)
     # Hard lamp shadows are steps through texels, which take more points than soft ramps.
-    texel_filter = texel_filter.resolved(hard_edges=bool(hard_lamps(scene)))
+    lit = result.gather.scene if result.gather is not None else scene  # with a map's suns
+    texel_filter = texel_filter.resolved(hard_edges=bool(hard_lamps(lit)))
     samples = {k: filter_samples(scene, lightmaps[k], centre[k], texel_filter) for k in lightmaps}
     # A texel averages its k x k sub-texel points: each casts about 1 / k^2 of a receiver's
     # shadow rays, and their mean rests on as many as a texel centre's.
@@ -1363,9 +1378,11 @@ def render_steps(scene: Scene, result: RadiosityResult, resolution=None,
         front, back = ~f.back, f.back
         values = result.radiance_at(f.tri[front], f.bary[front])
         values = _at_view(scene, f.tri[front], f.bary[front], f.dirs[front], values)
-        values += _lamp_highlights(scene, result, f.tri[front], f.bary[front], f.points[front],
+        # As the solve lit it: a world map's suns are lamps there, and gone from its map.
+        lit = result.gather.scene if result.gather is not None else with_world_suns(scene)
+        values += _lamp_highlights(lit, result, f.tri[front], f.bary[front], f.points[front],
                                    f.dirs[front])
-        values += _world_highlights(scene, result, f.tri[front], f.bary[front], f.points[front],
+        values += _world_highlights(lit, result, f.tri[front], f.bary[front], f.points[front],
                                     f.dirs[front])
         image[f.rows[front], f.cols[front]] = values
         if back.any():

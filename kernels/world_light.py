@@ -19,6 +19,11 @@ a hair behind the surface and pass through its own triangle (`BVH.occluded(skip=
 lying flat on another, a box's base on the floor, meets it at once as in Cycles, whose rays start
 on the surface (lifted in front, they slipped past the floor into the sky below it).
 
+A map's sun is the exception: a spot thousands of times brighter than its sky, which cosine rays
+would find on a few patches only (blotches where Cycles, sampling the map by its brightness,
+casts a sharp shadow). `extract_suns` takes such spots out of the map as sun lamps
+(`radiosity.with_world_suns`), lit with shadow rays like any sun.
+
 The solver carries H_w like the lamps' first shot (rho H_w is a source of every patch), and it
 bounces on from there; the final gather treats it as indirect light, interpolated from the
 patches (the sky's share changes on the scale of the geometry, as indirect light does), so no
@@ -28,14 +33,25 @@ and the backs of one-sided surfaces (their patches face one way).
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from .form_factors import RAY_OFFSET_REL, tangent_frames
-from .scene import Scene
+from .metrics import REC709_LUMINANCE
+from .scene import Light, Scene, Texture
 from .textures import sample_texture
 
 # Rays per patch by default: +-0.02 in s where an edge halves a patch's sky (stratified).
 WORLD_RAYS = 64
+# A map texel this many times brighter than the map's mean luminance is part of a sun: a spot so
+# small and bright that cosine rays would find it on a few patches only (a clear-sky HDRI's sun is
+# 10^3-10^5 times its sky), so it is lit as a sun lamp instead (`extract_suns`).
+SUN_CONTRAST = 50.0
+# Bright texels within this angle of a sun's brightest texel belong to it (its disc and halo).
+SUN_RADIUS = np.radians(5.0)
+# Suns taken from one map at most (the brightest first); the rest stay in the map.
+MAX_SUNS = 4
 # Rays handed to the BVH at once: bounds the (R, 3) origin and direction temporaries (48 MB).
 RAYS_PER_CALL = 1 << 20
 
@@ -63,6 +79,64 @@ def world_radiance(scene: Scene, dirs: np.ndarray) -> np.ndarray:
     if scene.world_transform is not None:  # a Mapping node: A d + t, normalised by the look-up
         dirs = dirs @ scene.world_transform[:, :3].T + scene.world_transform[:, 3]
     return sample_texture(scene.world_texture, equirect_uv(dirs)).astype(np.float64)
+
+
+def texel_directions(height: int, width: int) -> tuple[np.ndarray, np.ndarray]:
+    """(H, W, 3) unit map directions of an equirectangular map's texel centres (row 0 at the top,
+    `equirect_uv`'s inverse) and (H, W) their solid angles, sr (they sum to 4 pi)."""
+    v = 1.0 - (np.arange(height) + 0.5) / height  # image v of each row, 1 at the top
+    u = (np.arange(width) + 0.5) / width
+    theta = (1.0 - v) * np.pi  # from +z
+    phi = (0.5 - u) * 2.0 * np.pi  # atan2(y, x)
+    st, ct = np.sin(theta)[:, None], np.cos(theta)[:, None]
+    dirs = np.stack([st * np.cos(phi)[None], st * np.sin(phi)[None],
+                     np.broadcast_to(ct, (height, width))], axis=-1)
+    area = (2.0 * np.pi / width) * (np.cos(np.pi * (1.0 - v - 0.5 / height))
+                                    - np.cos(np.pi * (1.0 - v + 0.5 / height)))
+    return dirs, np.broadcast_to(area[:, None], (height, width)).copy()
+
+
+def extract_suns(texture: Texture, transform: np.ndarray | None = None,
+                 max_suns: int = MAX_SUNS) -> tuple[tuple[Light, ...], Texture]:
+    """The suns of an equirectangular world map (radiance, linear), and the map without them.
+
+    A texel SUN_CONTRAST times brighter than the map's mean luminance belongs to a sun; the
+    brightest such texel and every bright one within SUN_RADIUS of it make one, up to `max_suns`.
+    Each becomes a SUN `Light` (parallel, hard) of irradiance sum L dOmega over its texels (RGB,
+    W/m^2 on a surface facing it) from their energy-weighted mean direction, and its texels are
+    set to 0 in the returned map, so the sky rays carry the rest and the light is counted once.
+    transform: the map's (3, 4) `Scene.world_transform` (read along normalize(A d + t)): the
+    suns' world directions are A^-1 m (a translation t, which no direction inverts, keeps them
+    in the map). A map with no texel that bright is returned as it is, with no sun."""
+    pixels = np.asarray(texture.pixels, np.float64)
+    rgb = pixels[..., :3]
+    height, width = rgb.shape[:2]
+    dirs, omega = texel_directions(height, width)
+    luminance = rgb @ np.array(REC709_LUMINANCE)
+    mean = float((luminance * omega).sum() / (4.0 * np.pi))
+    bright = luminance > SUN_CONTRAST * max(mean, 1e-300)
+    if not bright.any() or (transform is not None and np.any(transform[:, 3] != 0.0)):
+        return (), texture
+    inverse = np.eye(3) if transform is None else np.linalg.inv(transform[:, :3])
+    residual = pixels.copy()
+    suns = []
+    while bright.any() and len(suns) < max_suns:
+        energy = np.where(bright, luminance * omega, 0.0)
+        peak = np.unravel_index(int(np.argmax(energy)), energy.shape)
+        member = bright & (dirs @ dirs[peak] >= np.cos(SUN_RADIUS))
+        weights = energy[member]
+        m = (dirs[member] * weights[:, None]).sum(axis=0)
+        d = inverse @ (m / np.linalg.norm(m))
+        d /= np.linalg.norm(d)
+        irradiance = (rgb[member] * omega[member][:, None]).sum(axis=0)
+        axis_x = np.cross([0.0, 0.0, 1.0], d) if abs(d[2]) < 0.9 else np.cross([1.0, 0.0, 0.0], d)
+        axis_x /= np.linalg.norm(axis_x)
+        suns.append(Light(name=f"world sun {len(suns) + 1}", kind="SUN", position=np.zeros(3),
+                          direction=-d, axis_x=axis_x, axis_y=np.cross(-d, axis_x),
+                          irradiance=irradiance))
+        residual[member, :3] = 0.0
+        bright &= ~member
+    return tuple(suns), replace(texture, pixels=residual.astype(np.float32))
 
 
 def _sky_rays(corners: np.ndarray, normals: np.ndarray, parents: np.ndarray, occluded,

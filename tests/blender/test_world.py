@@ -154,3 +154,18 @@ def test_the_radiosity_view_shows_the_world_in_the_glossy_layer(base, roughness,
     ratio = image[on_plane].mean() / theirs[on_plane].mean()
     print(f"plane mean ours/cycles {ratio:.4f}")
     assert abs(ratio - 1.0) < bound
+
+
+def test_a_sunny_map_bakes_as_cycles_does():
+    """A map of a blue-grey sky (0.3) with a small bright sun (2 x 2 texels of 440 at 45 degrees
+    up, ~3 W/m^2 on a surface facing it): the sun leaves the map as a sun lamp
+    (`world_light.extract_suns`), so the floor and the box get its light and the box's sharp
+    shadow from shadow rays, not from the few cosine rays that would meet a spot of 0.007 sr.
+    Both objects' means within 3% of Cycles' world-lit DIFFUSE bake (measured 1.001 and 0.993,
+    relMSE 0.0012; left in the map for the sky rays: 2.18 and 1.26, relMSE 4.5)."""
+    height, width = 64, 128
+    pixels = np.full((height, width, 3), 0.3, np.float32)
+    pixels[16:18, 40:42] = 440.0
+    ratios, error = _floor_and_box_against_cycles(hdri_world(pixels), lift=0.0)
+    print(f"relMSE {error:.4f}")
+    np.testing.assert_allclose(ratios, 1.0, atol=0.03)

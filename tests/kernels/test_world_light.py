@@ -190,3 +190,65 @@ def test_a_mapped_world_lights_a_floor_with_its_upper_half_only():
     up = result.patches.normals[:, 2] > 0.5
     np.testing.assert_allclose(result.radiosity[up], 0.5 * np.pi * 2.0, rtol=0.02)
     assert result.radiosity[~up].max() < 0.01 * result.radiosity[up].min()
+
+
+def _sunny_map(height=64, width=128, sky=0.2, sun=500.0, row=16, col=40):
+    """An equirectangular map of a uniform sky and a 2 x 2-texel sun at (row, col)."""
+    from classic_bake.kernels.scene import Texture
+
+    pixels = np.ones((height, width, 4), np.float32)
+    pixels[..., :3] = sky
+    pixels[row:row + 2, col:col + 2, :3] = sun
+    return Texture(kind="IMAGE", pixels=pixels, extension="REPEAT")
+
+
+def test_a_maps_sun_becomes_a_sun_lamp_and_leaves_the_map():
+    """The 2 x 2 sun of a sunny map: one SUN lamp from the texels' mean direction carrying their
+    sum L dOmega, the texels zeroed in the map left for the sky rays; turned by a Mapping node,
+    the lamp turns back with it; a map with no texel SUN_CONTRAST times its mean has no sun."""
+    from classic_bake.kernels.world_light import equirect_uv, extract_suns, texel_directions
+
+    texture = _sunny_map()
+    dirs, omega = texel_directions(64, 128)
+    spot = (slice(16, 18), slice(40, 42))
+    expected = (omega[spot] * 500.0).sum()
+    mean_dir = (dirs[spot] * omega[spot][..., None]).sum(axis=(0, 1))
+    mean_dir /= np.linalg.norm(mean_dir)
+    suns, residual = extract_suns(texture)
+    assert len(suns) == 1 and suns[0].kind == "SUN"
+    np.testing.assert_allclose(suns[0].irradiance, expected, rtol=1e-6)
+    np.testing.assert_allclose(-suns[0].direction, mean_dir, atol=1e-9)
+    np.testing.assert_array_equal(residual.pixels[spot][..., :3], 0.0)
+    np.testing.assert_array_equal(residual.pixels[20:, :, :3], np.float32(0.2))
+    # Read back through the map, the sun lies where its texels meet (u = 41/128, v = 1 - 17/64).
+    np.testing.assert_allclose(equirect_uv(-suns[0].direction[None])[0], [41 / 128, 1 - 17 / 64],
+                               atol=0.5 / 128)
+    # A map read along A d (a quarter turn about z): the sun's world direction is A^-1 m.
+    turn = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    turned, _ = extract_suns(texture, np.hstack([turn, np.zeros((3, 1))]))
+    np.testing.assert_allclose(turn @ -turned[0].direction, mean_dir, atol=1e-9)
+    none, same = extract_suns(_sunny_map(sun=0.5))
+    assert none == () and same.pixels is not None
+
+
+def test_a_sunny_map_lights_the_floor_with_a_hard_shadow():
+    """A floor with a plate 0.5 m over part of it under the sunny map, no lamp: the sun taken
+    from the map shades the floor like a sun lamp of the same irradiance, its shadow sharp, the
+    sky (the rest of the map) on top: floor patches in the open against pi-free sums
+    E_sun cos + pi 0.2 s (s their sky share), within 2%."""
+    from dataclasses import replace
+
+    from classic_bake.kernels.radiosity import with_world_suns
+
+    floor = quad([[-2, -2, 0], [2, -2, 0], [2, 2, 0], [-2, 2, 0]])
+    scene = build([(floor, grey(0.5))], world=(0.2, 0.2, 0.2))
+    scene = replace(scene, world_texture=_sunny_map())
+    lit = with_world_suns(scene)
+    assert len(lit.lights) == 1
+    sun = lit.lights[0]
+    result = solve_radiosity(scene, RadiositySettings(patch_budget=16, final_gather=False,
+                                                      world_rays=256, **FAST))
+    cos = max(float(-sun.direction[2]), 0.0)
+    expected = 0.5 * (sun.irradiance * cos + np.pi * 0.2)  # an open floor: s = 1
+    np.testing.assert_allclose(result.radiosity, np.broadcast_to(expected, result.radiosity.shape),
+                               rtol=0.02)
