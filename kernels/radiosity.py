@@ -76,7 +76,13 @@ from .radiosity_solvers import (
     ProgressiveSolver,
 )
 from .scene import Scene, triangle_emission
-from .world_light import WORLD_RAYS, extract_suns, world_irradiance, world_radiance
+from .world_light import (
+    WORLD_RAYS,
+    WORLD_SUN_NAME,
+    extract_suns,
+    world_irradiance,
+    world_radiance,
+)
 
 # Below this luminance fraction of the scene's mean radiosity a patch counts as dark: relative
 # differences are measured against it, so noise in black corners does not trigger refinement.
@@ -1019,6 +1025,11 @@ def _result(scene, patches, b, emitted, rho, direct, bvh, settings: RadiositySet
     # What "auto" chose, for metrics.json.
     stats.update(samples_per_side=settings.samples_per_side, refine_levels=settings.refine_levels,
                  shadow_splits=settings.shadow_splits)
+    # The world as a light: its rays per patch (0: black or off) and the suns taken from its map.
+    lit_by_world = settings.world_rays if (np.asarray(scene.world_color) > 0.0).any() else 0
+    stats["world"] = {"rays_per_patch": int(lit_by_world),
+                      "map_suns": sum(light.name.startswith(WORLD_SUN_NAME)
+                                      for light in scene.lights)}
     gather = _prepare_gather(scene, patches, b, emitted, rho, direct, emitters, bvh, settings,
                              stats, clear)
     stats["seconds"] = time.perf_counter() - t0

@@ -52,6 +52,8 @@ SUN_CONTRAST = 50.0
 SUN_RADIUS = np.radians(5.0)
 # Suns taken from one map at most (the brightest first); the rest stay in the map.
 MAX_SUNS = 4
+# The name every sun taken from a map starts with (then its rank).
+WORLD_SUN_NAME = "world sun"
 # Rays handed to the BVH at once: bounds the (R, 3) origin and direction temporaries (48 MB).
 RAYS_PER_CALL = 1 << 20
 
@@ -131,7 +133,8 @@ def extract_suns(texture: Texture, transform: np.ndarray | None = None,
         irradiance = (rgb[member] * omega[member][:, None]).sum(axis=0)
         axis_x = np.cross([0.0, 0.0, 1.0], d) if abs(d[2]) < 0.9 else np.cross([1.0, 0.0, 0.0], d)
         axis_x /= np.linalg.norm(axis_x)
-        suns.append(Light(name=f"world sun {len(suns) + 1}", kind="SUN", position=np.zeros(3),
+        suns.append(Light(name=f"{WORLD_SUN_NAME} {len(suns) + 1}", kind="SUN",
+                          position=np.zeros(3),
                           direction=-d, axis_x=axis_x, axis_y=np.cross(-d, axis_x),
                           irradiance=irradiance))
         residual[member, :3] = 0.0

@@ -117,6 +117,7 @@ def run(ctx: RunContext) -> None:
         "levels": [{k: v for k, v in level.items() if k != "memory_estimate"}
                    for level in stats["levels"]],
         "final_gather": stats.get("final_gather"),  # None when switched off
+        "world": stats.get("world"),  # sky rays per patch, suns taken from the world's map
     }
     ctx.record.extra["skipped"] = summary["skipped"]
     ctx.say(f"radiosity: {stats['patches']} patches (levels {stats['per_level']}), "

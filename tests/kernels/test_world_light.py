@@ -248,6 +248,7 @@ def test_a_sunny_map_lights_the_floor_with_a_hard_shadow():
     sun = lit.lights[0]
     result = solve_radiosity(scene, RadiositySettings(patch_budget=16, final_gather=False,
                                                       world_rays=256, **FAST))
+    assert result.stats["world"] == {"rays_per_patch": 256, "map_suns": 1}  # for metrics.json
     cos = max(float(-sun.direction[2]), 0.0)
     expected = 0.5 * (sun.irradiance * cos + np.pi * 0.2)  # an open floor: s = 1
     np.testing.assert_allclose(result.radiosity, np.broadcast_to(expected, result.radiosity.shape),
