@@ -1,4 +1,5 @@
-"""World light: the uniform background as a source at infinity, for the radiosity solve.
+"""World light: the background (a colour or an equirectangular map) as a source at infinity,
+for the radiosity solve.
 
 Cycles lights every diffuse surface with its world: radiance L_w from each direction that meets no
 geometry. A surface point x with normal n receives from it
@@ -14,7 +15,9 @@ Estimator (Malley's method): points spread evenly over the unit disc, lifted ont
 are directions with density cos(theta) / pi, so the share of such rays that escape is s itself,
 with no weights. Each patch casts `rays` of them from points spread over its triangle, the disc
 points stratified on an m x m grid (jittered, a random rotation per patch), so a patch's s
-carries little noise: 64 rays give s to about +-0.02 where a wall's edge cuts its sky. Rays start
+carries little noise: under a plate (0.1 m patches, against 16384 rays each) 16, 64 and 256 rays
+give s to 0.057, 0.024 and 0.0077 rms. Under a map, each escaping ray brings the map's radiance
+in its own direction (`world_radiance`), and pi times their mean is the irradiance. Rays start
 a hair behind the surface and pass through its own triangle (`BVH.occluded(skip=)`), so a face
 lying flat on another, a box's base on the floor, meets it at once as in Cycles, whose rays start
 on the surface (lifted in front, they slipped past the floor into the sky below it).
@@ -42,7 +45,8 @@ from .metrics import REC709_LUMINANCE
 from .scene import Light, Scene, Texture
 from .textures import sample_texture
 
-# Rays per patch by default: +-0.02 in s where an edge halves a patch's sky (stratified).
+# Rays per patch by default: s to 0.024 rms under a plate (module docstring), 0.1 s per 1.5k
+# patches.
 WORLD_RAYS = 64
 # A map texel this many times brighter than the map's mean luminance is part of a sun: a spot so
 # small and bright that cosine rays would find it on a few patches only (a clear-sky HDRI's sun is
