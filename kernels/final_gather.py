@@ -67,6 +67,7 @@ from .scene import (
     triangle_areas,
     triangle_emission,
 )
+from .world_light import world_irradiance, world_radiance
 
 # Shadow rays to points ON an emitter stop this fraction short of it; the target itself is lifted
 # off the emitter by the ray offset along its normal (the BVH's float32 hit distances differ from
@@ -104,6 +105,8 @@ class FinalGatherSettings:
     | enclosure_probes | bool     | True    | receivers inside closed solids get no light      |
     | patch_samples    | >= 1     | 2       | n x n enclosure probes per patch (midpoints)     |
     | seed             | int      | 0       | RNG seed of the stratified emitter points        |
+    | world_rays       | >= 0     | 0       | sky rays per receiver seen from behind           |
+    |                  |          |         | (`back_exitance`; 0: no world light there)       |
     """
 
     emitter_rays: int = 16
@@ -111,10 +114,13 @@ class FinalGatherSettings:
     enclosure_probes: bool = True
     patch_samples: int = 2
     seed: int = 0
+    world_rays: int = 0
 
     def __post_init__(self) -> None:
         if self.emitter_rays < 1 or self.patch_samples < 1 or self.max_emitters < 0:
             raise ValueError("emitter_rays and patch_samples must be >= 1, max_emitters >= 0")
+        if self.world_rays < 0:
+            raise ValueError(f"world_rays must be >= 0, got {self.world_rays}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -533,9 +539,10 @@ def back_exitance(gather: FinalGather, tri: np.ndarray, bary: np.ndarray) -> np.
 
     with the lamps' and the gathered emitters' direct irradiance on the flipped normal, shadow
     rays leaving on the back side (a sheet lit from behind, a wall seen from outside a lit room:
-    0). The emission counts on both sides (Cycles' emission shader glows on either face). No
-    indirect part: the patches are one-sided, so nothing is known of the light that other
-    surfaces send to a patch's back (README, "Radiosity", one-sided patches)."""
+    0), and the world's (`world_light.world_irradiance`, `world_rays` sky rays from each
+    receiver's back). The emission counts on both sides (Cycles' emission shader glows on either
+    face). No indirect part: the patches are one-sided, so nothing is known of the light that
+    other surfaces send to a patch's back (README, "Radiosity", one-sided patches)."""
     from .direct_light import diffuse_at
 
     scene = gather.scene
@@ -555,6 +562,11 @@ def back_exitance(gather: FinalGather, tri: np.ndarray, bary: np.ndarray) -> np.
                                lift=-front)
         h += lamp_irradiance(scene, points, normals, occluded, gather.offset,
                              gather.area_samples_per_side, lift=-front)
+        if gather.settings.world_rays and (np.asarray(scene.world_color) > 0.0).any():
+            world = scene.world_color if scene.world_texture is None else (
+                lambda dirs: world_radiance(scene, dirs))
+            h += world_irradiance(world, points, -front, t[lit], gather.bvh.occluded,
+                                  gather.offset / RAY_OFFSET_REL, gather.settings.world_rays, rng)
         value = gather.emission[t]
         value[lit] += rho[lit] * h
         out[a:a + GATHER_CHUNK] = value

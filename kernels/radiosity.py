@@ -387,7 +387,8 @@ def shot_emitters(scene: Scene, settings: RadiositySettings) -> final_gather.Emi
 def gather_settings(settings: RadiositySettings) -> FinalGatherSettings:
     """The final gather's settings, and the shot emitters', from the radiosity settings."""
     return FinalGatherSettings(emitter_rays=settings.gather_rays, seed=settings.seed,
-                               patch_samples=settings.samples_per_side)
+                               patch_samples=settings.samples_per_side,
+                               world_rays=settings.world_rays)
 
 
 def shot_emission(scene: Scene, patches: patching.Patches,

@@ -149,7 +149,11 @@ def extract_suns(texture: Texture, transform: np.ndarray | None = None,
 def _sky_rays(corners: np.ndarray, normals: np.ndarray, parents: np.ndarray, occluded,
               scale: float, rays: int, rng: np.random.Generator):
     """Yields (slice of patches, their ray directions (P, k, 3), escaped (P, k) bool): `rays`
-    cosine-distributed rays per patch (module docstring), a chunk of patches at a time."""
+    cosine-distributed rays per patch (module docstring), a chunk of patches at a time. corners
+    (N, 3, 3): the rays leave from points spread over each triangle, just behind it (passing
+    through its own triangle, `parents`); (N, 3): from those points, lifted in front of their
+    surface (a receiver on a mesh edge would see its neighbour's plane from behind; a face lying
+    on another is not seen, so no contact needs finding there)."""
     count = len(corners)
     parents = np.asarray(parents, np.int64)
     m = int(np.ceil(np.sqrt(max(rays, 1))))
@@ -170,17 +174,20 @@ def _sky_rays(corners: np.ndarray, normals: np.ndarray, parents: np.ndarray, occ
                           np.sqrt(np.maximum(1.0 - u1, 0.0))], axis=-1)  # (p, k, 3)
         dirs = (local[..., :1] * t1[:, None] + local[..., 1:2] * t2[:, None]
                 + local[..., 2:] * n[:, None])
-        # Uniform points of each triangle (the square root folds the unit square onto it).
-        r1, r2 = np.sqrt(rng.random((p, k, 1))), rng.random((p, k, 1))
-        points = ((1.0 - r1) * c[:, None, 0] + r1 * (1.0 - r2) * c[:, None, 1]
-                  + r1 * r2 * c[:, None, 2])
-        # Rays start just BEHIND the surface and pass through its own triangle: a face lying
-        # flat on another (a box's base on the floor) meets that one at once, as Cycles' rays,
-        # which start on the surface, do; lifted in front of it they would slip past.
-        origins = points - offset * n[:, None]
+        if c.ndim == 2:  # receivers: every ray from the point itself
+            points = np.broadcast_to(c[:, None], (p, k, 3))
+        else:  # uniform points of each triangle (the square root folds the square onto it)
+            r1, r2 = np.sqrt(rng.random((p, k, 1))), rng.random((p, k, 1))
+            points = ((1.0 - r1) * c[:, None, 0] + r1 * (1.0 - r2) * c[:, None, 1]
+                      + r1 * r2 * c[:, None, 2])
+        # Patches' rays start just BEHIND the surface and pass through its own triangle: a face
+        # lying flat on another (a box's base on the floor) meets that one at once, as Cycles'
+        # rays, which start on the surface, do; lifted in front of it they would slip past.
+        side = 1.0 if c.ndim == 2 else -1.0
+        origins = points + side * offset * n[:, None]
+        skip = None if c.ndim == 2 else np.repeat(parents[a:a + p], k)
         hit = occluded(np.ascontiguousarray(origins.reshape(-1, 3)),
-                       np.ascontiguousarray(dirs.reshape(-1, 3)), 0.0, np.inf,
-                       skip=np.repeat(parents[a:a + p], k))
+                       np.ascontiguousarray(dirs.reshape(-1, 3)), 0.0, np.inf, skip=skip)
         yield slice(a, a + p), dirs, ~np.asarray(hit, bool).reshape(p, k)
 
 
@@ -215,8 +222,9 @@ def world_irradiance(world, corners: np.ndarray, normals: np.ndarray, parents: n
     """(N, 3) W/m^2: the world's irradiance on each patch, pi times the mean radiance of its
     cosine-distributed rays that escape (0 for those that meet geometry): pi L_w s for a uniform
     world. world: its radiance, a (3,) colour W/(m^2 sr) or a callable (M, 3) directions ->
-    (M, 3) radiance (`world_radiance` of a mapped world); the rest as `sky_factors`. Zero, with
-    no ray cast, for a black colour or rays = 0."""
+    (M, 3) radiance (`world_radiance` of a mapped world); the rest as `sky_factors`, except that
+    corners may also be points (N, 3), each ray leaving from its point (receivers rather than
+    patches). Zero, with no ray cast, for a black colour or rays = 0."""
     count = len(corners)
     out = np.zeros((count, 3))
     uniform = not callable(world)

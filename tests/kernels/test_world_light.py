@@ -253,3 +253,24 @@ def test_a_sunny_map_lights_the_floor_with_a_hard_shadow():
     expected = 0.5 * (sun.irradiance * cos + np.pi * 0.2)  # an open floor: s = 1
     np.testing.assert_allclose(result.radiosity, np.broadcast_to(expected, result.radiosity.shape),
                                rtol=0.02)
+
+
+def test_the_back_of_a_sheet_is_lit_by_the_world_too():
+    """A sheet facing down (rho 0.5) under a uniform world, seen from above: the camera sees its
+    back, open to the whole sky, which the back's own sky rays find (B / pi = rho L_w on every
+    pixel, to the 256 rays' noise); its front, facing the empty space below, gets the world as
+    well, and with world_rays 0 the back is black."""
+    from scene_builder import ortho_camera
+
+    from classic_bake.kernels.radiosity import render_steps
+
+    sheet = quad([[0, 0, 1], [0, 1, 1], [1, 1, 1], [1, 0, 1]])  # facing -z
+    above = ortho_camera([0.5, 0.5, 3.0], [0, 0, -1], [0, 1, 0], 0.8, (8, 8))
+    scene = build([(sheet, grey(0.5))], camera=above, world=WORLD)
+    for rays, expected in ((256, 0.5 * np.array(WORLD)), (0, np.zeros(3))):
+        result = solve_radiosity(scene, RadiositySettings(patch_budget=8, world_rays=rays, **FAST))
+        image = None
+        for step in render_steps(scene, result):
+            image = step
+        np.testing.assert_allclose(image.reshape(-1, 3), np.broadcast_to(expected, (64, 3)),
+                                   atol=1e-9, rtol=0.01)
