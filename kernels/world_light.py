@@ -114,24 +114,32 @@ def extract_suns(texture: Texture, transform: np.ndarray | None = None,
     transform: the map's (3, 4) `Scene.world_transform` (read along normalize(A d + t)): the
     suns' world directions are A^-1 m (a translation t, which no direction inverts, keeps them
     in the map). A map with no texel that bright is returned as it is, with no sun."""
-    pixels = np.asarray(texture.pixels, np.float64)
-    rgb = pixels[..., :3]
-    height, width = rgb.shape[:2]
-    dirs, omega = texel_directions(height, width)
-    luminance = rgb @ np.array(REC709_LUMINANCE)
-    mean = float((luminance * omega).sum() / (4.0 * np.pi))
-    bright = luminance > SUN_CONTRAST * max(mean, 1e-300)
-    if not bright.any() or (transform is not None and np.any(transform[:, 3] != 0.0)):
+    pixels = np.asarray(texture.pixels)
+    height, width = pixels.shape[:2]
+    # Per row: a texel's solid angle (texel_directions' formula, without the (H, W, 3) grid:
+    # a 4k map is 8M texels, of which a sun holds a few hundred).
+    v = 1.0 - (np.arange(height) + 0.5) / height
+    row_omega = (2.0 * np.pi / width) * (np.cos(np.pi * (1.0 - v - 0.5 / height))
+                                        - np.cos(np.pi * (1.0 - v + 0.5 / height)))
+    luminance = pixels[..., :3] @ np.asarray(REC709_LUMINANCE, np.float32)  # (H, W) float32
+    mean = float(luminance.astype(np.float64).sum(axis=1) @ row_omega / (4.0 * np.pi))
+    rows, cols = np.nonzero(luminance > SUN_CONTRAST * max(mean, 1e-300))
+    if rows.size == 0 or (transform is not None and np.any(transform[:, 3] != 0.0)):
         return (), texture
+    theta = (1.0 - v[rows]) * np.pi  # from +z
+    phi = (0.5 - (cols + 0.5) / width) * 2.0 * np.pi  # atan2(y, x)
+    dirs = np.stack([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)], 1)
+    rgb = pixels[rows, cols, :3].astype(np.float64)  # (B, 3) the bright texels
+    omega = row_omega[rows]
+    energy = luminance[rows, cols].astype(np.float64) * omega
     inverse = np.eye(3) if transform is None else np.linalg.inv(transform[:, :3])
-    residual = pixels.copy()
+    residual = pixels.astype(np.float32, copy=True)
+    left = np.ones(rows.size, bool)
     suns = []
-    while bright.any() and len(suns) < max_suns:
-        energy = np.where(bright, luminance * omega, 0.0)
-        peak = np.unravel_index(int(np.argmax(energy)), energy.shape)
-        member = bright & (dirs @ dirs[peak] >= np.cos(SUN_RADIUS))
-        weights = energy[member]
-        m = (dirs[member] * weights[:, None]).sum(axis=0)
+    while left.any() and len(suns) < max_suns:
+        peak = int(np.argmax(np.where(left, energy, -1.0)))
+        member = left & (dirs @ dirs[peak] >= np.cos(SUN_RADIUS))
+        m = (dirs[member] * energy[member][:, None]).sum(axis=0)
         d = inverse @ (m / np.linalg.norm(m))
         d /= np.linalg.norm(d)
         irradiance = (rgb[member] * omega[member][:, None]).sum(axis=0)
@@ -141,9 +149,9 @@ def extract_suns(texture: Texture, transform: np.ndarray | None = None,
                           position=np.zeros(3),
                           direction=-d, axis_x=axis_x, axis_y=np.cross(-d, axis_x),
                           irradiance=irradiance))
-        residual[member, :3] = 0.0
-        bright &= ~member
-    return tuple(suns), replace(texture, pixels=residual.astype(np.float32))
+        residual[rows[member], cols[member], :3] = 0.0
+        left &= ~member
+    return tuple(suns), replace(texture, pixels=residual)
 
 
 def _sky_rays(corners: np.ndarray, normals: np.ndarray, parents: np.ndarray, occluded,
