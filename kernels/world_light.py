@@ -90,16 +90,24 @@ def world_radiance(scene: Scene, dirs: np.ndarray) -> np.ndarray:
 def texel_directions(height: int, width: int) -> tuple[np.ndarray, np.ndarray]:
     """(H, W, 3) unit map directions of an equirectangular map's texel centres (row 0 at the top,
     `equirect_uv`'s inverse) and (H, W) their solid angles, sr (they sum to 4 pi)."""
+    rows, cols = np.mgrid[0:height, 0:width]
+    dirs = _texel_directions(rows.ravel(), cols.ravel(), height, width).reshape(height, width, 3)
+    return dirs, np.broadcast_to(_row_solid_angles(height, width)[:, None], (height, width)).copy()
+
+
+def _row_solid_angles(height: int, width: int) -> np.ndarray:
+    """(H,) the solid angle, sr, of one texel in each row of an equirectangular map (row 0 at
+    the top): the band between the row's two latitudes over 2 pi / W of longitude."""
     v = 1.0 - (np.arange(height) + 0.5) / height  # image v of each row, 1 at the top
-    u = (np.arange(width) + 0.5) / width
-    theta = (1.0 - v) * np.pi  # from +z
-    phi = (0.5 - u) * 2.0 * np.pi  # atan2(y, x)
-    st, ct = np.sin(theta)[:, None], np.cos(theta)[:, None]
-    dirs = np.stack([st * np.cos(phi)[None], st * np.sin(phi)[None],
-                     np.broadcast_to(ct, (height, width))], axis=-1)
-    area = (2.0 * np.pi / width) * (np.cos(np.pi * (1.0 - v - 0.5 / height))
+    return (2.0 * np.pi / width) * (np.cos(np.pi * (1.0 - v - 0.5 / height))
                                     - np.cos(np.pi * (1.0 - v + 0.5 / height)))
-    return dirs, np.broadcast_to(area[:, None], (height, width)).copy()
+
+
+def _texel_directions(rows: np.ndarray, cols: np.ndarray, height: int, width: int) -> np.ndarray:
+    """(N, 3) unit map directions of texels (rows, cols) (N,) of an H x W equirectangular map."""
+    theta = (rows + 0.5) / height * np.pi  # from +z: v = 1 - theta / pi
+    phi = (0.5 - (cols + 0.5) / width) * 2.0 * np.pi  # atan2(y, x): u = 1/2 - phi / (2 pi)
+    return np.stack([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)], 1)
 
 
 def extract_suns(texture: Texture, transform: np.ndarray | None = None,
@@ -116,19 +124,15 @@ def extract_suns(texture: Texture, transform: np.ndarray | None = None,
     in the map). A map with no texel that bright is returned as it is, with no sun."""
     pixels = np.asarray(texture.pixels)
     height, width = pixels.shape[:2]
-    # Per row: a texel's solid angle (texel_directions' formula, without the (H, W, 3) grid:
-    # a 4k map is 8M texels, of which a sun holds a few hundred).
-    v = 1.0 - (np.arange(height) + 0.5) / height
-    row_omega = (2.0 * np.pi / width) * (np.cos(np.pi * (1.0 - v - 0.5 / height))
-                                        - np.cos(np.pi * (1.0 - v + 0.5 / height)))
+    # Directions of the bright texels only (a 4k map is 8M texels, of which a sun holds a few
+    # hundred).
+    row_omega = _row_solid_angles(height, width)
     luminance = pixels[..., :3] @ np.asarray(REC709_LUMINANCE, np.float32)  # (H, W) float32
     mean = float(luminance.astype(np.float64).sum(axis=1) @ row_omega / (4.0 * np.pi))
     rows, cols = np.nonzero(luminance > SUN_CONTRAST * max(mean, 1e-300))
     if rows.size == 0 or (transform is not None and np.any(transform[:, 3] != 0.0)):
         return (), texture
-    theta = (1.0 - v[rows]) * np.pi  # from +z
-    phi = (0.5 - (cols + 0.5) / width) * 2.0 * np.pi  # atan2(y, x)
-    dirs = np.stack([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)], 1)
+    dirs = _texel_directions(rows, cols, height, width)
     rgb = pixels[rows, cols, :3].astype(np.float64)  # (B, 3) the bright texels
     omega = row_omega[rows]
     energy = luminance[rows, cols].astype(np.float64) * omega
