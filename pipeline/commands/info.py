@@ -11,6 +11,7 @@ def describe(scene) -> dict:
     """A JSON-ready summary of a kernel Scene."""
     from ...kernels.scene import triangle_areas
     from ...kernels.specular_layer import diffuse_factor
+    from ...kernels.world_light import extract_suns
 
     areas = triangle_areas(scene.triangles)
     objects = []
@@ -77,7 +78,10 @@ def describe(scene) -> dict:
         "world_radiance": scene.world_color,
         "world_map": None if scene.world_texture is None else {
             "image": scene.world_texture.name,
-            "size": list(scene.world_texture.pixels.shape[1::-1])},
+            "size": list(scene.world_texture.pixels.shape[1::-1]),
+            # What radiosity lights as sun lamps (`world_light.extract_suns`).
+            "suns": [{"direction": -sun.direction, "irradiance": sun.irradiance}
+                     for sun in extract_suns(scene.world_texture, scene.world_transform)[0]]},
         "ignored": list(scene.ignored),
     }
 
@@ -124,6 +128,9 @@ def _print(ctx: RunContext, d: dict) -> None:
         ctx.say(f"  world: equirectangular map '{d['world_map']['image']}' "
                 f"({d['world_map']['size'][0]}x{d['world_map']['size'][1]}), mean radiance "
                 f"{_fmt(d['world_radiance'])}")
+        for sun in d["world_map"]["suns"]:
+            ctx.say(f"    its sun towards {_fmt(sun['direction'])}: {_fmt(sun['irradiance'])} W/m^2 "
+                    "(radiosity lights it as a sun lamp)")
     else:
         ctx.say(f"  world radiance {_fmt(d['world_radiance'])}")
     for why in d["ignored"]:

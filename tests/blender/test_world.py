@@ -202,3 +202,21 @@ def test_the_back_of_a_sheet_under_the_world_as_cycles_shows_it():
     ratio = image[on_plane].mean() / theirs[on_plane].mean()
     print(f"back of the plane ours/cycles {ratio:.4f}")
     assert abs(ratio - 1.0) < 0.03
+
+
+def test_info_names_the_map_and_its_sun():
+    """`info` (its `describe`) reports the world's map and the sun radiosity will take from it:
+    towards the texels' mean direction, with their sum L dOmega."""
+    from classic_bake.kernels.world_light import texel_directions
+    from classic_bake.pipeline.commands.info import describe
+
+    pixels = np.full((64, 128, 3), 0.3, np.float32)
+    pixels[16:18, 40:42] = 440.0
+    hdri_world(pixels)
+    bpy.ops.mesh.primitive_plane_add(size=4.0)
+    world = describe(bridge.snapshot())["world_map"]
+    assert world["image"] == "Sky" and world["size"] == [128, 64]
+    (sun,) = world["suns"]
+    _, omega = texel_directions(64, 128)
+    np.testing.assert_allclose(sun["irradiance"], 440.0 * omega[16:18, 40:42].sum(), rtol=1e-5)
+    assert 0.6 < sun["direction"][2] < 0.75  # about 45 degrees up
