@@ -80,6 +80,7 @@ from .world_light import (
     WORLD_RAYS,
     WORLD_SUN_NAME,
     extract_suns,
+    sky_ray_bytes,
     world_irradiance,
     world_radiance,
 )
@@ -597,13 +598,14 @@ def resolve_auto(scene: Scene, settings: RadiositySettings, hierarchical: bool
 
 
 def memory_estimate(patch_count: int, triangle_count: int, settings: RadiositySettings,
-                    solver: str, group_count: int = 0) -> dict:
+                    solver: str, group_count: int = 0, world_lit: bool = False) -> dict:
     """Bytes each part of a solve needs, and their sum ("total").
 
     dense_f: N^2 x 8 (Gauss-Seidel only; the clustered solver: G^2 x 8 over `group_count`
     groups, and its (points, groups) factor table); rows: the per-row temporaries of the estimator;
     row_cache: progressive refinement's cached rows; quick_test: method B's pair tables;
-    bvh: about 200 bytes per triangle (nodes, leaves, prepared triangles); patches: ~400 B each.
+    bvh: about 200 bytes per triangle (nodes, leaves, prepared triangles); patches: ~400 B each;
+    world_rays: the sky rays' chunk when the world lights the scene (`world_lit`).
     """
     n, t = patch_count, triangle_count
     s = settings.samples_per_side ** 2
@@ -615,6 +617,7 @@ def memory_estimate(patch_count: int, triangle_count: int, settings: RadiositySe
         "quick_test": quick_test_bytes(n, t) if quick_test_bytes(n, t) <= QUICK_TEST_BYTES else 0,
         "bvh": 200 * (t + (n if settings.method == "hemicube" else 0)),
         "patches": 400 * n,
+        "world_rays": sky_ray_bytes(n, settings.world_rays) if world_lit else 0,
     }
     if settings.method == "hemicube":
         parts["rows"] += 3 * settings.hemicube_resolution ** 2 * s * 64
@@ -697,7 +700,8 @@ def _solve_level(scene, patches, rho, sources, bvh, settings, stats, size: float
     solver = choose_solver(count, settings, groups)
     stats["solver"] = solver
     stats["memory_estimate"] = memory_estimate(count, scene.triangle_count, settings, solver,
-                                               groups.count if groups is not None else 0)
+                                               groups.count if groups is not None else 0,
+                                               bool((np.asarray(scene.world_color) > 0.0).any()))
     start = time.perf_counter()
     if solver == "clustered":
         b, solution = yield from _solve_clustered(patches, groups, rho, sources, bvh, settings,
@@ -831,8 +835,11 @@ def hierarchical_memory(scene: Scene, roots: patching.Patches, depth: int, bvh,
         bound = memory_bound(len(roots), depth, settings.link_epsilon,
                              settings.samples_per_side, split_levels(settings),
                              settings.max_patches, facing)
+        world_lit = bool((np.asarray(scene.world_color) > 0.0).any())
         out = {"links": bound["links"], "patches": bound["elements"], "work": bound["work"],
-               "bvh": 200 * scene.triangle_count, "bvh_queries": bvh.settings.query_bytes}
+               "bvh": 200 * scene.triangle_count, "bvh_queries": bvh.settings.query_bytes,
+               "world_rays": sky_ray_bytes(settings.max_patches, settings.world_rays)
+               if world_lit else 0}
         out["total"] = int(sum(out.values()))
         out["link_bound"] = bound["link_bound"]
         if facing is not None:

@@ -274,3 +274,27 @@ def test_the_back_of_a_sheet_is_lit_by_the_world_too():
             image = step
         np.testing.assert_allclose(image.reshape(-1, 3), np.broadcast_to(expected, (64, 3)),
                                    atol=1e-9, rtol=0.01)
+
+
+@pytest.mark.parametrize("rays", [16, 64])
+def test_the_sky_rays_stay_within_their_memory_estimate(rays):
+    """The radiosity memory estimate counts the sky rays' chunk (`sky_ray_bytes`): tracemalloc's
+    peak over `world_irradiance` of 11k patches stays under it (measured 124 and 175 MB against
+    138 and 201 MB)."""
+    import tracemalloc
+
+    from scene_builder import tessellated_box
+
+    from classic_bake.kernels.world_light import sky_ray_bytes
+
+    scene = build([(tessellated_box(8, 1.0), grey(0.5)), (floor_quad(lo=-3.0, hi=4.0), grey(0.5))])
+    patches = patching.make_patches(scene, 0.1)
+    occluded = _occluded(scene.triangles)
+    tracemalloc.start()
+    try:
+        world_irradiance(np.ones(3), patches.corners, patches.normals, patches.parent, occluded,
+                         7.0, rays, np.random.default_rng(0))
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak <= sky_ray_bytes(len(patches), rays)
