@@ -119,30 +119,25 @@ def test_a_floor_under_a_bright_sky_and_dark_ground_is_lit_from_above():
     np.testing.assert_allclose(ratios, 1.0, atol=0.03)
 
 
-@pytest.mark.parametrize("base, roughness, bound", [(0.5, 0.5, 0.01), (0.0, 0.3, 0.03)])
-def test_the_radiosity_view_shows_the_world_in_the_glossy_layer(base, roughness, bound):
-    """A Principled plane (Specular IOR Level 0.5) under the blue-grey world alone, seen at
-    50-85 degrees: Cycles lights its glossy layer straight from the world (no glossy bounce
-    needed), which the radiosity camera view draws along each pixel's mirror direction times
-    the layer's E(mu) (`radiosity._world_highlights`). Mean over the plane against a 128-sample
-    render: measured 1.0006 (grey, roughness 0.5; 0.83 without the layer's world light) and
-    0.985 (black, roughness 0.3, where the layer is all there is)."""
-    from blender_parts import WORLD, oblique_camera, plane, principled
+def _plane_view_against_cycles(material, facing_down: bool = False) -> float:
+    """A 6 m plane of `material` under the blue-grey world alone, seen at 50-85 degrees from above
+    (`oblique_camera`; facing down: the camera sees its back): the radiosity camera view's mean
+    over the plane against a 128-sample Cycles render of the world-lit radiosity model."""
+    from blender_parts import WORLD, oblique_camera, plane
+
+    from classic_bake.kernels import radiosity
 
     scene = bpy.context.scene
     scene.world = bpy.data.worlds.new("World")
     if bpy.app.version < (5, 0, 0):
         scene.world.use_nodes = True
     scene.world.node_tree.nodes["Background"].inputs["Color"].default_value = (*WORLD, 1.0)
-    mat, bsdf = principled("Glossy", base=(base, base, base))
-    bsdf.inputs["Specular IOR Level"].default_value = 0.5
-    bsdf.inputs["Roughness"].default_value = roughness
-    plane(mat, size=6.0)
+    sheet = plane(material, size=6.0)
+    if facing_down:
+        sheet.rotation_euler = (math.pi, 0.0, 0.0)
     oblique_camera(scene)
     resolution = (64, 48)
     snap = bridge.snapshot(resolution=resolution)
-    from classic_bake.kernels import radiosity
-
     result = radiosity.solve_radiosity(snap, RadiositySettings(patch_budget=50))
     image = None
     for step in radiosity.render_steps(snap, result, resolution):
@@ -151,7 +146,23 @@ def test_the_radiosity_view_shows_the_world_in_the_glossy_layer(base, roughness,
         world_lighting=True), 128, resolution=resolution)
     on_plane = np.abs(image - np.asarray(WORLD, np.float32)).max(axis=2) > 1e-6
     assert on_plane.mean() > 0.5
-    ratio = image[on_plane].mean() / theirs[on_plane].mean()
+    return float(image[on_plane].mean() / theirs[on_plane].mean())
+
+
+@pytest.mark.parametrize("base, roughness, bound", [(0.5, 0.5, 0.01), (0.0, 0.3, 0.03)])
+def test_the_radiosity_view_shows_the_world_in_the_glossy_layer(base, roughness, bound):
+    """A Principled plane (Specular IOR Level 0.5) under the blue-grey world alone, seen at
+    50-85 degrees: Cycles lights its glossy layer straight from the world (no glossy bounce
+    needed), which the radiosity camera view draws along each pixel's mirror direction times
+    the layer's E(mu) (`radiosity._world_highlights`). Mean over the plane against a 128-sample
+    render: measured 1.0006 (grey, roughness 0.5; 0.83 without the layer's world light) and
+    0.985 (black, roughness 0.3, where the layer is all there is)."""
+    from blender_parts import principled
+
+    mat, bsdf = principled("Glossy", base=(base, base, base))
+    bsdf.inputs["Specular IOR Level"].default_value = 0.5
+    bsdf.inputs["Roughness"].default_value = roughness
+    ratio = _plane_view_against_cycles(mat)
     print(f"plane mean ours/cycles {ratio:.4f}")
     assert abs(ratio - 1.0) < bound
 
@@ -176,30 +187,10 @@ def test_the_back_of_a_sheet_under_the_world_as_cycles_shows_it():
     which Cycles shades on the side it is seen from, lit by the world above it. The radiosity
     view's back faces take the world's light from their own sky rays (`final_gather.back_exitance`):
     the plane's mean within 3% of a 128-sample render (measured 0.9987; black before)."""
-    from blender_parts import WORLD, oblique_camera, plane, principled
+    from blender_parts import principled
 
-    scene = bpy.context.scene
-    scene.world = bpy.data.worlds.new("World")
-    if bpy.app.version < (5, 0, 0):
-        scene.world.use_nodes = True
-    scene.world.node_tree.nodes["Background"].inputs["Color"].default_value = (*WORLD, 1.0)
     mat, _ = principled("Grey", base=(0.6, 0.6, 0.6))
-    sheet = plane(mat, size=6.0)
-    sheet.rotation_euler = (math.pi, 0.0, 0.0)  # facing down: the camera above sees its back
-    oblique_camera(scene)
-    resolution = (64, 48)
-    snap = bridge.snapshot(resolution=resolution)
-    from classic_bake.kernels import radiosity
-
-    result = radiosity.solve_radiosity(snap, RadiositySettings(patch_budget=50))
-    image = None
-    for step in radiosity.render_steps(snap, result, resolution):
-        image = step
-    theirs, _ = cycles_reference.render_camera(scene, cycles_reference.radiosity(
-        world_lighting=True), 128, resolution=resolution)
-    on_plane = np.abs(image - np.asarray(WORLD, np.float32)).max(axis=2) > 1e-6
-    assert on_plane.mean() > 0.5
-    ratio = image[on_plane].mean() / theirs[on_plane].mean()
+    ratio = _plane_view_against_cycles(mat, facing_down=True)
     print(f"back of the plane ours/cycles {ratio:.4f}")
     assert abs(ratio - 1.0) < 0.03
 
