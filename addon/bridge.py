@@ -549,8 +549,10 @@ def read_camera(scene, cam_obj, resolution: tuple[int, int] | None = None) -> Ca
                   clip_end=float(cam.clip_end))
 
 
-def read_world(scene) -> tuple[np.ndarray, list[str]]:
-    """The uniform background radiance (3,) of the world, and what was ignored."""
+def read_world(scene, mapped=None) -> tuple[np.ndarray, list[str]]:
+    """The uniform background radiance (3,) of the world (an Environment Texture's mean over the
+    sphere), and what was ignored. mapped: the world's map as `read_world_texture` read it, when
+    the caller has it (its mean is taken from those pixels instead of reading the image again)."""
     world = scene.world
     if world is None:
         return np.zeros(3, np.float32), []
@@ -568,6 +570,9 @@ def read_world(scene) -> tuple[np.ndarray, list[str]]:
     ignored = []
     color = np.array(node.inputs["Color"].default_value[:3], np.float32)
     color_node, _ = _follow(node.inputs["Color"])
+    strength = float(node.inputs["Strength"].default_value)
+    if mapped is not None:  # strength applied already
+        return _equirect_mean(mapped.pixels), ignored
     mean = environment_mean(color_node) if color_node is not None else None
     if mean is not None:
         color = mean
@@ -582,7 +587,6 @@ def read_world(scene) -> tuple[np.ndarray, list[str]]:
     elif color_node is not None:
         ignored.append(f"world colour from '{color_node.bl_idname}' is not modelled: the "
                        "socket's own colour used")
-    strength = float(node.inputs["Strength"].default_value)
     return color * strength, ignored
 
 
@@ -662,16 +666,21 @@ def environment_mean(node) -> np.ndarray | None:
     pixels = image_pixels(node.image)
     if pixels is None:
         return None
-    rgb = pixels[..., :3].astype(np.float64)
-    height, width = rgb.shape[:2]
     if node.projection == "EQUIRECTANGULAR":
-        latitude = (0.5 - (np.arange(height) + 0.5) / height) * np.pi  # row 0 at the top
-        weight = np.broadcast_to(np.cos(latitude)[:, None], (height, width))
-    else:  # MIRROR_BALL: the disc inscribed in the image
-        y, x = np.mgrid[0:height, 0:width]
-        weight = ((2.0 * (x + 0.5) / width - 1.0) ** 2
-                  + (2.0 * (y + 0.5) / height - 1.0) ** 2 <= 1.0).astype(np.float64)
-    return (np.einsum("hw,hwc->c", weight, rgb) / weight.sum()).astype(np.float32)
+        return _equirect_mean(pixels)
+    height, width = pixels.shape[:2]  # MIRROR_BALL: the disc inscribed in the image
+    y, x = np.mgrid[0:height, 0:width]
+    disc = (2.0 * (x + 0.5) / width - 1.0) ** 2 + (2.0 * (y + 0.5) / height - 1.0) ** 2 <= 1.0
+    return pixels[disc][:, :3].astype(np.float64).mean(axis=0).astype(np.float32)
+
+
+def _equirect_mean(pixels: np.ndarray) -> np.ndarray:
+    """(3,) float32 mean over the sphere of an equirectangular image (H, W, >= 3), row 0 at the
+    top: each row weighted by cos(latitude), its share of the sphere."""
+    height = pixels.shape[0]
+    latitude = (0.5 - (np.arange(height) + 0.5) / height) * np.pi
+    rows = pixels[..., :3].astype(np.float64).mean(axis=1)  # (H, 3)
+    return (np.cos(latitude) @ rows / np.cos(latitude).sum()).astype(np.float32)
 
 
 # --- the snapshot ---------------------------------------------------------------------------------
@@ -751,9 +760,9 @@ def snapshot(context=None, request: SnapshotRequest = SnapshotRequest(),
             ignored.append("the scene has no camera")
         else:
             camera = read_camera(scene, scene.camera, resolution)
-    world, why = read_world(scene)
-    ignored.extend(why)
     texture = read_world_texture(scene)
+    world, why = read_world(scene, texture)
+    ignored.extend(why)
     return replace(_assemble(chunks, materials, lights, camera, world, request, ignored),
                    world_texture=texture,
                    world_transform=None if texture is None else _world_env_mapping(scene))
