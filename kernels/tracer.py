@@ -27,7 +27,7 @@ The whole tree is traced as a wavefront: all rays of one depth at once through t
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Literal
 
 import numpy as np
@@ -46,7 +46,7 @@ from .specular_layer import (
     view_tables,
 )
 from .textures import sample_texture, sample_texture_box
-from .world_light import world_radiance
+from .world_light import extract_suns, world_radiance
 
 # A new ray starts this fraction of the scene's size off its surface, along the geometric normal:
 # float32 triangles locate a hit to ~1e-7 of the coordinates' magnitude, so 1e-5 clears the surface
@@ -453,6 +453,12 @@ class Tracer:
         self.tri_normals = geometric_normals(scene.triangles)
         self.emitters = _emitters(scene, settings)
         self.area_lamps = [li for li in scene.lights if li.kind == "AREA"]
+        # A world map's suns (`world_light.extract_suns`): highlights of the rough lobes, and
+        # the map without them for those lobes' rays (sky_scene).
+        self.map_suns, self.sky_scene = (), scene
+        if scene.world_texture is not None:
+            self.map_suns, residual = extract_suns(scene.world_texture, scene.world_transform)
+            self.sky_scene = replace(scene, world_texture=residual)
         self.stats = TraceStats()
         mats = scene.materials
         self.metallic = np.array([m.metallic for m in mats])
@@ -494,7 +500,11 @@ class Tracer:
         origin = p + ng * self.offset
         brdf_w = np.repeat(diffuse_w[idx, None] / np.pi, 3, axis=1)  # white base colour
         smooth = None if h.smooth is None else h.smooth[idx]
-        for light in self.emitters.lights:
+        # The lamps light the diffuse base and the lobes; a world map's suns only the lobes (the
+        # world is hidden from diffuse rays in this model, but glossy ones see it).
+        lamps = [(light, True) for light in self.emitters.lights]
+        lamps += [(sun, False) for sun in self.map_suns] if lobes else []
+        for light, diffuse in lamps:
             to_l, dist = light_units.light_vectors(light, p)
             e = light_units.direct_irradiance(light, p, ns)  # (n, 3), includes cos and falloff
             lit = np.any(e > 0, axis=1)
@@ -506,10 +516,11 @@ class Tracer:
                 vis = self._visible(origin[sub], to_l[sub], t_max)
             else:
                 vis = np.ones(len(sub), bool)
-            # The relief's facets hide part of a low light from the diffuse base (Cycles).
-            relief = 1.0 if smooth is None else bump_shadowing(smooth[sub], ns[sub],
-                                                                to_l[sub])[:, None]
-            lambert[idx[sub]] += brdf_w[sub] * e[sub] * vis[:, None] * relief
+            if diffuse:
+                # The relief's facets hide part of a low light from the diffuse base (Cycles).
+                relief = 1.0 if smooth is None else bump_shadowing(smooth[sub], ns[sub],
+                                                                    to_l[sub])[:, None]
+                lambert[idx[sub]] += brdf_w[sub] * e[sub] * vis[:, None] * relief
             rows = idx[sub]
             cos_i = np.maximum(np.einsum("ij,ij->i", ns[sub], to_l[sub]), 1e-6)
             for f0, weight in lobes:
@@ -716,8 +727,13 @@ class Tracer:
                 background = 0.0
             elif self.scene.world_texture is None:
                 background = self.scene.world_color
-            else:  # the world's map along each escaping ray
+            else:  # the world's map along each escaping ray; a rough lobe's ray (off no smooth
+                # surface) reads it without the suns that the lobes' highlights already carry
                 background = world_radiance(self.scene, dirs[miss])
+                rough_rays = np.flatnonzero(~sees_lamps[miss]) if depth > 0 else []
+                if self.map_suns and len(rough_rays):
+                    background[rough_rays] = world_radiance(self.sky_scene,
+                                                            dirs[miss][rough_rays])
             np.add.at(result, pixel[miss], weight[miss] * background)
             if untextured is not None:
                 np.add.at(flat, pixel[miss], weight[miss] * background)

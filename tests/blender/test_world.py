@@ -211,3 +211,32 @@ def test_info_names_the_map_and_its_sun():
     _, omega = texel_directions(64, 128)
     np.testing.assert_allclose(sun["irradiance"], 440.0 * omega[16:18, 40:42].sum(), rtol=1e-5)
     assert 0.6 < sun["direction"][2] < 0.75  # about 45 degrees up
+
+
+@pytest.mark.parametrize("base, roughness, bound", [(0.5, 0.5, 0.02), (0.0, 0.3, 0.06)])
+def test_a_maps_sun_shines_in_the_tracers_rough_lobes(base, roughness, bound):
+    """A Principled plane under a sky (0.2) with a small sun placed where the camera sees its
+    mirror image: the Whitted model hides the world from diffuse rays but its glossy lobes see
+    it, and Cycles lights them from the sun by sampling the map. The tracer takes the sun out of
+    the map as a highlight-only lamp (`world_light.extract_suns`) and its rough lobes' rays read
+    the map without it. relMSE against a 512-sample render under the bound (measured 0.0087 and
+    0.035; with the sun left in the map for the lobes' one ray: 3.6 and 0.54)."""
+    from blender_parts import oblique_camera, plane, principled
+
+    pixels = np.full((64, 128, 3), 0.2, np.float32)
+    pixels[26:28, 31:33] = 400.0  # 17 degrees up towards +y: the mirror of the camera's view
+    scene = hdri_world(pixels)
+    mat, bsdf = principled("Glossy", base=(base, base, base))
+    bsdf.inputs["Specular IOR Level"].default_value = 0.5
+    bsdf.inputs["Roughness"].default_value = roughness
+    plane(mat, size=6.0)
+    oblique_camera(scene)
+    resolution = (64, 48)
+    snap = bridge.snapshot(resolution=resolution)
+    ours = trace(snap, TracerSettings(max_depth=4, adaptive=0, supersample=2),
+                 resolution=resolution).image
+    theirs, _ = cycles_reference.render_camera(scene, cycles_reference.whitted(4), 512,
+                                               resolution=resolution)
+    error = rel_mse(ours, theirs)
+    print(f"relMSE {error:.4f}")
+    assert error < bound
