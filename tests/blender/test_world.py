@@ -44,17 +44,22 @@ def test_the_camera_sees_the_environment_map_as_cycles_does(mapping):
     cam.rotation_euler = (math.radians(90.0), 0.0, math.radians(-90.0))  # looking along +x
     scene.collection.objects.link(cam)
     scene.camera = cam
-    resolution = (48, 32)
-    snap = bridge.snapshot(resolution=resolution)
+    snap = bridge.snapshot()
     assert snap.world_texture is not None
     assert (snap.world_transform is None) == (mapping is None)
-    ours = trace(snap, TracerSettings(max_depth=1, adaptive=0, supersample=2),
-                 resolution=resolution).image
-    theirs, _ = cycles_reference.render_camera(scene, cycles_reference.whitted(1), 16,
-                                               resolution=resolution)
-    error = rel_mse(ours, theirs)
+    error = _traced_against_cycles(scene, (48, 32), depth=1, samples=16)
     print(f"background relMSE {error:.2e}")
     assert error < 1e-4
+
+
+def _traced_against_cycles(scene, resolution, depth: int, samples: int) -> float:
+    """relMSE of the tracer's view (2 x 2 points a pixel) against Cycles' Whitted model."""
+    ours = trace(bridge.snapshot(resolution=resolution),
+                 TracerSettings(max_depth=depth, adaptive=0, supersample=2),
+                 resolution=resolution).image
+    theirs, _ = cycles_reference.render_camera(scene, cycles_reference.whitted(depth), samples,
+                                               resolution=resolution)
+    return rel_mse(ours, theirs)
 
 
 def _floor_and_box_against_cycles(scene, lift=0.25) -> tuple[list[float], float]:
@@ -231,12 +236,6 @@ def test_a_maps_sun_shines_in_the_tracers_rough_lobes(base, roughness, bound):
     bsdf.inputs["Roughness"].default_value = roughness
     plane(mat, size=6.0)
     oblique_camera(scene)
-    resolution = (64, 48)
-    snap = bridge.snapshot(resolution=resolution)
-    ours = trace(snap, TracerSettings(max_depth=4, adaptive=0, supersample=2),
-                 resolution=resolution).image
-    theirs, _ = cycles_reference.render_camera(scene, cycles_reference.whitted(4), 512,
-                                               resolution=resolution)
-    error = rel_mse(ours, theirs)
+    error = _traced_against_cycles(scene, (64, 48), depth=4, samples=512)
     print(f"relMSE {error:.4f}")
     assert error < bound
