@@ -590,20 +590,9 @@ def read_world(scene, mapped=None) -> tuple[np.ndarray, list[str]]:
     return color * strength, ignored
 
 
-def _world_env_mapping(scene) -> np.ndarray | None:
-    """`world_mapping` of the Environment Texture feeding the world's Background, None where it
-    is the identity or not modelled (then the map is read along the world direction)."""
-    tree = _node_tree(scene.world)
-    background = _follow(_active_output(tree, "OUTPUT_WORLD").inputs["Surface"])[0]
-    mapping = world_mapping(_follow(background.inputs["Color"])[0])
-    identity = np.hstack([np.eye(3), np.zeros((3, 1))])
-    return None if mapping is None or np.allclose(mapping, identity) else mapping
-
-
-def read_world_texture(scene):
-    """The world's equirectangular radiance map, a kernel `Texture` (linear RGB times the
-    Background's strength), when an Environment Texture of that projection feeds the world's
-    Background colour; else None (the kernels use `read_world`'s uniform colour)."""
+def _world_map_nodes(scene):
+    """(Background node, equirectangular Environment Texture node feeding its colour) of the
+    scene's world, or None where the world is not that."""
     world = scene.world
     tree = _node_tree(world) if world is not None else None
     output = _active_output(tree, "OUTPUT_WORLD") if tree is not None else None
@@ -614,6 +603,26 @@ def read_world_texture(scene):
     if env is None or env.type != "TEX_ENVIRONMENT" or env.image is None \
             or env.projection != "EQUIRECTANGULAR":
         return None
+    return node, env
+
+
+def _world_env_mapping(scene) -> np.ndarray | None:
+    """`world_mapping` of the world's map, None where it is the identity or not modelled (then
+    the map is read along the world direction) or there is no map."""
+    nodes = _world_map_nodes(scene)
+    mapping = world_mapping(nodes[1]) if nodes is not None else None
+    identity = np.hstack([np.eye(3), np.zeros((3, 1))])
+    return None if mapping is None or np.allclose(mapping, identity) else mapping
+
+
+def read_world_texture(scene):
+    """The world's equirectangular radiance map, a kernel `Texture` (linear RGB times the
+    Background's strength), when an Environment Texture of that projection feeds the world's
+    Background colour; else None (the kernels use `read_world`'s uniform colour)."""
+    nodes = _world_map_nodes(scene)
+    if nodes is None:
+        return None
+    node, env = nodes
     pixels = image_pixels(env.image)
     if pixels is None:
         return None

@@ -67,7 +67,7 @@ from .scene import (
     triangle_areas,
     triangle_emission,
 )
-from .world_light import world_irradiance, world_radiance
+from .world_light import world_irradiance, world_lit, world_source
 
 # Shadow rays to points ON an emitter stop this fraction short of it; the target itself is lifted
 # off the emitter by the ray offset along its normal (the BVH's float32 hit distances differ from
@@ -562,10 +562,8 @@ def back_exitance(gather: FinalGather, tri: np.ndarray, bary: np.ndarray) -> np.
                                lift=-front)
         h += lamp_irradiance(scene, points, normals, occluded, gather.offset,
                              gather.area_samples_per_side, lift=-front)
-        if gather.settings.world_rays and (np.asarray(scene.world_color) > 0.0).any():
-            world = scene.world_color if scene.world_texture is None else (
-                lambda dirs: world_radiance(scene, dirs))
-            h += world_irradiance(world, points, -front, t[lit], gather.bvh.occluded,
+        if gather.settings.world_rays and world_lit(scene):
+            h += world_irradiance(world_source(scene), points, -front, t[lit], gather.bvh.occluded,
                                   gather.offset / RAY_OFFSET_REL, gather.settings.world_rays, rng)
         value = gather.emission[t]
         value[lit] += rho[lit] * h

@@ -82,7 +82,9 @@ from .world_light import (
     extract_suns,
     sky_ray_bytes,
     world_irradiance,
+    world_lit,
     world_radiance,
+    world_source,
 )
 
 # Below this luminance fraction of the scene's mean radiosity a patch counts as dark: relative
@@ -464,12 +466,11 @@ def world_shot(scene: Scene, patches: patching.Patches, bvh, settings: Radiosity
     (`world_light.py`, `world_rays` rays each). The solver carries it as it carries the first
     shot, but the final gather counts it as indirect light, so it stays out of `direct`. Zero
     for a black world or `world_rays` 0. bvh: `kernels.bvh.BVH` over the scene's triangles."""
-    if not (np.asarray(scene.world_color) > 0.0).any():
+    if not world_lit(scene):
         return np.zeros((len(patches), 3))
-    world = scene.world_color if scene.world_texture is None else (
-        lambda dirs: world_radiance(scene, dirs))
-    return world_irradiance(world, patches.corners, patches.normals, patches.parent, bvh.occluded,
-                            scale, settings.world_rays, np.random.default_rng(settings.seed + 3))
+    return world_irradiance(world_source(scene), patches.corners, patches.normals,
+                            patches.parent, bvh.occluded, scale, settings.world_rays,
+                            np.random.default_rng(settings.seed + 3))
 
 
 def hard_shadow_edges(scene: Scene, patches: patching.Patches, occluded,
@@ -701,7 +702,7 @@ def _solve_level(scene, patches, rho, sources, bvh, settings, stats, size: float
     stats["solver"] = solver
     stats["memory_estimate"] = memory_estimate(count, scene.triangle_count, settings, solver,
                                                groups.count if groups is not None else 0,
-                                               bool((np.asarray(scene.world_color) > 0.0).any()))
+                                               world_lit(scene))
     start = time.perf_counter()
     if solver == "clustered":
         b, solution = yield from _solve_clustered(patches, groups, rho, sources, bvh, settings,
@@ -835,11 +836,10 @@ def hierarchical_memory(scene: Scene, roots: patching.Patches, depth: int, bvh,
         bound = memory_bound(len(roots), depth, settings.link_epsilon,
                              settings.samples_per_side, split_levels(settings),
                              settings.max_patches, facing)
-        world_lit = bool((np.asarray(scene.world_color) > 0.0).any())
         out = {"links": bound["links"], "patches": bound["elements"], "work": bound["work"],
                "bvh": 200 * scene.triangle_count, "bvh_queries": bvh.settings.query_bytes,
                "world_rays": sky_ray_bytes(settings.max_patches, settings.world_rays)
-               if world_lit else 0}
+               if world_lit(scene) else 0}
         out["total"] = int(sum(out.values()))
         out["link_bound"] = bound["link_bound"]
         if facing is not None:
@@ -1034,7 +1034,7 @@ def _result(scene, patches, b, emitted, rho, direct, bvh, settings: RadiositySet
     stats.update(samples_per_side=settings.samples_per_side, refine_levels=settings.refine_levels,
                  shadow_splits=settings.shadow_splits)
     # The world as a light: its rays per patch (0: black or off) and the suns taken from its map.
-    lit_by_world = settings.world_rays if (np.asarray(scene.world_color) > 0.0).any() else 0
+    lit_by_world = settings.world_rays if world_lit(scene) else 0
     stats["world"] = {"rays_per_patch": int(lit_by_world),
                       "map_suns": sum(light.name.startswith(WORLD_SUN_NAME)
                                       for light in scene.lights)}
@@ -1275,17 +1275,33 @@ def _at_view(scene: Scene, tri: np.ndarray, bary: np.ndarray, dirs: np.ndarray,
     return emitted + (radiance - emitted) * ratio[:, None]
 
 
+def _front_frame(scene: Scene, result: RadiosityResult, tri: np.ndarray, bary: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, object, float]:
+    """What the view's highlights need of front-facing surface points (triangles, barycentrics):
+    their face normals (M, 3), interpolated shading normals turned to the face's side (M, 3),
+    the BVH for their rays (the gather's, else built) and the rays' offset off surfaces, m."""
+    from .bvh import BVH
+    from .scene import geometric_normals, interpolated_normals
+
+    geometric = geometric_normals(scene.triangles[tri])
+    normals = interpolated_normals(scene, tri, bary, geometric)
+    normals[np.einsum("ij,ij->i", normals, geometric) < 0.0] *= -1.0
+    if result.gather is not None:
+        return geometric, normals, result.gather.bvh, result.gather.offset
+    flat = scene.triangles.reshape(-1, 3).astype(np.float64)
+    offset = RAY_OFFSET_REL * float(np.linalg.norm(flat.max(axis=0) - flat.min(axis=0)))
+    return geometric, normals, BVH.build(scene.triangles), offset
+
+
 def _lamp_highlights(scene: Scene, result: RadiosityResult, tri: np.ndarray, bary: np.ndarray,
-                     points: np.ndarray, dirs: np.ndarray) -> np.ndarray:
+                     points: np.ndarray, dirs: np.ndarray, frame: tuple) -> np.ndarray:
     """(M, 3) radiance W/(m^2 sr) the lamps' light leaves toward a camera looking along dirs
     (M, 3) by the rough glossy lobes (specular layers, metals) of surface points (triangles,
     barycentrics, world points (M, 3)): each lamp's shadowed irradiance (area lamps over their
     grid, their highlight aimed from the centre) times the GGX lobes
     (`specular_layer.lamp_highlights`), as Cycles lights the glossy lobes directly at the
-    camera's first hit. Emissive meshes draw none."""
-    from .bvh import BVH
+    camera's first hit. Emissive meshes draw none. frame: `_front_frame` of the points."""
     from .direct_light import albedo_at
-    from .scene import geometric_normals, interpolated_normals
     from .specular_layer import MIRROR_ROUGHNESS, lamp_highlights, layer_f0
 
     out = np.zeros((len(tri), 3))
@@ -1293,12 +1309,7 @@ def _lamp_highlights(scene: Scene, result: RadiosityResult, tri: np.ndarray, bar
         layer_f0(m.ior, m.specular) > 0.0 and m.transmission < 1.0)) for m in scene.materials]
     if not scene.lights or not any(shiny) or not len(tri):
         return out
-    geometric = geometric_normals(scene.triangles[tri])
-    normals = interpolated_normals(scene, tri, bary, geometric)
-    normals[np.einsum("ij,ij->i", normals, geometric) < 0.0] *= -1.0
-    bvh = result.gather.bvh if result.gather is not None else BVH.build(scene.triangles)
-    flat = scene.triangles.reshape(-1, 3).astype(np.float64)
-    offset = RAY_OFFSET_REL * float(np.linalg.norm(flat.max(axis=0) - flat.min(axis=0)))
+    geometric, normals, bvh, offset = frame
     samples = result.gather.area_samples_per_side if result.gather is not None else 4
     base = albedo_at(scene, tri, bary)  # a metal's F0
     for light in scene.lights:
@@ -1310,8 +1321,8 @@ def _lamp_highlights(scene: Scene, result: RadiosityResult, tri: np.ndarray, bar
     return out
 
 
-def _world_highlights(scene: Scene, result: RadiosityResult, tri: np.ndarray, bary: np.ndarray,
-                      points: np.ndarray, dirs: np.ndarray) -> np.ndarray:
+def _world_highlights(scene: Scene, tri: np.ndarray, bary: np.ndarray, points: np.ndarray,
+                      dirs: np.ndarray, frame: tuple) -> np.ndarray:
     """(M, 3) radiance W/(m^2 sr) the world leaves toward a camera looking along dirs (M, 3) by
     the rough glossy lobes of surface points (triangles, barycentrics, world points (M, 3)), as
     Cycles lights them directly from the world at the camera's first hit (the sky is a light; no
@@ -1320,11 +1331,9 @@ def _world_highlights(scene: Scene, result: RadiosityResult, tri: np.ndarray, ba
     specular layer's directional albedo E(mu) (weight (1 - metallic)(1 - transmission)) and a
     metal's base colour (weight metallic; its Fresnel rise at grazing views left out). Smooth
     lobes (roughness below MIRROR_ROUGHNESS) reflect the world only along a glossy bounce, which
-    this model does not follow, as `_lamp_highlights` leaves them out."""
-    from .bvh import BVH
+    this model does not follow, as `_lamp_highlights` leaves them out. frame: `_front_frame`."""
     from .direct_light import albedo_at
     from .optics import reflect
-    from .scene import geometric_normals, interpolated_normals
     from .specular_layer import MIRROR_ROUGHNESS, layer_f0, view_factors, view_tables
 
     out = np.zeros((len(tri), 3))
@@ -1335,18 +1344,13 @@ def _world_highlights(scene: Scene, result: RadiosityResult, tri: np.ndarray, ba
     metal_w = np.array([m.metallic if m.roughness >= MIRROR_ROUGHNESS else 0.0 for m in mats])
     mids = scene.material_ids[tri]
     rows = np.flatnonzero((layer_w[mids] > 0.0) | (metal_w[mids] > 0.0))
-    if not (np.asarray(scene.world_color) > 0.0).any() or rows.size == 0:
+    if not world_lit(scene) or rows.size == 0:
         return out
     t, b, d, m = tri[rows], bary[rows], dirs[rows], mids[rows]
-    geometric = geometric_normals(scene.triangles[t])
-    geometric[np.einsum("ij,ij->i", geometric, d) > 0.0] *= -1.0  # the side the camera sees
-    normals = interpolated_normals(scene, t, b, geometric)
-    normals[np.einsum("ij,ij->i", normals, geometric) < 0.0] *= -1.0
+    geometric, normals, bvh, offset = frame
+    geometric, normals = geometric[rows], normals[rows]
     r = reflect(d, normals)
     up = np.einsum("ij,ij->i", r, geometric) > 0.0  # a mirror direction into the surface: none
-    bvh = result.gather.bvh if result.gather is not None else BVH.build(scene.triangles)
-    flat = scene.triangles.reshape(-1, 3).astype(np.float64)
-    offset = RAY_OFFSET_REL * float(np.linalg.norm(flat.max(axis=0) - flat.min(axis=0)))
     sky = np.zeros(len(rows), bool)
     sky[up] = ~bvh.occluded(points[rows][up] + offset * geometric[up], r[up])
     if not sky.any():
@@ -1399,10 +1403,11 @@ def render_steps(scene: Scene, result: RadiosityResult, resolution=None,
         values = _at_view(scene, f.tri[front], f.bary[front], f.dirs[front], values)
         # As the solve lit it: a world map's suns are lamps there, and gone from its map.
         lit = result.gather.scene if result.gather is not None else with_world_suns(scene)
+        frame = _front_frame(scene, result, f.tri[front], f.bary[front])
         values += _lamp_highlights(lit, result, f.tri[front], f.bary[front], f.points[front],
-                                   f.dirs[front])
-        values += _world_highlights(lit, result, f.tri[front], f.bary[front], f.points[front],
-                                    f.dirs[front])
+                                   f.dirs[front], frame)
+        values += _world_highlights(lit, f.tri[front], f.bary[front], f.points[front],
+                                    f.dirs[front], frame)
         image[f.rows[front], f.cols[front]] = values
         if back.any():
             image[f.rows[back], f.cols[back]] = result.back_radiance_at(scene, f.tri[back],

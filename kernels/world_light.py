@@ -85,6 +85,19 @@ def equirect_uv(dirs: np.ndarray) -> np.ndarray:
     return np.stack([u, v], axis=1)
 
 
+def world_lit(scene: Scene) -> bool:
+    """Whether the world sends any light (a map's mean, `world_color`, is above 0 somewhere)."""
+    return bool((np.asarray(scene.world_color) > 0.0).any())
+
+
+def world_source(scene: Scene):
+    """The world as `world_irradiance` takes it: the (3,) colour of a uniform world, else the
+    look-up of its map (`world_radiance`)."""
+    if scene.world_texture is None:
+        return scene.world_color
+    return lambda dirs: world_radiance(scene, dirs)
+
+
 def world_radiance(scene: Scene, dirs: np.ndarray) -> np.ndarray:
     """(N, 3) float64 radiance W/(m^2 sr) the world sends along -dirs, for unit directions (N, 3)
     away from the scene: its equirectangular map (`Scene.world_texture`, read along
