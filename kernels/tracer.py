@@ -729,11 +729,12 @@ class Tracer:
                 background = self.scene.world_color
             else:  # the world's map along each escaping ray; a rough lobe's ray (off no smooth
                 # surface) reads it without the suns that the lobes' highlights already carry
-                background = world_radiance(self.scene, dirs[miss])
-                rough_rays = np.flatnonzero(~sees_lamps[miss]) if depth > 0 else []
-                if self.map_suns and len(rough_rays):
-                    background[rough_rays] = world_radiance(self.sky_scene,
-                                                            dirs[miss][rough_rays])
+                escaped = dirs[miss]
+                rough_ray = ~sees_lamps[miss] if depth > 0 and self.map_suns else \
+                    np.zeros(len(escaped), bool)
+                background = np.empty((len(escaped), 3))
+                background[~rough_ray] = world_radiance(self.scene, escaped[~rough_ray])
+                background[rough_ray] = world_radiance(self.sky_scene, escaped[rough_ray])
             np.add.at(result, pixel[miss], weight[miss] * background)
             if untextured is not None:
                 np.add.at(flat, pixel[miss], weight[miss] * background)
