@@ -45,6 +45,9 @@ class SnapshotRequest:
     | lights       | True    |                                                                 |
     | camera       | True    |                                                                 |
     | objects      | None    | restrict geometry to these object names (None: all renderable)  |
+    | world_render | True    | render a world shader the bridge cannot read into a map         |
+    |              |         | (`read_world_texture`: Cycles, ~1-2 s); False: black or its     |
+    |              |         | socket's colour                                                 |
     """
 
     normals: bool = True
@@ -55,6 +58,7 @@ class SnapshotRequest:
     lights: bool = True
     camera: bool = True
     objects: tuple[str, ...] | None = None
+    world_render: bool = True
 
 
 # --- small conversions ----------------------------------------------------------------------------
@@ -559,6 +563,13 @@ def read_world(scene, mapped=None) -> tuple[np.ndarray, list[str]]:
     tree = _node_tree(world)
     if tree is None:
         return np.array(world.color[:3], np.float32), []
+    unread = _world_render_reason(scene)
+    if unread is not None and mapped is not None:  # rendered by `read_world_texture`
+        width, height = mapped.pixels.shape[1], mapped.pixels.shape[0]
+        note = f"world: {unread}, rendered by Cycles into a {width} x {height} map"
+        if any(n.type == "LIGHT_PATH" for n in tree.nodes):
+            note += " as camera rays see it (its Light Path node's other rays are not modelled)"
+        return _equirect_mean(mapped.pixels), [note]
     output = _active_output(tree, "OUTPUT_WORLD")
     if output is None:
         return np.zeros(3, np.float32), ["world has no World Output node: black"]
@@ -615,20 +626,58 @@ def _world_env_mapping(scene) -> np.ndarray | None:
     return None if mapping is None or np.allclose(mapping, identity) else mapping
 
 
-def read_world_texture(scene):
+def read_world_texture(scene, render: bool = True):
     """The world's equirectangular radiance map, a kernel `Texture` (linear RGB times the
     Background's strength), when an Environment Texture of that projection feeds the world's
-    Background colour; else None (the kernels use `read_world`'s uniform colour)."""
+    Background colour (through nothing or a modelled Mapping, `world_mapping`). A world shader
+    the bridge cannot read so (`_world_render_reason`: a Sky Texture, a procedural texture, a
+    mix of shaders, a mirror-ball map) is rendered into a map by Cycles when `render`
+    (`cycles_reference.render_world_map`). Else None (the kernels use `read_world`'s uniform
+    colour)."""
     nodes = _world_map_nodes(scene)
-    if nodes is None:
+    if nodes is not None and world_mapping(nodes[1]) is not None \
+            and (pixels := image_pixels(nodes[1].image)) is not None:
+        node, env = nodes
+        pixels[..., :3] *= float(node.inputs["Strength"].default_value)
+        return Texture(kind="IMAGE", name=env.image.name, pixels=pixels, extension="REPEAT",
+                       interpolation="CLOSEST" if env.interpolation == "Closest" else "LINEAR")
+    if not render or _world_render_reason(scene) is None:
         return None
-    node, env = nodes
-    pixels = image_pixels(env.image)
-    if pixels is None:
+    from .cycles_reference import render_world_map  # it imports this module
+
+    rgb, _ = render_world_map(scene.world)
+    pixels = np.concatenate([rgb, np.ones(rgb.shape[:2] + (1,), np.float32)], axis=-1)
+    return Texture(kind="IMAGE", name=f"{scene.world.name} (rendered)", pixels=pixels,
+                   extension="REPEAT", interpolation="LINEAR")
+
+
+def _world_render_reason(scene) -> str | None:
+    """What of the world's shader the bridge cannot read itself (a few words), or None where it
+    reads all of it: no world, a world colour, nothing linked to the output, or a Background of
+    an unlinked strength whose colour is constant or an equirectangular Environment Texture with
+    an image, read along the world direction or through a Mapping node `world_mapping` models."""
+    world = scene.world
+    tree = _node_tree(world) if world is not None else None
+    output = _active_output(tree, "OUTPUT_WORLD") if tree is not None else None
+    node = _follow(output.inputs["Surface"])[0] if output is not None else None
+    if node is None:
         return None
-    pixels[..., :3] *= float(node.inputs["Strength"].default_value)
-    return Texture(kind="IMAGE", name=env.image.name, pixels=pixels, extension="REPEAT",
-                   interpolation="CLOSEST" if env.interpolation == "Closest" else "LINEAR")
+    if node.type != "BACKGROUND":
+        return f"the shader '{node.bl_idname}'"
+    if node.inputs["Strength"].is_linked:
+        return "a strength fed by a node"
+    color = _follow(node.inputs["Color"])[0]
+    if color is None:
+        return None
+    if color.type != "TEX_ENVIRONMENT":
+        return f"a colour from '{color.bl_idname}'"
+    if color.image is None:
+        return "an Environment Texture without an image"
+    if color.projection != "EQUIRECTANGULAR":
+        return f"the mirror-ball Environment Texture '{color.image.name}'"
+    if world_mapping(color) is None:
+        return f"the Environment Texture '{color.image.name}' read along a vector not modelled"
+    return None
 
 
 def world_mapping(env) -> np.ndarray | None:
@@ -769,7 +818,7 @@ def snapshot(context=None, request: SnapshotRequest = SnapshotRequest(),
             ignored.append("the scene has no camera")
         else:
             camera = read_camera(scene, scene.camera, resolution)
-    texture = read_world_texture(scene)
+    texture = read_world_texture(scene, render=request.world_render)
     world, why = read_world(scene, texture)
     ignored.extend(why)
     return replace(_assemble(chunks, materials, lights, camera, world, request, ignored),
