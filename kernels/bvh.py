@@ -25,7 +25,8 @@ shared queue, so steps stay full until the queue runs dry. A scene of at most
 `brute_force_below` triangles is one leaf, tested against every ray without a tree.
 
 Threads: each worker thread runs its own pool on batches taken from the queue (NumPy releases the
-GIL inside its loops). A ray's answer does not depend on the batching or the thread count.
+GIL inside its loops); a call takes one thread per THREAD_RAYS rays, up to one per core. A ray's
+answer does not depend on the batching or the thread count.
 
 Exactness: the answer equals `intersect.intersect_all` bit for bit (same triangle, same t, u, v);
 see the module docstring of `intersect.py` for why no node holding the closest hit is culled.
@@ -78,6 +79,12 @@ BRUTE_FORCE_PAIRS = 1 << 14
 QUERY_BYTES_PER_SLOT = 810  # a pool slot's stack, state and one step's temporaries (measured)
 # Rays handed to a worker at a time (the unit of work sharing between threads).
 QUEUE_BATCH = 4096
+# Rays a call must bring per worker thread. Below this the threads' NumPy calls are too small to
+# release the GIL for long, and they mostly wait on each other: on the 2-core machine, radiosity
+# solve + bake of the Cornell box at 74 patches (calls of 0.5k-18k rays) 0.185 s with a thread
+# per 4096 rays, 0.158 s with one per 32768; a lamp-lit room (calls up to 300k rays) 1.38 -> 1.37
+# s, 1.47 s with one thread throughout (medians of 5, alternated).
+THREAD_RAYS = 1 << 15
 # A pool refills its answered slots once this fraction of them is free.
 REFILL_AT = 1.0 / 8.0
 # Stack entries a ray may pop in one step while they are farther than its closest hit.
@@ -881,7 +888,7 @@ class BVH:
             yield 1.0
             return
         settings = self.settings
-        threads = max(1, min(settings.thread_count, -(-count // QUEUE_BATCH)))
+        threads = max(1, min(settings.thread_count, -(-count // THREAD_RAYS)))
         pool_size = min(settings.chunk_size, -(-count // threads))
         if skip is not None:
             skip = np.asarray(skip, np.int64)

@@ -241,10 +241,11 @@ def test_invalid_rays_and_limits():
 
 
 def test_results_do_not_depend_on_chunks_or_threads():
+    # Enough rays that every thread gets work (`bvh.THREAD_RAYS` per thread).
     tris = meshes.lumpy_sphere(3)
     rng = np.random.default_rng(4)
-    o = rng.uniform(-1.2, 1.2, (20_000, 3))
-    d = rng.normal(size=(20_000, 3))
+    o = rng.uniform(-1.2, 1.2, (70_000, 3))
+    d = rng.normal(size=(70_000, 3))
     base = BVH.build(tris, BVHSettings(threads=1, chunk_size=256))
     ref = base.intersect(o, d)
     for config in (BVHSettings(threads=2, chunk_size=1000), BVHSettings(threads=3)):
@@ -256,19 +257,19 @@ def test_out_buffers_and_progress():
     tris = meshes.lumpy_sphere(3)
     bvh = BVH.build(tris, BVHSettings(threads=2, chunk_size=256))
     rng = np.random.default_rng(6)
-    o = rng.uniform(-1.2, 1.2, (30_000, 3))
-    d = rng.normal(size=(30_000, 3))
+    o = rng.uniform(-1.2, 1.2, (70_000, 3))
+    d = rng.normal(size=(70_000, 3))
     out = Hits(
-        t=np.zeros(30_000, np.float32),
-        tri=np.zeros(30_000, np.int32),
-        u=np.ones(30_000, np.float32),
-        v=np.ones(30_000, np.float32),
+        t=np.zeros(70_000, np.float32),
+        tri=np.zeros(70_000, np.int32),
+        u=np.ones(70_000, np.float32),
+        v=np.ones(70_000, np.float32),
     )
     progress = list(bvh.intersect_steps(o, d, out=out))
     assert progress[-1] == 1.0 and all(0.0 <= p <= 1.0 for p in progress)
     assert_same_hits(out, bvh.intersect(o, d))
     assert bvh.intersect(o, d, out=out) is out
-    blocked = np.ones(30_000, bool)
+    blocked = np.ones(70_000, bool)
     assert bvh.occluded(o, d, out=blocked) is blocked
     np.testing.assert_array_equal(blocked, out.tri >= 0)
     # Closing the generator early stops the work without error.
