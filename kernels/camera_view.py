@@ -16,6 +16,12 @@ from .camera import camera_rays
 from .raster import Projection, rasterize
 from .scene import Camera, Scene, geometric_normals
 
+# Relative luminance contrast between neighbouring pixels that marks an edge for supersampling;
+# 1/16 is about the smallest step visible in an 8-bit display of the result.
+EDGE_CONTRAST = 1.0 / 16.0
+# Added to the luminance sum in the contrast test so that near-black pixels do not all count as edges.
+CONTRAST_FLOOR = 1e-2
+
 
 @dataclass(frozen=True, eq=False)
 class Fragments:
@@ -107,3 +113,69 @@ def background_and_fragments(scene: Scene, resolution=None, out: np.ndarray | No
         _, dirs = camera_rays(scene.camera, width, height)
         image[...] = world_radiance(scene, dirs.reshape(-1, 3)).reshape(height, width, 3)
     return image, camera_fragments(scene, (width, height))
+
+
+def edge_pixels(image: np.ndarray, ids: np.ndarray) -> np.ndarray:
+    """(H, W) bool: pixels whose 4-neighbours see another object/material (ids (H, W), -1 for
+    none) or a visible luminance contrast (EDGE_CONTRAST) in image (H, W, 3)."""
+    lum = image @ np.array([0.2126, 0.7152, 0.0722])
+    mark = np.zeros(ids.shape, bool)
+    for axis in (0, 1):
+        a = [slice(None)] * 2
+        b = [slice(None)] * 2
+        a[axis] = slice(1, None)
+        b[axis] = slice(None, -1)
+        differ = ids[tuple(a)] != ids[tuple(b)]
+        la, lb = lum[tuple(a)], lum[tuple(b)]
+        differ |= np.abs(la - lb) > EDGE_CONTRAST * (la + lb + CONTRAST_FLOOR)
+        mark[tuple(a)] |= differ
+        mark[tuple(b)] |= differ
+    return mark
+
+
+def stratified_offsets(n: int) -> np.ndarray:
+    """(n^2, 2) sub-pixel offsets in [0, 1)^2: the centres of an n x n grid of cells."""
+    g = (np.arange(n) + 0.5) / n
+    gx, gy = np.meshgrid(g, g, indexing="xy")
+    return np.stack([gx.ravel(), gy.ravel()], 1)
+
+
+def supersample_edges(scene: Scene, image: np.ndarray, ids: np.ndarray, shade, bvh, samples: int
+                      ) -> int:
+    """In place: every edge pixel of `image` (H, W, 3) (`edge_pixels` of it and ids (H, W))
+    becomes the mean of `samples` x `samples` stratified rays through it, the box filter Cycles'
+    1-px BOX pixel filter is (the pixel centres alone alias silhouettes, folds and hard shadow
+    edges). A ray that hits a triangle of `bvh` (built over scene.triangles) is shaded by
+    shade(Fragments) -> (M, 3); one that escapes sees the world (its map along the ray, else its
+    colour). Returns the number of pixels supersampled."""
+    from .world_light import world_radiance
+
+    height, width = ids.shape
+    rows, cols = np.nonzero(edge_pixels(image, ids))
+    if rows.size == 0 or samples < 2:
+        return 0
+    offsets = stratified_offsets(samples)
+    total = np.zeros((rows.size, 3))
+    for ox, oy in offsets:
+        origins, dirs = camera_rays(scene.camera, width, height, offsets=(ox, oy))
+        o, d = origins[rows, cols], dirs[rows, cols]
+        hits = bvh.intersect(o, d)
+        tri = np.asarray(hits.tri, np.int64)
+        hit = tri >= 0
+        value = np.empty((rows.size, 3))
+        if scene.world_texture is None:
+            value[~hit] = scene.world_color
+        else:
+            value[~hit] = world_radiance(scene, d[~hit])
+        if hit.any():
+            t = tri[hit]
+            u, v = hits.u[hit].astype(np.float64), hits.v[hit].astype(np.float64)
+            depth = hits.t[hit].astype(np.float64)
+            geometric = geometric_normals(scene.triangles[t])
+            value[hit] = shade(Fragments(
+                rows=rows[hit], cols=cols[hit], tri=t, bary=np.stack([1.0 - u - v, u, v], 1),
+                points=o[hit] + d[hit] * depth[:, None], dirs=d[hit], depth=depth,
+                geometric=geometric, back=np.einsum("ij,ij->i", geometric, d[hit]) > 0.0))
+        total += value
+    image[rows, cols] = total / len(offsets)
+    return int(rows.size)

@@ -37,6 +37,9 @@ from .specular_layer import diffuse_factor, lamp_highlights, view_factors, view_
 from .textures import sample_texture
 from .vec import bounds, row_norms
 
+# Rays per side through each edge pixel of the camera view (`render_steps`): 3 x 3 takes a
+# silhouette's coverage to 1/9 of a pixel.
+EDGE_SAMPLES = 3
 MIN_MAP = 256  # below this a map cannot place even a coarse shadow edge
 MAX_MAP = 8192  # 256 MiB of float32 depth per face: the memory bound of one map
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
@@ -128,14 +131,29 @@ def median_spacing(spacings, counts) -> float:
 def light_visibility_steps(scene: Scene, points, geo_normals, spacing: float,
                            settings: DirectLightSettings, out: np.ndarray) -> Iterator[float]:
     """Fill out (L, N) float32 with each light's shadow-map visibility; yields progress."""
+    maps = None
+    for step in shadow_maps_steps(scene, points, geo_normals, spacing, settings):
+        if isinstance(step, list):
+            maps = step
+        else:
+            yield step
+    maps_visibility(maps, points, geo_normals, out)
+
+
+def shadow_maps_steps(scene: Scene, points, geo_normals, spacing: float,
+                      settings: DirectLightSettings) -> Iterator[float | list]:
+    """Each light's shadow map, planned for and rendered over the receivers (points (N, 3),
+    geometric normals (N, 3), `spacing` m apart): yields progress, then the list (None for a
+    light that casts no shadow)."""
     lights = scene.lights
     # Prepared once for every light. Culling and planning read the receivers only through their
     # bounding box (the sun's fit reads them all): its two corners stand in for them there.
     receivers = Receivers.of(points, geo_normals)
     box = receivers.box if len(receivers) else np.zeros((0, 3))
+    maps = []
     for k, light in enumerate(lights):
         if not light.cast_shadow or scene.triangle_count == 0:
-            out[k] = 1.0
+            maps.append(None)
             continue
         shadow = settings.shadow
         casters = scene.triangles[potential_casters(scene.triangles, light, box)]
@@ -146,8 +164,21 @@ def light_visibility_steps(scene: Scene, points, geo_normals, spacing: float,
         shadow_map = plan_shadow_map(casters, light, shadow, box, fit)  # casters: culled above
         for _ in render_shadow_map_steps(shadow_map, casters):
             pass
-        receivers_visibility(shadow_map, receivers, out=out[k])
+        maps.append(shadow_map)
         yield (k + 1) / max(len(lights), 1)
+    yield maps
+
+
+def maps_visibility(maps: list, points, geo_normals, out: np.ndarray) -> np.ndarray:
+    """Fill out (L, N) float32 with each light's visibility at receivers (points, geometric
+    normals (N, 3)) read from its shadow map (`shadow_maps_steps`; None: 1)."""
+    receivers = Receivers.of(points, geo_normals)
+    for k, shadow_map in enumerate(maps):
+        if shadow_map is None:
+            out[k] = 1.0
+        else:
+            receivers_visibility(shadow_map, receivers, out=out[k])
+    return out
 
 
 def irradiance_per_light(scene: Scene, points, normals) -> np.ndarray:
@@ -204,9 +235,15 @@ def diffuse_at(scene: Scene, tri: np.ndarray, bary: np.ndarray, under_layer: boo
 
 
 def render_steps(scene: Scene, settings: DirectLightSettings, resolution=None,
-                 out: np.ndarray | None = None) -> Iterator[float | np.ndarray]:
+                 out: np.ndarray | None = None, edge_samples: int = EDGE_SAMPLES
+                 ) -> Iterator[float | np.ndarray]:
     """The camera's view of direct light with shadow-mapped shadows: the lecture's step 2, with
-    the eye's own z-buffer giving the fragments f. Yields progress, then the (H, W, 3) image."""
+    the eye's own z-buffer giving the fragments f. Edge pixels (silhouettes, folds, shadow edges:
+    `camera_view.edge_pixels`) are then the mean of edge_samples x edge_samples rays through them,
+    as Cycles' 1-px box filter averages a pixel (0 or 1: the centres only). Yields progress, then
+    the (H, W, 3) image."""
+    from .camera_view import supersample_edges
+
     image, f = background_and_fragments(scene, resolution, out)
     camera = scene.camera
     width = image.shape[1]
@@ -214,17 +251,40 @@ def render_steps(scene: Scene, settings: DirectLightSettings, resolution=None,
     if len(f) == 0:
         yield image
         return
-    rows, cols, tri, bary, points, d, t = f.rows, f.cols, f.tri, f.bary, f.points, f.dirs, f.depth
+    # Pixel footprint at the receivers: the image plane's texel at distance t (PERSP) or in m.
+    texel = (camera.plane_max[0] - camera.plane_min[0]) / width
+    spacing = texel * (float(np.median(f.depth)) if camera.kind == "PERSP" else 1.0)
+    maps = None
+    geo = f.geometric.copy()
+    geo[f.back] *= -1  # seen from behind: shade the side we see
+    for step in shadow_maps_steps(scene, f.points, geo, spacing, settings):
+        if isinstance(step, list):
+            maps = step
+        else:
+            yield 0.2 + 0.6 * step
+    image[f.rows, f.cols] = _shade(scene, maps, f)
+    yield 0.8
+    if edge_samples > 1:
+        from .bvh import BVH
+
+        ids = np.full(image.shape[:2], -1, np.int64)
+        ids[f.rows, f.cols] = scene.object_ids[f.tri]
+        # The maps planned for the pixel centres serve their sub-pixel rays too.
+        supersample_edges(scene, image, ids, lambda g: _shade(scene, maps, g),
+                          BVH.build(scene.triangles), edge_samples)
+    yield image
+
+
+def _shade(scene: Scene, maps: list, f) -> np.ndarray:
+    """(M, 3) radiance of fragments f (`Fragments`): emission plus each light's diffuse light
+    times its shadow-map visibility (`maps`, `shadow_maps_steps`) and the rough lobes'
+    highlights."""
+    tri, bary, points, d = f.tri, f.bary, f.points, f.dirs
     normals = scene_normals(scene, tri, bary, interpolated_normals(scene, tri, bary))
     geo = f.geometric.copy()
     geo[f.back] *= -1  # seen from behind: shade the side we see
     normals[np.einsum("ij,ij->i", normals, d) > 0] *= -1
-    # Pixel footprint at the receivers: the image plane's texel at distance t (PERSP) or in m.
-    texel = (camera.plane_max[0] - camera.plane_min[0]) / width
-    spacing = texel * (float(np.median(t)) if camera.kind == "PERSP" else 1.0)
-    vis = np.ones((len(scene.lights), len(points)), np.float32)
-    for p in light_visibility_steps(scene, points, geo, spacing, settings, vis):
-        yield 0.2 + 0.7 * p
+    vis = maps_visibility(maps, points, geo, np.ones((len(scene.lights), len(points)), np.float32))
     e = irradiance_per_light(scene, points, normals)
     # What reflects diffusely toward the eye: no metal or glass, and the base under the specular
     # layer darkened at this view (`specular_layer.py`), as Cycles' diffuse lobe.
@@ -242,8 +302,7 @@ def render_steps(scene: Scene, settings: DirectLightSettings, resolution=None,
         to_light, _ = light_units.light_vectors(light, points)
         shine += lamp_highlights(scene.materials, mids, normals, -d, to_light, e[k],
                                  base) * vis[k, :, None]
-    image[rows, cols] = emission + albedo / np.pi * np.einsum("lnc,ln->nc", e, vis) + shine
-    yield image
+    return emission + albedo / np.pi * np.einsum("lnc,ln->nc", e, vis) + shine
 
 
 # --- baking the shadow mask -----------------------------------------------------------------------

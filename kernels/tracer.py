@@ -36,6 +36,7 @@ from . import lights as light_units
 from .bump import SHADING_MODES, ShadingMode, bump_shadowing, scene_normals, valid_reflection
 from .bvh import BVH
 from .camera import Camera, camera_ray_lines, camera_rays
+from .camera_view import edge_pixels, stratified_offsets
 from .optics import fresnel_dielectric, reflect, refract
 from .scene import Light, Scene, geometric_normals
 from .specular_layer import (
@@ -62,9 +63,6 @@ MESH_LIGHT_TRIANGLES = 4
 # Emitter samples handled together in area lighting: B x hits arrays stay a few MB per block for
 # a typical wavefront of ~100k hits.
 EMITTER_BLOCK = 8
-# Relative luminance contrast between neighbouring pixels that marks an edge for supersampling;
-# 1/16 is about the smallest step visible in an 8-bit display of the result.
-EDGE_CONTRAST = 1.0 / 16.0
 # Default branch weight below which the ray tree stops: a cut branch changes its pixel by < 1%.
 MIN_WEIGHT = 1e-2
 # Edge sub-samples traced per wavefront: large enough to amortise per-call work, small enough that
@@ -78,8 +76,6 @@ TEXTURE_FILTER = 3
 # A cell's sample ray this close to edge-on with the hit triangle's plane (|cos|) keeps the centre's
 # UV: extrapolating along the plane would run off towards infinity.
 GRAZING_COS = 1e-4
-# Added to the luminance sum in the contrast test so that near-black pixels do not all count as edges.
-CONTRAST_FLOOR = 1e-2
 # An environment map read for reflected rays: (N, 3) world points, (N, 3) unit directions ->
 # (N, 3) radiance W/(m^2 sr) arriving at the points along the directions.
 EnvironmentLookup = Callable[[np.ndarray, np.ndarray], np.ndarray]
@@ -201,12 +197,6 @@ def _scene_scale(scene: Scene) -> float:
     return float(max(np.linalg.norm(hi - lo), np.abs(lo).max(), np.abs(hi).max(), 1e-6))
 
 
-def _stratified_unit_square(n: int) -> np.ndarray:
-    g = (np.arange(n) + 0.5) / n
-    gx, gy = np.meshgrid(g, g, indexing="xy")
-    return np.stack([gx.ravel(), gy.ravel()], 1)
-
-
 def _mesh_light_samples(scene: Scene, tri_ids: np.ndarray, n: int
                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
     """Shadow-ray targets on one object's emissive triangles `tri_ids`: points (S, 3), their
@@ -224,7 +214,7 @@ def _mesh_light_samples(scene: Scene, tri_ids: np.ndarray, n: int
     area = 0.5 * np.linalg.norm(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]), axis=1)
     radiance = np.stack([scene.materials[m].emission for m in scene.material_ids[tri_ids]])
     if len(tri_ids) <= MESH_LIGHT_TRIANGLES:
-        st = _stratified_unit_square(n)
+        st = stratified_offsets(n)
         fold = st[:, 0] + st[:, 1] > 1.0
         st[fold] = 1.0 - st[fold][:, ::-1]
         bary = np.stack([1.0 - st[:, 0] - st[:, 1], st[:, 0], st[:, 1]], 1)  # (K, 3)
@@ -861,27 +851,6 @@ class Tracer:
         return result
 
 
-def _luminance(rgb: np.ndarray) -> np.ndarray:
-    return rgb @ np.array([0.2126, 0.7152, 0.0722])
-
-
-def edge_pixels(image: np.ndarray, ids: np.ndarray) -> np.ndarray:
-    """(H, W) bool: pixels whose 4-neighbours see another object/material or a visible contrast."""
-    lum = _luminance(image)
-    mark = np.zeros(ids.shape, bool)
-    for axis in (0, 1):
-        a = [slice(None)] * 2
-        b = [slice(None)] * 2
-        a[axis] = slice(1, None)
-        b[axis] = slice(None, -1)
-        differ = ids[tuple(a)] != ids[tuple(b)]
-        la, lb = lum[tuple(a)], lum[tuple(b)]
-        differ |= np.abs(la - lb) > EDGE_CONTRAST * (la + lb + CONTRAST_FLOOR)
-        mark[tuple(a)] |= differ
-        mark[tuple(b)] |= differ
-    return mark
-
-
 @dataclass
 class TraceResult:
     image: np.ndarray  # (H, W, 3) float32 linear radiance, row 0 top
@@ -914,7 +883,7 @@ def trace_steps(scene: Scene, settings: TracerSettings, bvh: BVH | None = None,
     row, col = np.divmod(np.arange(height * width), width)
     # Each sample stands for a 1/n cell of its pixel; its textures are averaged over that cell.
     grid = max(1, settings.texture_filter // n)
-    for k, (ox, oy) in enumerate(_stratified_unit_square(n)):
+    for k, (ox, oy) in enumerate(stratified_offsets(n)):
         o, d = camera_rays(scene.camera, width, height, offsets=(ox, oy))
         footprint = None if settings.texture_filter == 1 else _Footprint(
             scene.camera, width, height, col + ox, row + oy, 1.0 / n, grid)
@@ -934,7 +903,7 @@ def trace_steps(scene: Scene, settings: TracerSettings, bvh: BVH | None = None,
         tracer.stats.edge_pixels = int(mark.sum())
         if mark.any():
             sel = np.nonzero(mark)[0]
-            grid = _stratified_unit_square(a)
+            grid = stratified_offsets(a)
             # All sub-samples of all edge pixels go out as few large wavefronts: per-call costs
             # (BVH pool set-up, one pass per depth) are paid once, not once per sub-sample.
             rays = [camera_rays(scene.camera, width, height, offsets=(ox, oy)) for ox, oy in grid]

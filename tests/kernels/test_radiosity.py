@@ -251,9 +251,10 @@ def test_the_view_draws_the_layers_lamp_highlight(final_gather):
     np.testing.assert_array_equal(image[[1, 2]], 0.0)
 
 
-def _rendered(scene, result):
+def _rendered(scene, result, edge_samples=1):
+    """The camera view; by default its pixel centres alone, the values these tests work out."""
     image = None
-    for step in render_steps(scene, result):
+    for step in render_steps(scene, result, edge_samples=edge_samples):
         image = step
     return image
 

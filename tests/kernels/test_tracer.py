@@ -12,13 +12,13 @@ from scene_builder import build, ortho_camera, persp_camera, quad, uv_sphere
 
 from classic_bake.kernels.bvh import BVH
 from classic_bake.kernels.camera import camera_rays
+from classic_bake.kernels.camera_view import stratified_offsets
 from classic_bake.kernels.metrics import rel_mse
 from classic_bake.kernels.scene import Light, Material, Texture
 from classic_bake.kernels.specular_layer import schlick_grazing_curve
 from classic_bake.kernels.tracer import (
     Tracer,
     TracerSettings,
-    _stratified_unit_square,
     auto_settings,
     point_light,
     trace,
@@ -275,7 +275,7 @@ def test_edge_sub_samples_share_out_an_area_lights_samples():
     assert changed.sum() == count  # the edge pixels, resampled
     tracer = Tracer(scene, BVH.build(scene.triangles), settings)
     full = np.zeros((16, 16, 3))
-    for ox, oy in _stratified_unit_square(4):  # every sub-sample against every light sample
+    for ox, oy in stratified_offsets(4):  # every sub-sample against every light sample
         o, d = camera_rays(cam, 16, 16, offsets=(ox, oy))
         full += tracer.radiance(o.reshape(-1, 3), d.reshape(-1, 3)).reshape(16, 16, 3) / 16
     np.testing.assert_allclose(edges.image[changed], full[changed], rtol=5e-3)
