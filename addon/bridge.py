@@ -645,7 +645,10 @@ def read_world_texture(scene, render: bool = True):
         return None
     from .cycles_reference import render_world_map  # it imports this module
 
-    rgb, _ = render_world_map(scene.world)
+    try:
+        rgb, _ = render_world_map(scene.world)
+    except RuntimeError:  # no Cycles in this build: `read_world` notes the shader as not read
+        return None
     pixels = np.concatenate([rgb, np.ones(rgb.shape[:2] + (1,), np.float32)], axis=-1)
     return Texture(kind="IMAGE", name=f"{scene.world.name} (rendered)", pixels=pixels,
                    extension="REPEAT", interpolation="LINEAR")
