@@ -25,8 +25,12 @@ from ..kernels.camera import image_plane
 from ..kernels.scene import Camera, Light, Material, ObjectInfo, Scene, Texture
 
 DEFAULT_MATERIAL_NAME = "(default surface)"
-# Cycles shades faces without a material with a 0.8 grey diffuse surface.
-DEFAULT_MATERIAL = Material(name=DEFAULT_MATERIAL_NAME, specular=0.0)
+# What Cycles shades faces without a material with (measured: a plane under a sun renders to the
+# same float as with a material of that surface): Blender 5 a Principled BSDF of its node's
+# defaults (base 0.8, roughness 0.5, IOR 1.5, Specular IOR Level 0.5: a specular layer), 4.5 a
+# 0.8 grey Diffuse BSDF.
+DEFAULT_MATERIAL = (Material(name=DEFAULT_MATERIAL_NAME) if bpy.app.version >= (5, 0, 0)
+                    else Material(name=DEFAULT_MATERIAL_NAME, specular=0.0))
 
 MESH_LIKE_TYPES = {"MESH", "CURVE", "SURFACE", "META", "FONT", "CURVES_LEGACY"}
 
