@@ -264,6 +264,93 @@ def image_pixels(image, decode: bool = True) -> np.ndarray | None:
     return pixels
 
 
+# Mix and Add Shaders nested deeper than this are not followed (a shader tree is finite, but a
+# node group could repeat one mix many times; eight levels hold 256 leaves).
+MAX_SHADER_MIX_DEPTH = 8
+
+
+def mix_materials(name: str, parts: list, ignored: list) -> Material:
+    """One `Material` for the weighted sum of parts [(weight, Material)] (a Mix Shader's 1 - Fac
+    and Fac, an Add Shader's 1 and 1), as a Principled BSDF splits a surface: part i reflects
+    diffusely with weight w_i (1 - m_i)(1 - t_i), as a metal with w_i m_i, transmits with
+    w_i (1 - m_i) t_i (m: metallic, t: transmission). The sum keeps the diffuse albedo exactly
+    (sum of the diffuse weights times base colours: what radiosity and Cycles' DIFFUSE bake read),
+    the emission exactly, and the three weights' shares; the glossy and glass parts take the
+    same base colour (a Principled BSDF has one: a white Glossy over a red Diffuse reflects red),
+    roughness and IOR their parts' weighted means, the specular layer the diffuse parts' weighted
+    level. A base texture is kept where its part is the only diffuse one (else the first
+    textured part's, noted)."""
+    diffuse = sum(w * (1.0 - m.metallic) * (1.0 - m.transmission) for w, m in parts)
+    metal = sum(w * m.metallic for w, m in parts)
+    glass = sum(w * (1.0 - m.metallic) * m.transmission for w, m in parts)
+    total = diffuse + metal + glass
+    emission = sum((w * m.emission.astype(np.float64) for w, m in parts), np.zeros(3))
+    if total <= 0.0:
+        return Material(name=name, base_color=np.zeros(3, np.float32), specular=0.0,
+                        emission=emission.astype(np.float32), ignored=tuple(ignored))
+
+    def mean(values, weights, default):
+        weights = np.asarray(weights, np.float64)
+        if weights.sum() <= 0.0:
+            return default
+        return np.tensordot(weights, np.asarray(values, np.float64), axes=1) / weights.sum()
+
+    d_w = [w * (1.0 - m.metallic) * (1.0 - m.transmission) for w, m in parts]
+    g_w = [w * (m.metallic + (1.0 - m.metallic) * m.transmission) for w, m in parts]
+    colours = [m.base_color.astype(np.float64) for _, m in parts]
+    if diffuse > 0.0:
+        # (1 - metallic)(1 - transmission) = diffuse / total below, so this base gives the sum's
+        # diffuse albedo.
+        base = np.tensordot(d_w, colours, axes=1) * total / diffuse
+    else:
+        base = mean(colours, g_w, np.zeros(3))
+    textured = [(dw, m) for dw, (_, m) in zip(d_w, parts, strict=True)
+                if m.base_color_texture is not None and dw > 0.0]
+    texture = None
+    if textured:
+        dw, source = textured[0]
+        if len(textured) > 1 or any(x > 0.0 and m.base_color_texture is None
+                                    for x, (_, m) in zip(d_w, parts, strict=True)):
+            ignored.append("a mix of shaders with a texture: the first textured part's texture "
+                           "stands for every diffuse part's colour")
+        texture = _scaled_texture(source.base_color_texture, dw * total / diffuse, ignored)
+    roughness = float(mean([m.roughness for _, m in parts], g_w,
+                           mean([m.roughness for _, m in parts], [w for w, _ in parts], 0.5)))
+    glass_w = [w * (1.0 - m.metallic) * m.transmission for w, m in parts]
+    ior = float(mean([m.ior for _, m in parts], glass_w, mean([m.ior for _, m in parts],
+                                                              [w for w, _ in parts], 1.5)))
+    specular = float(mean([m.specular for _, m in parts], d_w, 0.0))
+    normal = next((m for _, m in parts if m.normal_texture is not None or
+                   m.height_texture is not None), None)
+    return Material(
+        name=name, base_color=base.astype(np.float32), base_color_texture=texture,
+        metallic=metal / total, roughness=roughness, ior=ior,
+        transmission=glass / (glass + diffuse) if glass + diffuse > 0.0 else 0.0,
+        specular=specular, emission=emission.astype(np.float32),
+        normal_texture=None if normal is None else normal.normal_texture,
+        height_texture=None if normal is None else normal.height_texture,
+        bump_strength=1.0 if normal is None else normal.bump_strength,
+        bump_distance=1.0 if normal is None else normal.bump_distance,
+        ignored=tuple(ignored))
+
+
+def _scaled_texture(texture: Texture, factor: float, ignored: list) -> Texture:
+    """`texture` with its colours times `factor` (1: itself); an sRGB-encoded image, whose
+    texels are decoded after filtering, is kept as it is (noted)."""
+    if abs(factor - 1.0) < 1e-9:
+        return texture
+    if texture.kind == "CHECKER":
+        return replace(texture, color1=(texture.color1 * factor).astype(np.float32),
+                       color2=(texture.color2 * factor).astype(np.float32))
+    if texture.encoding == "sRGB":
+        ignored.append(f"texture '{texture.name}' in a mix of shaders: its share "
+                       f"{factor:.3g} of the colour not applied (an sRGB image)")
+        return texture
+    pixels = texture.pixels.copy()
+    pixels[..., :3] *= factor
+    return replace(texture, pixels=pixels)
+
+
 class _MaterialReader:
     """Reduces Blender materials to kernel `Material`s, recording what it could not model."""
 
@@ -297,30 +384,56 @@ class _MaterialReader:
         if node is None:
             return Material(name=mat.name, base_color=np.zeros(3, np.float32),
                             ignored=tuple(ignored + ["no surface shader: black"]))
+        return self._shader(mat.name, node, ignored)
+
+    def _shader(self, name: str, node, ignored: list, depth: int = 0) -> Material:
+        """The kernel `Material` of the shader node `node` (a BSDF, an emission, or a Mix or
+        Add Shader of such, `_mixed`)."""
         kind = node.type
+        if kind in ("MIX_SHADER", "ADD_SHADER") and depth < MAX_SHADER_MIX_DEPTH:
+            return self._mixed(name, node, ignored, depth)
         if kind == "BSDF_PRINCIPLED":
-            return self._principled(mat.name, node, ignored)
+            return self._principled(name, node, ignored)
         if kind == "BSDF_DIFFUSE":
             color, tex = self._color(node.inputs["Color"], ignored)
-            return Material(name=mat.name, base_color=color, base_color_texture=tex, specular=0.0,
+            return Material(name=name, base_color=color, base_color_texture=tex, specular=0.0,
                             ignored=tuple(ignored))
         if kind == "EMISSION":
             color, _ = self._color(node.inputs["Color"], ignored, textures=False)
             strength = self._value(node.inputs["Strength"], ignored)
-            return Material(name=mat.name, base_color=np.zeros(3, np.float32), specular=0.0,
+            return Material(name=name, base_color=np.zeros(3, np.float32), specular=0.0,
                             emission=(color * strength).astype(np.float32), ignored=tuple(ignored))
         if kind == "BSDF_GLASS":
             color, _ = self._color(node.inputs["Color"], ignored, textures=False)
-            return Material(name=mat.name, base_color=color, transmission=1.0,
+            return Material(name=name, base_color=color, transmission=1.0,
                             roughness=self._value(node.inputs["Roughness"], ignored),
                             ior=self._value(node.inputs["IOR"], ignored), ignored=tuple(ignored))
         if kind in ("BSDF_GLOSSY", "BSDF_ANISOTROPIC"):
             color, tex = self._color(node.inputs["Color"], ignored)
-            return Material(name=mat.name, base_color=color, base_color_texture=tex, metallic=1.0,
+            return Material(name=name, base_color=color, base_color_texture=tex, metallic=1.0,
                             roughness=self._value(node.inputs["Roughness"], ignored),
                             ignored=tuple(ignored))
         ignored.append(f"surface shader '{node.bl_idname}' is not modelled: grey diffuse used")
-        return Material(name=mat.name, ignored=tuple(ignored))
+        return Material(name=name, ignored=tuple(ignored))
+
+    def _mixed(self, name: str, node, ignored: list, depth: int) -> Material:
+        """A Mix Shader (weights 1 - Fac and Fac; a Fac fed by a node takes its default, noted)
+        or an Add Shader (weights 1 and 1) of two shaders, as one `Material` (`mix_materials`);
+        an unlinked shader input is a black surface (no closure: Cycles absorbs there)."""
+        add = node.type == "ADD_SHADER"
+        sockets = [s for s in node.inputs if s.type == "SHADER"]
+        if add:
+            weights = [1.0, 1.0]
+        else:
+            fac = min(max(self._value(node.inputs["Fac"], ignored), 0.0), 1.0)
+            weights = [1.0 - fac, fac]
+        parts = []
+        for socket, weight in zip(sockets, weights, strict=True):
+            source, _ = _follow(socket)
+            if source is None or weight == 0.0:
+                continue
+            parts.append((weight, self._shader(name, source, ignored, depth + 1)))
+        return mix_materials(name, parts, ignored)
 
     def _principled(self, name, node, ignored) -> Material:
         inputs = node.inputs

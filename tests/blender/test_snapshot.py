@@ -233,3 +233,31 @@ def test_faces_without_a_material_shade_as_cycles_default_surface():
     ratio = float(ours[4:9, 4:12].mean() / theirs[4:9, 4:12].mean())
     print(f"default surface, ours/cycles {ratio:.4f}")
     assert abs(ratio - 1.0) < 0.03
+
+
+def test_mixed_shaders_keep_diffuse_albedo_emission_and_shares():
+    """`bridge.mix_materials`: a 0.25/0.75 mix of a red diffuse surface and a blue half-metal
+    that glows keeps the sum's diffuse albedo, emission and metal share; a textured part alone
+    diffuse keeps its texture (a checker's colours scaled when the parts' weights do not add up
+    to 1)."""
+    from classic_bake.kernels.scene import Material, Texture
+
+    red = Material(name="r", base_color=np.array([0.8, 0.1, 0.1], np.float32), specular=0.0)
+    blue = Material(name="b", base_color=np.array([0.1, 0.2, 0.9], np.float32), metallic=0.5,
+                    emission=np.array([2.0, 0.0, 0.0], np.float32))
+    mixed = bridge.mix_materials("m", [(0.25, red), (0.75, blue)], [])
+    albedo = (1.0 - mixed.metallic) * (1.0 - mixed.transmission) * mixed.base_color
+    np.testing.assert_allclose(albedo, 0.25 * red.base_color + 0.75 * 0.5 * blue.base_color,
+                               rtol=1e-6)
+    np.testing.assert_allclose(mixed.emission, [1.5, 0.0, 0.0])
+    assert mixed.metallic == pytest.approx(0.375)
+    assert mixed.specular == pytest.approx((0.25 * 0.0 + 0.375 * 0.5) / 0.625)
+    checker = Texture(kind="CHECKER", color1=np.ones(3, np.float32),
+                      color2=np.zeros(3, np.float32), scale=4.0)
+    textured = Material(name="t", base_color_texture=checker, specular=0.0)
+    half = bridge.mix_materials("h", [(0.5, textured)], [])  # the other half black
+    assert half.metallic == 0.0 and half.transmission == 0.0
+    np.testing.assert_allclose(half.base_color_texture.color1, 0.5)
+    same = bridge.mix_materials("s", [(0.4, textured), (0.6, Material(name="g", metallic=1.0))],
+                                [])
+    assert same.base_color_texture is checker and same.metallic == pytest.approx(0.6)
