@@ -7,7 +7,7 @@ import math
 import bpy
 import numpy as np
 import pytest
-from blender_parts import hdri_world
+from blender_parts import colour_world, hdri_world, node_world
 
 from classic_bake.addon import bridge, cycles_reference
 from classic_bake.addon.jobs import radiosity_bake_job
@@ -101,13 +101,8 @@ def test_a_uniform_world_lights_an_open_scene_as_cycles_does(lift):
     object's mean within 3% and the relMSE under 0.01 (measured: hovering, floor and box 0.999,
     relMSE 0.0022, most of it Cycles' own noise at 128 samples; resting, 1.004 and 0.998, relMSE
     0.0022, where rays lifted in front of the base saw the sky below it: box 1.224, relMSE 0.62)."""
-    from blender_parts import WORLD
 
-    scene = bpy.context.scene
-    scene.world = bpy.data.worlds.new("World")
-    if bpy.app.version < (5, 0, 0):
-        scene.world.use_nodes = True
-    scene.world.node_tree.nodes["Background"].inputs["Color"].default_value = (*WORLD, 1.0)
+    scene = colour_world()
     ratios, error = _floor_and_box_against_cycles(scene, lift)
     print(f"relMSE {error:.4f}")
     np.testing.assert_allclose(ratios, 1.0, atol=0.03)
@@ -133,11 +128,7 @@ def _plane_view_against_cycles(material, facing_down: bool = False) -> float:
 
     from classic_bake.kernels import radiosity
 
-    scene = bpy.context.scene
-    scene.world = bpy.data.worlds.new("World")
-    if bpy.app.version < (5, 0, 0):
-        scene.world.use_nodes = True
-    scene.world.node_tree.nodes["Background"].inputs["Color"].default_value = (*WORLD, 1.0)
+    scene = colour_world()
     sheet = plane(material, size=6.0)
     if facing_down:
         sheet.rotation_euler = (math.pi, 0.0, 0.0)
@@ -245,11 +236,7 @@ def test_a_maps_sun_shines_in_the_tracers_rough_lobes(base, roughness, bound):
 def _sky_world(elevation_deg: float = 30.0):
     """The scene's world: a Sky Texture (the version's default model: Multiple Scattering in
     5.x, Nishita in 4.5) with its sun disc `elevation_deg` up, 40 degrees round."""
-    scene = bpy.context.scene
-    scene.world = bpy.data.worlds.new("Sky")
-    if bpy.app.version < (5, 0, 0):
-        scene.world.use_nodes = True
-    tree = scene.world.node_tree
+    scene, tree = node_world("Sky")
     sky = tree.nodes.new("ShaderNodeTexSky")
     sky.sun_elevation = math.radians(elevation_deg)
     sky.sun_rotation = math.radians(40.0)
@@ -297,13 +284,8 @@ def test_a_floor_of_mixed_shaders_bakes_as_cycles_does(kind):
     a metal share), both objects' means within 3% of Cycles' DIFFUSE bake (measured on 5.2: 1.000
     and 0.998, relMSE 0.0009 mixed, 0.0010 added; read as a 0.8 grey surface before, the shader
     not modelled: the floor 5.9x and 4.1x, relMSE 11 and 8.7)."""
-    from blender_parts import WORLD
 
-    scene = bpy.context.scene
-    scene.world = bpy.data.worlds.new("World")
-    if bpy.app.version < (5, 0, 0):
-        scene.world.use_nodes = True
-    scene.world.node_tree.nodes["Background"].inputs["Color"].default_value = (*WORLD, 1.0)
+    scene = colour_world()
     mat = bpy.data.materials.new("Mixed")
     if bpy.app.version < (5, 0, 0):
         mat.use_nodes = True

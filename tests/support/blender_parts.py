@@ -46,13 +46,25 @@ def plane(mat, size=2.0):
     return obj
 
 
-def lit_scene():
-    """A sun and a non-black world (which must not reach the albedo)."""
+def node_world(name: str):
+    """A new world of shader nodes (a Background node) as the scene's: (scene, its node tree)."""
     scene = bpy.context.scene
-    scene.world = bpy.data.worlds.new("World")
+    scene.world = bpy.data.worlds.new(name)
     if bpy.app.version < (5, 0, 0):
         scene.world.use_nodes = True
-    scene.world.node_tree.nodes["Background"].inputs["Color"].default_value = (*WORLD, 1.0)
+    return scene, scene.world.node_tree
+
+
+def colour_world(colour=WORLD):
+    """The scene's world: a Background of one colour (default `WORLD`); returns the scene."""
+    scene, tree = node_world("World")
+    tree.nodes["Background"].inputs["Color"].default_value = (*colour, 1.0)
+    return scene
+
+
+def lit_scene():
+    """A sun and a non-black world (which must not reach the albedo)."""
+    scene = colour_world()
     sun = bpy.data.lights.new("Sun", "SUN")
     sun.energy = SUN_E
     obj = bpy.data.objects.new("Sun", sun)
@@ -84,11 +96,7 @@ def hdri_world(pixels, strength=1.0):
     rgba = np.ones((height, width, 4), np.float32)
     rgba[..., :3] = pixels
     image.pixels.foreach_set(rgba[::-1].ravel())  # Blender stores the bottom row first
-    scene = bpy.context.scene
-    scene.world = bpy.data.worlds.new("HDRI")
-    if bpy.app.version < (5, 0, 0):
-        scene.world.use_nodes = True
-    tree = scene.world.node_tree
+    scene, tree = node_world("HDRI")
     env = tree.nodes.new("ShaderNodeTexEnvironment")
     env.image = image
     background = tree.nodes["Background"]
