@@ -87,6 +87,19 @@ def camera_rays(
     return _rays_through(camera, pixel_plane_coords(camera, width, height, offsets))
 
 
+def pixel_rays(camera: Camera, width: int, height: int, x: np.ndarray, y: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """`camera_rays` through image points x, y (N,) in pixels of a width x height image (x right
+    from the left edge, y down from the top: pixel (col, row) with offsets (ox, oy) is
+    (col + ox, row + oy)), for a few pixels of a large image: origins and unit directions (N, 3),
+    the same floats as `camera_rays` gives those pixels."""
+    lo, hi = camera.plane_min, camera.plane_max
+    xy = np.empty((len(x), 2))
+    xy[:, 0] = lo[0] + np.asarray(x, np.float64) / width * (hi[0] - lo[0])
+    xy[:, 1] = hi[1] - np.asarray(y, np.float64) / height * (hi[1] - lo[1])
+    return _rays_through(camera, xy)
+
+
 def _rays_through(camera: Camera, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Rays through image-plane points xy (..., 2): origins and unit directions (..., 3)."""
     rot = camera.matrix_world[:3, :3]

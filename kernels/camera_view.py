@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .camera import camera_rays
+from .camera import camera_rays, pixel_rays
 from .raster import Projection, rasterize
 from .scene import Camera, Scene, geometric_normals
 
@@ -157,8 +157,7 @@ def supersample_edges(scene: Scene, image: np.ndarray, ids: np.ndarray, shade, b
     offsets = stratified_offsets(samples)
     total = np.zeros((rows.size, 3))
     for ox, oy in offsets:
-        origins, dirs = camera_rays(scene.camera, width, height, offsets=(ox, oy))
-        o, d = origins[rows, cols], dirs[rows, cols]
+        o, d = pixel_rays(scene.camera, width, height, cols + ox, rows + oy)
         hits = bvh.intersect(o, d)
         tri = np.asarray(hits.tri, np.int64)
         hit = tri >= 0

@@ -35,7 +35,7 @@ import numpy as np
 from . import lights as light_units
 from .bump import SHADING_MODES, ShadingMode, bump_shadowing, scene_normals, valid_reflection
 from .bvh import BVH
-from .camera import Camera, camera_ray_lines, camera_rays
+from .camera import Camera, camera_ray_lines, camera_rays, pixel_rays
 from .camera_view import edge_pixels, stratified_offsets
 from .optics import fresnel_dielectric, reflect, refract
 from .scene import Light, Scene, geometric_normals
@@ -906,9 +906,10 @@ def trace_steps(scene: Scene, settings: TracerSettings, bvh: BVH | None = None,
             grid = stratified_offsets(a)
             # All sub-samples of all edge pixels go out as few large wavefronts: per-call costs
             # (BVH pool set-up, one pass per depth) are paid once, not once per sub-sample.
-            rays = [camera_rays(scene.camera, width, height, offsets=(ox, oy)) for ox, oy in grid]
-            origins = np.concatenate([o.reshape(-1, 3)[sel] for o, _ in rays])  # (a*a*E, 3)
-            dirs = np.concatenate([d.reshape(-1, 3)[sel] for _, d in rays])
+            rays = [pixel_rays(scene.camera, width, height, col[sel] + ox, row[sel] + oy)
+                    for ox, oy in grid]
+            origins = np.concatenate([o for o, _ in rays])  # (a*a*E, 3)
+            dirs = np.concatenate([d for _, d in rays])
             del rays
             radiance = np.empty((len(origins), 3))
             stratum = np.repeat(np.arange(len(grid)), len(sel))  # the sub-sample of each ray

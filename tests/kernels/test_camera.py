@@ -80,3 +80,19 @@ def test_ray_lines_are_the_camera_rays_and_move_affinely(kind):
     o2, d2, *_ = camera_ray_lines(cam, 6, 4, x + 0.5, y + 0.5)
     np.testing.assert_allclose(o + 0.5 * (o_x + o_y), o2, atol=1e-12)
     np.testing.assert_allclose(d + 0.5 * (d_x + d_y), d2, atol=1e-12)
+
+
+def test_pixel_rays_are_the_camera_rays_of_those_pixels():
+    """`pixel_rays` through (col + ox, row + oy) gives the same floats as `camera_rays` at those
+    offsets, perspective and orthographic."""
+    from scene_builder import ortho_camera, persp_camera
+
+    from classic_bake.kernels.camera import pixel_rays
+
+    for cam in (persp_camera((1, 2, 3), (0.2, 1, -0.3), (0, 0, 1), 1.0, (37, 23)),
+                ortho_camera((1, 2, 3), (0.2, 1, -0.3), (0, 0, 1), 2.0, (37, 23))):
+        origins, dirs = camera_rays(cam, 37, 23, offsets=(0.25, 0.75))
+        rows, cols = np.nonzero(np.ones((23, 37), bool))
+        o, d = pixel_rays(cam, 37, 23, cols + 0.25, rows + 0.75)
+        np.testing.assert_array_equal(o, origins[rows, cols])
+        np.testing.assert_array_equal(d, dirs[rows, cols])
