@@ -155,26 +155,28 @@ def supersample_edges(scene: Scene, image: np.ndarray, ids: np.ndarray, shade, b
     if rows.size == 0 or samples < 2:
         return 0
     offsets = stratified_offsets(samples)
-    total = np.zeros((rows.size, 3))
-    for ox, oy in offsets:
-        o, d = pixel_rays(scene.camera, width, height, cols + ox, rows + oy)
-        hits = bvh.intersect(o, d)
-        tri = np.asarray(hits.tri, np.int64)
-        hit = tri >= 0
-        value = np.empty((rows.size, 3))
-        if scene.world_texture is None:
-            value[~hit] = scene.world_color
-        else:
-            value[~hit] = world_radiance(scene, d[~hit])
-        if hit.any():
-            t = tri[hit]
-            u, v = hits.u[hit].astype(np.float64), hits.v[hit].astype(np.float64)
-            depth = hits.t[hit].astype(np.float64)
-            geometric = geometric_normals(scene.triangles[t])
-            value[hit] = shade(Fragments(
-                rows=rows[hit], cols=cols[hit], tri=t, bary=np.stack([1.0 - u - v, u, v], 1),
-                points=o[hit] + d[hit] * depth[:, None], dirs=d[hit], depth=depth,
-                geometric=geometric, back=np.einsum("ij,ij->i", geometric, d[hit]) > 0.0))
-        total += value
-    image[rows, cols] = total / len(offsets)
+    # Every sub-pixel ray of every edge pixel in one BVH call and one shading call: `shade` may
+    # cost a few ms per call besides its points (the radiosity view's final gather).
+    sub_rows = np.tile(rows, len(offsets))
+    sub_cols = np.tile(cols, len(offsets))
+    o, d = pixel_rays(scene.camera, width, height, sub_cols + np.repeat(offsets[:, 0], rows.size),
+                      sub_rows + np.repeat(offsets[:, 1], rows.size))
+    hits = bvh.intersect(o, d)
+    tri = np.asarray(hits.tri, np.int64)
+    hit = tri >= 0
+    value = np.empty((len(o), 3))
+    if scene.world_texture is None:
+        value[~hit] = scene.world_color
+    else:
+        value[~hit] = world_radiance(scene, d[~hit])
+    if hit.any():
+        t = tri[hit]
+        u, v = hits.u[hit].astype(np.float64), hits.v[hit].astype(np.float64)
+        depth = hits.t[hit].astype(np.float64)
+        geometric = geometric_normals(scene.triangles[t])
+        value[hit] = shade(Fragments(
+            rows=sub_rows[hit], cols=sub_cols[hit], tri=t, bary=np.stack([1.0 - u - v, u, v], 1),
+            points=o[hit] + d[hit] * depth[:, None], dirs=d[hit], depth=depth,
+            geometric=geometric, back=np.einsum("ij,ij->i", geometric, d[hit]) > 0.0))
+    image[rows, cols] = value.reshape(len(offsets), rows.size, 3).mean(axis=0)
     return int(rows.size)
