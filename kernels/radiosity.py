@@ -1031,8 +1031,10 @@ def _result(scene, patches, b, emitted, rho, direct, bvh, settings: RadiositySet
     the patches' `final_gather.clear_shafts`, from the first shot)."""
     # What the patches show: their reflected light under the specular layer (`patch_reflectance`).
     shown = emitted + (b - emitted) * layer_factors(scene)[scene.material_ids[patches.parent]][:, None]
-    corner_b = patching.fitted_corner_values(patches, shown, settings.smooth_angle, scale)
-    corner_e = patching.fitted_corner_values(patches, emitted, settings.smooth_angle, scale)
+    # One fit for both (their corner groups and CG iterations shared; channels are independent).
+    corners = patching.fitted_corner_values(patches, np.hstack([shown, emitted]),
+                                            settings.smooth_angle, scale)
+    corner_b, corner_e = corners[..., :3], corners[..., 3:]
     # What "auto" chose, for metrics.json.
     stats.update(samples_per_side=settings.samples_per_side, refine_levels=settings.refine_levels,
                  shadow_splits=settings.shadow_splits)
