@@ -280,30 +280,28 @@ def mix_materials(name: str, parts: list, ignored: list) -> Material:
     roughness and IOR their parts' weighted means, the specular layer the diffuse parts' weighted
     level. A base texture is kept where its part is the only diffuse one (else the first
     textured part's, noted)."""
-    diffuse = sum(w * (1.0 - m.metallic) * (1.0 - m.transmission) for w, m in parts)
-    metal = sum(w * m.metallic for w, m in parts)
-    glass = sum(w * (1.0 - m.metallic) * m.transmission for w, m in parts)
+    weights = np.array([w for w, _ in parts], np.float64)
+    d_w = np.array([w * (1.0 - m.metallic) * (1.0 - m.transmission) for w, m in parts])
+    m_w = np.array([w * m.metallic for w, m in parts])
+    t_w = np.array([w * (1.0 - m.metallic) * m.transmission for w, m in parts])
+    diffuse, metal, glass = float(d_w.sum()), float(m_w.sum()), float(t_w.sum())
     total = diffuse + metal + glass
     emission = sum((w * m.emission.astype(np.float64) for w, m in parts), np.zeros(3))
     if total <= 0.0:
         return Material(name=name, base_color=np.zeros(3, np.float32), specular=0.0,
                         emission=emission.astype(np.float32), ignored=tuple(ignored))
 
-    def mean(values, weights, default):
-        weights = np.asarray(weights, np.float64)
-        if weights.sum() <= 0.0:
-            return default
-        return np.tensordot(weights, np.asarray(values, np.float64), axes=1) / weights.sum()
+    def mean(field: str, *by: np.ndarray):  # the parts' field weighted by the first of `by`
+        values = np.array([np.asarray(getattr(m, field), np.float64) for _, m in parts])
+        w = next(x for x in by if x.sum() > 0.0)
+        return np.tensordot(w, values, axes=1) / w.sum()
 
-    d_w = [w * (1.0 - m.metallic) * (1.0 - m.transmission) for w, m in parts]
-    g_w = [w * (m.metallic + (1.0 - m.metallic) * m.transmission) for w, m in parts]
-    colours = [m.base_color.astype(np.float64) for _, m in parts]
     if diffuse > 0.0:
         # (1 - metallic)(1 - transmission) = diffuse / total below, so this base gives the sum's
         # diffuse albedo.
-        base = np.tensordot(d_w, colours, axes=1) * total / diffuse
+        base = mean("base_color", d_w) * total
     else:
-        base = mean(colours, g_w, np.zeros(3))
+        base = mean("base_color", m_w + t_w)
     textured = [(dw, m) for dw, (_, m) in zip(d_w, parts, strict=True)
                 if m.base_color_texture is not None and dw > 0.0]
     texture = None
@@ -314,19 +312,14 @@ def mix_materials(name: str, parts: list, ignored: list) -> Material:
             ignored.append("a mix of shaders with a texture: the first textured part's texture "
                            "stands for every diffuse part's colour")
         texture = _scaled_texture(source.base_color_texture, dw * total / diffuse, ignored)
-    roughness = float(mean([m.roughness for _, m in parts], g_w,
-                           mean([m.roughness for _, m in parts], [w for w, _ in parts], 0.5)))
-    glass_w = [w * (1.0 - m.metallic) * m.transmission for w, m in parts]
-    ior = float(mean([m.ior for _, m in parts], glass_w, mean([m.ior for _, m in parts],
-                                                              [w for w, _ in parts], 1.5)))
-    specular = float(mean([m.specular for _, m in parts], d_w, 0.0))
     normal = next((m for _, m in parts if m.normal_texture is not None or
                    m.height_texture is not None), None)
     return Material(
         name=name, base_color=base.astype(np.float32), base_color_texture=texture,
-        metallic=metal / total, roughness=roughness, ior=ior,
+        metallic=metal / total, roughness=float(mean("roughness", m_w + t_w, weights)),
+        ior=float(mean("ior", t_w, weights)),
         transmission=glass / (glass + diffuse) if glass + diffuse > 0.0 else 0.0,
-        specular=specular, emission=emission.astype(np.float32),
+        specular=float(mean("specular", d_w, weights)), emission=emission.astype(np.float32),
         normal_texture=None if normal is None else normal.normal_texture,
         height_texture=None if normal is None else normal.height_texture,
         bump_strength=1.0 if normal is None else normal.bump_strength,
