@@ -677,8 +677,9 @@ def read_world(scene, mapped=None) -> tuple[np.ndarray, list[str]]:
     if unread is not None and mapped is not None:  # rendered by `read_world_texture`
         width, height = mapped.pixels.shape[1], mapped.pixels.shape[0]
         note = f"world: {unread}, rendered by Cycles into a {width} x {height} map"
-        if any(n.type == "LIGHT_PATH" for n in tree.nodes):
-            note += " as camera rays see it (its Light Path node's other rays are not modelled)"
+        if _has_light_path(world):
+            note += (" as diffuse rays see it through its Light Path node (the map lights the "
+                     "surfaces; the camera's view of the world shows it too)")
         return _equirect_mean(mapped.pixels), [note]
     output = _active_output(tree, "OUTPUT_WORLD")
     if output is None:
@@ -756,12 +757,18 @@ def read_world_texture(scene, render: bool = True):
     from .cycles_reference import render_world_map  # it imports this module
 
     try:
-        rgb, _ = render_world_map(scene.world)
+        rgb, _ = render_world_map(scene.world, lighting=_has_light_path(scene.world))
     except RuntimeError:  # no Cycles in this build: `read_world` notes the shader as not read
         return None
     pixels = np.concatenate([rgb, np.ones(rgb.shape[:2] + (1,), np.float32)], axis=-1)
     return Texture(kind="IMAGE", name=f"{scene.world.name} (rendered)", pixels=pixels,
                    extension="REPEAT", interpolation="LINEAR")
+
+
+def _has_light_path(world) -> bool:
+    """Whether the world's own node tree holds a Light Path node."""
+    tree = _node_tree(world)
+    return tree is not None and any(n.type == "LIGHT_PATH" for n in tree.nodes)
 
 
 def _world_render_reason(scene) -> str | None:

@@ -551,20 +551,30 @@ WORLD_MAP_SIZE = (1024, 512)
 # coverage of a texel is sampled); adaptive sampling stops the smooth sky's early. A 1-px box
 # filter: each texel is its area's mean, so the texels' sum keeps a sun's power.
 WORLD_MAP_SAMPLES = 256
+# What a Light Path node reads on a diffuse bounce ray that escapes to the world, the rays that
+# light surfaces (`render_world_map(lighting=True)`): the flags of a first diffuse bounce, an
+# unbounded length. Outputs not named here read 0.
+DIFFUSE_RAY_PATH = {"Is Diffuse Ray": 1.0, "Is Reflection Ray": 1.0, "Ray Length": 1e30,
+                    "Ray Depth": 1.0, "Diffuse Depth": 1.0}
 WORLD_MAP_MIN_SAMPLES = 8
 WORLD_MAP_NOISE = 0.002
 
 
 def render_world_map(world, size: tuple[int, int] = WORLD_MAP_SIZE,
-                     samples: int = WORLD_MAP_SAMPLES) -> tuple[np.ndarray, float]:
+                     samples: int = WORLD_MAP_SAMPLES, lighting: bool = False
+                     ) -> tuple[np.ndarray, float]:
     """The world's radiance over all directions as an equirectangular map, rendered by Cycles:
     ((H, W, 3) float32 linear, row 0 top, laid out as an Environment Texture's image; seconds).
 
     For world shaders the bridge cannot read itself (a Sky Texture, procedural textures, mixes
     of shaders). A temporary scene holds the world and a panoramic camera (`WORLD_CAMERA_MATRIX`)
     and nothing else; it is removed afterwards, the world untouched. A camera sees the world as a
-    camera ray does: a Light Path node's other rays are not what this map holds."""
+    camera ray does; with `lighting`, a copy of the world whose Light Path nodes (in its own tree)
+    read as a diffuse bounce ray's (`DIFFUSE_RAY_PATH`) is rendered instead: the world that
+    lights surfaces (a common set-up shows the camera a backdrop and lights with a map)."""
     width, height = (int(v) for v in size)
+    if lighting:
+        world = _diffuse_ray_world(world)
     temp = bpy.data.scenes.new(f"{TEMP_PREFIX}_world")
     camera = bpy.data.cameras.new(f"{TEMP_PREFIX}_world")
     obj, log = None, SettingsLog()
@@ -591,6 +601,23 @@ def render_world_map(world, size: tuple[int, int] = WORLD_MAP_SIZE,
             bpy.data.objects.remove(obj)
         bpy.data.cameras.remove(camera)
         bpy.data.scenes.remove(temp)
+        if lighting:
+            bpy.data.worlds.remove(world)
+
+
+def _diffuse_ray_world(world):
+    """A temporary copy of `world` whose Light Path nodes' links come from Value nodes holding
+    what a diffuse bounce ray reads (`DIFFUSE_RAY_PATH`; the caller removes the copy)."""
+    copy = world.copy()
+    copy.name = f"{TEMP_PREFIX}_world"
+    tree = copy.node_tree
+    for node in [n for n in tree.nodes if n.type == "LIGHT_PATH"]:
+        for output in node.outputs:
+            for link in list(output.links):
+                value = tree.nodes.new("ShaderNodeValue")
+                value.outputs[0].default_value = DIFFUSE_RAY_PATH.get(output.name, 0.0)
+                tree.links.new(value.outputs[0], link.to_socket)
+    return copy
 
 
 def warm_up(scene=None) -> float:

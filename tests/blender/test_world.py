@@ -312,3 +312,30 @@ def test_a_floor_of_mixed_shaders_bakes_as_cycles_does(kind):
     np.testing.assert_allclose((1.0 - floor.metallic) * (1.0 - floor.transmission)
                                * floor.base_color, np.array([0.7, 0.1, 0.08]) * share, rtol=1e-5)
     np.testing.assert_allclose(ratios, 1.0, atol=0.03)
+
+
+def test_a_light_path_world_lights_as_diffuse_rays_see_it():
+    """The common backdrop set-up: a Mix Shader of two Backgrounds by Light Path's Is Camera Ray,
+    the camera shown black, everything else lit by the blue-grey colour. The world is rendered as
+    a diffuse bounce ray reads the Light Path node (`cycles_reference.render_world_map(lighting=
+    True)`), so the floor and the box bake within 3% of Cycles (measured on 5.2 and 4.5: 0.999
+    and 0.999, relMSE 0.0022; 0 before, lit by the camera's black version)."""
+    from blender_parts import WORLD
+
+    scene, tree = node_world("Backdrop")
+    lit = tree.nodes["Background"]
+    lit.inputs["Color"].default_value = (*WORLD, 1.0)
+    backdrop = tree.nodes.new("ShaderNodeBackground")
+    backdrop.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+    path = tree.nodes.new("ShaderNodeLightPath")
+    mix = tree.nodes.new("ShaderNodeMixShader")
+    tree.links.new(path.outputs["Is Camera Ray"], mix.inputs["Fac"])
+    shaders = [s for s in mix.inputs if s.type == "SHADER"]
+    tree.links.new(lit.outputs[0], shaders[0])
+    tree.links.new(backdrop.outputs[0], shaders[1])
+    output = next(n for n in tree.nodes if n.type == "OUTPUT_WORLD")
+    tree.links.new(mix.outputs[0], output.inputs["Surface"])
+    ratios, error = _floor_and_box_against_cycles(scene)
+    print(f"relMSE {error:.4f}")
+    np.testing.assert_allclose(ratios, 1.0, atol=0.03)
+    assert len(bpy.data.worlds) == 1  # the copy rendered for lighting is gone
