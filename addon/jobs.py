@@ -151,7 +151,9 @@ def shadow_bake_job(context, settings, uv_name: str, uv_settings, attribute: str
     from ..kernels import direct_light
 
     with _lightmap_uvs(context, uv_name, uv_settings) as plan:
-        scene = bridge.snapshot(context, bridge.SnapshotRequest(lightmap_uv=uv_name, textures=render),
+        # The world shows only as the view's background (shadow masks ignore it).
+        scene = bridge.snapshot(context, bridge.SnapshotRequest(lightmap_uv=uv_name, textures=render,
+                                                                world_render=render),
                                 resolution=resolution)
         if not scene.lights:
             raise ValueError("the scene has no lights: nothing casts a shadow")
@@ -212,7 +214,9 @@ def texture_bake_job(context, settings, uv_name: str, uv_settings, attribute: st
     from ..kernels import texture_bake
 
     with _lightmap_uvs(context, uv_name, uv_settings) as plan:
-        scene = bridge.snapshot(context, bridge.SnapshotRequest(lightmap_uv=uv_name, textures=True),
+        # Albedo sees no light: a world shader is not worth rendering (`world_render`).
+        scene = bridge.snapshot(context, bridge.SnapshotRequest(lightmap_uv=uv_name, textures=True,
+                                                                world_render=False),
                                 resolution=resolution)
         targets, sizes = _bake_targets(scene, plan, uv_settings)
         bakes = yield from forward(

@@ -104,11 +104,13 @@ def run(ctx: RunContext) -> None:
     for step, row in enumerate(kernel_rows):
         row.update(compare(images[step], reference.image).to_dict())
     best = min(range(len(kernel_rows)), key=lambda k: kernel_rows[k]["rel_mse"])
-    from ...addon.bridge import snapshot
+    from ...addon.bridge import SnapshotRequest, snapshot
     from ..quality import record, scene_features
 
     bpy.ops.wm.open_mainfile(filepath=str(scene_path), load_ui=False, use_scripts=False)
-    features = scene_features(snapshot(resolution=ctx.resolution), ctx.resolution)
+    # The features read geometry, lights and materials: no world shader is rendered for them.
+    features = scene_features(snapshot(request=SnapshotRequest(world_render=False),
+                                       resolution=ctx.resolution), ctx.resolution)
     db = record(technique, scene_path.name, features, kernel_rows)
     errors = error_images(images[best], reference.image)
     write_preview_png(ctx.output("render.png"), images[best])

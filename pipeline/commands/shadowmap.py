@@ -56,7 +56,7 @@ def run(ctx: RunContext) -> None:
 
     if ctx.args.target_error is not None:
         apply_target(ctx, "shadowmap", bridge.snapshot(request=bridge.SnapshotRequest(
-            textures=False, uv=False), resolution=ctx.resolution))
+            textures=False, uv=False, world_render=False), resolution=ctx.resolution))
     settings, uv = settings_from(ctx.args)
     with ctx.phase("bake"):
         try:

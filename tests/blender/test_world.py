@@ -339,3 +339,26 @@ def test_a_light_path_world_lights_as_diffuse_rays_see_it():
     print(f"relMSE {error:.4f}")
     np.testing.assert_allclose(ratios, 1.0, atol=0.03)
     assert len(bpy.data.worlds) == 1  # the copy rendered for lighting is gone
+
+
+def test_bakes_that_see_no_light_render_no_world():
+    """An albedo bake under a Sky Texture: the world shader is not rendered into a map (it would
+    cost ~2 s and light nothing), nor for a shadow-mask bake without its camera view."""
+    from blender_parts import principled
+
+    from classic_bake.addon.jobs import run_to_end, shadow_bake_job, texture_bake_job
+    from classic_bake.kernels.direct_light import DirectLightSettings
+    from classic_bake.kernels.texture_bake import TextureBakeSettings
+
+    _sky_world()
+    grey, _ = principled("Grey", base=(0.6, 0.6, 0.6))
+    bpy.ops.mesh.primitive_plane_add(size=4.0)
+    bpy.context.active_object.data.materials.append(grey)
+    sun = bpy.data.lights.new("Sun", "SUN")
+    bpy.context.scene.collection.objects.link(bpy.data.objects.new("Sun", sun))
+    uv = LightmapUVSettings(resolution=16, padding=2)
+    albedo = run_to_end(texture_bake_job(bpy.context, TextureBakeSettings(), "Lightmap", uv,
+                                         render=False))
+    shadows = run_to_end(shadow_bake_job(bpy.context, DirectLightSettings(), "Lightmap", uv,
+                                         render=False))
+    assert albedo["scene"].world_texture is None and shadows["scene"].world_texture is None
