@@ -50,7 +50,7 @@ class SnapshotRequest:
     | camera       | True    |                                                                 |
     | objects      | None    | restrict geometry to these object names (None: all renderable)  |
     | world_render | True    | render a world shader the bridge cannot read into a map         |
-    |              |         | (`read_world_texture`: Cycles, ~1-2 s); False: black or its     |
+    |              |         | (`read_world_texture`: Cycles, ~1.2 s); False: black or its     |
     |              |         | socket's colour                                                 |
     """
 

@@ -542,11 +542,12 @@ def render_camera(scene, model: CyclesModel, samples: int,
 # axes in the world are x_cam = -y, y_cam = +z, z_cam = -x.
 WORLD_CAMERA_MATRIX = ((0.0, 0.0, -1.0, 0.0), (-1.0, 0.0, 0.0, 0.0), (0.0, 1.0, 0.0, 0.0),
                        (0.0, 0.0, 0.0, 1.0))
-# (W, H) of the map: texels of 0.35 degrees; the default sky's sun disc (0.545 degrees) covers a
+# (W, H) of the map: texels of 0.47 degrees; the default sky's sun disc (0.545 degrees) covers a
 # few. Measured on a Multiple Scattering sky, sun 30 degrees up, as the irradiance of an upward
-# plane summed over the map (red): 1024 x 512 at 256 samples 81.52 (1.9 s on the 2-core machine),
-# 1024 samples 81.48, 4096 81.64; 2048 x 1024 at 256 81.55 (6.9 s); 512 x 256 at 64 86.7.
-WORLD_MAP_SIZE = (1024, 512)
+# plane summed over the map (red), at 256 samples: 768 x 384 81.42 in 1.2 s on the 2-core
+# machine, 1024 x 512 81.52 in 1.9 s (4096 samples 81.64), 2048 x 1024 81.55 in 6.9 s,
+# 512 x 256 79.0 in 0.6 s (its sun texels too coarse).
+WORLD_MAP_SIZE = (768, 384)
 # Samples a texel at most: the sun disc's rim texels need them (64: 80.1, 2% low, as the disc's
 # coverage of a texel is sampled); adaptive sampling stops the smooth sky's early. A 1-px box
 # filter: each texel is its area's mean, so the texels' sum keeps a sun's power.
