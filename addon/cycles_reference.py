@@ -548,17 +548,17 @@ WORLD_CAMERA_MATRIX = ((0.0, 0.0, -1.0, 0.0), (-1.0, 0.0, 0.0, 0.0), (0.0, 1.0, 
 # machine, 1024 x 512 81.52 in 1.9 s (4096 samples 81.64), 2048 x 1024 81.55 in 6.9 s,
 # 512 x 256 79.0 in 0.6 s (its sun texels too coarse).
 WORLD_MAP_SIZE = (768, 384)
-# Samples a texel at most: the sun disc's rim texels need them (64: 80.1, 2% low, as the disc's
-# coverage of a texel is sampled); adaptive sampling stops the smooth sky's early. A 1-px box
-# filter: each texel is its area's mean, so the texels' sum keeps a sun's power.
+# Samples a texel at most: the sun disc's rim texels need them (1024 x 512 at 64: 80.1, 2% low,
+# as the disc's coverage of a texel is sampled); adaptive sampling stops the smooth sky's early.
+# A 1-px box filter: each texel is its area's mean, so the texels' sum keeps a sun's power.
 WORLD_MAP_SAMPLES = 256
+WORLD_MAP_MIN_SAMPLES = 8
+WORLD_MAP_NOISE = 0.002
 # What a Light Path node reads on a diffuse bounce ray that escapes to the world, the rays that
 # light surfaces (`render_world_map(lighting=True)`): the flags of a first diffuse bounce, an
 # unbounded length. Outputs not named here read 0.
 DIFFUSE_RAY_PATH = {"Is Diffuse Ray": 1.0, "Is Reflection Ray": 1.0, "Ray Length": 1e30,
                     "Ray Depth": 1.0, "Diffuse Depth": 1.0}
-WORLD_MAP_MIN_SAMPLES = 8
-WORLD_MAP_NOISE = 0.002
 
 
 def render_world_map(world, size: tuple[int, int] = WORLD_MAP_SIZE,
