@@ -275,11 +275,11 @@ def mix_materials(name: str, parts: list, ignored: list) -> Material:
     diffusely with weight w_i (1 - m_i)(1 - t_i), as a metal with w_i m_i, transmits with
     w_i (1 - m_i) t_i (m: metallic, t: transmission). The sum keeps the diffuse albedo exactly
     (sum of the diffuse weights times base colours: what radiosity and Cycles' DIFFUSE bake read),
-    the emission exactly, and the three weights' shares; the glossy and glass parts take the
-    same base colour (a Principled BSDF has one: a white Glossy over a red Diffuse reflects red),
-    roughness and IOR their parts' weighted means, the specular layer the diffuse parts' weighted
-    level. A base texture is kept where its part is the only diffuse one (else the first
-    textured part's, noted)."""
+    the emission exactly, and the three weights' shares; the metal parts keep their own tint
+    (`Material.metal_color`: a white Glossy over a red Diffuse reflects white), the glass parts
+    take the base colour, roughness and IOR their parts' weighted means, the specular layer the
+    diffuse parts' weighted level. A base texture is kept where its part is the only diffuse one
+    (else the first textured part's, noted)."""
     weights = np.array([w for w, _ in parts], np.float64)
     d_w = np.array([w * (1.0 - m.metallic) * (1.0 - m.transmission) for w, m in parts])
     m_w = np.array([w * m.metallic for w, m in parts])
@@ -291,8 +291,13 @@ def mix_materials(name: str, parts: list, ignored: list) -> Material:
         return Material(name=name, base_color=np.zeros(3, np.float32), specular=0.0,
                         emission=emission.astype(np.float32), ignored=tuple(ignored))
 
+    def value(m: Material, field: str):
+        if field == "metal_color_or_base":
+            return m.base_color if m.metal_color is None else m.metal_color
+        return getattr(m, field)
+
     def mean(field: str, *by: np.ndarray):  # the parts' field weighted by the first of `by`
-        values = np.array([np.asarray(getattr(m, field), np.float64) for _, m in parts])
+        values = np.array([np.asarray(value(m, field), np.float64) for _, m in parts])
         w = next(x for x in by if x.sum() > 0.0)
         return np.tensordot(w, values, axes=1) / w.sum()
 
@@ -314,8 +319,16 @@ def mix_materials(name: str, parts: list, ignored: list) -> Material:
         texture = _scaled_texture(source.base_color_texture, dw * total / diffuse, ignored)
     normal = next((m for _, m in parts if m.normal_texture is not None or
                    m.height_texture is not None), None)
+    # The metal parts' own tint (a white Glossy over a red Diffuse reflects white), where it is
+    # not the base colour the diffuse albedo fixed.
+    tint = None
+    if metal > 0.0:
+        tint = mean("metal_color_or_base", m_w)
+        if texture is None and np.allclose(tint, base, rtol=1e-6, atol=1e-7):
+            tint = None
     return Material(
         name=name, base_color=base.astype(np.float32), base_color_texture=texture,
+        metal_color=None if tint is None else tint.astype(np.float32),
         metallic=metal / total, roughness=float(mean("roughness", m_w + t_w, weights)),
         ior=float(mean("ior", t_w, weights)),
         transmission=glass / (glass + diffuse) if glass + diffuse > 0.0 else 0.0,

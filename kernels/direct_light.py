@@ -212,6 +212,19 @@ def albedo_at(scene: Scene, tri: np.ndarray, bary: np.ndarray) -> np.ndarray:
     return out
 
 
+def metal_f0(scene: Scene, tri: np.ndarray, base: np.ndarray) -> np.ndarray:
+    """(N, 3) a metal's reflectance at normal incidence at points of triangles `tri`: their base
+    colour `base` (`albedo_at`), or their material's `metal_color` where it has one."""
+    tints = [(k, m.metal_color) for k, m in enumerate(scene.materials) if m.metal_color is not None]
+    if not tints:
+        return base
+    out = np.array(base, np.float64, copy=True)
+    mids = scene.material_ids[tri]
+    for k, tint in tints:
+        out[mids == k] = tint
+    return out
+
+
 def diffuse_weight(material, under_layer: bool = True) -> float:
     """The Principled BSDF's diffuse weight, (1 - metallic)(1 - transmission): how much of the
     base colour a surface reflects diffusely. A metal or a glass reflects nothing diffusely: its
@@ -294,6 +307,7 @@ def _shade(scene: Scene, maps: list, f) -> np.ndarray:
                                    np.einsum("ij,ij->i", normals, d))
     base = albedo_at(scene, tri, bary)
     albedo = base * weight[:, None]
+    f0 = metal_f0(scene, tri, base)
     emission = np.array([m.emission for m in scene.materials], np.float64)[scene.material_ids[tri]]
     # The rough lobes' highlights (a layer's, a metal's), as Cycles' direct-light render draws
     # them (lights as points).
@@ -301,7 +315,7 @@ def _shade(scene: Scene, maps: list, f) -> np.ndarray:
     for k, light in enumerate(scene.lights):
         to_light, _ = light_units.light_vectors(light, points)
         shine += lamp_highlights(scene.materials, mids, normals, -d, to_light, e[k],
-                                 base) * vis[k, :, None]
+                                 f0) * vis[k, :, None]
     return emission + albedo / np.pi * np.einsum("lnc,ln->nc", e, vis) + shine
 
 

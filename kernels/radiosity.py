@@ -1306,7 +1306,7 @@ def _lamp_highlights(scene: Scene, result: RadiosityResult, tri: np.ndarray, bar
     grid, their highlight aimed from the centre) times the GGX lobes
     (`specular_layer.lamp_highlights`), as Cycles lights the glossy lobes directly at the
     camera's first hit. Emissive meshes draw none. frame: `_front_frame` of the points."""
-    from .direct_light import albedo_at
+    from .direct_light import albedo_at, metal_f0
     from .specular_layer import MIRROR_ROUGHNESS, lamp_highlights, layer_f0
 
     out = np.zeros((len(tri), 3))
@@ -1316,7 +1316,7 @@ def _lamp_highlights(scene: Scene, result: RadiosityResult, tri: np.ndarray, bar
         return out
     geometric, normals, bvh, offset = frame
     samples = result.gather.area_samples_per_side if result.gather is not None else 4
-    base = albedo_at(scene, tri, bary)  # a metal's F0
+    base = metal_f0(scene, tri, albedo_at(scene, tri, bary))
     for light in scene.lights:
         e, _ = shadowed_irradiance(light, points, normals, points + offset * geometric,
                                    bvh.occluded, samples)
@@ -1337,7 +1337,7 @@ def _world_highlights(scene: Scene, tri: np.ndarray, bary: np.ndarray, points: n
     metal's base colour (weight metallic; its Fresnel rise at grazing views left out). Smooth
     lobes (roughness below MIRROR_ROUGHNESS) reflect the world only along a glossy bounce, which
     this model does not follow, as `_lamp_highlights` leaves them out. frame: `_front_frame`."""
-    from .direct_light import albedo_at
+    from .direct_light import albedo_at, metal_f0
     from .optics import reflect
     from .specular_layer import MIRROR_ROUGHNESS, layer_f0, view_factors, view_tables
 
@@ -1361,7 +1361,8 @@ def _world_highlights(scene: Scene, tri: np.ndarray, bary: np.ndarray, points: n
     if not sky.any():
         return out
     albedo = 1.0 - view_factors(view_tables(mats), m, np.einsum("ij,ij->i", normals, d))
-    weight = (layer_w[m] * albedo)[:, None] + metal_w[m][:, None] * albedo_at(scene, t, b)
+    weight = (layer_w[m] * albedo)[:, None] + metal_w[m][:, None] * metal_f0(
+        scene, t, albedo_at(scene, t, b))
     out[rows[sky]] = weight[sky] * world_radiance(scene, r[sky])
     return out
 

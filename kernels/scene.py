@@ -74,6 +74,9 @@ class Material:
     | height_texture     | Texture   | None    | height map feeding a Bump node                 |
     | bump_strength      | [0, 1]    | 1       | the Bump node's strength                       |
     | bump_distance      | [0, inf)  | 1       | the Bump node's distance, metres               |
+    | metal_color        | [0, 1]^3  | None    | the metal part's tint where it is not the base |
+    |                    |           |         | colour (a Glossy BSDF mixed over a Diffuse     |
+    |                    |           |         | one); None: the base colour                    |
     """
 
     name: str
@@ -89,6 +92,7 @@ class Material:
     height_texture: Texture | None = None
     bump_strength: float = 1.0
     bump_distance: float = 1.0
+    metal_color: np.ndarray | None = None
     # What the bridge could not model on this material, one reason per entry.
     ignored: tuple[str, ...] = ()
 

@@ -452,6 +452,10 @@ class Tracer:
         self.stats = TraceStats()
         mats = scene.materials
         self.metallic = np.array([m.metallic for m in mats])
+        # A metal part's own tint where it is not the base colour (`Material.metal_color`).
+        self.tinted = np.array([m.metal_color is not None for m in mats])
+        self.metal_color = np.array([m.base_color if m.metal_color is None else m.metal_color
+                                     for m in mats], np.float64).reshape(-1, 3)
         self.transmission = np.array([m.transmission for m in mats])
         self.roughness = np.array([m.roughness for m in mats])
         self.ior = np.array([max(m.ior, 1.0 + 1e-6) for m in mats])
@@ -765,8 +769,9 @@ class Tracer:
                 lobes.append((np.where(has_spec[:, None], f0_dielectric[:, None], 0.0)
                               * np.ones((1, 3)), np.where(has_spec, dielectric, 0.0)))
             rough_metal = (metallic > 0) & (rough >= s.mirror_roughness)
+            f0_metal = np.where(self.tinted[m][:, None], self.metal_color[m], h.albedo)
             if rough_metal.any():
-                lobes.append((h.albedo, np.where(rough_metal, metallic, 0.0)))
+                lobes.append((f0_metal, np.where(rough_metal, metallic, 0.0)))
             hit_strata = None if strata is None else (strata[0][pixel], strata[1])
             # A black base reflects nothing diffusely: no shadow rays for it. A dark texel of a
             # coloured or textured material keeps them at the camera hits when the white-base
@@ -795,7 +800,7 @@ class Tracer:
             grazing = np.where(smooth, (1.0 - np.clip(np.abs(cos_o), 0.0, 1.0)) ** 5,
                                view_factors(self.metal_tables, m, cos_o))
             metal_w = np.where((metallic > 0)[:, None], metallic[:, None] * (
-                h.albedo + (1.0 - h.albedo) * grazing[:, None]), 0.0)
+                f0_metal + (1.0 - f0_metal) * grazing[:, None]), 0.0)
             # The dielectric specular layer of opaque surfaces reflects its surroundings along
             # the mirror direction with its albedo at this view, what the base lost under it:
             # exact Fresnel at the level-scaled F0 when smooth (`specular_layer.py`). A rough

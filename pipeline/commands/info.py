@@ -36,6 +36,7 @@ def describe(scene) -> dict:
             "base_color": mat.base_color,
             "base_color_texture": None if tex is None else f"{tex.kind}:{tex.name}",
             "metallic": mat.metallic,
+            "metal_color": mat.metal_color,
             "roughness": mat.roughness,
             "ior": mat.ior,
             "transmission": mat.transmission,
@@ -106,6 +107,8 @@ def _print(ctx: RunContext, d: dict) -> None:
         for key in ("metallic", "transmission"):
             if m[key]:
                 parts.append(f"{key} {m[key]:.3g}")
+        if m["metal_color"] is not None:
+            parts.append(f"metal tint {_fmt(m['metal_color'])}")
         parts.append(f"roughness {m['roughness']:.3g}")
         if m["diffuse_under_layer"] < 1.0 and m["metallic"] < 1.0 and m["transmission"] < 1.0:
             parts.append(f"specular layer {m['specular']:.3g} (a bake shows "

@@ -251,6 +251,7 @@ def test_mixed_shaders_keep_diffuse_albedo_emission_and_shares():
                                rtol=1e-6)
     np.testing.assert_allclose(mixed.emission, [1.5, 0.0, 0.0])
     assert mixed.metallic == pytest.approx(0.375)
+    np.testing.assert_allclose(mixed.metal_color, blue.base_color, rtol=1e-6)  # the metal's tint
     assert mixed.specular == pytest.approx((0.25 * 0.0 + 0.375 * 0.5) / 0.625)
     checker = Texture(kind="CHECKER", color1=np.ones(3, np.float32),
                       color2=np.zeros(3, np.float32), scale=4.0)

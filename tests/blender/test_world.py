@@ -312,6 +312,9 @@ def test_a_floor_of_mixed_shaders_bakes_as_cycles_does(kind):
     share = 0.7 if kind == "MIX_SHADER" else 1.0
     np.testing.assert_allclose((1.0 - floor.metallic) * (1.0 - floor.transmission)
                                * floor.base_color, np.array([0.7, 0.1, 0.08]) * share, rtol=1e-5)
+    # The glossy part keeps its own (grey-white) tint, not the diffuse red.
+    np.testing.assert_allclose(floor.metal_color, glossy.inputs["Color"].default_value[:3],
+                               rtol=1e-6)
     np.testing.assert_allclose(ratios, 1.0, atol=0.03)
 
 
