@@ -534,8 +534,10 @@ def shadowed_irradiance(light, points: np.ndarray, normals: np.ndarray, origins:
     return e, vis
 
 
-def light_visibility(light, origins: np.ndarray, occluded, area_samples_per_side: int) -> np.ndarray:
-    """(R,) visible fraction of `light` from `origins` (area lights: over an n x n emitter grid)."""
+def light_visibility(light, origins: np.ndarray, occluded, area_samples_per_side: int,
+                     per_target: bool = False) -> np.ndarray:
+    """(R,) visible fraction of `light` from `origins` (area lights: over an n x n emitter grid);
+    with `per_target`, (K, R) float: each grid point's own (`area_light_samples` order)."""
     if light.kind == "SUN":
         dirs = np.broadcast_to(-np.asarray(light.direction, np.float64), origins.shape)
         return 1.0 - np.asarray(occluded(origins, np.ascontiguousarray(dirs), 0.0, np.inf), float)
@@ -551,7 +553,8 @@ def light_visibility(light, origins: np.ndarray, occluded, area_samples_per_side
     starts = np.ascontiguousarray(np.broadcast_to(origins, (len(targets),) + origins.shape)
                                   .reshape(-1, 3))
     blocked = np.asarray(occluded(starts, dirs, 0.0, dist * (1.0 - LIGHT_END_REL)), bool)
-    return (~blocked).reshape(len(targets), -1).mean(axis=0)
+    seen = (~blocked).reshape(len(targets), -1).astype(np.float64)
+    return seen if per_target else seen.mean(axis=0)
 
 
 # samples_per_side "auto" takes one point per patch (its centre) for the hierarchical solver when
@@ -1302,8 +1305,8 @@ def _lamp_highlights(scene: Scene, result: RadiosityResult, tri: np.ndarray, bar
                      points: np.ndarray, dirs: np.ndarray, frame: tuple) -> np.ndarray:
     """(M, 3) radiance W/(m^2 sr) the lamps' light leaves toward a camera looking along dirs
     (M, 3) by the rough glossy lobes (specular layers, metals) of surface points (triangles,
-    barycentrics, world points (M, 3)): each lamp's shadowed irradiance (area lamps over their
-    grid, their highlight aimed from the centre) times the GGX lobes
+    barycentrics, world points (M, 3)): each lamp's shadowed irradiance (an area lamp's grid
+    point by point, `_area_lamp_points`) times the GGX lobes
     (`specular_layer.lamp_highlights`), as Cycles lights the glossy lobes directly at the
     camera's first hit. Emissive meshes draw none. frame: `_front_frame` of the points."""
     from .direct_light import albedo_at, metal_f0
@@ -1317,13 +1320,43 @@ def _lamp_highlights(scene: Scene, result: RadiosityResult, tri: np.ndarray, bar
     geometric, normals, bvh, offset = frame
     samples = result.gather.area_samples_per_side if result.gather is not None else 4
     base = metal_f0(scene, tri, albedo_at(scene, tri, bary))
+    mids = scene.material_ids[tri]
     for light in scene.lights:
+        if light.kind == "AREA":  # its highlight spread over the emitter, point by point
+            for to_light, e in _area_lamp_points(light, points, normals,
+                                                 points + offset * geometric, bvh.occluded,
+                                                 samples):
+                out += lamp_highlights(scene.materials, mids, normals, -dirs, to_light, e, base)
+            continue
         e, _ = shadowed_irradiance(light, points, normals, points + offset * geometric,
                                    bvh.occluded, samples)
         to_light, _ = light_units.light_vectors(light, points)
-        out += lamp_highlights(scene.materials, scene.material_ids[tri], normals, -dirs,
-                               to_light, e, base)
+        out += lamp_highlights(scene.materials, mids, normals, -dirs, to_light, e, base)
     return out
+
+
+def _area_lamp_points(light, points: np.ndarray, normals: np.ndarray, origins: np.ndarray,
+                      occluded, samples: int):
+    """Yields (unit directions (M, 3) to one of the area lamp's n x n grid points, the shadowed
+    irradiance W/m^2 (M, 3) that point brings): the lamp's `direct_irradiance` split over its
+    grid points in proportion to cos_receiver cos_lamp / d^2, each times its own shadow ray's
+    visibility from `origins`. A glossy lobe lit this way draws the emitter's whole extent, not
+    a highlight aimed at its centre."""
+    targets = light_units.area_light_samples(light, samples)  # (K, 3)
+    total = light_units.direct_irradiance(light, points, normals)  # (M, 3)
+    delta = targets[:, None, :] - points[None, :, :]  # (K, M, 3)
+    dist = np.linalg.norm(delta, axis=2)
+    to = delta / np.maximum(dist, 1e-300)[..., None]
+    cos_r = np.clip(np.einsum("mj,kmj->km", normals, to), 0.0, None)
+    cos_l = np.clip(-to @ np.asarray(light.direction, np.float64), 0.0, None)
+    weight = cos_r * cos_l / np.maximum(dist, 1e-300) ** 2  # (K, M)
+    share = np.divide(weight, weight.sum(axis=0), out=np.zeros_like(weight),
+                      where=weight.sum(axis=0) > 0.0)
+    visible = np.ones_like(share)
+    if occluded is not None and light.cast_shadow and len(points):
+        visible = light_visibility(light, origins, occluded, samples, per_target=True)
+    for k in range(len(targets)):
+        yield to[k], total * (share[k] * visible[k])[:, None]
 
 
 def _world_highlights(scene: Scene, tri: np.ndarray, bary: np.ndarray, points: np.ndarray,
