@@ -291,22 +291,18 @@ def mix_materials(name: str, parts: list, ignored: list) -> Material:
         return Material(name=name, base_color=np.zeros(3, np.float32), specular=0.0,
                         emission=emission.astype(np.float32), ignored=tuple(ignored))
 
-    def value(m: Material, field: str):
-        if field == "metal_color_or_base":
-            return m.base_color if m.metal_color is None else m.metal_color
-        return getattr(m, field)
+    def mean(values: list, *by: np.ndarray):  # one value per part, weighted by the first of `by`
+        w = next(x for x in by if x.sum() > 0.0)  # with a positive sum
+        return np.tensordot(w, np.asarray(values, np.float64), axes=1) / w.sum()
 
-    def mean(field: str, *by: np.ndarray):  # the parts' field weighted by the first of `by`
-        values = np.array([np.asarray(value(m, field), np.float64) for _, m in parts])
-        w = next(x for x in by if x.sum() > 0.0)
-        return np.tensordot(w, values, axes=1) / w.sum()
+    colours = [m.base_color for _, m in parts]
 
     if diffuse > 0.0:
         # (1 - metallic)(1 - transmission) = diffuse / total below, so this base gives the sum's
         # diffuse albedo.
-        base = mean("base_color", d_w) * total
+        base = mean(colours, d_w) * total
     else:
-        base = mean("base_color", m_w + t_w)
+        base = mean(colours, m_w + t_w)
     textured = [(dw, m) for dw, (_, m) in zip(d_w, parts, strict=True)
                 if m.base_color_texture is not None and dw > 0.0]
     texture = None
@@ -323,16 +319,19 @@ def mix_materials(name: str, parts: list, ignored: list) -> Material:
     # not the base colour the diffuse albedo fixed.
     tint = None
     if metal > 0.0:
-        tint = mean("metal_color_or_base", m_w)
+        tint = mean([m.base_color if m.metal_color is None else m.metal_color
+                     for _, m in parts], m_w)
         if texture is None and np.allclose(tint, base, rtol=1e-6, atol=1e-7):
             tint = None
     return Material(
         name=name, base_color=base.astype(np.float32), base_color_texture=texture,
         metal_color=None if tint is None else tint.astype(np.float32),
-        metallic=metal / total, roughness=float(mean("roughness", m_w + t_w, weights)),
-        ior=float(mean("ior", t_w, weights)),
+        metallic=metal / total,
+        roughness=float(mean([m.roughness for _, m in parts], m_w + t_w, weights)),
+        ior=float(mean([m.ior for _, m in parts], t_w, weights)),
         transmission=glass / (glass + diffuse) if glass + diffuse > 0.0 else 0.0,
-        specular=float(mean("specular", d_w, weights)), emission=emission.astype(np.float32),
+        specular=float(mean([m.specular for _, m in parts], d_w, weights)),
+        emission=emission.astype(np.float32),
         normal_texture=None if normal is None else normal.normal_texture,
         height_texture=None if normal is None else normal.height_texture,
         bump_strength=1.0 if normal is None else normal.bump_strength,
