@@ -574,19 +574,25 @@ def render_world_map(world, size: tuple[int, int] = WORLD_MAP_SIZE,
     read as a diffuse bounce ray's (`DIFFUSE_RAY_PATH`) is rendered instead: the world that
     lights surfaces (a common set-up shows the camera a backdrop and lights with a map)."""
     width, height = (int(v) for v in size)
-    if lighting:
-        world = _diffuse_ray_world(world)
-    temp = bpy.data.scenes.new(f"{TEMP_PREFIX}_world")
-    camera = bpy.data.cameras.new(f"{TEMP_PREFIX}_world")
-    obj, log = None, SettingsLog()
-    try:
-        temp.world = world
+    # Every temporary datablock is removed on the way out, in reverse order of making.
+    with contextlib.ExitStack() as stack:
+        if lighting:
+            world = _diffuse_ray_world(world)
+            stack.callback(bpy.data.worlds.remove, world)
+        temp = bpy.data.scenes.new(f"{TEMP_PREFIX}_world")
+        stack.callback(bpy.data.scenes.remove, temp)
+        camera = bpy.data.cameras.new(f"{TEMP_PREFIX}_world")
+        stack.callback(bpy.data.cameras.remove, camera)
         camera.type = "PANO"
         camera.panorama_type = "EQUIRECTANGULAR"
         obj = bpy.data.objects.new(f"{TEMP_PREFIX}_world", camera)
+        stack.callback(bpy.data.objects.remove, obj)
+        temp.world = world
         temp.collection.objects.link(obj)
         temp.camera = obj
         obj.matrix_world = mathutils.Matrix(WORLD_CAMERA_MATRIX)  # rows as written
+        log = SettingsLog()
+        stack.callback(log.restore)
         # world_lighting: the model leaves the (shared) world's ray visibility alone.
         configure(temp, direct(world_lighting=True), log)
         log.set(temp.cycles, "pixel_filter_type", "BOX")
@@ -596,14 +602,6 @@ def render_world_map(world, size: tuple[int, int] = WORLD_MAP_SIZE,
         log.set(temp.cycles, "adaptive_threshold", WORLD_MAP_NOISE)
         with _exr_output(temp, log, (width, height)) as folder:
             return _render_once(temp, log, samples, 0, folder)
-    finally:
-        log.restore()
-        if obj is not None:
-            bpy.data.objects.remove(obj)
-        bpy.data.cameras.remove(camera)
-        bpy.data.scenes.remove(temp)
-        if lighting:
-            bpy.data.worlds.remove(world)
 
 
 def _diffuse_ray_world(world):
