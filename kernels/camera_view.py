@@ -21,6 +21,9 @@ from .scene import Camera, Scene, geometric_normals
 EDGE_CONTRAST = 1.0 / 16.0
 # Added to the luminance sum in the contrast test so that near-black pixels do not all count as edges.
 CONTRAST_FLOOR = 1e-2
+# Rays per side through each edge pixel of a camera view (`supersample_edges`): 3 x 3 takes a
+# silhouette's coverage to 1/9 of a pixel.
+EDGE_SAMPLES = 3
 
 
 @dataclass(frozen=True, eq=False)
@@ -140,17 +143,20 @@ def stratified_offsets(n: int) -> np.ndarray:
     return np.stack([gx.ravel(), gy.ravel()], 1)
 
 
-def supersample_edges(scene: Scene, image: np.ndarray, ids: np.ndarray, shade, bvh, samples: int
-                      ) -> int:
-    """In place: every edge pixel of `image` (H, W, 3) (`edge_pixels` of it and ids (H, W))
-    becomes the mean of `samples` x `samples` stratified rays through it, the box filter Cycles'
-    1-px BOX pixel filter is (the pixel centres alone alias silhouettes, folds and hard shadow
-    edges). A ray that hits a triangle of `bvh` (built over scene.triangles) is shaded by
+def supersample_edges(scene: Scene, image: np.ndarray, fragments: Fragments, shade, bvh,
+                      samples: int = EDGE_SAMPLES) -> int:
+    """In place: every edge pixel of `image` (H, W, 3) shaded at its centre (`fragments`, the
+    covered pixels; `edge_pixels` of the image and of the objects the centres see) becomes the
+    mean of `samples` x `samples` stratified rays through it, the box filter Cycles' 1-px BOX
+    pixel filter is (the pixel centres alone alias silhouettes, folds and hard shadow edges). A
+    ray that hits a triangle of `bvh` (built over scene.triangles) is shaded by
     shade(Fragments) -> (M, 3); one that escapes sees the world (its map along the ray, else its
     colour). Returns the number of pixels supersampled."""
     from .world_light import world_radiance
 
-    height, width = ids.shape
+    height, width = image.shape[:2]
+    ids = np.full((height, width), -1, np.int64)
+    ids[fragments.rows, fragments.cols] = scene.object_ids[fragments.tri]
     rows, cols = np.nonzero(edge_pixels(image, ids))
     if rows.size == 0 or samples < 2:
         return 0

@@ -22,7 +22,7 @@ import numpy as np
 from . import lights as light_units
 from .bake_targets import BakeTargets
 from .bump import scene_normals
-from .camera_view import background_and_fragments
+from .camera_view import EDGE_SAMPLES, background_and_fragments, supersample_edges
 from .scene import Scene, interpolated_normals
 from .shadowmap import (
     Receivers,
@@ -37,9 +37,6 @@ from .specular_layer import diffuse_factor, lamp_highlights, view_factors, view_
 from .textures import sample_texture
 from .vec import bounds, row_norms
 
-# Rays per side through each edge pixel of the camera view (`render_steps`): 3 x 3 takes a
-# silhouette's coverage to 1/9 of a pixel.
-EDGE_SAMPLES = 3
 MIN_MAP = 256  # below this a map cannot place even a coarse shadow edge
 MAX_MAP = 8192  # 256 MiB of float32 depth per face: the memory bound of one map
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
@@ -255,8 +252,6 @@ def render_steps(scene: Scene, settings: DirectLightSettings, resolution=None,
     `camera_view.edge_pixels`) are then the mean of edge_samples x edge_samples rays through them,
     as Cycles' 1-px box filter averages a pixel (0 or 1: the centres only). Yields progress, then
     the (H, W, 3) image."""
-    from .camera_view import supersample_edges
-
     image, f = background_and_fragments(scene, resolution, out)
     camera = scene.camera
     width = image.shape[1]
@@ -280,10 +275,8 @@ def render_steps(scene: Scene, settings: DirectLightSettings, resolution=None,
     if edge_samples > 1:
         from .bvh import BVH
 
-        ids = np.full(image.shape[:2], -1, np.int64)
-        ids[f.rows, f.cols] = scene.object_ids[f.tri]
         # The maps planned for the pixel centres serve their sub-pixel rays too.
-        supersample_edges(scene, image, ids, lambda g: _shade(scene, maps, g),
+        supersample_edges(scene, image, f, lambda g: _shade(scene, maps, g),
                           BVH.build(scene.triangles), edge_samples)
     yield image
 

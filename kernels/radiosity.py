@@ -57,6 +57,7 @@ from . import clusters, final_gather
 from . import lights as light_units
 from . import patches as patching
 from .bake_targets import TexelFilterSettings
+from .camera_view import EDGE_SAMPLES
 from .final_gather import FinalGather, FinalGatherSettings
 from .form_factors import (
     RAY_OFFSET_REL,
@@ -98,9 +99,6 @@ QUICK_TEST_BYTES = 256 << 20
 ROW_BYTES_PER_ELEMENT = 400
 # Shadow rays stop this fraction short of a point light (it has no surface to hit).
 LIGHT_END_REL = 1e-6
-# Rays per side through each edge pixel of the camera view (`render_steps`): 3 x 3 takes a
-# silhouette's coverage to 1/9 of a pixel.
-EDGE_SAMPLES = 3
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
 SOLVERS = ("auto", "gauss_seidel", "progressive", "hierarchical", "clustered")
 
@@ -1461,12 +1459,10 @@ def render_steps(scene: Scene, result: RadiosityResult, resolution=None,
         image[f.rows, f.cols] = shade(f)
     yield 0.6
     if edge_samples > 1 and len(f):
-        ids = np.full(image.shape[:2], -1, np.int64)
-        ids[f.rows, f.cols] = scene.object_ids[f.tri]
         bvh = result.gather.bvh if result.gather is not None else None
         if bvh is None:
             from .bvh import BVH
 
             bvh = BVH.build(scene.triangles)
-        supersample_edges(scene, image, ids, shade, bvh, edge_samples)
+        supersample_edges(scene, image, f, shade, bvh, edge_samples)
     yield image

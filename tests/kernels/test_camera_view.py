@@ -41,10 +41,8 @@ def test_a_silhouette_pixel_takes_the_share_of_it_the_surface_covers():
     scene = build([(sheet, white)], camera=camera)
     image, f = background_and_fragments(scene)
     image[f.rows, f.cols] = 1.0
-    ids = np.full((8, 8), -1, np.int64)
-    ids[f.rows, f.cols] = 0
     np.testing.assert_array_equal(image[:, 2, 0], 1.0)  # its centre (0.3125) is on the sheet
-    count = supersample_edges(scene, image, ids, lambda g: np.ones((len(g), 3)),
+    count = supersample_edges(scene, image, f, lambda g: np.ones((len(g), 3)),
                               BVH.build(scene.triangles), 5)
     assert count == 16  # the two columns either side of the edge, 8 rows each
     np.testing.assert_allclose(image[:, 2], 0.6, atol=1e-12)
