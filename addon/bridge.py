@@ -724,13 +724,19 @@ def read_world(scene, mapped=None) -> tuple[np.ndarray, list[str]]:
     return color * strength, ignored
 
 
-def _world_map_nodes(scene):
-    """(Background node, equirectangular Environment Texture node feeding its colour) of the
-    scene's world, or None where the world is not that."""
+def _world_surface(scene):
+    """The shader node feeding the scene's world output (None: no world, no nodes, no output or
+    nothing linked to it)."""
     world = scene.world
     tree = _node_tree(world) if world is not None else None
     output = _active_output(tree, "OUTPUT_WORLD") if tree is not None else None
-    node = _follow(output.inputs["Surface"])[0] if output is not None else None
+    return _follow(output.inputs["Surface"])[0] if output is not None else None
+
+
+def _world_map_nodes(scene):
+    """(Background node, equirectangular Environment Texture node feeding its colour) of the
+    scene's world, or None where the world is not that."""
+    node = _world_surface(scene)
     if node is None or node.type != "BACKGROUND":
         return None
     env = _follow(node.inputs["Color"])[0]
@@ -788,10 +794,7 @@ def _world_render_reason(scene) -> str | None:
     reads all of it: no world, a world colour, nothing linked to the output, or a Background of
     an unlinked strength whose colour is constant or an equirectangular Environment Texture with
     an image, read along the world direction or through a Mapping node `world_mapping` models."""
-    world = scene.world
-    tree = _node_tree(world) if world is not None else None
-    output = _active_output(tree, "OUTPUT_WORLD") if tree is not None else None
-    node = _follow(output.inputs["Surface"])[0] if output is not None else None
+    node = _world_surface(scene)
     if node is None:
         return None
     if node.type != "BACKGROUND":
