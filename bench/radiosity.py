@@ -44,6 +44,20 @@ SHORT_RUN_S = 2.0
 REPEATS = 3
 
 
+def repeated(seconds_of, run, *args) -> tuple[list, object]:
+    """Calls run(*args) once, and REPEATS times in all when seconds_of(its result) is under
+    SHORT_RUN_S. Returns (every result, the last): each run gives the same values (fixed seeds),
+    only their seconds differ."""
+    runs = [run(*args)]
+    while len(runs) < REPEATS and seconds_of(runs[0]) < SHORT_RUN_S:
+        runs.append(run(*args))
+    return runs, runs[-1]
+
+
+def median_of(runs: list, seconds_of) -> float:
+    return float(np.median([seconds_of(r) for r in runs]))
+
+
 def seconds_to_reach(ladder: list[dict], error: float) -> tuple[float, bool]:
     """Cycles seconds to reach `error` (log-log interpolation); (top rung's seconds, False) when
     the ladder never gets there."""
@@ -145,12 +159,9 @@ def cornell(args) -> tuple[dict, dict, list]:
             settings = rad.RadiositySettings(method=method, solver=solver, patch_budget=budget,
                                              refine_levels=levels, final_gather=gather,
                                              samples_per_side=side)
-            runs = [radiosity_run(settings)]
-            while len(runs) < REPEATS and runs[0][4] < SHORT_RUN_S:
-                runs.append(radiosity_run(settings))
-            images, masks, _, image, _, result = runs[-1]  # every run gives the same values
-            seconds = float(np.median([r[2] for r in runs]))
-            render_s = float(np.median([r[4] for r in runs]))
+            runs, last = repeated(lambda r: r[4], radiosity_run, settings)
+            images, masks, _, image, _, result = last
+            seconds, render_s = median_of(runs, lambda r: r[2]), median_of(runs, lambda r: r[4])
             valid = {n: masks[n] & ref_masks[n] for n in names}
             error = rel_mse(stack(images, valid, names), stack(ref_images, valid, names))
             label = (f"{method} {solver} {result.stats['patches']}p"
@@ -166,20 +177,15 @@ def cornell(args) -> tuple[dict, dict, list]:
                 best_image = image
         if step < len(cycles_samples):
             n = cycles_samples[step]
-            bakes = [cycles_bake(n)]
-            while len(bakes) < REPEATS and bakes[0][2] < SHORT_RUN_S:
-                bakes.append(cycles_bake(n))
-            images, masks, _ = bakes[-1]  # a fixed seed: the same texels every time
-            seconds = float(np.median([b[2] for b in bakes]))
+            bakes, (images, masks, _) = repeated(lambda b: b[2], cycles_bake, n)
+            seconds = median_of(bakes, lambda b: b[2])
             valid = {k: masks[k] & ref_masks[k] for k in names}
             cycles.append({"samples": n, "seconds": seconds,
                            "rel_mse": rel_mse(stack(images, valid, names),
                                               stack(ref_images, valid, names))})
-            renders = [cr.render_camera(bpy.context.scene, model, n, RENDER_SIZE)]
-            while len(renders) < REPEATS and renders[0][1] < SHORT_RUN_S:
-                renders.append(cr.render_camera(bpy.context.scene, model, n, RENDER_SIZE))
-            image = renders[-1][0]
-            seconds = float(np.median([r[1] for r in renders]))
+            renders, (image, _) = repeated(lambda r: r[1], cr.render_camera, bpy.context.scene,
+                                           model, n, RENDER_SIZE)
+            seconds = median_of(renders, lambda r: r[1])
             cycles_render.append({"samples": n, "seconds": seconds,
                                   "rel_mse": rel_mse(image, ref_render)})
     ratios, rows = {}, []
