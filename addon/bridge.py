@@ -32,7 +32,6 @@ DEFAULT_MATERIAL_NAME = "(default surface)"
 DEFAULT_MATERIAL = (Material(name=DEFAULT_MATERIAL_NAME) if bpy.app.version >= (5, 0, 0)
                     else Material(name=DEFAULT_MATERIAL_NAME, specular=0.0))
 
-MESH_LIKE_TYPES = {"MESH", "CURVE", "SURFACE", "META", "FONT", "CURVES_LEGACY"}
 
 
 @dataclass(frozen=True)
@@ -900,8 +899,15 @@ def snapshot(context=None, request: SnapshotRequest = SnapshotRequest(),
         holder = inst.parent.original if inst.is_instance and inst.parent else source
         if source.hide_render or holder.hide_render:
             continue
+        # The depsgraph lists a curve, surface, text or metaball object twice: as itself and as
+        # a MESH instance of its evaluated geometry parented to itself (4.5 and 5.2; the same
+        # triangles, which Cycles renders once). Only MESH entries are read, and that instance
+        # stands for the object itself.
+        if obj.type not in ("MESH", "LIGHT"):
+            continue
+        is_instance = inst.is_instance and not (holder == source and source.type != "MESH")
         matrix = _matrix(inst.matrix_world)
-        base = source.name if not inst.is_instance else f"{holder.name}/{source.name}"
+        base = source.name if not is_instance else f"{holder.name}/{source.name}"
         k = instance_counts.get(base, 0)
         instance_counts[base] = k + 1
         name = base if k == 0 else f"{base}#{k}"
@@ -911,21 +917,12 @@ def snapshot(context=None, request: SnapshotRequest = SnapshotRequest(),
                 lights.append(light)
                 ignored.extend(why)
             continue
-        if obj.type not in MESH_LIKE_TYPES:
-            continue
         if request.objects is not None and source.name not in request.objects:
             continue
-        mesh = obj.data if obj.type == "MESH" else obj.to_mesh()
-        if mesh is None:
-            continue
-        try:
-            slot_materials = [slot.material for slot in obj.material_slots]
-            original_mesh = source.data if source.type == "MESH" and not inst.is_instance else None
-            chunks.append(_mesh_chunk(name, source.name, inst.is_instance, mesh, matrix, request,
-                                      original_mesh, slot_materials))
-        finally:
-            if obj.type != "MESH":
-                obj.to_mesh_clear()
+        slot_materials = [slot.material for slot in obj.material_slots]
+        original_mesh = source.data if source.type == "MESH" and not is_instance else None
+        chunks.append(_mesh_chunk(name, source.name, is_instance, obj.data, matrix, request,
+                                  original_mesh, slot_materials))
 
     # Materials: one table for the whole scene, in first-seen order; index 0 is the default surface.
     reader = _MaterialReader(request)

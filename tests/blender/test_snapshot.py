@@ -16,17 +16,24 @@ from mathutils.geometry import area_tri
 from classic_bake.addon import bridge
 from classic_bake.kernels.scene import geometric_normals, triangle_areas
 
+CURVE_LIKE = {"CURVE", "SURFACE", "META", "FONT"}
 SAMPLES = sorted((Path(__file__).resolve().parents[2] / "sample_blends").glob("*.blend"))
 
 
 def blender_reference(context=None):
-    """(triangle count, world area, {object name: triangles}) of every renderable mesh instance."""
+    """(triangle count, world area, {object name: triangles}) of every renderable mesh instance.
+
+    A curve-like object (curve, surface, text, metaball) is read as itself, through `to_mesh`,
+    and its own geometry's MESH instance is skipped: the other of the depsgraph's two entries for
+    it than the bridge reads."""
     context = context or bpy.context
     depsgraph = context.evaluated_depsgraph_get()
     count, area, per_object = 0, 0.0, {}
     for inst in depsgraph.object_instances:
         obj = inst.object
-        if obj.type not in bridge.MESH_LIKE_TYPES or obj.original.hide_render:
+        own = inst.is_instance and inst.parent is not None and inst.parent.original == obj.original
+        if obj.type not in CURVE_LIKE | {"MESH"} or obj.original.hide_render or (
+                own and obj.original.type in CURVE_LIKE):
             continue
         mesh = obj.to_mesh()
         bm = bmesh.new()
@@ -119,6 +126,24 @@ def test_instances_are_expanded():
     assert sum(o.is_instance for o in snap.objects) == 3
     assert len({o.name for o in snap.objects}) == len(snap.objects)
     assert triangle_areas(snap.triangles).sum() == pytest.approx(area, rel=1e-6)
+
+
+def test_curves_text_surfaces_and_metaballs_are_read_once():
+    bpy.ops.curve.primitive_bezier_circle_add(location=(0.0, 0.0, 0.0))
+    bpy.context.object.data.bevel_depth = 0.1
+    bpy.ops.surface.primitive_nurbs_surface_sphere_add(location=(3.0, 0.0, 0.0))
+    bpy.ops.object.metaball_add(type="BALL", location=(6.0, 0.0, 0.0))
+    bpy.ops.object.text_add(location=(9.0, 0.0, 0.0))
+    bpy.context.object.data.extrude = 0.1
+    bpy.ops.curve.primitive_bezier_curve_add(location=(12.0, 0.0, 0.0))  # no bevel: no faces
+    snap = bridge.snapshot()
+    count, area, per_object = blender_reference()
+    assert snap.triangle_count == count
+    assert triangle_areas(snap.triangles).sum() == pytest.approx(area, rel=1e-6)
+    # One object each, named as in the outliner, none twice.
+    assert sorted(o.name for o in snap.objects) == sorted(n for n, t in per_object.items() if t)
+    assert sorted(per_object) == ["BézierCircle", "BézierCurve", "Mball", "SurfSphere", "Text"]
+    assert not any(o.is_instance for o in snap.objects)  # each is the object itself
 
 
 def test_material_ids_and_uvs_survive():
