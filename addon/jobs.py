@@ -135,6 +135,9 @@ def _write_back(scene, bakes: dict, attribute: str, image_prefix: str, render_im
             summary["attributes"].append(info.source_name)
             if wire:
                 bridge.wire_baked_display(obj, attribute=attribute)
+        elif obj.type != "MESH":  # a curve, text, surface or metaball: no mesh to hold one
+            summary["skipped"].append(f"{info.source_name}: a {obj.type.lower()} object has no "
+                                      "mesh to hold a colour attribute")
         else:
             summary["skipped"].append(f"{info.source_name}: modifiers change its topology, so the "
                                       "colour attribute is not written (the lightmap is)")

@@ -61,6 +61,16 @@ def test_cancel_removes_the_lightmap_uvs_it_created(open_sample):
     assert not any(img.name.startswith("Texture ") for img in bpy.data.images)
 
 
+def test_a_text_object_is_reported_not_written(open_sample):
+    open_sample("raytrace")
+    bpy.ops.object.text_add(location=(0.0, 0.0, 0.5))
+    bpy.context.object.data.extrude = 0.05
+    summary = _bake(32)
+    assert "Text: a font object has no mesh to hold a colour attribute" in summary["skipped"]
+    assert "Text" not in summary["attributes"]
+    assert PLANE in summary["attributes"]
+
+
 def test_cli_writes_lightmaps_render_and_metrics(tmp_path):
     done = subprocess.run([sys.executable, "-m", "classic_bake", "texture", str(SCENE), "--out",
                            str(tmp_path), "--lightmap-size", "32", "--resolution", "32", "24"],
