@@ -67,7 +67,14 @@ from .scene import (
     triangle_areas,
     triangle_emission,
 )
-from .world_light import world_irradiance, world_lit, world_source
+from .world_light import (
+    RAYS_PER_CALL,
+    cosine_directions,
+    cosine_ray_count,
+    world_lit,
+    world_radiance,
+    world_source,
+)
 
 # Shadow rays to points ON an emitter stop this fraction short of it; the target itself is lifted
 # off the emitter by the ray offset along its normal (the BVH's float32 hit distances differ from
@@ -105,8 +112,10 @@ class FinalGatherSettings:
     | enclosure_probes | bool     | True    | receivers inside closed solids get no light      |
     | patch_samples    | >= 1     | 2       | n x n enclosure probes per patch (midpoints)     |
     | seed             | int      | 0       | RNG seed of the stratified emitter points        |
-    | world_rays       | >= 0     | 0       | sky rays per receiver seen from behind           |
-    |                  |          |         | (`back_exitance`; 0: no world light there)       |
+    | world_rays       | >= 0     | 0       | rays per receiver seen from behind: the world    |
+    |                  |          |         | where they escape, the patch solution where they |
+    |                  |          |         | meet a surface (`back_exitance`; 0: direct light |
+    |                  |          |         | only there)                                      |
     """
 
     emitter_rays: int = 16
@@ -530,19 +539,22 @@ def exitance(gather: FinalGather, patches: patching.Patches, tri: np.ndarray, ba
     return out
 
 
-def back_exitance(gather: FinalGather, tri: np.ndarray, bary: np.ndarray) -> np.ndarray:
+def back_exitance(gather: FinalGather, tri: np.ndarray, bary: np.ndarray, reflected=None
+                  ) -> np.ndarray:
     """(M, 3) exitance W/m^2 of the BACK side of receivers (scene triangles (M,), barycentrics
     (M, 3)): what a camera that sees a surface from behind shows, as Cycles shades every surface
     on the side it is seen from:
 
-        B_back(x) = pi L_e + rho(x) H_direct,back(x)
+        B_back(x) = pi L_e + rho(x) (H_direct,back(x) + H_bounce,back(x))
 
     with the lamps' and the gathered emitters' direct irradiance on the flipped normal, shadow
     rays leaving on the back side (a sheet lit from behind, a wall seen from outside a lit room:
-    0), and the world's (`world_light.world_irradiance`, `world_rays` sky rays from each
-    receiver's back). The emission counts on both sides (Cycles' emission shader glows on either
-    face). No indirect part: the patches are one-sided, so nothing is known of the light that
-    other surfaces send to a patch's back (README, "Radiosity", one-sided patches)."""
+    0), and what `world_rays` cosine-distributed rays from each receiver's back find
+    (`back_bounce`): the world's light, and where they meet a surface its reflected exitance
+    `reflected(tri, bary)` (M, 3) W/m^2 (the patch solution's; None: surfaces send nothing).
+    The emission counts on both sides (Cycles' emission shader glows on either face). The
+    patches are one-sided, so this is the one place where light reflected onto a back is known:
+    one bounce from the front sides' solution (an inside-out mesh, a plane lit from below)."""
     from .direct_light import diffuse_at
 
     scene = gather.scene
@@ -562,12 +574,48 @@ def back_exitance(gather: FinalGather, tri: np.ndarray, bary: np.ndarray) -> np.
                                lift=-front)
         h += lamp_irradiance(scene, points, normals, occluded, gather.offset,
                              gather.area_samples_per_side, lift=-front)
-        if gather.settings.world_rays and world_lit(scene):
-            h += world_irradiance(world_source(scene), points, -front, t[lit], gather.bvh.occluded,
-                                  gather.offset / RAY_OFFSET_REL, gather.settings.world_rays, rng)
+        if gather.settings.world_rays:
+            h += back_bounce(gather, points, -front, reflected, rng)
         value = gather.emission[t]
         value[lit] += rho[lit] * h
         out[a:a + GATHER_CHUNK] = value
+    return out
+
+
+def back_bounce(gather: FinalGather, points: np.ndarray, normals: np.ndarray, reflected,
+                rng: np.random.Generator) -> np.ndarray:
+    """(M, 3) irradiance W/m^2 at points (M, 3) m on the side of unit normals (M, 3): pi times
+    the mean radiance along `world_rays` cosine-distributed rays (`cosine_directions`), leaving
+    `offset` in front. A ray that escapes sees the world (when it lights the scene); one that
+    meets a surface's front sees B / pi there, `reflected(tri, bary)` (M, 3) W/m^2 of the hit
+    points (None: 0), plus the emission of emissive triangles the gathered emitters leave out
+    (those are counted exactly by `emitter_irradiance`), which glow on the back side too."""
+    rays = gather.settings.world_rays
+    k = cosine_ray_count(rays)
+    out = np.zeros((len(points), 3))
+    sky = world_source(gather.scene) if world_lit(gather.scene) else None
+    glow = gather.emission.copy()  # pi L_e of the emissive triangles not gathered
+    glow[gather.emitters.index] = 0.0
+    per_call = max(1, RAYS_PER_CALL // k)
+    for a in range(0, len(points), per_call):
+        p, n = points[a:a + per_call], normals[a:a + per_call]
+        dirs = cosine_directions(n, rays, rng).reshape(-1, 3)
+        origins = np.repeat(p + gather.offset * n, k, axis=0)
+        hits = gather.bvh.intersect(np.ascontiguousarray(origins), np.ascontiguousarray(dirs))
+        tri = np.asarray(hits.tri, np.int64)
+        seen = np.zeros((len(dirs), 3))  # B: pi times the radiance along each ray
+        met = tri >= 0
+        if sky is not None and (~met).any():
+            seen[~met] = np.pi * (world_radiance(gather.scene, dirs[~met]) if callable(sky)
+                                  else np.asarray(sky, np.float64))
+        seen[met] = glow[tri[met]]
+        facing = np.flatnonzero(met)
+        facing = facing[np.einsum("ij,ij->i", gather.triangle_normals[tri[facing]],
+                                  dirs[facing]) < 0.0]
+        if reflected is not None and facing.size:
+            u, v = hits.u[facing].astype(np.float64), hits.v[facing].astype(np.float64)
+            seen[facing] += reflected(tri[facing], np.stack([1.0 - u - v, u, v], axis=1))
+        out[a:a + per_call] = seen.reshape(len(p), k, 3).mean(axis=1)
     return out
 
 

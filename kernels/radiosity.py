@@ -294,10 +294,12 @@ class RadiosityResult:
     def back_radiance_at(self, scene: Scene, tri: np.ndarray, bary: np.ndarray) -> np.ndarray:
         """(M, 3) outgoing radiance W/(m^2 sr) of the back side of surface points of `scene`
         (triangles, barycentrics): the emission and, with the final gather, the direct light
-        that reaches the back (`final_gather.back_exitance`). The solution itself is one-sided:
-        without the gather a back side shows its emission only."""
+        that reaches the back and one bounce of this solution's light off the surfaces the back
+        faces (`final_gather.back_exitance`). The solution itself is one-sided: without the
+        gather a back side shows its emission only."""
         if self.gather is not None:
-            return final_gather.back_exitance(self.gather, tri, bary) / np.pi
+            return final_gather.back_exitance(self.gather, tri, bary, lambda t, b: self.exitance_at(
+                t, b, reflected_only=True, interpolated=True)) / np.pi
         return triangle_emission(scene)[np.asarray(tri, np.int64)]
 
 

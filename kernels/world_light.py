@@ -182,6 +182,30 @@ def extract_suns(texture: Texture, transform: np.ndarray | None = None,
     return tuple(suns), replace(texture, pixels=residual)
 
 
+def cosine_ray_count(rays: int) -> int:
+    """The rays `cosine_directions` casts for `rays` asked: the next square, m x m strata."""
+    m = int(np.ceil(np.sqrt(max(rays, 1))))
+    return m * m
+
+
+def cosine_directions(normals: np.ndarray, rays: int, rng: np.random.Generator) -> np.ndarray:
+    """(P, k, 3) unit directions, cosine-distributed about each unit normal (P, 3), one in each
+    of m x m strata of the unit square (k = m^2 = `cosine_ray_count(rays)`): Malley's method,
+    disc points u1 -> radius sqrt(u1) (even over the disc), u2 -> angle, lifted onto the
+    hemisphere; per normal a random rotation, so neighbouring receivers' strata do not line up.
+    pi times the mean radiance along them estimates the irradiance."""
+    m = int(np.ceil(np.sqrt(max(rays, 1))))
+    k, p = m * m, len(normals)
+    u1 = (np.arange(k) // m + rng.random((p, k))) / m
+    u2 = (np.arange(k) % m + rng.random((p, k))) / m + rng.random((p, 1))
+    radius, angle = np.sqrt(u1), 2.0 * np.pi * u2
+    t1, t2 = tangent_frames(normals)
+    local = np.stack([radius * np.cos(angle), radius * np.sin(angle),
+                      np.sqrt(np.maximum(1.0 - u1, 0.0))], axis=-1)  # (p, k, 3)
+    return (local[..., :1] * t1[:, None] + local[..., 1:2] * t2[:, None]
+            + local[..., 2:] * normals[:, None])
+
+
 def _sky_rays(corners: np.ndarray, normals: np.ndarray, parents: np.ndarray, occluded,
               scale: float, rays: int, rng: np.random.Generator):
     """Yields (slice of patches, their ray directions (P, k, 3), escaped (P, k) bool): `rays`
@@ -192,24 +216,13 @@ def _sky_rays(corners: np.ndarray, normals: np.ndarray, parents: np.ndarray, occ
     on another is not seen, so no contact needs finding there)."""
     count = len(corners)
     parents = np.asarray(parents, np.int64)
-    m = int(np.ceil(np.sqrt(max(rays, 1))))
-    k = m * m
+    k = cosine_ray_count(rays)
     offset = RAY_OFFSET_REL * scale
     per_call = max(1, RAYS_PER_CALL // k)
-    grid = (np.arange(k) // m, np.arange(k) % m)  # the strata of the unit square
     for a in range(0, count, per_call):
         c, n = corners[a:a + per_call], normals[a:a + per_call]
         p = len(c)
-        # Disc points: u1 -> radius sqrt(u1) (even over the disc), u2 -> angle, per patch a
-        # random rotation so neighbouring patches' strata do not line up.
-        u1 = (grid[0] + rng.random((p, k))) / m
-        u2 = (grid[1] + rng.random((p, k))) / m + rng.random((p, 1))
-        radius, angle = np.sqrt(u1), 2.0 * np.pi * u2
-        t1, t2 = tangent_frames(n)
-        local = np.stack([radius * np.cos(angle), radius * np.sin(angle),
-                          np.sqrt(np.maximum(1.0 - u1, 0.0))], axis=-1)  # (p, k, 3)
-        dirs = (local[..., :1] * t1[:, None] + local[..., 1:2] * t2[:, None]
-                + local[..., 2:] * n[:, None])
+        dirs = cosine_directions(n, rays, rng)
         if c.ndim == 2:  # receivers: every ray from the point itself
             points = np.broadcast_to(c[:, None], (p, k, 3))
         else:  # uniform points of each triangle (the square root folds the square onto it)
