@@ -110,6 +110,7 @@ class _MeshChunk:
     normals: np.ndarray | None  # (T, 3, 3) float32, world, unit
     uv: np.ndarray | None  # (T, 3, 2) float32
     lightmap_uv: np.ndarray | None  # (T, 3, 2) float32
+    generated: np.ndarray | None  # (T, 3, 3) float32 Generated texture coordinates
     slot_ids: np.ndarray  # (T,) int32 material slot per triangle
     corner_loops: np.ndarray  # (T, 3) int32
     corner_verts: np.ndarray  # (T, 3) int32
@@ -164,8 +165,20 @@ def mesh_uv(mesh, name: str | None) -> np.ndarray | None:
     return uv.reshape(-1, 2)
 
 
+def generated_coordinates(positions: np.ndarray, texspace) -> np.ndarray:
+    """(V, 3) float64 Blender's Generated texture coordinates of object-space positions (V, 3):
+    the texture space of `texspace` (a mesh: centre +- size, its bounding box when automatic)
+    mapped to the unit cube, as Cycles reads them (its "orco" coordinates; the evaluated
+    positions stand for the undeformed ones, which differ only under deforming modifiers)."""
+    centre = np.array(texspace.texspace_location, np.float64)
+    size = np.array(texspace.texspace_size, np.float64)
+    size = np.where(size != 0.0, size, 1.0)
+    return (positions - (centre - size)) / (2.0 * size)
+
+
 def _mesh_chunk(
-    name, source_name, is_instance, mesh, matrix, request, original_mesh, slot_materials
+    name, source_name, is_instance, mesh, matrix, request, original_mesh, slot_materials,
+    texspace=None,
 ) -> _MeshChunk:
     corner_verts, corner_loops, _, slots = mesh_triangles(mesh)
     local = mesh_positions(mesh).astype(np.float64)
@@ -193,6 +206,9 @@ def _mesh_chunk(
     if request.uv:
         loop_uv = mesh_uv(mesh, None)
         uv = None if loop_uv is None else loop_uv[corner_loops]
+    generated = None
+    if request.uv:  # texture space: the original mesh's (Cycles' orco), else this one's
+        generated = generated_coordinates(local, texspace or mesh)[corner_verts].astype(np.float32)
     lightmap_uv = None
     if request.lightmap_uv:
         loop_uv = mesh_uv(mesh, request.lightmap_uv)
@@ -210,6 +226,7 @@ def _mesh_chunk(
         normals=normals,
         uv=uv,
         lightmap_uv=lightmap_uv,
+        generated=generated,
         slot_ids=slots,
         corner_loops=corner_loops,
         corner_verts=corner_verts,
@@ -493,23 +510,30 @@ class _MaterialReader:
         ignored.append(f"'{socket.name}' driven by a '{node.bl_idname}' node: its default used")
         return default, None
 
-    def _uv_layer(self, node, ignored, what) -> tuple[bool, str | None]:
-        """(ok, uv layer name or None for the active render layer) of a texture node's Vector."""
+    def _uv_layer(self, node, ignored, what, generated: bool
+                  ) -> tuple[bool, str | None, str]:
+        """(ok, uv layer name or None for the active render layer, "UV" or "GENERATED") of a
+        texture node's Vector: unlinked, an Image Texture reads UVs and a Checker the Generated
+        coordinates. `generated`: whether this use can read Generated coordinates (base colours
+        can; bump and normal maps, whose tangent frames follow the UVs, read UVs instead)."""
         vec_node, vec_socket = _follow(node.inputs["Vector"])
-        if vec_node is None:
-            if node.type == "TEX_CHECKER":
-                ignored.append(f"{what}: checker on Generated coordinates is read on UVs")
-            return True, None
+        if vec_node is None and node.type != "TEX_CHECKER":
+            return True, None, "UV"
+        if vec_node is None or (vec_node.type == "TEX_COORD" and vec_socket.name == "Generated"):
+            if generated:
+                return True, None, "GENERATED"
+            ignored.append(f"{what}: a texture on Generated coordinates is read on UVs")
+            return True, None, "UV"
         if vec_node.type == "UVMAP":
-            return True, (vec_node.uv_map or None)
+            return True, (vec_node.uv_map or None), "UV"
         if vec_node.type == "TEX_COORD" and vec_socket.name == "UV":
-            return True, None
+            return True, None, "UV"
         ignored.append(f"{what}: texture coordinates from '{vec_node.bl_idname}' are not modelled")
-        return False, None
+        return False, None, "UV"
 
-    def _texture(self, node, ignored, what) -> Texture | None:
+    def _texture(self, node, ignored, what, generated: bool = True) -> Texture | None:
         if node.type == "TEX_IMAGE":
-            ok, uv_layer = self._uv_layer(node, ignored, what)
+            ok, uv_layer, coordinates = self._uv_layer(node, ignored, what, generated)
             image = node.image
             if image is None or not ok:
                 return None
@@ -526,10 +550,11 @@ class _MaterialReader:
                 extension=node.extension if node.extension != "MIRROR" else "MIRROR",
                 interpolation="CLOSEST" if node.interpolation == "Closest" else "LINEAR",
                 uv_layer=uv_layer,
+                coordinates=coordinates,
                 encoding="sRGB" if stored_srgb(image) else "linear",
             )
         if node.type == "TEX_CHECKER":
-            ok, uv_layer = self._uv_layer(node, ignored, what)
+            ok, uv_layer, coordinates = self._uv_layer(node, ignored, what, generated)
             linked = [s.name for s in node.inputs if s.name != "Vector" and s.is_linked]
             if not ok or linked:
                 if linked:
@@ -542,6 +567,7 @@ class _MaterialReader:
                 color2=np.array(node.inputs["Color2"].default_value[:3], np.float32),
                 scale=float(node.inputs["Scale"].default_value),
                 uv_layer=uv_layer,
+                coordinates=coordinates,
             )
         return None
 
@@ -554,12 +580,12 @@ class _MaterialReader:
                 ignored.append(f"normal map in {node.space} space is not modelled")
                 return None, None, 1.0, 1.0
             tex_node, _ = _follow(node.inputs["Color"])
-            tex = self._texture(tex_node, ignored, "Normal Map") if tex_node else None
+            tex = self._texture(tex_node, ignored, "Normal Map", False) if tex_node else None
             strength = self._value(node.inputs["Strength"], ignored)
             return tex, None, strength, 1.0
         if node.type == "BUMP":
             tex_node, _ = _follow(node.inputs["Height"])
-            tex = self._texture(tex_node, ignored, "Bump height") if tex_node else None
+            tex = self._texture(tex_node, ignored, "Bump height", False) if tex_node else None
             if tex_node is not None and tex is None:
                 ignored.append(f"bump height from '{tex_node.bl_idname}' is not modelled")
             if node.inputs["Normal"].is_linked:
@@ -922,7 +948,8 @@ def snapshot(context=None, request: SnapshotRequest = SnapshotRequest(),
         slot_materials = [slot.material for slot in obj.material_slots]
         original_mesh = source.data if source.type == "MESH" and not is_instance else None
         chunks.append(_mesh_chunk(name, source.name, is_instance, obj.data, matrix, request,
-                                  original_mesh, slot_materials))
+                                  original_mesh, slot_materials,
+                                  source.data if source.type == "MESH" else None))
 
     # Materials: one table for the whole scene, in first-seen order; index 0 is the default surface.
     reader = _MaterialReader(request)
@@ -982,6 +1009,7 @@ def _assemble(chunks, materials, lights, camera, world, request, ignored) -> Sce
         normals=stack("normals", (3, 3), np.float32),
         uv=stack("uv", (3, 2), np.float32),
         lightmap_uv=stack("lightmap_uv", (3, 2), np.float32) if request.lightmap_uv else None,
+        generated=stack("generated", (3, 3), np.float32) if request.uv else None,
         material_ids=stack("slot_ids", (), np.int32),
         object_ids=np.repeat(np.arange(len(chunks), dtype=np.int32), counts),
         corner_loops=stack("corner_loops", (3,), np.int32),

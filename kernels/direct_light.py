@@ -195,7 +195,8 @@ def shadow_mask(irradiance: np.ndarray, visibility: np.ndarray) -> np.ndarray:
 
 
 def albedo_at(scene: Scene, tri: np.ndarray, bary: np.ndarray) -> np.ndarray:
-    """Base colour (N, 3) at barycentric points of triangles, textures sampled through UVs."""
+    """Base colour (N, 3) at barycentric points of triangles, textures sampled through their
+    coordinates (`Scene.texture_coords`: UVs or Generated)."""
     mids = scene.material_ids[tri]
     out = np.empty((len(tri), 3))
     for m in np.unique(mids):
@@ -204,7 +205,7 @@ def albedo_at(scene: Scene, tri: np.ndarray, bary: np.ndarray) -> np.ndarray:
         if mat.base_color_texture is None:
             out[rows] = mat.base_color
         else:
-            uv = np.einsum("nc,ncj->nj", bary[rows], scene.uv[tri[rows]].astype(np.float64))
+            uv = np.einsum("nc,ncj->nj", bary[rows], scene.texture_coords[tri[rows]])
             out[rows] = sample_texture(mat.base_color_texture, uv)
     return out
 

@@ -20,6 +20,7 @@ Conventions, shared by every kernel
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Literal
 
 import numpy as np
@@ -35,10 +36,10 @@ class Texture:
     """A colour or height source sampled through UVs.
 
     IMAGE: `pixels` (H, W, 4) float32, linear (sRGB images are decoded by the bridge), row 0 top.
-    CHECKER: Blender's Checker Texture on UV coordinates: `color1` where floor(u*scale) and
-    floor(v*scale) have DIFFERENT parity, `color2` where they match (Cycles' `svm_checker` with
-    z = 0; measured in renders by tests/blender/test_sample_scenes.py's author: at scale 2 the
-    top-left quadrant u < 0.5, v > 0.5 is color1).
+    CHECKER: Blender's Checker Texture: `color1` where floor(x*scale) + floor(y*scale) +
+    floor(z*scale) is odd, `color2` where even (Cycles' `svm_checker`), on (u, v, 0) or on the
+    Generated coordinates (`coordinates`; measured in renders by tests/blender/test_sample_scenes.py's
+    author: on UVs at scale 2 the top-left quadrant u < 0.5, v > 0.5 is color1).
     """
 
     kind: TextureKind
@@ -50,6 +51,9 @@ class Texture:
     color2: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))  # (3,) linear
     scale: float = 1.0  # checker squares per UV unit
     uv_layer: str | None = None  # None: the object's active render UV layer
+    # What it is read along: "UV" (u, v, 0), or "GENERATED" (`Scene.generated`: the object's
+    # texture space mapped to the unit cube; an image reads its x and y).
+    coordinates: Literal["UV", "GENERATED"] = "UV"
     # "sRGB": `pixels` hold sRGB-encoded colour, decoded after interpolation. Cycles keeps 8-bit
     # sRGB images so and decodes each look-up after filtering; decoding the texels first gives
     # brighter transitions (env_room's tiled floor baked: 2.5% bright, relMSE 1.4e-2 -> 7e-5).
@@ -196,6 +200,9 @@ class Scene:
         object_ids      (T,) int32         index into `objects`
         corner_loops    (T, 3) int32       loop (corner) index within the object's evaluated mesh
         corner_verts    (T, 3) int32       vertex index within the object's evaluated mesh
+        generated       (T, 3, 3) float32  Blender's Generated texture coordinates per corner
+                                           (object-space position in the mesh's texture space,
+                                           the unit cube over its box), or None
     """
 
     triangles: np.ndarray
@@ -220,6 +227,22 @@ class Scene:
     # (3, 4) affine [A | t]: the map is read along normalize(A d + t) for a world direction d (a
     # Mapping node turning it); None: along d
     world_transform: np.ndarray | None = None
+    generated: np.ndarray | None = None
+
+    @cached_property
+    def texture_coords(self) -> np.ndarray:
+        """(T, 3, 3) float64 per-corner coordinates that each triangle's base-colour texture is
+        read along: (u, v, 0), or `generated` where that texture reads Generated coordinates."""
+        out = np.zeros((self.triangle_count, 3, 3))
+        out[..., :2] = self.uv
+        if self.generated is None:
+            return out
+        reads = np.array([m.base_color_texture is not None
+                          and m.base_color_texture.coordinates == "GENERATED"
+                          for m in self.materials], bool)
+        rows = np.flatnonzero(reads[self.material_ids])
+        out[rows] = self.generated[rows]
+        return out
 
     @property
     def triangle_count(self) -> int:

@@ -116,9 +116,10 @@ def _lightmap_inverse(scene: Scene, triangles: np.ndarray) -> tuple[np.ndarray, 
 
 
 def texel_jacobians(scene: Scene, triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """J (M, 2, 2) = d(texture uv) / d(lightmap uv) of scene triangles (M,), and (M,) bool where
-    the lightmap UV triangle is degenerate (J = 0 there)."""
-    tex = scene.uv[triangles].astype(np.float64)
+    """J (M, 3, 2) = d(texture coordinates) / d(lightmap uv) of scene triangles (M,) (rows: the
+    coordinates of `Scene.texture_coords`, u, v, 0 or Generated x, y, z), and (M,) bool where the
+    lightmap UV triangle is degenerate (J = 0 there)."""
+    tex = scene.texture_coords[triangles]
     et = np.stack([tex[:, 1] - tex[:, 0], tex[:, 2] - tex[:, 0]], axis=2)
     inverse, degenerate = _lightmap_inverse(scene, triangles)
     return np.einsum("mij,mjk->mik", et, inverse), degenerate
@@ -139,9 +140,10 @@ def straddling(scene: Scene, targets) -> np.ndarray:
 
 
 def texture_units(scene: Scene, triangles: np.ndarray) -> np.ndarray:
-    """(M, 2) texture units per UV unit along s and t for each triangle's material: an image's
-    width and height in texels, a checker's scale in squares, 0 without a texture."""
-    units = np.zeros((len(triangles), 2))
+    """(M, 3) texture units per coordinate unit along each texture axis for each triangle's
+    material: an image's width and height in texels (it ignores the third), a checker's scale in
+    squares, 0 without a texture."""
+    units = np.zeros((len(triangles), 3))
     mids = scene.material_ids[triangles]
     for m in np.unique(mids):
         texture = scene.materials[m].base_color_texture
@@ -152,19 +154,32 @@ def texture_units(scene: Scene, triangles: np.ndarray) -> np.ndarray:
             units[rows] = texture.scale
         else:
             height, width = texture.pixels.shape[:2]
-            units[rows] = (width, height)
+            units[rows] = (width, height, 0)
     return units
+
+
+def footprint_axes(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A footprint's sides a, b (M, 3) in texture space restricted to the two axes it spreads
+    over most (M, 2) each, and (M,) bool where it also spreads along the third beyond
+    AXIS_ALIGNED_REL (a face slanted in Generated space, whose bounding box is larger than it;
+    UV footprints never are: their third coordinate is 0)."""
+    extent = np.abs(a) + np.abs(b)
+    order = np.argsort(extent, axis=1, kind="stable")
+    keep = np.sort(order[:, 1:], axis=1)
+    least = np.take_along_axis(extent, order[:, :1], axis=1)[:, 0]
+    slanted = least > AXIS_ALIGNED_REL * extent.max(axis=1, initial=0.0)
+    return np.take_along_axis(a, keep, axis=1), np.take_along_axis(b, keep, axis=1), slanted
 
 
 def cells_per_side(scene: Scene, triangles: np.ndarray, jac: np.ndarray, size: tuple[int, int],
                    settings: TextureBakeSettings, edge: np.ndarray | None = None) -> np.ndarray:
-    """(M,) n for texels of triangles (M,) with Jacobians jac (M, 2, 2) in a lightmap of size
+    """(M,) n for texels of triangles (M,) with Jacobians jac (M, 3, 2) in a lightmap of size
     (W, H) texels (module docstring); `edge` (M,) bool marks texels that straddle their
     triangle (`straddling`), which take at least `EDGE_CELLS` where textured."""
     if settings.samples_per_side > 0:
         return np.full(len(triangles), settings.samples_per_side, np.int64)
     width, height = size
-    units = texture_units(scene, triangles)  # (M, 2)
+    units = texture_units(scene, triangles)  # (M, 3)
     # The footprint's two sides in texture units: J's columns over one texel.
     side_u = jac[:, :, 0] / width * units
     side_v = jac[:, :, 1] / height * units
@@ -175,9 +190,10 @@ def cells_per_side(scene: Scene, triangles: np.ndarray, jac: np.ndarray, size: t
                         for m in scene.materials], bool)[mids]
     # Axis-aligned (a rectangle, quarter turns and mirrors included): the footprint's bounding
     # box has the footprint's own area.
-    a, b = jac[:, :, 0], jac[:, :, 1]
+    a, b, slanted = footprint_axes(jac[:, :, 0], jac[:, :, 1])
     box = (np.abs(a[:, 0]) + np.abs(b[:, 0])) * (np.abs(a[:, 1]) + np.abs(b[:, 1]))
-    skewed = box > (1.0 + AXIS_ALIGNED_REL) * np.abs(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
+    skewed = slanted | (box > (1.0 + AXIS_ALIGNED_REL) * np.abs(a[:, 0] * b[:, 1]
+                                                                 - a[:, 1] * b[:, 0]))
     # A checker's boxes are exact at any size: under an axis-aligned map the box IS the
     # footprint, under a skewed one a few cells narrow the band where box and footprint differ.
     n[checker] = np.where(skewed[checker], min(SKEWED_CHECKER_SIDE, settings.max_samples_per_side), 1)
@@ -190,14 +206,15 @@ def cells_per_side(scene: Scene, triangles: np.ndarray, jac: np.ndarray, size: t
 
 
 def _texture_uv(scene: Scene, tri: np.ndarray, bary: np.ndarray) -> np.ndarray:
-    """(P, 2) texture UVs at barycentrics bary (P, 3) of triangles tri (P,)."""
-    return np.einsum("pc,pcj->pj", bary, scene.uv[tri].astype(np.float64))
+    """(P, 3) texture coordinates (`Scene.texture_coords`) at barycentrics bary (P, 3) of
+    triangles tri (P,)."""
+    return np.einsum("pc,pcj->pj", bary, scene.texture_coords[tri])
 
 
 def _cell_albedo(scene: Scene, tri: np.ndarray, uv: np.ndarray, half: np.ndarray) -> np.ndarray:
-    """(P, 3) diffuse albedo at cells of triangles tri (P,) centred at texture UVs uv (P, 2), each
-    the mean over a texture-space box of half extents `half` (P, 2) around it (checker: exact;
-    image: bilinear at the centre)."""
+    """(P, 3) diffuse albedo at cells of triangles tri (P,) centred at texture coordinates uv
+    (P, 3), each the mean over a texture-space box of half extents `half` (P, 3) around it
+    (checker: exact; image: bilinear at the centre)."""
     out = np.empty((len(tri), 3))
     mids = scene.material_ids[tri]
     weight = np.array([diffuse_weight(m) for m in scene.materials])
@@ -217,14 +234,16 @@ def _cell_albedo(scene: Scene, tri: np.ndarray, uv: np.ndarray, half: np.ndarray
 
 
 def _cell_half_extents(jac: np.ndarray, n: np.ndarray, size: tuple[int, int]) -> np.ndarray:
-    """(M, 2) half extents in texture UV of the box standing for one of a texel's n x n cells:
-    the cell's parallelogram's bounding box, shrunk to the parallelogram's area (same aspect)."""
+    """(M, 3) half extents in texture space of the box standing for one of a texel's n x n
+    cells: the cell's parallelogram's bounding box, shrunk to the parallelogram's area (same
+    aspect) over the two axes it spreads along most (`footprint_axes`)."""
     width, height = size
-    a = jac[:, :, 0] / (width * n[:, None])  # the cell's sides in texture uv, (M, 2)
+    a = jac[:, :, 0] / (width * n[:, None])  # the cell's sides in texture space, (M, 3)
     b = jac[:, :, 1] / (height * n[:, None])
     half = 0.5 * (np.abs(a) + np.abs(b))
-    area = np.abs(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
-    box = 4.0 * half[:, 0] * half[:, 1]
+    a2, b2, _ = footprint_axes(a, b)
+    area = np.abs(a2[:, 0] * b2[:, 1] - a2[:, 1] * b2[:, 0])
+    box = (np.abs(a2[:, 0]) + np.abs(b2[:, 0])) * (np.abs(a2[:, 1]) + np.abs(b2[:, 1]))
     shrink = np.sqrt(np.divide(area, box, out=np.ones_like(area), where=box > 0.0))
     return half * shrink[:, None]
 

@@ -10,8 +10,8 @@ Cycles render of the same material agree texel for texel:
   transparent black, and bilinear lookups near the border blend towards it), MIRROR;
 * 8-bit sRGB images: interpolated in their sRGB encoding and decoded after the look-up (Cycles'
   byte textures with `compress_as_srgb`; measured against its colour bake, bench/texture.py);
-* checker: Cycles' `svm_checker` on (u, v, 0): colour1 where floor(u s) and floor(v s) have
-  different parity.
+* checker: Cycles' `svm_checker` on (u, v, 0) or on Generated coordinates (x, y, z): colour1
+  where floor(x s) + floor(y s) + floor(z s) is odd. Coordinates are (N, 2) (z = 0) or (N, 3).
 """
 
 from __future__ import annotations
@@ -83,10 +83,11 @@ def sample_image(
 
 
 def checker(uv: np.ndarray, color1: np.ndarray, color2: np.ndarray, scale: float) -> np.ndarray:
-    """Cycles' Checker Texture on UV coordinates (z = 0). uv (N, 2) -> (N, 3) float32."""
+    """Cycles' Checker Texture at coordinates uv (N, 2) (z = 0) or (N, 3) -> (N, 3) float32.
+    Cycles' z = 0 nudges to floor 0, so (u, v) and (u, v, 0) agree."""
     p = (np.asarray(uv, np.float64) * scale + CHECKER_NUDGE_ADD) * CHECKER_NUDGE_MUL
-    parity = (np.floor(p[:, 0]).astype(np.int64) + np.floor(p[:, 1]).astype(np.int64)) % 2
-    # Different parity (odd sum) -> colour 1, same parity -> colour 2.
+    parity = np.floor(p).astype(np.int64).sum(axis=1) % 2
+    # An odd sum (with z = 0: x and y of different parity) -> colour 1, even -> colour 2.
     return np.where(parity[:, None] == 1, np.asarray(color1, np.float32)[None],
                     np.asarray(color2, np.float32)[None]).astype(np.float32)
 
@@ -111,20 +112,21 @@ def _square_wave_mean(x0: np.ndarray, x1: np.ndarray) -> np.ndarray:
 
 def checker_box(lo: np.ndarray, hi: np.ndarray, color1: np.ndarray, color2: np.ndarray,
                 scale: float) -> np.ndarray:
-    """Cycles' Checker Texture averaged over UV boxes [lo, hi] (N, 2) -> (N, 3) float64.
+    """Cycles' Checker Texture averaged over boxes [lo, hi] (N, 2) or (N, 3) -> (N, 3) float64.
 
-    Exact: with s(x) = (-1)^floor(x), the parity sign is s(p_u) s(p_v) and its mean over a box is
-    the product of the two square waves' means (separable); colour 1 covers (1 - mean) / 2.
+    Exact: with s(x) = (-1)^floor(x), the parity sign is the product of s over the coordinates,
+    and its mean over a box is the product of the square waves' means (separable); colour 1
+    covers (1 - mean) / 2.
     """
     p0 = (np.asarray(lo, np.float64) * scale + CHECKER_NUDGE_ADD) * CHECKER_NUDGE_MUL
     p1 = (np.asarray(hi, np.float64) * scale + CHECKER_NUDGE_ADD) * CHECKER_NUDGE_MUL
-    sign = _square_wave_mean(p0[:, 0], p1[:, 0]) * _square_wave_mean(p0[:, 1], p1[:, 1])
+    sign = np.prod([_square_wave_mean(p0[:, c], p1[:, c]) for c in range(p0.shape[1])], axis=0)
     share1 = (0.5 * (1.0 - sign))[:, None]
     return share1 * np.asarray(color1, np.float64) + (1.0 - share1) * np.asarray(color2, np.float64)
 
 
 def sample_texture_box(texture: Texture, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """RGB (N, 3) of a texture averaged over UV boxes [lo, hi] (N, 2): exact for the checker;
+    """RGB (N, 3) of a texture averaged over boxes [lo, hi] (N, 2 or 3): exact for the checker;
     images are sampled (bilinear) at the box centre, which suits boxes up to about a texel."""
     if texture.kind == "CHECKER":
         return checker_box(lo, hi, texture.color1, texture.color2, texture.scale)
@@ -138,9 +140,11 @@ def srgb_to_linear(c: np.ndarray) -> np.ndarray:
 
 
 def sample_texture(texture: Texture, uv: np.ndarray) -> np.ndarray:
-    """RGB (N, 3) float32 linear of a kernel `Texture` at (N, 2) UVs: an sRGB-encoded image is
-    interpolated as stored and decoded afterwards, as Cycles does."""
+    """RGB (N, 3) float32 linear of a kernel `Texture` at coordinates (N, 2) or (N, 3) (an image
+    reads the first two): an sRGB-encoded image is interpolated as stored and decoded
+    afterwards, as Cycles does."""
     if texture.kind == "CHECKER":
         return checker(uv, texture.color1, texture.color2, texture.scale)
+    uv = np.asarray(uv)[:, :2]
     rgb = sample_image(texture.pixels, uv, texture.extension, texture.interpolation)[:, :3]
     return srgb_to_linear(rgb).astype(np.float32) if texture.encoding == "sRGB" else rgb

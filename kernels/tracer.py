@@ -310,10 +310,12 @@ def _filtered_albedo(scene: Scene, tri: np.ndarray, centre: np.ndarray, fp: _Foo
 
     The cell is cut into g x g sub-cells; the camera rays through their corners are carried onto
     the hit triangle's plane, whose barycentrics (extrapolated past the triangle's edges, where its
-    UVs continue linearly) give each sub-cell's corners in UV space. Each sub-cell then contributes
-    the texture's mean over its UV bounding box (`sample_texture_box`: exact for the checker at any
-    minification). The pixel's box filter applied to the texture: exact for a planar, evenly lit
-    cell, at the price of look-ups instead of rays.
+    texture coordinates continue linearly) give each sub-cell's corners in texture space (UV, or
+    Generated: `Scene.texture_coords`). Each sub-cell then contributes the texture's mean over
+    their bounding box (`sample_texture_box`: exact for the checker at any minification; a
+    Generated box around a slanted face is larger than the face's footprint in it). The
+    pixel's box filter applied to the texture: exact for a planar, evenly lit cell, at the
+    price of look-ups instead of rays.
 
     The corner rays cost a few scalar operations each: a camera ray's line o + s d is affine in the
     image position (`camera_ray_lines`), so its plane hit is a ratio of affine functions, whose
@@ -338,10 +340,10 @@ def _filtered_albedo(scene: Scene, tri: np.ndarray, centre: np.ndarray, fp: _Foo
         coef[name] = (np.einsum("ij,ij->i", rel, w), w @ o_x, w @ o_y,
                       np.einsum("ij,ij->i", d, w), w @ d_x, w @ d_y)
     speed = np.sqrt(np.einsum("ij,ij->i", d, d))
-    corner_uv = scene.uv[tri].astype(np.float64)  # (M, 3, 2)
+    corner_uv = scene.texture_coords[tri]  # (M, 3, 3): (u, v, 0) or Generated
     g = fp.grid
     steps = (np.arange(g + 1) / g - 0.5) * fp.cell
-    uv = np.empty((g + 1, g + 1, len(tri), 2))  # sub-cell corners in UV, [row, column]
+    uv = np.empty((g + 1, g + 1, len(tri), 3))  # sub-cell corners in texture space, [row, column]
     rn, onx, ony, dn0, dnx, dny = coef["n"]
     for i, dy in enumerate(steps):
         for j, dx in enumerate(steps):
@@ -361,9 +363,9 @@ def _filtered_albedo(scene: Scene, tri: np.ndarray, centre: np.ndarray, fp: _Foo
             bary = np.stack([1.0 - b1 - b2, b1, b2], axis=1)
             bary[~ok] = centre[~ok]
             uv[i, j] = np.einsum("mc,mcj->mj", bary, corner_uv)
-    quads = np.stack([uv[:-1, :-1], uv[:-1, 1:], uv[1:, :-1], uv[1:, 1:]])  # (4, g, g, M, 2)
-    lo = quads.min(axis=0).reshape(-1, 2)  # (g*g*M, 2), sub-cell-major
-    hi = quads.max(axis=0).reshape(-1, 2)
+    quads = np.stack([uv[:-1, :-1], uv[:-1, 1:], uv[1:, :-1], uv[1:, 1:]])  # (4, g, g, M, 3)
+    lo = quads.min(axis=0).reshape(-1, 3)  # (g*g*M, 3), sub-cell-major
+    hi = quads.max(axis=0).reshape(-1, 3)
     mats = np.tile(scene.material_ids[tri], g * g)
     acc = np.empty((len(lo), 3))
     for m in np.unique(mats):
@@ -417,7 +419,7 @@ def _surface(scene: Scene, tri_normals, origins, dirs, hits, shading: str = "bum
             albedo[rows] = mat.base_color
             continue
         if uv is None:
-            cuv = scene.uv[tri].astype(np.float64)
+            cuv = scene.texture_coords[tri]
             uv = w * cuv[:, 0] + u * cuv[:, 1] + v * cuv[:, 2]
         albedo[rows] = sample_texture(mat.base_color_texture, uv[rows])
     return _Hits(p, ng, ns, front, material, albedo, smooth)
@@ -698,7 +700,12 @@ class Tracer:
         pixel = np.arange(len(origins))
         weight = np.ones((len(origins), 3))
         t_min = np.zeros(len(origins))
-        sees_lamps = np.zeros(len(origins), bool)
+        # Whether a ray's path so far bounced off smooth surfaces only: those rays see area lamps
+        # (camera rays do not: Cycles' lamps are not drawn). A rough lobe's one ray does not (its
+        # lamps' highlights come from `direct`, which would count them twice), nor do rays past
+        # it: a mirror's sharp image of a lamp would be a hot spot that Cycles' lobe blurs over
+        # the surface.
+        sharp = np.ones(len(origins), bool)
         self.stats.camera_rays += len(origins)
         for depth in range(s.max_depth + 1):
             if len(origins) == 0:
@@ -708,8 +715,8 @@ class Tracer:
                 self.stats.secondary_rays += len(origins)
             hits = self.bvh.intersect(origins, dirs, t_min, np.inf)
             miss = hits.tri < 0
-            if sees_lamps.any() and self.area_lamps:
-                rows = np.flatnonzero(sees_lamps)
+            if depth > 0 and sharp.any() and self.area_lamps:
+                rows = np.flatnonzero(sharp)
                 lamps, _ = self._area_lamp_hits(origins[rows], dirs[rows],
                                                 np.where(miss[rows], np.inf, hits.t[rows]))
                 np.add.at(result, pixel[rows], weight[rows] * lamps)
@@ -724,7 +731,7 @@ class Tracer:
             else:  # the world's map along each escaping ray; a rough lobe's ray (off no smooth
                 # surface) reads it without the suns that the lobes' highlights already carry
                 escaped = dirs[miss]
-                rough_ray = ~sees_lamps[miss] if depth > 0 and self.map_suns else \
+                rough_ray = ~sharp[miss] if depth > 0 and self.map_suns else \
                     np.zeros(len(escaped), bool)
                 background = np.empty((len(escaped), 3))
                 background[~rough_ray] = world_radiance(self.scene, escaped[~rough_ray])
@@ -734,7 +741,7 @@ class Tracer:
                 np.add.at(flat, pixel[miss], weight[miss] * background)
             keep = ~miss
             origins, dirs, pixel, weight = origins[keep], dirs[keep], pixel[keep], weight[keep]
-            sees_lamps = sees_lamps[keep]
+            sharp = sharp[keep]
             hits = type(hits)(t=hits.t[keep], tri=hits.tri[keep], u=hits.u[keep], v=hits.v[keep])
             if len(origins) == 0:
                 break
@@ -824,7 +831,7 @@ class Tracer:
             wrong = ~tir & (np.einsum("ij,ij->i", t_dir, h.ng) >= 0.0)
             if wrong.any():
                 t_dir[wrong], tir[wrong] = refract(dirs[wrong], h.ng[wrong], eta[wrong])
-            children = []  # (origins, dirs, pixel, weight, sees area lamps)
+            children = []  # (origins, dirs, pixel, weight, sharp)
             # glass: Fresnel split between the reflected and the refracted ray
             glass = smooth & (trans > 0) & (metallic < 1)
             f_g = fresnel_dielectric(cos_o, eta)
@@ -834,9 +841,8 @@ class Tracer:
                 refl_w = np.where(self._mapped(hits.tri)[:, None],
                                   refl_w - mirror_w, refl_w)
             refr_w = np.where((glass & ~tir)[:, None], glass_w * (1.0 - f_g)[:, None] * h.albedo, 0.0)
-            # Rays off smooth surfaces see area lamps; a rough lobe's ray does not (its lamps'
-            # highlights come from `direct`, which would count them twice).
-            for w_new, d_new, side, sees in ((refl_w, r_dir, 1.0, smooth), (refr_w, t_dir, -1.0, smooth)):
+            sees = sharp & smooth
+            for w_new, d_new, side in ((refl_w, r_dir, 1.0), (refr_w, t_dir, -1.0)):
                 w_total = weight * w_new
                 alive = np.max(w_total, axis=1) > 0.0
                 strong = alive & (np.max(w_total, axis=1) >= s.min_weight)
@@ -851,7 +857,7 @@ class Tracer:
             dirs = np.concatenate([c[1] for c in children])
             pixel = np.concatenate([c[2] for c in children])
             weight = np.concatenate([c[3] for c in children])
-            sees_lamps = np.concatenate([c[4] for c in children])
+            sharp = np.concatenate([c[4] for c in children])
             t_min = np.zeros(len(origins))
         return result
 

@@ -145,14 +145,16 @@ def test_a_texel_on_a_triangle_edge_takes_its_own_triangles_part_only():
 
 
 def test_jacobian_of_a_scaled_and_turned_map():
-    """Lightmap UV = the texture UV turned by +90 degrees and halved: J = 2 R(-90 degrees)."""
+    """Lightmap UV = the texture UV turned by +90 degrees and halved: J = 2 R(-90 degrees) (its
+    third row, d z / d(lightmap uv) of UV textures' (u, v, 0), is 0)."""
     scene = unit_square(lambertian(name="c"))
     tex = scene.uv.astype(np.float64)
     lm = 0.25 + 0.5 * (tex - 0.5) @ np.array([[0.0, 1.0], [-1.0, 0.0]]) + 0.25
     scene = replace(scene, lightmap_uv=lm.astype(np.float32))
     jac, degenerate = texel_jacobians(scene, np.array([0, 1]))
     assert not degenerate.any()
-    np.testing.assert_allclose(jac, np.tile([[0.0, 2.0], [-2.0, 0.0]], (2, 1, 1)), atol=1e-6)
+    np.testing.assert_allclose(jac, np.tile([[0.0, 2.0], [-2.0, 0.0], [0.0, 0.0]], (2, 1, 1)),
+                               atol=1e-6)
     n = cells_per_side(replace(scene, materials=(scene.materials[0], Material(
         name="c", base_color_texture=checker_texture(64.0)))), np.array([0, 1]), jac, (16, 16),
         TextureBakeSettings())

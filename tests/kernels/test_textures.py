@@ -65,6 +65,33 @@ def test_checker_parity_follows_cycles():
     np.testing.assert_array_equal(out[:, 0], [1, 0, 0, 1, 1])
 
 
+def test_checker_in_three_dimensions_follows_cycles():
+    """On Generated coordinates the checker is Cycles' 3-D one: colour 1 where the floors of
+    x s, y s and z s sum to an odd number. z = 0 gives the (u, v) pattern; z = 0.5 at scale 4
+    (a flat plane's Generated z) floors to 1 under Cycles' nudge and swaps the colours; an image
+    reads x and y alone."""
+    c1, c2 = np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0])
+    uv = np.array([[0.1, 0.1], [0.1, 0.3], [0.3, 0.3], [0.6, 0.1]])
+    flat = checker(uv, c1, c2, 4.0)
+    np.testing.assert_array_equal(checker(np.c_[uv, np.zeros(4)], c1, c2, 4.0), flat)
+    np.testing.assert_array_equal(checker(np.c_[uv, np.full(4, 0.5)], c1, c2, 4.0), flat[:, ::-1])
+    np.testing.assert_array_equal(checker(np.array([[0.1, 0.1, 0.3]]), c1, c2, 4.0)[0], c1)
+    image = Texture(kind="IMAGE", pixels=ramp(), extension="EXTEND")
+    xyz = np.array([[0.125, 0.25, 0.9]])
+    np.testing.assert_array_equal(sample_texture(image, xyz), sample_texture(image, xyz[:, :2]))
+
+
+def test_checker_box_in_three_dimensions_is_the_mean_over_the_box():
+    c1, c2 = np.array([0.9, 0.2, 0.1]), np.array([0.1, 0.3, 0.8])
+    lo, hi = np.array([0.05, 0.3, 0.2]), np.array([0.7, 0.45, 0.95])
+    n = 81
+    axes = [lo[c] + (np.arange(n) + 0.5) / n * (hi[c] - lo[c]) for c in range(3)]
+    grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    dense = checker(grid, c1, c2, 3.0).mean(axis=0)
+    box = checker_box(lo[None], hi[None], c1, c2, 3.0)[0]
+    np.testing.assert_allclose(box, dense, atol=0.03)
+
+
 def test_sample_texture_dispatches_on_kind():
     tex = Texture(kind="IMAGE", pixels=ramp(), extension="EXTEND")
     assert sample_texture(tex, np.array([[0.125, 0.25]])).shape == (1, 3)

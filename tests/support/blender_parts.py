@@ -22,15 +22,17 @@ def principled(name, base=BASE, metallic=0.0):
     return mat, bsdf
 
 
-def checker(mat, bsdf, scale=4.0):
-    """Drive the base colour with a white/black Checker Texture over the mesh's UVs."""
+def checker(mat, bsdf, scale=4.0, coordinates="UV"):
+    """Drive the base colour with a white/black Checker Texture over the mesh's UVs, or with
+    coordinates=None over what the node reads unlinked (Generated)."""
     tree = mat.node_tree
-    coords = tree.nodes.new("ShaderNodeTexCoord")
     tex = tree.nodes.new("ShaderNodeTexChecker")
     tex.inputs["Scale"].default_value = scale
     tex.inputs["Color1"].default_value = (1.0, 1.0, 1.0, 1.0)
     tex.inputs["Color2"].default_value = (0.0, 0.0, 0.0, 1.0)
-    tree.links.new(coords.outputs["UV"], tex.inputs["Vector"])
+    if coordinates is not None:
+        coords = tree.nodes.new("ShaderNodeTexCoord")
+        tree.links.new(coords.outputs[coordinates], tex.inputs["Vector"])
     tree.links.new(tex.outputs["Color"], bsdf.inputs["Base Color"])
 
 
