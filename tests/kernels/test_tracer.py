@@ -326,3 +326,38 @@ def test_mirrors_and_glass_show_area_lamps_the_camera_does_not():
     up = ortho_camera((0.0, 0.0, 0.5), (0, 0, 1), (0, 1, 0), 0.2, (2, 2))
     looking_up = trace(build([(floor, chrome)], up, [lamp]), TracerSettings(max_depth=1, adaptive=0))
     assert looking_up.image.max() == 0.0
+
+
+def test_a_lamp_seen_in_a_mirror_through_a_rough_lobe_is_not_a_hot_spot():
+    """The path camera -> plate -> chrome floor -> area lamp: a black plate's specular layer
+    sends its one ray along the mirror direction to the floor, whose mirror ray meets the lamp.
+    Smooth, the plate shows the lamp (Fresnel of the layer and the chrome times L = 5); rough
+    (0.5), its one ray stands for a lobe that Cycles blurs over the surface, and the lamp's
+    sharp image through it would be a hot spot: rays past a rough lobe see no area lamp, as the
+    lobe's own ray does not (the plate is above the lamp, which lights it not at all)."""
+    lamp = Light(name="Panel", kind="AREA", position=np.array([0.0, 0.0, 2.0]),
+                 direction=np.array([0.0, 0.0, -1.0]), axis_x=np.array([1.0, 0.0, 0.0]),
+                 axis_y=np.array([0.0, 1.0, 0.0]), radiance=np.full(3, 5.0), size_x=1.0,
+                 size_y=1.0)
+    chrome = Material(name="chrome", base_color=np.full(3, 0.9, np.float32), metallic=1.0,
+                      roughness=0.0)
+    floor = quad([(-5, -5, 0), (5, -5, 0), (5, 5, 0), (-5, 5, 0)])
+    t = np.radians(30.0)
+    down = np.array([0.0, np.sin(t), -np.cos(t)])  # meets the floor and rises to the lamp
+    plate_at = np.array([0.0, -2.0 * np.tan(t), 0.0]) - 3.0 * down
+    normal = down - np.array([0.0, 1.0, 0.0])  # turns the camera's +y ray into `down`
+    normal /= np.linalg.norm(normal)
+    a = np.array([1.0, 0.0, 0.0])
+    b = np.cross(normal, a)
+    plate = quad([plate_at + 0.2 * (sa * a + sb * b) for sa, sb in
+                  ((-1, -1), (1, -1), (1, 1), (-1, 1))])
+    cam = ortho_camera(plate_at - 2.0 * np.array([0.0, 1.0, 0.0]), (0, 1, 0), (0, 0, 1), 0.05,
+                       (2, 2))
+    images = {}
+    for roughness in (0.0, 0.5):
+        layer = Material(name="layer", base_color=np.zeros(3, np.float32), specular=0.5,
+                         roughness=roughness)
+        scene = build([(floor, chrome), (plate, layer)], cam, [lamp])
+        images[roughness] = trace(scene, TracerSettings(max_depth=2, adaptive=0)).image
+    assert images[0.0].min() > 0.05  # the path exists: a smooth plate shows the lamp
+    assert images[0.5].max() == 0.0
