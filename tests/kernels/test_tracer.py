@@ -302,18 +302,23 @@ def test_a_rough_metal_reflects_its_surroundings():
     np.testing.assert_allclose(image, np.broadcast_to(expected, image.shape), atol=2e-3)
 
 
-def test_mirrors_and_glass_show_area_lamps_the_camera_does_not():
-    """A 1 m area lamp of radiance 5 hangs 2 m over a chrome floor, facing down, and an
-    orthographic camera looks at the floor 30 degrees off vertical: the rays it reflects meet the
-    lamp, which shows with Schlick's Fresnel of the chrome (Cycles' lamps are visible to glossy
-    and transmission rays); the camera looking at the lamp itself sees the black world."""
+def _panel_over_chrome():
+    """(a 1 m area lamp of radiance 5 at z = 2 facing down, a chrome material, a 10 m floor)."""
     lamp = Light(name="Panel", kind="AREA", position=np.array([0.0, 0.0, 2.0]),
                  direction=np.array([0.0, 0.0, -1.0]), axis_x=np.array([1.0, 0.0, 0.0]),
                  axis_y=np.array([0.0, 1.0, 0.0]), radiance=np.full(3, 5.0), size_x=1.0,
                  size_y=1.0)
     chrome = Material(name="chrome", base_color=np.full(3, 0.9, np.float32), metallic=1.0,
                       roughness=0.0)
-    floor = quad([(-5, -5, 0), (5, -5, 0), (5, 5, 0), (-5, 5, 0)])
+    return lamp, chrome, quad([(-5, -5, 0), (5, -5, 0), (5, 5, 0), (-5, 5, 0)])
+
+
+def test_mirrors_and_glass_show_area_lamps_the_camera_does_not():
+    """A 1 m area lamp of radiance 5 hangs 2 m over a chrome floor, facing down, and an
+    orthographic camera looks at the floor 30 degrees off vertical: the rays it reflects meet the
+    lamp, which shows with Schlick's Fresnel of the chrome (Cycles' lamps are visible to glossy
+    and transmission rays); the camera looking at the lamp itself sees the black world."""
+    lamp, chrome, floor = _panel_over_chrome()
     t = np.radians(30.0)
     forward = np.array([0.0, np.sin(t), -np.cos(t)])
     # Aimed at the floor 1.15 m before the lamp's foot: the mirror rays rise to it at (0, 0, 2).
@@ -335,13 +340,7 @@ def test_a_lamp_seen_in_a_mirror_through_a_rough_lobe_is_not_a_hot_spot():
     (0.5), its one ray stands for a lobe that Cycles blurs over the surface, and the lamp's
     sharp image through it would be a hot spot: rays past a rough lobe see no area lamp, as the
     lobe's own ray does not (the plate is above the lamp, which lights it not at all)."""
-    lamp = Light(name="Panel", kind="AREA", position=np.array([0.0, 0.0, 2.0]),
-                 direction=np.array([0.0, 0.0, -1.0]), axis_x=np.array([1.0, 0.0, 0.0]),
-                 axis_y=np.array([0.0, 1.0, 0.0]), radiance=np.full(3, 5.0), size_x=1.0,
-                 size_y=1.0)
-    chrome = Material(name="chrome", base_color=np.full(3, 0.9, np.float32), metallic=1.0,
-                      roughness=0.0)
-    floor = quad([(-5, -5, 0), (5, -5, 0), (5, 5, 0), (-5, 5, 0)])
+    lamp, chrome, floor = _panel_over_chrome()
     t = np.radians(30.0)
     down = np.array([0.0, np.sin(t), -np.cos(t)])  # meets the floor and rises to the lamp
     plate_at = np.array([0.0, -2.0 * np.tan(t), 0.0]) - 3.0 * down
