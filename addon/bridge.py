@@ -33,7 +33,6 @@ DEFAULT_MATERIAL = (Material(name=DEFAULT_MATERIAL_NAME) if bpy.app.version >= (
                     else Material(name=DEFAULT_MATERIAL_NAME, specular=0.0))
 
 
-
 @dataclass(frozen=True)
 class SnapshotRequest:
     """What one bake needs from the scene; everything else is not read at all.
@@ -203,11 +202,11 @@ def _mesh_chunk(
         normals = loop_n[corner_loops].astype(np.float32)
 
     uv = None
+    generated = None
     if request.uv:
         loop_uv = mesh_uv(mesh, None)
         uv = None if loop_uv is None else loop_uv[corner_loops]
-    generated = None
-    if request.uv:  # texture space: the original mesh's (Cycles' orco), else this one's
+        # Texture space: the original mesh's (Cycles' orco), else this one's.
         generated = generated_coordinates(local, texspace or mesh)[corner_verts].astype(np.float32)
     lightmap_uv = None
     if request.lightmap_uv:

@@ -73,7 +73,6 @@ from .world_light import (
     cosine_ray_count,
     world_lit,
     world_radiance,
-    world_source,
 )
 
 # Shadow rays to points ON an emitter stop this fraction short of it; the target itself is lifted
@@ -593,7 +592,7 @@ def back_bounce(gather: FinalGather, points: np.ndarray, normals: np.ndarray, re
     rays = gather.settings.world_rays
     k = cosine_ray_count(rays)
     out = np.zeros((len(points), 3))
-    sky = world_source(gather.scene) if world_lit(gather.scene) else None
+    sky = world_lit(gather.scene)
     glow = gather.emission.copy()  # pi L_e of the emissive triangles not gathered
     glow[gather.emitters.index] = 0.0
     per_call = max(1, RAYS_PER_CALL // k)
@@ -605,9 +604,8 @@ def back_bounce(gather: FinalGather, points: np.ndarray, normals: np.ndarray, re
         tri = np.asarray(hits.tri, np.int64)
         seen = np.zeros((len(dirs), 3))  # B: pi times the radiance along each ray
         met = tri >= 0
-        if sky is not None and (~met).any():
-            seen[~met] = np.pi * (world_radiance(gather.scene, dirs[~met]) if callable(sky)
-                                  else np.asarray(sky, np.float64))
+        if sky and (~met).any():
+            seen[~met] = np.pi * world_radiance(gather.scene, dirs[~met])
         seen[met] = glow[tri[met]]
         facing = np.flatnonzero(met)
         facing = facing[np.einsum("ij,ij->i", gather.triangle_normals[tri[facing]],
