@@ -158,17 +158,20 @@ def texture_units(scene: Scene, triangles: np.ndarray) -> np.ndarray:
     return units
 
 
-def footprint_axes(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """A footprint's sides a, b (M, 3) in texture space restricted to the two axes it spreads
-    over most (M, 2) each, and (M,) bool where it also spreads along the third beyond
-    AXIS_ALIGNED_REL (a face slanted in Generated space, whose bounding box is larger than it;
-    UV footprints never are: their third coordinate is 0)."""
+def footprint_box(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For parallelograms of sides a, b (M, 3) in texture space, over the two axes each spreads
+    along most: (the bounding box's area, the parallelogram's area) (M,) each, and (M,) bool
+    where it also spreads along the third beyond AXIS_ALIGNED_REL (a face slanted in Generated
+    space, whose bounding box is larger than it; UV footprints never are: their third
+    coordinate is 0)."""
     extent = np.abs(a) + np.abs(b)
     order = np.argsort(extent, axis=1, kind="stable")
     keep = np.sort(order[:, 1:], axis=1)
     least = np.take_along_axis(extent, order[:, :1], axis=1)[:, 0]
     slanted = least > AXIS_ALIGNED_REL * extent.max(axis=1, initial=0.0)
-    return np.take_along_axis(a, keep, axis=1), np.take_along_axis(b, keep, axis=1), slanted
+    a2, b2 = np.take_along_axis(a, keep, axis=1), np.take_along_axis(b, keep, axis=1)
+    box = np.take_along_axis(extent, keep, axis=1).prod(axis=1)
+    return box, np.abs(a2[:, 0] * b2[:, 1] - a2[:, 1] * b2[:, 0]), slanted
 
 
 def cells_per_side(scene: Scene, triangles: np.ndarray, jac: np.ndarray, size: tuple[int, int],
@@ -190,10 +193,8 @@ def cells_per_side(scene: Scene, triangles: np.ndarray, jac: np.ndarray, size: t
                         for m in scene.materials], bool)[mids]
     # Axis-aligned (a rectangle, quarter turns and mirrors included): the footprint's bounding
     # box has the footprint's own area.
-    a, b, slanted = footprint_axes(jac[:, :, 0], jac[:, :, 1])
-    box = (np.abs(a[:, 0]) + np.abs(b[:, 0])) * (np.abs(a[:, 1]) + np.abs(b[:, 1]))
-    skewed = slanted | (box > (1.0 + AXIS_ALIGNED_REL) * np.abs(a[:, 0] * b[:, 1]
-                                                                 - a[:, 1] * b[:, 0]))
+    box, area, slanted = footprint_box(jac[:, :, 0], jac[:, :, 1])
+    skewed = slanted | (box > (1.0 + AXIS_ALIGNED_REL) * area)
     # A checker's boxes are exact at any size: under an axis-aligned map the box IS the
     # footprint, under a skewed one a few cells narrow the band where box and footprint differ.
     n[checker] = np.where(skewed[checker], min(SKEWED_CHECKER_SIDE, settings.max_samples_per_side), 1)
@@ -236,14 +237,12 @@ def _cell_albedo(scene: Scene, tri: np.ndarray, uv: np.ndarray, half: np.ndarray
 def _cell_half_extents(jac: np.ndarray, n: np.ndarray, size: tuple[int, int]) -> np.ndarray:
     """(M, 3) half extents in texture space of the box standing for one of a texel's n x n
     cells: the cell's parallelogram's bounding box, shrunk to the parallelogram's area (same
-    aspect) over the two axes it spreads along most (`footprint_axes`)."""
+    aspect) over the two axes it spreads along most (`footprint_box`)."""
     width, height = size
     a = jac[:, :, 0] / (width * n[:, None])  # the cell's sides in texture space, (M, 3)
     b = jac[:, :, 1] / (height * n[:, None])
     half = 0.5 * (np.abs(a) + np.abs(b))
-    a2, b2, _ = footprint_axes(a, b)
-    area = np.abs(a2[:, 0] * b2[:, 1] - a2[:, 1] * b2[:, 0])
-    box = (np.abs(a2[:, 0]) + np.abs(b2[:, 0])) * (np.abs(a2[:, 1]) + np.abs(b2[:, 1]))
+    box, area, _ = footprint_box(a, b)
     shrink = np.sqrt(np.divide(area, box, out=np.ones_like(area), where=box > 0.0))
     return half * shrink[:, None]
 

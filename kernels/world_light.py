@@ -36,6 +36,7 @@ and the backs of one-sided surfaces (their patches face one way).
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 
 import numpy as np
@@ -194,8 +195,8 @@ def cosine_directions(normals: np.ndarray, rays: int, rng: np.random.Generator) 
     disc points u1 -> radius sqrt(u1) (even over the disc), u2 -> angle, lifted onto the
     hemisphere; per normal a random rotation, so neighbouring receivers' strata do not line up.
     pi times the mean radiance along them estimates the irradiance."""
-    m = int(np.ceil(np.sqrt(max(rays, 1))))
-    k, p = m * m, len(normals)
+    k, p = cosine_ray_count(rays), len(normals)
+    m = math.isqrt(k)
     u1 = (np.arange(k) // m + rng.random((p, k))) / m
     u2 = (np.arange(k) % m + rng.random((p, k))) / m + rng.random((p, 1))
     radius, angle = np.sqrt(u1), 2.0 * np.pi * u2
