@@ -349,7 +349,7 @@ def hierarchical_steps(scene: Scene, roots: patching.Patches, depth: int, occlud
                        scale: float, lamp_irradiance, emitters=None,
                        world_irradiance=None) -> Iterator[float | tuple]:
     """Build, link, refine, solve. Yields progress, then (leaf Patches, B, emitted, reflectance,
-    direct irradiance of the leaves, stats).
+    direct irradiance and the world's irradiance of the leaves, stats).
 
     roots, depth: `hierarchy_roots` of the scene at the patch size asked for.
 
@@ -433,7 +433,8 @@ def hierarchical_steps(scene: Scene, roots: patching.Patches, depth: int, occlud
              "solver_error": last["solver_error"],
              "converged": bool(last["solver_error"] <= settings.tolerance),
              "refinement_levels": len(per_level) - 1, "per_refinement": per_level}
-    yield (leaf_patches, b[leaves], emitted[leaves], rho[leaves], direct[leaves], stats)
+    yield (leaf_patches, b[leaves], emitted[leaves], rho[leaves], direct[leaves], world[leaves],
+           stats)
 
 
 def _link(tree: _Tree, root_count: int, leaves: np.ndarray, occluded, settings, scale: float):

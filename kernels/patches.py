@@ -185,6 +185,44 @@ def midpoint_children(bary: np.ndarray) -> np.ndarray:
     ], axis=1).reshape(-1, 3, 3)
 
 
+def subdivided_template(levels: int) -> np.ndarray:
+    """(4^levels, 3, 3) a patch's `subdivided` descendants in its own barycentric coordinates."""
+    bary = np.eye(3)[None]
+    for _ in range(levels):
+        bary = midpoint_children(bary)
+    return bary
+
+
+def subdivided(scene: Scene, patches: Patches, levels: int) -> Patches:
+    """Every patch's 4^levels midpoint descendants (`midpoint_children`, `levels` times), patch
+    i's at rows i 4^levels to (i + 1) 4^levels - 1 in the order `descend` numbers them."""
+    bary = np.einsum("skc,ncj->nskj", subdivided_template(levels), patches.bary).reshape(-1, 3, 3)
+    per = 4 ** levels
+    return _assemble(scene, np.repeat(patches.parent, per), bary,
+                     np.repeat(patches.level + levels, per).astype(np.int32))
+
+
+def descend(local: np.ndarray, levels: int) -> tuple[np.ndarray, np.ndarray]:
+    """Points at barycentric coordinates local (M, 3) in their patch: which of its `subdivided`
+    descendants holds each, (M,) int64 in 0 .. 4^levels - 1, and the coordinates there (M, 3).
+    A child of `midpoint_children` is corner k's where l_k >= 1/2 (the coordinates double, less
+    1 at k), else the middle one: (1 - 2 l_2, 1 - 2 l_0, 1 - 2 l_1)."""
+    local = np.asarray(local, np.float64)
+    index = np.zeros(len(local), np.int64)
+    for _ in range(levels):
+        corner = np.where(local.max(axis=1) >= 0.5, local.argmax(axis=1), 3)
+        rows = np.flatnonzero(corner < 3)
+        inner = np.flatnonzero(corner == 3)
+        local = local.copy()
+        local[rows] *= 2.0
+        local[rows, corner[rows]] -= 1.0
+        local[inner] = 1.0 - 2.0 * local[inner][:, [2, 0, 1]]
+        np.clip(local, 0.0, None, out=local)
+        local /= np.maximum(local.sum(axis=1, keepdims=True), 1e-300)
+        index = 4 * index + corner
+    return index, local
+
+
 def _assemble(scene: Scene, parent: np.ndarray, bary: np.ndarray, level: np.ndarray) -> Patches:
     tris = scene.triangles.astype(np.float64)[parent]  # (N, 3, 3)
     corners = np.einsum("nkc,ncj->nkj", bary, tris)
@@ -325,14 +363,23 @@ def corner_values(patches: Patches, values: np.ndarray, smooth_angle: float,
     `fitted_corner_values`, which keeps peaks and slopes that averaging flattens.
     """
     values = np.asarray(values, np.float64)
-    count = len(patches)
-    a, b = _agreeing_corners(patches, smooth_angle, scale)  # a receives b's patch value
+    return corner_average(patches, np.repeat(values[:, None], 3, axis=1), smooth_angle, scale)
+
+
+def corner_average(patches: Patches, corners: np.ndarray, smooth_angle: float,
+                   scale: float | None = None) -> np.ndarray:
+    """(N, 3, C) each corner's value of corners (N, 3, C) averaged, weighted by `patches.areas`,
+    with the corners `corner_values` would average it with: one value where smooth patches meet,
+    a jump kept where objects meet or surfaces fold."""
+    count, channels = corners.shape[0], corners.shape[2]
+    a, b = _agreeing_corners(patches, smooth_angle, scale)  # a receives b's value
     weight = patches.areas[b // 3]
-    total = np.zeros((count * 3, values.shape[1]))
-    for c in range(values.shape[1]):
-        total[:, c] = np.bincount(a, weights=weight * values[b // 3, c], minlength=count * 3)
+    flat = corners.reshape(-1, channels)
+    total = np.zeros((count * 3, channels))
+    for c in range(channels):
+        total[:, c] = np.bincount(a, weights=weight * flat[b, c], minlength=count * 3)
     norm = np.bincount(a, weights=weight, minlength=count * 3)
-    return (total / norm[:, None]).reshape(count, 3, values.shape[1])
+    return (total / norm[:, None]).reshape(count, 3, channels)
 
 
 def _corner_groups(count: int, a: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -58,7 +58,7 @@ from . import lights as light_units
 from . import patches as patching
 from .bake_targets import TexelFilterSettings
 from .camera_view import EDGE_SAMPLES
-from .final_gather import FinalGather, FinalGatherSettings
+from .final_gather import ELEMENT_PAIRS, FinalGather, FinalGatherSettings
 from .form_factors import (
     RAY_OFFSET_REL,
     HemicubeFormFactors,
@@ -169,6 +169,10 @@ class RadiositySettings:
     | gather_rays                 | >= 1                | 16       | final gather: shadow rays  |
     |                             |                     |          | per receiver to emissive   |
     |                             |                     |          | triangles                  |
+    | element_pairs               | >= 0                | 100000   | final gather: element-to-  |
+    |                             |                     |          | patch pairs the indirect   |
+    |                             |                     |          | light may be gathered over |
+    |                             |                     |          | (elements.py; 0: patches)  |
     | world_rays                  | >= 0                | 64       | rays per patch that find   |
     |                             |                     |          | its share of open sky, lit |
     |                             |                     |          | by the world colour        |
@@ -206,6 +210,7 @@ class RadiositySettings:
     max_shots: int = 0
     final_gather: bool = True
     gather_rays: int = 16
+    element_pairs: int = ELEMENT_PAIRS
     world_rays: int = WORLD_RAYS
     seed: int = 0
     clusters: bool = True
@@ -234,8 +239,8 @@ class RadiositySettings:
             raise ValueError("sample counts must be >= 1 (samples_per_side >= 0, 0: auto)")
         if self.gather_rays < 1:
             raise ValueError(f"gather_rays must be >= 1, got {self.gather_rays}")
-        if self.world_rays < 0:
-            raise ValueError(f"world_rays must be >= 0, got {self.world_rays}")
+        if self.world_rays < 0 or self.element_pairs < 0:
+            raise ValueError("world_rays and element_pairs must be >= 0")
         if self.max_shots < 0:
             raise ValueError(f"max_shots must be >= 0, got {self.max_shots}")
         if self.hemicube_resolution < 2 or self.hemicube_resolution % 2:
@@ -276,8 +281,8 @@ class RadiosityResult:
         `visibility_out`), else (or with `interpolated`) B interpolated from the patch corners.
         `reflected_only`: B minus the emission (what Cycles' DIFFUSE bake sees, times pi)."""
         if self.gather is not None and not interpolated:
-            return final_gather.exitance(self.gather, self.patches, tri, bary, reflected_only,
-                                         known, visibility_out)
+            return final_gather.exitance(self.gather, tri, bary, reflected_only, known,
+                                         visibility_out)
         patch, local = patching.locate(self.patches, tri, bary)
         values = patching.interpolate(self.corner_b, patch, local)
         if reflected_only:
@@ -394,7 +399,8 @@ def gather_settings(settings: RadiositySettings) -> FinalGatherSettings:
     """The final gather's settings, and the shot emitters', from the radiosity settings."""
     return FinalGatherSettings(emitter_rays=settings.gather_rays, seed=settings.seed,
                                patch_samples=settings.samples_per_side,
-                               world_rays=settings.world_rays)
+                               world_rays=settings.world_rays,
+                               element_pairs=settings.element_pairs)
 
 
 def shot_emission(scene: Scene, patches: patching.Patches,
@@ -996,8 +1002,8 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
         clear = final_gather.clear_shafts(patches, emitters, bvh, RAY_OFFSET_REL * scale,
                                           clusters.CLUSTER_AREA_SHARE * size * size)
         direct, boundary = first_shot(scene, patches, occluded, settings, scale, emitters, clear)
-        sources = emitted - shot + rho * (direct + world_shot(scene, patches, bvh, settings,
-                                                              scale))
+        world = world_shot(scene, patches, bvh, settings, scale)
+        sources = emitted - shot + rho * (direct + world)
         if groups is not None and (patches.level > 0).any():
             # Split children, known lit or shadowed now, group apart (`clusters.light_bucket`);
             # without any, these are the first patches and their groups as they were.
@@ -1017,21 +1023,21 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
         patches = patching.split(scene, patches, mask)
     last = stats["levels"][-1]
     solved = len(patches)
-    patches, (b, emitted, rho, direct, clear) = with_idle(scene, patches, exchanging, b, emitted,
-                                                          rho, direct, clear)
+    patches, (b, emitted, rho, direct, clear, world) = with_idle(
+        scene, patches, exchanging, b, emitted, rho, direct, clear, world)
     stats.update(patches=len(patches), idle_patches=len(patches) - solved,
                  per_level=patches.level_counts(), solver=last["solver"],
                  memory_estimate=last["memory_estimate"], method=settings.method)
     result = _result(scene, patches, b, emitted, rho, direct, bvh, settings, scale, stats, t0,
-                     emitters, clear)
+                     emitters, clear, world)
     yield 1.0
     yield result
 
 
 def _result(scene, patches, b, emitted, rho, direct, bvh, settings: RadiositySettings,
-            scale: float, stats: dict, t0: float, emitters, clear) -> RadiosityResult:
+            scale: float, stats: dict, t0: float, emitters, clear, world) -> RadiosityResult:
     """The solved scene, with the final gather prepared when the settings ask for it (clear:
-    the patches' `final_gather.clear_shafts`, from the first shot)."""
+    the patches' `final_gather.clear_shafts`, from the first shot; world: `world_shot`)."""
     # What the patches show: their reflected light under the specular layer (`patch_reflectance`).
     shown = emitted + (b - emitted) * layer_factors(scene)[scene.material_ids[patches.parent]][:, None]
     # One fit for both (their corner groups and CG iterations shared; channels are independent).
@@ -1047,7 +1053,7 @@ def _result(scene, patches, b, emitted, rho, direct, bvh, settings: RadiositySet
                       "map_suns": sum(light.name.startswith(WORLD_SUN_NAME)
                                       for light in scene.lights)}
     gather = _prepare_gather(scene, patches, b, emitted, rho, direct, emitters, bvh, settings,
-                             stats, clear)
+                             stats, clear, world)
     stats["seconds"] = time.perf_counter() - t0
     return RadiosityResult(patches=patches, radiosity=b, emitted=emitted, direct=direct,
                            reflectance=rho, corner_b=corner_b, corner_e=corner_e, stats=stats,
@@ -1055,14 +1061,14 @@ def _result(scene, patches, b, emitted, rho, direct, bvh, settings: RadiositySet
 
 
 def _prepare_gather(scene, patches, b, emitted, rho, direct, emitters, bvh,
-                    settings: RadiositySettings, stats: dict, clear) -> FinalGather | None:
+                    settings: RadiositySettings, stats: dict, clear, world) -> FinalGather | None:
     """The final gather's patch-level half, when the settings ask for it (stats: its figures)."""
     if not settings.final_gather:
         return None
     start = time.perf_counter()
     gather = final_gather.prepare(
         scene, patches, b, emitted, rho, direct, emitters, bvh, settings.smooth_angle,
-        settings.area_light_samples_per_side, gather_settings(settings), clear)
+        settings.area_light_samples_per_side, gather_settings(settings), clear, world)
     stats["final_gather"] = {**gather.stats, "prepare_seconds": time.perf_counter() - start}
     return gather
 
@@ -1091,13 +1097,13 @@ def _hierarchical(scene, size, bvh, settings, scale, t0, exchanging, roots, dept
     for step in hierarchical_steps(scene, roots, depth, occluded, settings, scale, lamps,
                                    emitters, world):
         if isinstance(step, tuple):
-            leaves, b, emitted, rho, direct, info = step
+            leaves, b, emitted, rho, direct, world, info = step
         else:
             yield 0.02 + 0.96 * step
     memory = {**memory, "links_made": info["links"]}  # bounded before linking, and as made
     solved = len(leaves)
-    leaves, (b, emitted, rho, direct, clear) = with_idle(
-        scene, leaves, exchanging, b, emitted, rho, direct, last_clear["leaves"])
+    leaves, (b, emitted, rho, direct, clear, world) = with_idle(
+        scene, leaves, exchanging, b, emitted, rho, direct, last_clear["leaves"], world)
     stats = {"patch_size_m": size, "patches": len(leaves), "idle_patches": len(leaves) - solved,
              "per_level": leaves.level_counts(),
              "solver": "hierarchical", "memory_estimate": memory, "method": "raycast",
@@ -1108,7 +1114,7 @@ def _hierarchical(scene, size, bvh, settings, scale, t0, exchanging, roots, dept
                          "converged": bool(level["solver_error"] <= settings.tolerance)}
                         for level in info["per_refinement"]]}
     result = _result(scene, leaves, b, emitted, rho, direct, bvh, settings, scale, stats, t0,
-                     emitters, clear)
+                     emitters, clear, world)
     yield 1.0
     yield result
 
