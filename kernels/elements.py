@@ -18,7 +18,7 @@ against a wall) takes what it sees there, not the mean of the elements beside it
 
 It pays where patches are large against how the light varies: the Cornell box at 74 patches
 (each block face one quad of two triangles, whose linear interpolation shows the diagonal) goes
-from relMSE 0.0101 to 0.0060 against Cycles with 16 elements per patch (bench/README.md,
+from relMSE 0.0101 to 0.0063 against Cycles with 4 elements per patch (bench/README.md,
 session 29). What it cannot place is a source's own variation: q sends its mean B, which a
 receiver right beside it (a block's foot on a floor half in its shadow) sees at close range.
 Its cost grows as E x N, so `element_levels` splits only while the pairs stay within a budget:
@@ -50,10 +50,11 @@ DISC_FORM_RADII = 2.0
 VERTEX_INSET = 1e-4
 # Shadow rays per BVH call.
 RAYS_PER_CALL = 1 << 18
-# Splits per patch at most: 16 elements. 64 gave the Cornell box at 74 patches relMSE 0.00578
-# against 0.00586 with 16 for 0.11 s more (session 29): the light within a patch is smooth
-# enough for 16.
-MAX_LEVELS = 2
+# Splits per patch at most: 4 elements, 6 vertices. The Cornell box at 74 patches (session 29;
+# relMSE against Cycles, and solve + bake seconds): 4 elements 0.00631 in 0.171 s, 16 0.00597
+# in 0.188 s, 64 (centroid values) 0.0058 for 0.1 s more: Cycles' bake takes ~1 / error, so 4
+# reach each error level soonest.
+MAX_LEVELS = 1
 
 
 def element_levels(receivers: int, sources: int, pair_budget: int) -> int:
@@ -98,18 +99,25 @@ def element_factors(points: np.ndarray, normals: np.ndarray, patches: patching.P
     centre = corners.mean(axis=1)  # (S, 3)
     radius = np.linalg.norm(corners - centre[:, None], axis=2).max(axis=1)  # (S,) m
     area = patches.areas[sources]
-    between = centre[None] - points[:, None]  # (E, S, 3)
-    dist2 = np.einsum("esc,esc->es", between, between)
-    cos_e = np.einsum("esc,ec->es", between, normals)  # times d
-    cos_q = -np.einsum("esc,sc->es", between, patches.normals[sources])  # times d
+    source_normals = patches.normals[sources]
+    # (E, S) through products of (E, 3) and (3, S): no (E, S, 3) differences.
+    dist2 = np.maximum((points * points).sum(axis=1)[:, None] + (centre * centre).sum(axis=1)
+                       - 2.0 * points @ centre.T, 0.0)
+    cos_e = normals @ centre.T - (normals * points).sum(axis=1)[:, None]  # times d
+    cos_q = points @ source_normals.T - (source_normals * centre).sum(axis=1)  # times d
     # The disc form (Wallace, Elmquist and Haines 1989): exact for a disc of q's area head on.
     factor = np.divide(area * cos_e * cos_q, dist2 * (np.pi * dist2 + area),
                        out=np.zeros_like(dist2), where=(cos_e > 0.0) & (cos_q > 0.0))
-    near = np.nonzero(dist2 < (DISC_FORM_RADII * radius) ** 2)
-    if near[0].size:
-        q = sources[near[1]]
-        factor[near] = point_to_polygon(points[near[0]], normals[near[0]], patches.corners[q],
-                                        patches.normals[q])
+    e, s = np.nonzero(dist2 < (DISC_FORM_RADII * radius) ** 2)
+    # Only where q lies in front of x and reaches above its horizon is the factor not 0 (most
+    # near pairs are neighbours in one plane).
+    rel = corners[s] - points[e][:, None]  # (P, 3, 3)
+    ahead = np.einsum("pc,pc->p", rel[:, 0], source_normals[s]) < 0.0
+    above = np.einsum("pkc,pc->pk", rel, normals[e]).max(axis=1) > 0.0
+    factor[e, s] = 0.0
+    e, s = e[ahead & above], s[ahead & above]
+    if e.size:
+        factor[e, s] = point_to_polygon(points[e], normals[e], corners[s], source_normals[s])
     return factor
 
 

@@ -92,12 +92,13 @@ RECEIVER_INSET = 1e-4
 # Probe rays at 45 degrees (after the normal ray): their tangent-frame directions.
 _PROBE_TILTS = ((1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0))
 LUMINANCE = np.array(REC709_LUMINANCE)
-# Element-to-patch pairs the indirect light is gathered over at most (`elements.py`). The Cornell
-# box (session 29; seconds of solve and bake times relMSE against Cycles, the figure its
-# speed-up over Cycles' bake goes down with): 74 patches, 16 elements each (88k pairs), 1.60 ->
-# 1.14 (relMSE 0.0101 -> 0.0060 for 0.03 s); 176 patches, 4 each (124k pairs), 1.11 -> 1.23, so
-# none there: the patches are small enough already.
-ELEMENT_PAIRS = 100_000
+# Element-to-patch pairs the indirect light is gathered over at most (`elements.py`: elements
+# times the patches that send light). The Cornell box (session 29; solve and
+# bake seconds times relMSE against Cycles, which Cycles' bake seconds to the same error divide
+# the speed-up by): 74 patches in 4 elements each (22k pairs) 1.65 -> 1.08 (relMSE 0.0101 ->
+# 0.0063 for 0.01 s); 176 patches (124k pairs) 1.14 -> 1.19, none there: the patches are small
+# enough already.
+ELEMENT_PAIRS = 50_000
 # What a receiver's rays found about one emitter triangle (`Visibility.emitters`): nothing known
 # (or a penumbra), all of it hidden, all of it seen, or it lies behind the receiver's plane.
 UNKNOWN, HIDDEN, CLEAR, AWAY = -1, 0, 1, 2
@@ -121,7 +122,7 @@ class FinalGatherSettings:
     |                  |          |         | where they escape, the patch solution where they |
     |                  |          |         | meet a surface (`back_exitance`; 0: direct light |
     |                  |          |         | only there)                                      |
-    | element_pairs    | >= 0     | 100000  | element-to-patch pairs the indirect light may be |
+    | element_pairs    | >= 0     | 50000   | element-to-patch pairs the indirect light may be |
     |                  |          |         | gathered over (`elements.py`: patches split into |
     |                  |          |         | 4^k elements while within it; 0: never)          |
     """

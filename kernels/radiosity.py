@@ -169,7 +169,7 @@ class RadiositySettings:
     | gather_rays                 | >= 1                | 16       | final gather: shadow rays  |
     |                             |                     |          | per receiver to emissive   |
     |                             |                     |          | triangles                  |
-    | element_pairs               | >= 0                | 100000   | final gather: element-to-  |
+    | element_pairs               | >= 0                | 50000    | final gather: element-to-  |
     |                             |                     |          | patch pairs the indirect   |
     |                             |                     |          | light may be gathered over |
     |                             |                     |          | (elements.py; 0: patches)  |

@@ -34,8 +34,9 @@ def lit_wall_and_floor():
 
 def test_elements_place_the_light_a_coarse_patch_spreads_evenly():
     """One patch per triangle (four in all). The floor's exitance at points 0.05-0.95 m from the
-    wall follows rho_f B_w F(x -> wall), F exact, within 3% with elements (16 per patch); the
-    patches alone hold one value per triangle and miss it by over 30% near the wall."""
+    wall follows rho_f B_w F(x -> wall), F exact, within 8.5% with elements (4 per patch: linear
+    between vertices 0.5 m apart where F curves; 2% with 16); the patches alone hold one linear
+    piece per triangle and miss it by over 30% near the wall."""
     scene = lit_wall_and_floor()
     x = np.array([0.05, 0.2, 0.4, 0.6, 0.8, 0.95])
     points = np.stack([x, np.full_like(x, 0.3), np.zeros_like(x)], axis=1)
@@ -54,7 +55,7 @@ def test_elements_place_the_light_a_coarse_patch_spreads_evenly():
         assert result.stats["patches"] == 4
         got = result.exitance_at(tri, bary)[:, 0]
         errors[pairs] = np.abs(got / exact - 1.0)
-    assert errors[ELEMENT_PAIRS].max() < 0.03
+    assert errors[ELEMENT_PAIRS].max() < 0.085
     assert errors[0].max() > 0.3
 
 
@@ -79,10 +80,10 @@ def test_descend_finds_the_element_subdivided_put_there():
 
 
 def test_element_levels_stay_within_the_pair_budget():
-    assert elements.element_levels(74, 74, ELEMENT_PAIRS) == 2  # 16 x 74 x 74 = 87.6k
+    assert elements.element_levels(74, 74, ELEMENT_PAIRS) == 1  # 4 x 74 x 74 = 21.9k
     assert elements.element_levels(176, 176, ELEMENT_PAIRS) == 0  # 4 x 176 x 176 = 124k
-    assert elements.element_levels(100, 100, ELEMENT_PAIRS) == 1
     assert elements.element_levels(4, 4, ELEMENT_PAIRS) == elements.MAX_LEVELS
+    assert elements.element_levels(4, 4, 1 << 30) == elements.MAX_LEVELS
     assert elements.element_levels(4, 4, 0) == 0
 
 
