@@ -30,7 +30,13 @@ from __future__ import annotations
 import numpy as np
 
 from . import patches as patching
-from .form_factors import answer_rays, paired_share_steps, point_to_polygon, sample_patches
+from .form_factors import (
+    answer_rays,
+    disc_form,
+    paired_share_steps,
+    point_to_polygon,
+    sample_patches,
+)
 from .scene import Scene
 
 # Shadow rays per side of the point grids the patch-to-patch visibility pairs: 2 x 2 pairs a patch
@@ -105,9 +111,7 @@ def element_factors(points: np.ndarray, normals: np.ndarray, patches: patching.P
                        - 2.0 * points @ centre.T, 0.0)
     cos_e = normals @ centre.T - (normals * points).sum(axis=1)[:, None]  # times d
     cos_q = points @ source_normals.T - (source_normals * centre).sum(axis=1)  # times d
-    # The disc form (Wallace, Elmquist and Haines 1989): exact for a disc of q's area head on.
-    factor = np.divide(area * cos_e * cos_q, dist2 * (np.pi * dist2 + area),
-                       out=np.zeros_like(dist2), where=(cos_e > 0.0) & (cos_q > 0.0))
+    factor = disc_form(dist2, cos_e, cos_q, area)
     e, s = np.nonzero(dist2 < (DISC_FORM_RADII * radius) ** 2)
     # Only where q lies in front of x and reaches above its horizon is the factor not 0 (most
     # near pairs are neighbours in one plane).

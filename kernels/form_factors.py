@@ -872,6 +872,18 @@ def raycast_gather_steps(points, normals, weights, corners, corner_normals, trac
     return unoccluded, visible
 
 
+def disc_form(dist2: np.ndarray, cos_x: np.ndarray, cos_y: np.ndarray, area) -> np.ndarray:
+    """(...) Wallace's disc approximation of the factor from a point x to a patch of `area` m^2
+    whose centre is d away (Wallace, Elmquist and Haines 1989):
+    A cos_x cos_y / (pi d^2 + A), exact for a disc seen head on, 0 where either faces away.
+    dist2 = d^2; cos_x, cos_y: the cosines at x and at the patch, each times d (the dot
+    products with the unnormalised direction), broadcastable together."""
+    return np.divide(area * cos_x * cos_y, dist2 * (np.pi * dist2 + area),
+                     out=np.zeros(np.broadcast_shapes(np.shape(dist2), np.shape(cos_x),
+                                                      np.shape(cos_y), np.shape(area))),
+                     where=(cos_x > 0.0) & (cos_y > 0.0))
+
+
 def pair_kernel(between: np.ndarray, nx: np.ndarray, ny: np.ndarray) -> np.ndarray:
     """(...) the point-to-point kernel cos_x cos_y / d^2 of point pairs `between` (..., 3) = y - x
     apart (m), unit normals nx at x and ny at y broadcastable to it; 0 where either faces away."""

@@ -42,7 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .form_factors import SHADOW_END_REL
+from .form_factors import SHADOW_END_REL, disc_form
 
 # A node is far from a leaf when its radius is at most this share of its centre's distance to
 # the leaf's nearest point: its roots then lie within 15 degrees of that direction, and rays to
@@ -202,9 +202,7 @@ def member_links(tree: SourceTree, group_p: np.ndarray, group_n: np.ndarray, poi
     cos_s = np.einsum("msc,mc->ms", between, normals[group])  # times d
     cos_m = -np.einsum("msc,mc->ms", between, tree.normals[root])  # times d
     a = areas[root][:, None]
-    kernel = np.where((cos_s > 0.0) & (cos_m > 0.0),
-                      a * cos_s * cos_m / np.maximum(dist2 * (np.pi * dist2 + a), 1e-300), 0.0)
-    factor = np.einsum("ms,ms->m", kernel, weights[group])
+    factor = np.einsum("ms,ms->m", disc_form(dist2, cos_s, cos_m, a), weights[group])
     close = (dist2 < NEAR_AREAS * a).any(axis=1)
     keep = factor > 0.0
     return group[keep], root[keep], factor[keep], close[keep]
