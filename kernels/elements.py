@@ -31,6 +31,7 @@ import numpy as np
 
 from . import patches as patching
 from .form_factors import (
+    RAYS_PER_BATCH,
     answer_rays,
     disc_form,
     paired_share_steps,
@@ -54,8 +55,6 @@ DISC_FORM_RADII = 2.0
 # `final_gather.RECEIVER_INSET` moves receivers): far above the factor's PLANE_EPS, far below any
 # detail an element holds.
 VERTEX_INSET = 1e-4
-# Shadow rays per BVH call.
-RAYS_PER_CALL = 1 << 18
 # Splits per patch at most: 4 elements, 6 vertices. The Cornell box at 74 patches (session 29;
 # relMSE against Cycles, and solve + bake seconds): 4 elements 0.00631 in 0.171 s, 16 0.00597
 # in 0.188 s, 64 (centroid values) 0.0058 for 0.1 s more: Cycles' bake takes ~1 / error, so 4
@@ -90,7 +89,7 @@ def patch_visibility(patches: patching.Patches, index: np.ndarray, occluded, off
     w = weights[p] * weights[q[:, None], shuffle]
     share = answer_rays(paired_share_steps(points[p], normals[p][:, None], y,
                                            normals[q][:, None], w, offset),
-                        occluded, RAYS_PER_CALL)
+                        occluded, RAYS_PER_BATCH)
     out = np.ones((len(index), len(index)))
     out[p, q] = out[q, p] = share
     return out
@@ -139,8 +138,8 @@ def element_irradiance(scene: Scene, patches: patching.Patches, reflected: np.nd
 
     Returns the elements (`patches.subdivided`: 4^levels per patch, patch i's at rows
     i 4^levels ...) and H (E, 3, 3) W/m^2 at their corners: each vertex of a patch's elements is
-    gathered once, (2^levels + 1)(2^levels + 2) / 2 of them, as many as its elements' centroids
-    and with no average to flatten what a corner at the patch's border sees."""
+    gathered once, (2^levels + 1)(2^levels + 2) / 2 of them (6 for 4 elements, 15 for 16),
+    with no average to flatten what a corner at the patch's border sees."""
     elements = patching.subdivided(scene, patches, levels)
     per = 4 ** levels
     local = patching.subdivided_template(levels).reshape(-1, 3)  # (per 3, 3) in the patch

@@ -21,7 +21,9 @@ floor, the floor inside a closed block. Most of that detail is DIRECT light. The
 * H_indirect(x), interpolated from the patches: what the solution says arrives at patch i,
   (B_i - E_i) / rho_i, less the first shot H_direct(i), which the solver took from this same
   estimator at the patch's points (`radiosity.first_shot`) and did not carry again. It is smooth
-  wherever the patches are, so patch-sized interpolation loses little.
+  wherever the patches are, so patch-sized interpolation loses little; a coarse solution's
+  patches are split into elements whose vertices gather it from the patches' B afresh
+  (`elements.py`).
 
 Shaft culling. Before any ray, each (patch, emissive triangle) pair is tested for an empty
 shaft (`shafts.py`): a receiver in a patch that sees the triangle whole takes its exact factor
