@@ -154,6 +154,11 @@ class Emitters:
     radiance: np.ndarray  # (K, 3) float64 emitted radiance L_e, W/(m^2 sr)
     per_side: np.ndarray  # (K,) int64 n: n x n stratified visibility points each
 
+    def covers(self, triangles: np.ndarray) -> np.ndarray:
+        """(M,) bool: which of scene `triangles` (M,) are these emitters (their light reaches
+        receivers through `emitter_irradiance`, not through the patches)."""
+        return np.isin(triangles, self.index)
+
     def thinned(self, k: int) -> Emitters:
         """These emitters with ceil(n / k) points per side each: for receivers averaged k x k
         to one value (a lightmap texel's sub-texel points, `bake_targets.box_filter`), whose
@@ -508,11 +513,8 @@ def prepare(scene: Scene, patches: patching.Patches, radiosity: np.ndarray, emit
         # An enclosed patch weighs 0: its corners follow its open neighbours
         # (`fitted_corner_values` floors the weights, so none is left undetermined).
         weight = weight * open_fraction
-    # What each patch sends on: its B less the emission of the gathered emitters, whose light
-    # reaches receivers through `emitter_irradiance`.
-    shot = np.zeros(scene.triangle_count, bool)
-    shot[emitters.index] = True
-    reflected = np.maximum(radiosity - emitted * shot[patches.parent][:, None], 0.0)
+    # What each patch sends on: its B less the emission of the gathered emitters.
+    reflected = np.maximum(radiosity - emitted * emitters.covers(patches.parent)[:, None], 0.0)
     levels = elements.element_levels(int(reflects.sum()),
                                      int(np.count_nonzero(reflected.max(axis=1) > 0.0)),
                                      settings.element_pairs)

@@ -207,13 +207,12 @@ def descend(local: np.ndarray, levels: int) -> tuple[np.ndarray, np.ndarray]:
     descendants holds each, (M,) int64 in 0 .. 4^levels - 1, and the coordinates there (M, 3).
     A child of `midpoint_children` is corner k's where l_k >= 1/2 (the coordinates double, less
     1 at k), else the middle one: (1 - 2 l_2, 1 - 2 l_0, 1 - 2 l_1)."""
-    local = np.asarray(local, np.float64)
+    local = np.array(local, np.float64)  # a copy: updated in place below
     index = np.zeros(len(local), np.int64)
     for _ in range(levels):
         corner = np.where(local.max(axis=1) >= 0.5, local.argmax(axis=1), 3)
         rows = np.flatnonzero(corner < 3)
         inner = np.flatnonzero(corner == 3)
-        local = local.copy()
         local[rows] *= 2.0
         local[rows, corner[rows]] -= 1.0
         local[inner] = 1.0 - 2.0 * local[inner][:, [2, 0, 1]]
