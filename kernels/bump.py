@@ -31,11 +31,12 @@ from typing import Literal, get_args
 import numpy as np
 
 from .form_factors import tangent_frames
+from .metrics import REC709_LUMINANCE
 from .scene import Material, Scene, Texture
 from .textures import sample_texture
 
 # Blender turns a colour into a float (the Bump node's Height) by its luminance weights.
-LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
+LUMINANCE = np.array(REC709_LUMINANCE)
 # Half the central-difference step of the height slope, in texels: the bilinear interpolant's own
 # slope except within this distance of a texel boundary (Cycles' Bump node differences heights
 # 0.1 pixel apart on screen, a small fraction of a texel wherever the texture is magnified).

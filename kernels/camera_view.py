@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .camera import camera_rays, pixel_rays
+from .metrics import REC709_LUMINANCE
 from .raster import Projection, rasterize
 from .scene import Camera, Scene, geometric_normals
 
@@ -121,7 +122,7 @@ def background_and_fragments(scene: Scene, resolution=None, out: np.ndarray | No
 def edge_pixels(image: np.ndarray, ids: np.ndarray) -> np.ndarray:
     """(H, W) bool: pixels whose 4-neighbours see another object/material (ids (H, W), -1 for
     none) or a visible luminance contrast (EDGE_CONTRAST) in image (H, W, 3)."""
-    lum = image @ np.array([0.2126, 0.7152, 0.0722])
+    lum = image @ np.array(REC709_LUMINANCE)
     mark = np.zeros(ids.shape, bool)
     for axis in (0, 1):
         a = [slice(None)] * 2

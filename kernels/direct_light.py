@@ -23,6 +23,7 @@ from . import lights as light_units
 from .bake_targets import BakeTargets
 from .bump import scene_normals
 from .camera_view import EDGE_SAMPLES, background_and_fragments, supersample_edges
+from .metrics import REC709_LUMINANCE
 from .scene import Scene, interpolated_normals
 from .shadowmap import (
     Receivers,
@@ -39,7 +40,7 @@ from .vec import bounds, row_norms
 
 MIN_MAP = 256  # below this a map cannot place even a coarse shadow edge
 MAX_MAP = 8192  # 256 MiB of float32 depth per face: the memory bound of one map
-LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
+LUMINANCE = np.array(REC709_LUMINANCE)
 # Map texels per receiver spacing at the receivers. One: a shadow edge then lands within about one
 # receiver of where it truly is (half a texel diagonal), which the receivers could not show finer.
 # bench/shadowmap.py (255k texels): two per spacing, rounded up to a power of two (maps of 2048,

@@ -70,6 +70,7 @@ from .form_factors import (
     sample_patches,
 )
 from .hierarchical import FACING_COUNT_PAIRS, facing_roots, hierarchy_roots, memory_bound
+from .metrics import REC709_LUMINANCE
 from .radiosity_solvers import (
     GaussSeidelSettings,
     GaussSeidelSolver,
@@ -99,7 +100,7 @@ QUICK_TEST_BYTES = 256 << 20
 ROW_BYTES_PER_ELEMENT = 400
 # Shadow rays stop this fraction short of a point light (it has no surface to hit).
 LIGHT_END_REL = 1e-6
-LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
+LUMINANCE = np.array(REC709_LUMINANCE)
 SOLVERS = ("auto", "gauss_seidel", "progressive", "hierarchical", "clustered")
 
 
@@ -407,9 +408,7 @@ def shot_emission(scene: Scene, patches: patching.Patches,
                   emitters: final_gather.Emitters) -> np.ndarray:
     """(N, 3) the part of `patch_emission` that `emitters` shoot in the first shot, W/m^2: the
     solver must not carry it a second time."""
-    shot = np.zeros(scene.triangle_count, bool)
-    shot[emitters.index] = True
-    return patch_emission(scene, patches) * shot[patches.parent][:, None]
+    return patch_emission(scene, patches) * emitters.covers(patches.parent)[:, None]
 
 
 def first_shot(scene: Scene, patches: patching.Patches, occluded, settings: RadiositySettings,
