@@ -33,7 +33,7 @@ chromium:
 	tools/install_chromium.sh
 
 test-kernels: $(VENV)/.stamp chromium
-	$(PY) -m pytest $(PYTEST_FLAGS) tests/kernels
+	$(PY) -m pytest $(PYTEST_FLAGS) tests/kernels tests/pipeline
 
 test-blender: $(VENV)/.stamp
 	$(PY) -m pytest $(PYTEST_FLAGS) tests/blender

@@ -20,9 +20,9 @@ from dataclasses import dataclass, field, replace
 import bpy
 import numpy as np
 
-from ..kernels import lights as light_units
-from ..kernels.camera import image_plane
-from ..kernels.scene import Camera, Light, Material, ObjectInfo, Scene, Texture
+from ..kernels.geometry.camera import image_plane
+from ..kernels.geometry.scene import Camera, Light, Material, ObjectInfo, Scene, Texture
+from ..kernels.shading import lights as light_units
 
 DEFAULT_MATERIAL_NAME = "(default surface)"
 # What Cycles shades faces without a material with (measured: a plane under a sun renders to the
@@ -1050,7 +1050,7 @@ def write_image(name: str, pixels: np.ndarray, image=None):
 
 def save_image_exr(image, pixels: np.ndarray, path: str) -> None:
     """Write `pixels` as OpenEXR at `path` (OpenEXR package) and point `image` at that file."""
-    from ..kernels.exr import write_exr
+    from ..kernels.measure.exr import write_exr
 
     write_exr(path, pixels)
     image.filepath_raw = path
@@ -1131,7 +1131,7 @@ def lightmap_loop_uv(obj, settings) -> tuple[np.ndarray, dict]:
     triangles still disagree on a loop's UV (none should) is counted in the summary
     (`split_polygons`), the last triangle's UV winning.
     """
-    from ..kernels.lightmap_uv import unwrap
+    from ..kernels.bake.lightmap_uv import unwrap
 
     mesh = obj.data
     corner_verts, corner_loops, polys, _ = mesh_triangles(mesh)

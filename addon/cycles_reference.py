@@ -98,7 +98,7 @@ Converged references
 --------------------
 `reference(..., samples=None)` chooses the sample count from the scene's own noise: two
 independent halves (different seeds) are rendered at n samples each and the relative MSE between
-them (`kernels.metrics.rel_mse`, over the covered pixels or texels) is measured; while it is
+them (`kernels.measure.metrics.rel_mse`, over the covered pixels or texels) is measured; while it is
 above `target_rel_mse` (default 1e-4) each half gets n more samples (a render with a new seed,
 averaged in) until the total reaches `max_samples`. The reference is the mean of both halves
 (2n samples); its own expected relative MSE against the converged image is a quarter of the
@@ -124,10 +124,10 @@ import bpy
 import mathutils
 import numpy as np
 
-from ..kernels.exr import read_exr, read_exr_pass, write_exr
-from ..kernels.lightmap_uv import LightmapUVSettings
-from ..kernels.lights import area_of_shape
-from ..kernels.metrics import rel_mse
+from ..kernels.bake.lightmap_uv import LightmapUVSettings
+from ..kernels.measure.exr import read_exr, read_exr_pass, write_exr
+from ..kernels.measure.metrics import rel_mse
+from ..kernels.shading.lights import area_of_shape
 from . import bridge
 
 BakeType = Literal["DIFFUSE", "COMBINED", "SHADOW", "ALBEDO"]

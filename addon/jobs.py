@@ -24,7 +24,7 @@ def mesh_objects(context, names=None):
 
 def object_areas(objects) -> list[float]:
     """World-space surface area (m^2) of each object's mesh, modifiers not applied."""
-    from ..kernels.scene import triangle_areas
+    from ..kernels.geometry.scene import triangle_areas
 
     areas = []
     for obj in objects:
@@ -38,7 +38,7 @@ def object_areas(objects) -> list[float]:
 def lightmap_plan(objects, uv_settings) -> dict:
     """{object name: lightmap size} at one texel density (`uv_settings.resolution` is the size of
     the largest object's lightmap)."""
-    from ..kernels.lightmap_uv import lightmap_sizes
+    from ..kernels.bake.lightmap_uv import lightmap_sizes
 
     sizes = lightmap_sizes(object_areas(objects), uv_settings.resolution)
     return {obj.name: size for obj, size in zip(objects, sizes, strict=True)}
@@ -151,7 +151,7 @@ def shadow_bake_job(context, settings, uv_name: str, uv_settings, attribute: str
     """Bake the shadow-map mask of every mesh into a lightmap image and a corner colour attribute,
     and (render=True) the camera's view of direct light with shadows. Yields progress, then a
     summary {"images": {...}, "attributes": [...], "render": image or None, "skipped": [...]}."""
-    from ..kernels import direct_light
+    from ..kernels.shading import direct_light
 
     with _lightmap_uvs(context, uv_name, uv_settings) as plan:
         # The world shows only as the view's background (shadow masks ignore it).
@@ -183,7 +183,7 @@ def radiosity_bake_job(context, settings, uv_name: str, uv_settings, attribute: 
     the camera's view of the solution. `wire` makes materials show the attribute (Emission).
     Yields progress, then a summary {"images", "attributes", "render", "skipped", "lightmaps",
     "result", "scene"}."""
-    from ..kernels import radiosity
+    from ..kernels.radiosity import radiosity
 
     with _lightmap_uvs(context, uv_name, uv_settings) as plan:
         scene = bridge.snapshot(context, bridge.SnapshotRequest(lightmap_uv=uv_name, textures=True),
@@ -214,7 +214,7 @@ def texture_bake_job(context, settings, uv_name: str, uv_settings, attribute: st
     CORNER colour attribute (`attribute`), and (render=True) the camera's view of the albedo.
     Yields progress, then a summary {"images", "attributes", "render", "skipped", "lightmaps",
     "scene", "stats"}."""
-    from ..kernels import texture_bake
+    from ..kernels.bake import texture_bake
 
     with _lightmap_uvs(context, uv_name, uv_settings) as plan:
         # Albedo sees no light: a world shader is not worth rendering (`world_render`).

@@ -1,7 +1,7 @@
 """Kernel settings dataclasses made from Blender properties: one function per kernel, one place."""
 
-from ..kernels.lightmap_uv import LightmapUVSettings
-from ..kernels.tracer import TracerSettings, auto_settings
+from ..kernels.bake.lightmap_uv import LightmapUVSettings
+from ..kernels.trace.tracer import TracerSettings, auto_settings
 
 
 def lightmap_uv_settings(props) -> LightmapUVSettings:
@@ -27,8 +27,8 @@ def shading_settings(props, scene) -> TracerSettings:
 
 def direct_light_settings(props):
     """`scene.classic_bake` -> DirectLightSettings (shadow maps)."""
-    from ..kernels.direct_light import DirectLightSettings
-    from ..kernels.shadowmap import ShadowMapSettings
+    from ..kernels.shading.direct_light import DirectLightSettings
+    from ..kernels.shadow.shadowmap import ShadowMapSettings
 
     pcf = props.shadow_pcf if props.shadow_pcf % 2 else props.shadow_pcf + 1
     shadow = ShadowMapSettings(resolution=props.shadow_map_size or 2048,
@@ -39,7 +39,7 @@ def direct_light_settings(props):
 
 def radiosity_settings(props):
     """`scene.classic_bake` -> RadiositySettings."""
-    from ..kernels.radiosity import RadiositySettings
+    from ..kernels.radiosity.radiosity import RadiositySettings
 
     return RadiositySettings(method=props.radiosity_method, solver=props.radiosity_solver,
                              patch_budget=props.radiosity_patches,
@@ -53,7 +53,7 @@ def radiosity_settings(props):
 def envmap_settings(props, selected: list[str]):
     """`scene.classic_bake` + the selected mesh names -> EnvMapSettings (every mirror unless
     "Selected Only" is on)."""
-    from ..kernels.envmap import EnvMapSettings
+    from ..kernels.envmap.envmap import EnvMapSettings
 
     objects = tuple(selected) if props.envmap_selected_only else ()
     if props.envmap_selected_only and not objects:
@@ -65,6 +65,6 @@ def envmap_settings(props, selected: list[str]):
 
 def texture_settings(props):
     """`scene.classic_bake` -> TextureBakeSettings."""
-    from ..kernels.texture_bake import TextureBakeSettings
+    from ..kernels.bake.texture_bake import TextureBakeSettings
 
     return TextureBakeSettings(samples_per_side=props.texture_samples)

@@ -41,9 +41,9 @@ def main() -> int:
 
     from classic_bake.addon import bridge
     from classic_bake.addon import cycles_reference as cr
-    from classic_bake.kernels.bvh import BVH
-    from classic_bake.kernels.metrics import compare, rel_mse
-    from classic_bake.kernels.tracer import auto_settings, trace
+    from classic_bake.kernels.geometry.bvh import BVH
+    from classic_bake.kernels.measure.metrics import compare, rel_mse
+    from classic_bake.kernels.trace.tracer import auto_settings, trace
     from classic_bake.pipeline.charts import speed_accuracy_chart, sweep_chart
 
     resolution, model, ref = whitted_reference(SCENE, args.quick, args.max_ref_samples)

@@ -61,11 +61,11 @@ def main() -> int:
 
     from classic_bake.addon import bridge
     from classic_bake.addon import cycles_reference as cr
-    from classic_bake.kernels import envmap
-    from classic_bake.kernels.bvh import BVH
-    from classic_bake.kernels.camera import camera_rays
-    from classic_bake.kernels.metrics import rel_mse
-    from classic_bake.kernels.tracer import auto_settings, trace
+    from classic_bake.kernels.envmap import envmap
+    from classic_bake.kernels.geometry.bvh import BVH
+    from classic_bake.kernels.geometry.camera import camera_rays
+    from classic_bake.kernels.measure.metrics import rel_mse
+    from classic_bake.kernels.trace.tracer import auto_settings, trace
     from classic_bake.pipeline.charts import speed_accuracy_chart, sweep_chart
     from classic_bake.pipeline.images import write_preview_png
 

@@ -6,7 +6,7 @@ bits: the only randomness is a seeded `numpy.random.default_rng`.
 
 | function            | triangles                 | what it is                                          |
 |---------------------|---------------------------|-----------------------------------------------------|
-| `cornell_box()`     | 32                        | the Cornell box from `shared/reference`, in metres  |
+| `cornell_box()`     | 32                        | the Cornell box from `tests/data`  , in metres  |
 | `icosphere(n)`      | 20 * 4**n                 | closed unit icosphere, shared vertices (watertight) |
 | `lumpy_sphere(n)`   | 20 * 4**n (n=6: 81 920)   | a displaced icosphere, like a scanned stone         |
 | `lumpy_torus(u, v)` | 2 * u * v (1024x512: 1M)  | a displaced torus (genus 1: rays pass the hole)     |
@@ -21,16 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
-CORNELL_JSON = Path("/work/shared/reference/cornell_box.json")
+# The published Cornell box (sources in tests/data/README.md).
+CORNELL_JSON = Path(__file__).resolve().parents[1] / "tests" / "data" / "cornell_box.json"
 MM_TO_M = 1.0e-3  # the Cornell data is in millimetres, Blender units are metres
-
-
-def _shared_root() -> Path:
-    """The `shared/` folder: beside the repository (CI) or the workspace default."""
-    beside = Path(__file__).resolve().parents[1].parent / "shared"
-    if (beside / "reference" / "cornell_box.json").exists():
-        return beside
-    return CORNELL_JSON.parents[1]
 
 
 def cornell_box(path: Path | None = None) -> np.ndarray:
@@ -40,7 +33,7 @@ def cornell_box(path: Path | None = None) -> np.ndarray:
     right-handed with +Y up in millimetres; Blender's frame is reached by the rotation
     (x, y, z) -> (-x, z, y) and a scale of 1/1000.
     """
-    path = path or _shared_root() / "reference" / "cornell_box.json"
+    path = path or CORNELL_JSON
     data = json.loads(Path(path).read_text())
     quads = [
         quad

@@ -6,7 +6,7 @@ One process, alternating sides; runs under SHORT_RUN_S are timed three times (me
 sides alike, and each side is warmed up first. Cycles bakes the SAME lightmap texels (DIFFUSE
 with colour, into the same xatlas lightmap UVs; its texels are rho E / pi, ours B / pi) at a
 ladder of samples; the radiosity bake runs at a ladder of patch counts, solvers and form factor
-methods. Errors are relative MSE (`kernels.metrics.rel_mse`) against a converged Cycles bake
+methods. Errors are relative MSE (`kernels.measure.metrics.rel_mse`) against a converged Cycles bake
 (`--ref-samples`) over the texels both bake, every object but the emitter (a DIFFUSE bake leaves
 out emission). The camera render of the solution is compared with Cycles' render the same way.
 For every radiosity rung, the seconds Cycles needs to reach the same error (log-log
@@ -77,10 +77,10 @@ def cornell(args) -> tuple[dict, dict, list]:
     from classic_bake.addon import bridge
     from classic_bake.addon import cycles_reference as cr
     from classic_bake.addon.jobs import create_lightmap_uvs, lightmap_plan
-    from classic_bake.kernels import radiosity as rad
-    from classic_bake.kernels.bvh import BVH
-    from classic_bake.kernels.lightmap_uv import LightmapUVSettings
-    from classic_bake.kernels.metrics import rel_mse
+    from classic_bake.kernels.bake.lightmap_uv import LightmapUVSettings
+    from classic_bake.kernels.geometry.bvh import BVH
+    from classic_bake.kernels.measure.metrics import rel_mse
+    from classic_bake.kernels.radiosity import radiosity as rad
     from classic_bake.pipeline.charts import frontier, speed_accuracy_chart
     from classic_bake.pipeline.images import write_preview_png
 
@@ -241,7 +241,7 @@ def scale_scene(target_triangles: int):
     sys.path.insert(0, str(ROOT / "tests" / "support"))
     from scene_builder import build
 
-    from classic_bake.kernels.scene import Material
+    from classic_bake.kernels.geometry.scene import Material
 
     def grid(origin, du, dv, n):
         o, du, dv = (np.asarray(x, float) for x in (origin, du, dv))
@@ -281,7 +281,7 @@ def scale_scene(target_triangles: int):
 def scale_run(args) -> tuple[dict, dict]:
     import tracemalloc
 
-    from classic_bake.kernels import radiosity as rad
+    from classic_bake.kernels.radiosity import radiosity as rad
 
     scene = scale_scene(args.scale_triangles)
     settings = rad.RadiositySettings(solver="progressive", patch_budget=1, patch_size=10.0,

@@ -32,7 +32,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import meshes  # noqa: E402
 from _report import format_table, timed, versions, write_report  # noqa: E402
 
-from classic_bake.kernels.bvh import BVH, BVHSettings  # noqa: E402
+from classic_bake.kernels.geometry.bvh import BVH, BVHSettings  # noqa: E402
 
 CAMERA_FOV_DEG = 39.3  # the Cornell box camera's field of view; used for every scene
 

@@ -31,7 +31,7 @@ UV_NAME = "Lightmap"
 
 def kernel_visibility(scene, targets, light, settings):
     """(seconds, {object: (N,) visibility}) of one light over every object's texels."""
-    from classic_bake.kernels import direct_light as dl
+    from classic_bake.kernels.shading import direct_light as dl
 
     one = replace(scene, lights=(light,))
     start = time.perf_counter()
@@ -57,7 +57,7 @@ def compared_texels(t, light) -> np.ndarray:
     SHADOW pass 1, and E = 0 makes either irrelevant to shading) and the charts' border texels,
     which Cycles' multi-sample bakes average with the empty space beyond the chart.
     """
-    from classic_bake.kernels.lights import direct_irradiance
+    from classic_bake.kernels.shading.lights import direct_irradiance
 
     facing = direct_irradiance(light, t.points, t.geo_normals)[:, 0] > 0
     inner = t.mask.copy()
@@ -100,11 +100,11 @@ def main() -> int:
     from classic_bake.addon import bridge
     from classic_bake.addon import cycles_reference as cr
     from classic_bake.addon.jobs import create_lightmap_uvs, lightmap_plan
-    from classic_bake.kernels import direct_light as dl
-    from classic_bake.kernels.bake_targets import lightmap_targets
-    from classic_bake.kernels.lightmap_uv import LightmapUVSettings
-    from classic_bake.kernels.scene import triangle_areas
-    from classic_bake.kernels.shadowmap import ShadowMapSettings
+    from classic_bake.kernels.bake.bake_targets import lightmap_targets
+    from classic_bake.kernels.bake.lightmap_uv import LightmapUVSettings
+    from classic_bake.kernels.geometry.scene import triangle_areas
+    from classic_bake.kernels.shading import direct_light as dl
+    from classic_bake.kernels.shadow.shadowmap import ShadowMapSettings
     from classic_bake.pipeline.charts import speed_accuracy_chart, sweep_chart
 
     bpy.ops.wm.open_mainfile(filepath=str(SCENE), load_ui=False, use_scripts=False)

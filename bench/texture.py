@@ -54,13 +54,13 @@ def bake_case(name: str, size: int, args) -> dict:
     from classic_bake.addon import bridge
     from classic_bake.addon import cycles_reference as cr
     from classic_bake.addon.jobs import create_lightmap_uvs, lightmap_plan, mesh_objects
-    from classic_bake.kernels.lightmap_uv import LightmapUVSettings
-    from classic_bake.kernels.metrics import rel_mse
-    from classic_bake.kernels.texture_bake import (
+    from classic_bake.kernels.bake.lightmap_uv import LightmapUVSettings
+    from classic_bake.kernels.bake.texture_bake import (
         TextureBakeSettings,
         stats,
         texture_bake_steps,
     )
+    from classic_bake.kernels.measure.metrics import rel_mse
 
     bpy.ops.wm.open_mainfile(filepath=str(ROOT / "sample_blends" / f"{name}.blend"),
                              load_ui=False, use_scripts=False)
@@ -130,8 +130,8 @@ def view_case(name: str, args) -> dict:
 
     from classic_bake.addon import bridge
     from classic_bake.addon import cycles_reference as cr
-    from classic_bake.kernels.metrics import rel_mse
-    from classic_bake.kernels.texture_bake import render_steps
+    from classic_bake.kernels.bake.texture_bake import render_steps
+    from classic_bake.kernels.measure.metrics import rel_mse
 
     path = ROOT / "sample_blends" / f"{name}.blend"
     bpy.ops.wm.open_mainfile(filepath=str(path), load_ui=False, use_scripts=False)

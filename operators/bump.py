@@ -13,7 +13,7 @@ IMAGE_NAME = "Classic Bake Shading"
 def shading_job(scene, settings, report):
     """Trace with the settings' shading mode (yielding progress), then write the image: a cancel
     before the end changes nothing."""
-    from ..kernels.bump import has_bump
+    from ..kernels.shading.bump import has_bump
 
     image, _ = yield from traced_image(scene, settings, IMAGE_NAME)
     bumped = [m.name for m in scene.materials if has_bump(m)]

@@ -20,7 +20,7 @@ CYCLES_IMAGE = "Classic Bake Cycles View"
 
 def _metric_settings():
     """HDR-FLIP when its package is installed (the dev environment), else the other metrics."""
-    from ..kernels.metrics import MetricSettings
+    from ..kernels.measure.metrics import MetricSettings
 
     try:
         import flip_evaluator  # noqa: F401
@@ -31,8 +31,9 @@ def _metric_settings():
 
 def compare_job(context, technique: str, samples: int, report):
     """Render the kernel view (yielding progress), then Cycles, then write images and figures."""
-    from ..kernels import direct_light, tracer
-    from ..kernels.metrics import compare_with_images
+    from ..kernels.measure.metrics import compare_with_images
+    from ..kernels.shading import direct_light
+    from ..kernels.trace import tracer
 
     props = context.scene.classic_bake
     scene = bridge.snapshot(context)
@@ -44,7 +45,7 @@ def compare_job(context, technique: str, samples: int, report):
         model = cycles_reference.whitted(settings.max_depth)
         steps = tracer.trace_steps(scene, settings)
     elif technique == "TEXTURE":
-        from ..kernels import texture_bake
+        from ..kernels.bake import texture_bake
 
         model = cycles_reference.albedo()
         steps = texture_bake.render_steps(scene)
@@ -53,7 +54,7 @@ def compare_job(context, technique: str, samples: int, report):
         model = cycles_reference.whitted(settings.max_depth)
         steps = tracer.trace_steps(scene, settings)
     elif technique == "ENVMAP":
-        from ..kernels import envmap
+        from ..kernels.envmap import envmap
 
         settings = tracer_settings(props, scene)
         model = cycles_reference.whitted(settings.max_depth)

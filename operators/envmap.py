@@ -13,7 +13,7 @@ CUBE_PREFIX = "Classic Bake Cube "  # + object name: the six faces side by side
 def envmap_job(scene, settings, tracer, report):
     """Capture the maps and render the view (yielding progress), then write the images: a cancel
     before the end changes nothing."""
-    from ..kernels.envmap import EnvMapResult, render_steps, strip_image
+    from ..kernels.envmap.envmap import EnvMapResult, render_steps, strip_image
 
     result = None
     for step in render_steps(scene, settings, tracer):

@@ -12,7 +12,7 @@ IMAGE_NAME = "Classic Bake Trace"
 def traced_image(scene, settings, name: str):
     """Trace the camera's view (yielding progress), then write it into the float image `name`;
     returns (image, TraceResult). A cancel before the end changes nothing."""
-    from ..kernels.tracer import TraceResult, trace_steps
+    from ..kernels.trace.tracer import TraceResult, trace_steps
 
     result = None
     for step in trace_steps(scene, settings):

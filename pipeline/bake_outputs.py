@@ -8,7 +8,7 @@ def write_bake_outputs(ctx, summary: dict, suffix: str, previews: bool = False) 
     render.exr and render.png when the job rendered the camera, and the job's images packed into
     the .blend with --save-blend."""
     from ..addon import bridge
-    from ..kernels.exr import write_exr
+    from ..kernels.measure.exr import write_exr
     from .images import write_preview_png
     from .outputs import safe_name
 

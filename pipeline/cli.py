@@ -74,7 +74,7 @@ class RunContext:
 
     def write_render(self, pixels) -> Path:
         """Write the technique's camera view as linear `render.exr` (the Cycles comparison input)."""
-        from ..kernels.exr import write_exr
+        from ..kernels.measure.exr import write_exr
 
         path = self.output("render.exr")
         write_exr(path, pixels)

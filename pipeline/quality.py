@@ -55,7 +55,7 @@ def record(technique: str, scene: str, features: dict, rows: list[dict]) -> Path
 
 def apply_target(ctx, technique: str, scene) -> None:
     """If `--target-error` was given, replace the quality options by the picked rung's."""
-    from ..kernels.auto_quality import pick
+    from ..kernels.measure.auto_quality import pick
     from .cli import COMMANDS, command_args
     from .outputs import UsageError
 

@@ -15,11 +15,11 @@ Blender 4.5 LTS and 5.x; re-running it reproduces the same scene content.
 | shadows     | objects on a plane      | shadow mapping (sun, spot and point light)             |
 | raytrace    | mirror and glass sphere | Whitted ray tracing (checker plane, point light)       |
 
-Conventions (as in `kernels/scene.py`): metres, +Z up, counter-clockwise faces seen from the
+Conventions (as in `kernels/geometry/scene.py`): metres, +Z up, counter-clockwise faces seen from the
 side their normal points to, linear Rec.709 colours. Light powers are Blender's: point and spot
 lights in W (radiant intensity P / 4pi W/sr), suns in W/m^2 (irradiance on a facing surface),
 area lights in W (radiance P / (pi A)), emission strength as radiance W/(m^2 sr); see
-/work/shared/reference/cycles_facts.md.
+tests/data/cycles_facts.md.
 """
 
 from __future__ import annotations
@@ -36,8 +36,8 @@ import numpy as np
 from mathutils import Vector
 
 HERE = Path(__file__).resolve().parent
-# The shared reference data sit beside the checkout (as in tests/blender/conftest.py).
-CORNELL_JSON = HERE.parents[1] / "shared" / "reference" / "cornell_box.json"
+# The published Cornell box data, kept with the tests' reference data (sources in tests/data/README.md).
+CORNELL_JSON = HERE.parent / "tests" / "data" / "cornell_box.json"
 
 # ---------------------------------------------------------------------------------------------
 # Render settings shared by every scene
@@ -522,7 +522,7 @@ def cornell_to_blender(points_mm) -> np.ndarray:
 def build_cornell_box() -> None:
     """The Cornell box as published (Cornell Program of Computer Graphics), in metres.
 
-    Geometry, camera and reflectances come from /work/shared/reference/cornell_box.json. Every
+    Geometry, camera and reflectances come from tests/data/cornell_box.json. Every
     wall is its own object with the published quad; shared corners are the same points, so the
     five walls form one watertight shell open only at the front, where the camera looks in
     (as in the real box). The light fills a 130 x 105 mm hole cut in the ceiling at the

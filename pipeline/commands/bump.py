@@ -9,7 +9,7 @@ from ..outputs import UsageError
 
 
 def add_arguments(parser) -> None:
-    from ...kernels.bump import SHADING_MODES
+    from ...kernels.shading.bump import SHADING_MODES
 
     parser.add_argument("--shading", choices=SHADING_MODES, default="bump",
                         help="normals for shading: flat, gouraud (light at the vertices), phong "
@@ -26,10 +26,10 @@ def run(ctx: RunContext) -> None:
     from dataclasses import asdict
 
     from ...addon.bridge import SnapshotRequest, snapshot
-    from ...kernels.bump import SHADING_MODES, has_bump
-    from ...kernels.bvh import BVH
-    from ...kernels.exr import write_exr
-    from ...kernels.tracer import auto_settings, trace
+    from ...kernels.geometry.bvh import BVH
+    from ...kernels.measure.exr import write_exr
+    from ...kernels.shading.bump import SHADING_MODES, has_bump
+    from ...kernels.trace.tracer import auto_settings, trace
     from ..images import write_preview_png
 
     with ctx.phase("snapshot"):

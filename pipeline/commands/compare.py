@@ -63,8 +63,8 @@ def run(ctx: RunContext) -> None:
     import bpy
 
     from ...addon import cycles_reference as cr
-    from ...kernels.exr import read_exr
-    from ...kernels.metrics import compare, error_images
+    from ...kernels.measure.exr import read_exr
+    from ...kernels.measure.metrics import compare, error_images
     from ..charts import speed_accuracy_chart
     from ..images import write_error_png, write_preview_png
 

@@ -25,8 +25,8 @@ def add_arguments(parser) -> None:
 
 
 def settings_from(scene, args):
-    from ...kernels.envmap import EnvMapSettings
-    from ...kernels.tracer import auto_settings
+    from ...kernels.envmap.envmap import EnvMapSettings
+    from ...kernels.trace.tracer import auto_settings
 
     try:
         steps = {} if args.parallax_steps is None else {"parallax_steps": args.parallax_steps}
@@ -41,9 +41,9 @@ def run(ctx: RunContext) -> None:
     from dataclasses import asdict
 
     from ...addon.bridge import SnapshotRequest, snapshot
-    from ...kernels.bvh import BVH
-    from ...kernels.envmap import EnvMapResult, render_steps, strip_image
-    from ...kernels.exr import write_exr
+    from ...kernels.envmap.envmap import EnvMapResult, render_steps, strip_image
+    from ...kernels.geometry.bvh import BVH
+    from ...kernels.measure.exr import write_exr
     from ..images import write_preview_png
     from ..outputs import safe_name
 

@@ -9,9 +9,9 @@ from ..cli import Command, RunContext, command
 
 def describe(scene) -> dict:
     """A JSON-ready summary of a kernel Scene."""
-    from ...kernels.scene import triangle_areas
-    from ...kernels.specular_layer import diffuse_factor
-    from ...kernels.world_light import extract_suns
+    from ...kernels.geometry.scene import triangle_areas
+    from ...kernels.shading.specular_layer import diffuse_factor
+    from ...kernels.shading.world_light import extract_suns
 
     areas = triangle_areas(scene.triangles)
     objects = []

@@ -20,7 +20,7 @@ def run(ctx: RunContext) -> None:
     import bpy
 
     from ...addon.bridge import ensure_lightmap_uv
-    from ...kernels.lightmap_uv import LightmapUVSettings
+    from ...kernels.bake.lightmap_uv import LightmapUVSettings
 
     args = ctx.args
     try:

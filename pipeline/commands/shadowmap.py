@@ -25,9 +25,9 @@ def add_arguments(parser) -> None:
 
 
 def settings_from(args):
-    from ...kernels.direct_light import DirectLightSettings
-    from ...kernels.lightmap_uv import LightmapUVSettings
-    from ...kernels.shadowmap import ShadowMapSettings
+    from ...kernels.bake.lightmap_uv import LightmapUVSettings
+    from ...kernels.shading.direct_light import DirectLightSettings
+    from ...kernels.shadow.shadowmap import ShadowMapSettings
 
     try:
         if args.eps == "auto":

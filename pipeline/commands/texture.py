@@ -30,8 +30,8 @@ def run(ctx: RunContext) -> None:
     import bpy
 
     from ...addon.jobs import run_to_end, texture_bake_job
-    from ...kernels.lightmap_uv import LightmapUVSettings
-    from ...kernels.texture_bake import TextureBakeSettings
+    from ...kernels.bake.lightmap_uv import LightmapUVSettings
+    from ...kernels.bake.texture_bake import TextureBakeSettings
     from ..bake_outputs import write_bake_outputs
 
     try:

@@ -23,7 +23,7 @@ def add_arguments(parser) -> None:
 
 
 def tracer_settings(scene, args):
-    from ...kernels.tracer import auto_settings
+    from ...kernels.trace.tracer import auto_settings
 
     overrides = {"supersample": args.supersample, "adaptive": args.adaptive}
     if args.min_weight is not None:
@@ -42,8 +42,8 @@ def run(ctx: RunContext) -> None:
     from dataclasses import asdict
 
     from ...addon.bridge import SnapshotRequest, snapshot
-    from ...kernels.bvh import BVH
-    from ...kernels.tracer import TraceResult, trace_steps
+    from ...kernels.geometry.bvh import BVH
+    from ...kernels.trace.tracer import TraceResult, trace_steps
     from ..images import write_preview_png
     from ..quality import apply_target
 

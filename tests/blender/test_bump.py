@@ -10,7 +10,7 @@ import bpy
 import numpy as np
 
 from classic_bake.addon import bridge
-from classic_bake.kernels.exr import read_exr
+from classic_bake.kernels.measure.exr import read_exr
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENE = ROOT / "sample_blends" / "bump.blend"
@@ -32,7 +32,7 @@ def test_operator_renders_each_shading_mode(addon, open_sample):
 
 
 def test_cancelled_shading_writes_nothing(addon, open_sample):
-    from classic_bake.kernels.tracer import auto_settings
+    from classic_bake.kernels.trace.tracer import auto_settings
     from classic_bake.operators.bump import IMAGE_NAME, shading_job
 
     open_sample("bump")
@@ -61,8 +61,8 @@ def test_bumped_view_matches_cycles_bump_nodes(open_sample):
     """Cycles (the `whitted` model, 128 samples) renders the Bump nodes; at 80 x 60 the bumped
     view's relMSE was 4.2e-4, Phong's (the relief left out) 3.6e-3."""
     from classic_bake.addon import cycles_reference as cr
-    from classic_bake.kernels.metrics import rel_mse
-    from classic_bake.kernels.tracer import auto_settings, trace
+    from classic_bake.kernels.measure.metrics import rel_mse
+    from classic_bake.kernels.trace.tracer import auto_settings, trace
 
     open_sample("bump")
     resolution = (80, 60)
@@ -104,8 +104,8 @@ def test_normal_map_nodes_match_cycles(open_sample):
     160 x 120, 0.0063 and 0.107. A wrong green channel or tangent would shade half the tiles the
     wrong way."""
     from classic_bake.addon import cycles_reference as cr
-    from classic_bake.kernels.metrics import rel_mse
-    from classic_bake.kernels.tracer import auto_settings, trace
+    from classic_bake.kernels.measure.metrics import rel_mse
+    from classic_bake.kernels.trace.tracer import auto_settings, trace
 
     open_sample("bump")
     size = 128

@@ -7,8 +7,9 @@ import pytest
 
 from classic_bake.addon import bridge
 from classic_bake.addon import cycles_reference as cr
-from classic_bake.kernels import direct_light, radiosity
-from classic_bake.kernels.metrics import rel_mse
+from classic_bake.kernels.measure.metrics import rel_mse
+from classic_bake.kernels.radiosity import radiosity
+from classic_bake.kernels.shading import direct_light
 
 RESOLUTION = (80, 60)
 

@@ -15,7 +15,7 @@ from blender_parts import BASE, checker, lit_scene, plane, principled
 
 from classic_bake.addon import bridge
 from classic_bake.addon import cycles_reference as cr
-from classic_bake.kernels.direct_light import diffuse_weight
+from classic_bake.kernels.shading.direct_light import diffuse_weight
 
 EXACT = 1e-3  # the bound for uniform colours (they agree to ~1e-7 in practice)
 

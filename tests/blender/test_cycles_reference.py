@@ -1,7 +1,7 @@
 """Cycles as the reference (addon/cycles_reference.py), checked against analytic values.
 
 Scenes are built here: planes of known albedo (Principled, Specular IOR Level 0: exactly
-Lambertian, /work/shared/reference/cycles_facts.md), a sun of strength E (irradiance E W/m^2 on a
+Lambertian, tests/data/cycles_facts.md), a sun of strength E (irradiance E W/m^2 on a
 surface facing it, same file), black world. Sun and point light direct lighting is noise-free in
 Cycles, so 1-2 samples give the converged value; tolerances are stated per test.
 """

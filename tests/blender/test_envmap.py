@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from classic_bake.addon import bridge
-from classic_bake.kernels.exr import read_exr
+from classic_bake.kernels.measure.exr import read_exr
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENE = ROOT / "sample_blends" / "env_room.blend"
@@ -43,8 +43,8 @@ def test_selected_only_without_a_selection_is_a_clear_error(addon, open_sample):
 
 
 def test_cancelled_envmap_writes_nothing(addon, open_sample):
-    from classic_bake.kernels.envmap import EnvMapSettings
-    from classic_bake.kernels.tracer import auto_settings
+    from classic_bake.kernels.envmap.envmap import EnvMapSettings
+    from classic_bake.kernels.trace.tracer import auto_settings
     from classic_bake.operators.envmap import IMAGE_NAME, envmap_job
 
     open_sample("env_room")
@@ -83,9 +83,9 @@ def test_mapped_mirror_is_close_to_cycles_true_reflections(tmp_path, open_sample
     resolution; the parallax search takes most of the parallax away. Measured at 96 x 72: relMSE
     over the sphere's pixels 0.041 traced, 0.081 mapped, 0.258 with the lecture's look-up alone."""
     from classic_bake.addon import cycles_reference as cr
-    from classic_bake.kernels import envmap
-    from classic_bake.kernels.metrics import rel_mse
-    from classic_bake.kernels.tracer import auto_settings, trace
+    from classic_bake.kernels.envmap import envmap
+    from classic_bake.kernels.measure.metrics import rel_mse
+    from classic_bake.kernels.trace.tracer import auto_settings, trace
 
     open_sample("env_room")
     resolution = (96, 72)
@@ -114,8 +114,8 @@ def test_mapped_mirror_is_close_to_cycles_true_reflections(tmp_path, open_sample
 
 def _hit_triangles(snap, resolution):
     """(H, W) triangle hit by each pixel-centre camera ray (-1: none)."""
-    from classic_bake.kernels.bvh import BVH
-    from classic_bake.kernels.camera import camera_rays
+    from classic_bake.kernels.geometry.bvh import BVH
+    from classic_bake.kernels.geometry.camera import camera_rays
 
     o, d = camera_rays(snap.camera, *resolution)
     hits = BVH.build(snap.triangles).intersect(o.reshape(-1, 3), d.reshape(-1, 3))

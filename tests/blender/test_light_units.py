@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from classic_bake.addon import bridge
-from classic_bake.kernels.lights import direct_irradiance
+from classic_bake.kernels.shading.lights import direct_irradiance
 
 TOLERANCE = 0.02  # the bound; point, spot and sun agree to ~1e-5 in practice
 

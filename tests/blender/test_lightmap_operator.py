@@ -42,7 +42,7 @@ def test_existing_layers_are_never_overwritten(addon):
 
 
 def test_cancelled_job_leaves_the_scene_as_it_was(addon):
-    from classic_bake.kernels.lightmap_uv import LightmapUVSettings
+    from classic_bake.kernels.bake.lightmap_uv import LightmapUVSettings
     from classic_bake.operators.lightmap_uv import unwrap_job
 
     targets = [cube("A"), cube("B")]
@@ -69,7 +69,7 @@ def test_a_subdivided_monkey_gets_one_uv_per_polygon_corner(addon):
     bmesh.ops.subdivide_edges(bmesh_, edges=bmesh_.edges[:], cuts=1, use_grid_fill=True)
     bmesh_.to_mesh(monkey.data)
     bmesh_.free()
-    from classic_bake.kernels.lightmap_uv import LightmapUVSettings
+    from classic_bake.kernels.bake.lightmap_uv import LightmapUVSettings
 
     loop_uv, summary = bridge.lightmap_loop_uv(monkey, LightmapUVSettings(resolution=128))
     assert summary["split_polygons"] == 0

@@ -11,9 +11,9 @@ import numpy as np
 
 from classic_bake.addon import bridge, cycles_reference
 from classic_bake.addon.jobs import radiosity_bake_job
-from classic_bake.kernels.exr import read_exr
-from classic_bake.kernels.lightmap_uv import LightmapUVSettings
-from classic_bake.kernels.radiosity import RadiositySettings
+from classic_bake.kernels.bake.lightmap_uv import LightmapUVSettings
+from classic_bake.kernels.measure.exr import read_exr
+from classic_bake.kernels.radiosity.radiosity import RadiositySettings
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENE = ROOT / "sample_blends" / "cornell_box.blend"

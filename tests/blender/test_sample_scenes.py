@@ -1,7 +1,7 @@
 """The committed sample scenes (sample_blends/*.blend): they open, are complete, render in Cycles,
 and are exactly what `sample_blends/make_samples.py` builds today.
 
-Cornell box values are checked against /work/shared/reference/cornell_box.json.
+Cornell box values are checked against tests/data/cornell_box.json.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 SAMPLES = ROOT / "sample_blends"
-CORNELL_JSON = ROOT.parent / "shared" / "reference" / "cornell_box.json"
+CORNELL_JSON = ROOT / "tests" / "data" / "cornell_box.json"
 SCENES = ("cornell_box", "env_room", "bump", "shadows", "raytrace")
 
 POSITION_TOL = 1e-6  # m; float32 coordinates of scenes a few metres across, rebuilt identically

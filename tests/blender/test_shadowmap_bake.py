@@ -10,9 +10,9 @@ import numpy as np
 
 from classic_bake.addon import bridge, cycles_reference
 from classic_bake.addon.jobs import shadow_bake_job
-from classic_bake.kernels.direct_light import DirectLightSettings
-from classic_bake.kernels.exr import read_exr
-from classic_bake.kernels.lightmap_uv import LightmapUVSettings
+from classic_bake.kernels.bake.lightmap_uv import LightmapUVSettings
+from classic_bake.kernels.measure.exr import read_exr
+from classic_bake.kernels.shading.direct_light import DirectLightSettings
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENE = ROOT / "sample_blends" / "shadows.blend"

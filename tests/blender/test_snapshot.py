@@ -14,7 +14,7 @@ import pytest
 from mathutils.geometry import area_tri
 
 from classic_bake.addon import bridge
-from classic_bake.kernels.scene import geometric_normals, triangle_areas
+from classic_bake.kernels.geometry.scene import geometric_normals, triangle_areas
 
 CURVE_LIKE = {"CURVE", "SURFACE", "META", "FONT"}
 SAMPLES = sorted((Path(__file__).resolve().parents[2] / "sample_blends").glob("*.blend"))
@@ -235,7 +235,7 @@ def test_faces_without_a_material_shade_as_cycles_default_surface():
     import math
 
     from classic_bake.addon import cycles_reference as cr
-    from classic_bake.kernels import direct_light
+    from classic_bake.kernels.shading import direct_light
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
@@ -265,7 +265,7 @@ def test_mixed_shaders_keep_diffuse_albedo_emission_and_shares():
     that glows keeps the sum's diffuse albedo, emission and metal share; a textured part alone
     diffuse keeps its texture (a checker's colours scaled when the parts' weights do not add up
     to 1)."""
-    from classic_bake.kernels.scene import Material, Texture
+    from classic_bake.kernels.geometry.scene import Material, Texture
 
     red = Material(name="r", base_color=np.array([0.8, 0.1, 0.1], np.float32), specular=0.0)
     blue = Material(name="b", base_color=np.array([0.1, 0.2, 0.9], np.float32), metallic=0.5,

@@ -12,10 +12,10 @@ import pytest
 
 from classic_bake.addon import bridge, cycles_reference
 from classic_bake.addon.jobs import texture_bake_job
-from classic_bake.kernels.exr import read_exr
-from classic_bake.kernels.lightmap_uv import LightmapUVSettings
-from classic_bake.kernels.metrics import rel_mse
-from classic_bake.kernels.texture_bake import TextureBakeSettings
+from classic_bake.kernels.bake.lightmap_uv import LightmapUVSettings
+from classic_bake.kernels.bake.texture_bake import TextureBakeSettings
+from classic_bake.kernels.measure.exr import read_exr
+from classic_bake.kernels.measure.metrics import rel_mse
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENE = ROOT / "sample_blends" / "raytrace.blend"
@@ -162,7 +162,7 @@ def test_the_view_darkens_under_the_specular_layer_as_cycles_does():
     tracer's albedo view follows it (measured relMSE 3.5e-4 over the plane, rows within 0.1%)."""
     from blender_parts import BASE, lit_scene, oblique_camera, plane, principled
 
-    from classic_bake.kernels.tracer import TracerSettings, trace
+    from classic_bake.kernels.trace.tracer import TracerSettings, trace
 
     scene = lit_scene()
     mat, bsdf = principled("Layered")

@@ -10,7 +10,7 @@ import bpy
 import numpy as np
 
 from classic_bake.addon import bridge
-from classic_bake.kernels.exr import read_exr
+from classic_bake.kernels.measure.exr import read_exr
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENE = ROOT / "sample_blends" / "raytrace.blend"
@@ -57,8 +57,8 @@ def test_cli_trace_writes_render_exr_and_ray_statistics(tmp_path):
 def test_tracer_matches_cycles_on_the_sample_scene(tmp_path, open_sample):
     """Cycles set up to compute the Whitted model (lights as points, no diffuse bounces, the world
     not lighting diffuse surfaces, box filter): relative MSE under 1% at 48 x 36 pixels."""
-    from classic_bake.kernels.metrics import rel_mse
-    from classic_bake.kernels.tracer import auto_settings, trace
+    from classic_bake.kernels.measure.metrics import rel_mse
+    from classic_bake.kernels.trace.tracer import auto_settings, trace
 
     open_sample("raytrace")
     scene = bpy.context.scene
@@ -87,7 +87,7 @@ def _plane_against_cycles(material):
     from blender_parts import lit_scene, oblique_camera, plane
 
     from classic_bake.addon import cycles_reference
-    from classic_bake.kernels.tracer import TracerSettings, trace
+    from classic_bake.kernels.trace.tracer import TracerSettings, trace
 
     scene = lit_scene()
     plane(material, size=6.0)
@@ -110,7 +110,7 @@ def test_a_plane_under_the_specular_layer_matches_cycles():
     0.062 and 0.013, now 2e-4 and 3.5e-4)."""
     from blender_parts import principled
 
-    from classic_bake.kernels.metrics import rel_mse
+    from classic_bake.kernels.measure.metrics import rel_mse
 
     for roughness in (0.2, 0.5):
         bpy.ops.wm.read_factory_settings(use_empty=True)
@@ -131,7 +131,7 @@ def test_a_rough_metal_plane_matches_cycles():
     the view alone, 1.1e-4 and 0.0127: the wide lobe keeps the gold at grazing views)."""
     from blender_parts import principled
 
-    from classic_bake.kernels.metrics import rel_mse
+    from classic_bake.kernels.measure.metrics import rel_mse
 
     for roughness, bound in ((0.2, 5e-4), (0.5, 6e-3)):
         bpy.ops.wm.read_factory_settings(use_empty=True)

@@ -11,10 +11,10 @@ from blender_parts import colour_world, hdri_world, node_world
 
 from classic_bake.addon import bridge, cycles_reference
 from classic_bake.addon.jobs import radiosity_bake_job
-from classic_bake.kernels.lightmap_uv import LightmapUVSettings
-from classic_bake.kernels.metrics import rel_mse
-from classic_bake.kernels.radiosity import RadiositySettings
-from classic_bake.kernels.tracer import TracerSettings, trace
+from classic_bake.kernels.bake.lightmap_uv import LightmapUVSettings
+from classic_bake.kernels.measure.metrics import rel_mse
+from classic_bake.kernels.radiosity.radiosity import RadiositySettings
+from classic_bake.kernels.trace.tracer import TracerSettings, trace
 
 
 @pytest.mark.parametrize("mapping", [None, "POINT", "TEXTURE"])
@@ -126,7 +126,7 @@ def _plane_view_against_cycles(material, facing_down: bool = False) -> float:
     over the plane against a 128-sample Cycles render of the world-lit radiosity model."""
     from blender_parts import WORLD, oblique_camera, plane
 
-    from classic_bake.kernels import radiosity
+    from classic_bake.kernels.radiosity import radiosity
 
     scene = colour_world()
     sheet = plane(material, size=6.0)
@@ -195,7 +195,7 @@ def test_the_back_of_a_sheet_under_the_world_as_cycles_shows_it():
 def test_info_names_the_map_and_its_sun():
     """`info` (its `describe`) reports the world's map and the sun radiosity will take from it:
     towards the texels' mean direction, with their sum L dOmega."""
-    from classic_bake.kernels.world_light import texel_directions
+    from classic_bake.kernels.shading.world_light import texel_directions
     from classic_bake.pipeline.commands.info import describe
 
     pixels = np.full((64, 128, 3), 0.3, np.float32)
@@ -351,8 +351,8 @@ def test_bakes_that_see_no_light_render_no_world():
     from blender_parts import principled
 
     from classic_bake.addon.jobs import run_to_end, shadow_bake_job, texture_bake_job
-    from classic_bake.kernels.direct_light import DirectLightSettings
-    from classic_bake.kernels.texture_bake import TextureBakeSettings
+    from classic_bake.kernels.bake.texture_bake import TextureBakeSettings
+    from classic_bake.kernels.shading.direct_light import DirectLightSettings
 
     _sky_world()
     grey, _ = principled("Grey", base=(0.6, 0.6, 0.6))

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from classic_bake.addon import bridge
-from classic_bake.kernels.exr import read_exr
+from classic_bake.kernels.measure.exr import read_exr
 
 
 def cube(name="Cube"):

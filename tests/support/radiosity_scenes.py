@@ -23,7 +23,7 @@ CHUNK_ELEMENTS = 1 << 21
 class BruteForceTracer:
     """Möller-Trumbore against all (T, 3, 3) triangles, vectorised over chunks of rays.
 
-    Both callbacks follow the contract in `kernels.form_factors`: origins, directions (R, 3);
+    Both callbacks follow the contract in `kernels.radiosity.form_factors`: origins, directions (R, 3);
     t_min float; t_max float or (R,); both sides of a triangle hit.
     """
 

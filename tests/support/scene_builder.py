@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from classic_bake.kernels.scene import Camera, Material, ObjectInfo, Scene
+from classic_bake.kernels.geometry.scene import Camera, Material, ObjectInfo, Scene
 
 
 def quad(corners) -> np.ndarray:

@@ -1,0 +1,1 @@
+"""bake: see docs/architecture.md."""

@@ -1,0 +1,189 @@
+"""What the camera sees, by z-buffer: the fragments f of the lecture's step 2.
+
+The scene is rasterised from the camera (`raster.py`, top-left rule) with triangle ids; each covered
+pixel's centre ray is then intersected with its triangle's plane in float64, giving the exact point
+and barycentrics that the shading at that pixel uses. Shared by every kernel that renders the camera
+view of a baked or computed result (direct light with shadow maps, radiosity).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..geometry.camera import camera_rays, pixel_rays
+from ..geometry.raster import Projection, rasterize
+from ..geometry.scene import Camera, Scene, geometric_normals
+from ..measure.metrics import REC709_LUMINANCE
+
+# Relative luminance contrast between neighbouring pixels that marks an edge for supersampling;
+# 1/16 is about the smallest step visible in an 8-bit display of the result.
+EDGE_CONTRAST = 1.0 / 16.0
+# Added to the luminance sum in the contrast test so that near-black pixels do not all count as edges.
+CONTRAST_FLOOR = 1e-2
+# Rays per side through each edge pixel of a camera view (`supersample_edges`): 3 x 3 takes a
+# silhouette's coverage to 1/9 of a pixel.
+EDGE_SAMPLES = 3
+
+
+@dataclass(frozen=True, eq=False)
+class Fragments:
+    """Covered pixels (N of them) and the surface point each pixel centre sees.
+
+    rows, cols (N,) int   pixel indices, row 0 top
+    tri        (N,) int64 scene triangle
+    bary       (N, 3)     barycentric weights of the point in its triangle
+    points     (N, 3)     world, m
+    dirs       (N, 3)     unit view directions (camera to point)
+    depth      (N,)       distance along the ray from its origin, m
+    geometric  (N, 3)     unit front normals of the triangles seen
+    back       (N,) bool  the triangle is seen from behind (its front faces away)
+    """
+
+    rows: np.ndarray
+    cols: np.ndarray
+    tri: np.ndarray
+    bary: np.ndarray
+    points: np.ndarray
+    dirs: np.ndarray
+    depth: np.ndarray
+    geometric: np.ndarray
+    back: np.ndarray
+
+    def __len__(self) -> int:
+        return int(self.rows.shape[0])
+
+
+def camera_projection(camera: Camera) -> Projection:
+    """The kernel camera as a rasteriser projection (same image plane, clip range)."""
+    view = np.linalg.inv(camera.matrix_world)
+    extent = (camera.plane_min[0], camera.plane_max[0], camera.plane_min[1], camera.plane_max[1])
+    if camera.kind == "ORTHO":
+        return Projection.orthographic(view, extent, camera.clip_start, camera.clip_end)
+    return Projection("PERSP", view, tuple(float(e) for e in extent), max(camera.clip_start, 1e-6),
+                      camera.clip_end)
+
+
+def ray_triangle_bary(origins, dirs, tris) -> tuple[np.ndarray, np.ndarray]:
+    """Barycentrics (N, 3) and distance (N,) where each ray meets its own triangle's plane
+    (Moller-Trumbore without the inside test: the rasteriser already chose the triangle)."""
+    a, b, c = tris[:, 0], tris[:, 1], tris[:, 2]
+    e1, e2 = b - a, c - a
+    pvec = np.cross(dirs, e2)
+    det = np.einsum("ij,ij->i", e1, pvec)
+    inv = np.where(np.abs(det) > 1e-300, 1.0 / np.where(det == 0, 1.0, det), 0.0)
+    tvec = origins - a
+    u = np.einsum("ij,ij->i", tvec, pvec) * inv
+    qvec = np.cross(tvec, e1)
+    v = np.einsum("ij,ij->i", dirs, qvec) * inv
+    t = np.einsum("ij,ij->i", e2, qvec) * inv
+    bary = np.clip(np.stack([1 - u - v, u, v], 1), 0.0, 1.0)
+    return bary / np.maximum(bary.sum(1, keepdims=True), 1e-12), t
+
+
+def camera_fragments(scene: Scene, resolution=None) -> Fragments:
+    """Rasterise the camera view of `scene` at `resolution` (W, H; default the camera's)."""
+    camera = scene.camera
+    if camera is None:
+        raise ValueError("the scene has no camera")
+    width, height = resolution or camera.resolution
+    raster = rasterize(scene.triangles, camera_projection(camera), width, height,
+                       with_triangle_ids=True)
+    rows, cols = np.nonzero(raster.triangle >= 0)
+    tri = raster.triangle[rows, cols].astype(np.int64)
+    origins, dirs = camera_rays(camera, width, height)
+    o, d = origins[rows, cols], dirs[rows, cols]
+    bary, t = ray_triangle_bary(o, d, scene.triangles[tri].astype(np.float64))
+    geometric = geometric_normals(scene.triangles[tri])
+    return Fragments(rows=rows, cols=cols, tri=tri, bary=bary, points=o + d * t[:, None], dirs=d,
+                     depth=t, geometric=geometric,
+                     back=np.einsum("ij,ij->i", geometric, d) > 0.0)
+
+
+def background_and_fragments(scene: Scene, resolution=None, out: np.ndarray | None = None
+                             ) -> tuple[np.ndarray, Fragments]:
+    """The start of every camera render: an (H, W, 3) float32 image (or `out`) filled with the
+    world colour, which escaping pixel rays see, and the fragments to shade."""
+    if scene.camera is None:
+        raise ValueError("the scene has no camera")
+    width, height = resolution or scene.camera.resolution
+    image = np.empty((height, width, 3), np.float32) if out is None else out
+    if scene.world_texture is None:
+        image[...] = scene.world_color
+    else:  # the world's map along each pixel's ray
+        from ..shading.world_light import world_radiance
+
+        _, dirs = camera_rays(scene.camera, width, height)
+        image[...] = world_radiance(scene, dirs.reshape(-1, 3)).reshape(height, width, 3)
+    return image, camera_fragments(scene, (width, height))
+
+
+def edge_pixels(image: np.ndarray, ids: np.ndarray) -> np.ndarray:
+    """(H, W) bool: pixels whose 4-neighbours see another object/material (ids (H, W), -1 for
+    none) or a visible luminance contrast (EDGE_CONTRAST) in image (H, W, 3)."""
+    lum = image @ np.array(REC709_LUMINANCE)
+    mark = np.zeros(ids.shape, bool)
+    for axis in (0, 1):
+        a = [slice(None)] * 2
+        b = [slice(None)] * 2
+        a[axis] = slice(1, None)
+        b[axis] = slice(None, -1)
+        differ = ids[tuple(a)] != ids[tuple(b)]
+        la, lb = lum[tuple(a)], lum[tuple(b)]
+        differ |= np.abs(la - lb) > EDGE_CONTRAST * (la + lb + CONTRAST_FLOOR)
+        mark[tuple(a)] |= differ
+        mark[tuple(b)] |= differ
+    return mark
+
+
+def stratified_offsets(n: int) -> np.ndarray:
+    """(n^2, 2) sub-pixel offsets in [0, 1)^2: the centres of an n x n grid of cells."""
+    g = (np.arange(n) + 0.5) / n
+    gx, gy = np.meshgrid(g, g, indexing="xy")
+    return np.stack([gx.ravel(), gy.ravel()], 1)
+
+
+def supersample_edges(scene: Scene, image: np.ndarray, fragments: Fragments, shade, bvh,
+                      samples: int = EDGE_SAMPLES) -> int:
+    """In place: every edge pixel of `image` (H, W, 3) shaded at its centre (`fragments`, the
+    covered pixels; `edge_pixels` of the image and of the objects the centres see) becomes the
+    mean of `samples` x `samples` stratified rays through it, the box filter Cycles' 1-px BOX
+    pixel filter is (the pixel centres alone alias silhouettes, folds and hard shadow edges). A
+    ray that hits a triangle of `bvh` (built over scene.triangles) is shaded by
+    shade(Fragments) -> (M, 3); one that escapes sees the world (its map along the ray, else its
+    colour). Returns the number of pixels supersampled."""
+    from ..shading.world_light import world_radiance
+
+    height, width = image.shape[:2]
+    ids = np.full((height, width), -1, np.int64)
+    ids[fragments.rows, fragments.cols] = scene.object_ids[fragments.tri]
+    rows, cols = np.nonzero(edge_pixels(image, ids))
+    if rows.size == 0 or samples < 2:
+        return 0
+    offsets = stratified_offsets(samples)
+    # Every sub-pixel ray of every edge pixel in one BVH call and one shading call: `shade` may
+    # cost a few ms per call besides its points (the radiosity view's final gather).
+    sub_rows = np.tile(rows, len(offsets))
+    sub_cols = np.tile(cols, len(offsets))
+    o, d = pixel_rays(scene.camera, width, height, sub_cols + np.repeat(offsets[:, 0], rows.size),
+                      sub_rows + np.repeat(offsets[:, 1], rows.size))
+    hits = bvh.intersect(o, d)
+    tri = np.asarray(hits.tri, np.int64)
+    hit = tri >= 0
+    value = np.empty((len(o), 3))
+    if scene.world_texture is None:
+        value[~hit] = scene.world_color
+    else:
+        value[~hit] = world_radiance(scene, d[~hit])
+    if hit.any():
+        t = tri[hit]
+        u, v = hits.u[hit].astype(np.float64), hits.v[hit].astype(np.float64)
+        depth = hits.t[hit].astype(np.float64)
+        geometric = geometric_normals(scene.triangles[t])
+        value[hit] = shade(Fragments(
+            rows=sub_rows[hit], cols=sub_cols[hit], tri=t, bary=np.stack([1.0 - u - v, u, v], 1),
+            points=o[hit] + d[hit] * depth[:, None], dirs=d[hit], depth=depth,
+            geometric=geometric, back=np.einsum("ij,ij->i", geometric, d[hit]) > 0.0))
+    image[rows, cols] = value.reshape(len(offsets), rows.size, 3).mean(axis=0)
+    return int(rows.size)

@@ -1,0 +1,1 @@
+"""envmap: see docs/architecture.md."""

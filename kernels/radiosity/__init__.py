@@ -1,0 +1,1 @@
+"""radiosity: see docs/architecture.md."""

@@ -1,0 +1,729 @@
+"""Final gather: the radiosity solution read out at every receiver with exact direct light.
+
+A patch solution holds B constant (or smoothly interpolated) over each patch, so everything that
+changes faster than a patch is lost: the sharp fall-off next to a light, a block's shadow on the
+floor, the floor inside a closed block. Most of that detail is DIRECT light. The final gather
+(the "one-bounce final gather" of Lischinski, Tampieri and Greenberg 1992; Cohen and Wallace,
+"Radiosity and Realistic Image Synthesis", ch. 9) splits a receiver x's irradiance in two:
+
+    B(x) = E(x) + rho(x) (H_direct(x) + H_indirect(x))
+
+* H_direct(x), evaluated AT x: the lamps' irradiance times their shadow-ray visibility (as the
+  first shot), plus every emissive triangle j's exact unoccluded point-to-polygon factor times
+  its kernel-weighted visible share:
+      H_j(x) = pi L_j F(x -> j) V_j(x),   V_j(x) = sum_s k_s v_s / sum_s k_s,
+      k_s = cos(theta_x) cos(theta_s) / d_s^2   at stratified points s of triangle j
+  (`stratified_triangle_points`: equal areas),
+  v_s one shadow ray each (the ratio estimator of `form_factors._visible_fraction_steps`: exact
+  when nothing blocks, and its noise stays in penumbrae). Cosines at x are to its shading normal
+  (`shading_normals`: a smooth mesh's interpolated corner normals, as Cycles shades it); the rays
+  leave along the face's own normal, which no smoothing tilts into the surface.
+* H_indirect(x), interpolated from the patches: what the solution says arrives at patch i,
+  (B_i - E_i) / rho_i, less the first shot H_direct(i), which the solver took from this same
+  estimator at the patch's points (`radiosity.first_shot`) and did not carry again. It is smooth
+  wherever the patches are, so patch-sized interpolation loses little; a coarse solution's
+  patches are split into elements whose vertices gather it from the patches' B afresh
+  (`elements.py`).
+
+Shaft culling. Before any ray, each (patch, emissive triangle) pair is tested for an empty
+shaft (`shafts.py`): a receiver in a patch that sees the triangle whole takes its exact factor
+with share 1 and casts no shadow ray (about half the pairs of the Cornell box).
+
+Enclosure. A floor texel inside a closed block sees only the block's inside (back faces) and
+receives nothing; the patch that straddles the block's edge averages its open and enclosed parts.
+`enclosed` probes each receiver with rays (along the normal, and if that hits a back face, four
+more at 45 degrees): a receiver all of whose probes hit back faces is inside a solid, gets no
+reflected light and casts no shadow ray (the probes go first). Receivers in patches that no back
+face hangs over (`shafts.open_above`) are not probed: their normal's ray cannot meet one. Patches
+scale their indirect irradiance by 1 / (open fraction of their sample points), and corners
+average only the open parts, so the open side of a straddling patch keeps what the solver found
+for it.
+
+Measured on the sample Cornell box (bench/radiosity.py: 21k lightmap texels, 296 patches,
+hierarchical): relative MSE against a 1024-sample Cycles bake 0.087 interpolated, 0.011 with the
+direct light gathered, 0.0065 with the enclosure probes as well, for ~0.5 s of gathering on top
+of a 0.6 s solve (bench/README.md has the steps).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..geometry import shafts
+from ..geometry.scene import (
+    Scene,
+    geometric_normals,
+    interpolated_normals,
+    triangle_areas,
+    triangle_emission,
+)
+from ..measure.metrics import REC709_LUMINANCE
+from ..shading.bump import scene_normals
+from ..shading.world_light import (
+    RAYS_PER_CALL,
+    cosine_directions,
+    cosine_ray_count,
+    world_lit,
+    world_radiance,
+)
+from . import elements
+from . import patches as patching
+from .form_factors import (
+    RAY_OFFSET_REL,
+    pair_kernel,
+    point_to_polygon,
+    sample_patches,
+    tangent_frames,
+)
+
+# Shadow rays to points ON an emitter stop this fraction short of it; the target itself is lifted
+# off the emitter by the ray offset along its normal (the BVH's float32 hit distances differ from
+# the float64 length by up to ~4e-6 relative, so ending the ray at the surface would hit it).
+SHADOW_END_REL = 1e-6
+# A patch this little open (fraction of its sample points outside every solid) is not rescaled
+# further: its indirect irradiance rests on too few points to be stretched over the rest.
+MIN_OPEN_FRACTION = 0.25
+# Receivers gathered at once: (receivers x visibility rays) temporaries of ~100 B per ray.
+GATHER_CHUNK = 1 << 14
+# Receivers are pulled this fraction of the way to their triangle's centroid before the gather:
+# the point-to-polygon factor is 0 for a point ON a polygon's plane, so a mesh corner shared with
+# a perpendicular wall would see nothing of that wall; 1e-4 of a triangle is far above the
+# factor's PLANE_EPS (1e-10) and far below any detail a texel or a vertex colour shows.
+RECEIVER_INSET = 1e-4
+# Probe rays at 45 degrees (after the normal ray): their tangent-frame directions.
+_PROBE_TILTS = ((1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0))
+LUMINANCE = np.array(REC709_LUMINANCE)
+# Element-to-patch pairs the indirect light is gathered over at most (`elements.py`: elements
+# times the patches that send light). The Cornell box (session 29; solve and
+# bake seconds times relMSE against Cycles, which Cycles' bake seconds to the same error divide
+# the speed-up by): 74 patches in 4 elements each (22k pairs) 1.65 -> 1.08 (relMSE 0.0101 ->
+# 0.0063 for 0.01 s); 176 patches (124k pairs) 1.14 -> 1.19, none there: the patches are small
+# enough already.
+ELEMENT_PAIRS = 50_000
+# What a receiver's rays found about one emitter triangle (`Visibility.emitters`): nothing known
+# (or a penumbra), all of it hidden, all of it seen, or it lies behind the receiver's plane.
+UNKNOWN, HIDDEN, CLEAR, AWAY = -1, 0, 1, 2
+
+
+@dataclass(frozen=True)
+class FinalGatherSettings:
+    """| field            | range    | default | meaning                                          |
+    |------------------|----------|---------|--------------------------------------------------|
+    | emitter_rays     | >= 1     | 16      | shadow rays per receiver over all emissive       |
+    |                  |          |         | triangles (split by their power, >= 1 each)      |
+    | max_emitters     | >= 0     | 32      | emissive triangles gathered per receiver; beyond |
+    |                  |          |         | this the patch solution carries emitted light    |
+    |                  |          |         | (each costs every receiver an exact factor and   |
+    |                  |          |         | at least one ray: an emissive sphere of 500      |
+    |                  |          |         | triangles would cost 500 rays a texel)           |
+    | enclosure_probes | bool     | True    | receivers inside closed solids get no light      |
+    | patch_samples    | >= 1     | 2       | n x n enclosure probes per patch (midpoints)     |
+    | seed             | int      | 0       | RNG seed of the stratified emitter points        |
+    | world_rays       | >= 0     | 0       | rays per receiver seen from behind: the world    |
+    |                  |          |         | where they escape, the patch solution where they |
+    |                  |          |         | meet a surface (`back_exitance`; 0: direct light |
+    |                  |          |         | only there)                                      |
+    | element_pairs    | >= 0     | 50000   | element-to-patch pairs the indirect light may be |
+    |                  |          |         | gathered over (`elements.py`: patches split into |
+    |                  |          |         | 4^k elements while within it; 0: never)          |
+    """
+
+    emitter_rays: int = 16
+    max_emitters: int = 32
+    enclosure_probes: bool = True
+    patch_samples: int = 2
+    seed: int = 0
+    world_rays: int = 0
+    element_pairs: int = ELEMENT_PAIRS
+
+    def __post_init__(self) -> None:
+        if self.emitter_rays < 1 or self.patch_samples < 1 or self.max_emitters < 0:
+            raise ValueError("emitter_rays and patch_samples must be >= 1, max_emitters >= 0")
+        if self.world_rays < 0 or self.element_pairs < 0:
+            raise ValueError("world_rays and element_pairs must be >= 0")
+
+
+@dataclass(frozen=True, eq=False)
+class Emitters:
+    """The emissive triangles gathered per receiver."""
+
+    index: np.ndarray  # (K,) int64 scene triangle indices
+    triangles: np.ndarray  # (K, 3, 3) float64 world m
+    normals: np.ndarray  # (K, 3) float64 unit front normals
+    radiance: np.ndarray  # (K, 3) float64 emitted radiance L_e, W/(m^2 sr)
+    per_side: np.ndarray  # (K,) int64 n: n x n stratified visibility points each
+
+    def covers(self, triangles: np.ndarray) -> np.ndarray:
+        """(M,) bool: which of scene `triangles` (M,) are these emitters (their light reaches
+        receivers through `emitter_irradiance`, not through the patches)."""
+        return np.isin(triangles, self.index)
+
+    def thinned(self, k: int) -> Emitters:
+        """These emitters with ceil(n / k) points per side each: for receivers averaged k x k
+        to one value (a lightmap texel's sub-texel points, `bake_targets.box_filter`), whose
+        mean then rests on about the n x n rays one receiver casts."""
+        return replace(self, per_side=thinned_side(self.per_side, k))
+
+
+def thinned_side(n, k: int):
+    """ceil(n / k): the points per side of n x n shared among k x k receivers averaged to one."""
+    return -(-n // max(k, 1))
+
+
+def emitters_of(scene: Scene, settings: FinalGatherSettings) -> Emitters:
+    """Emissive triangles with their share of `emitter_rays` (by power: area x luminance of L_e);
+    none when there are more than `max_emitters`."""
+    radiance = triangle_emission(scene)
+    tris = scene.triangles.astype(np.float64)
+    normals = geometric_normals(scene.triangles)
+    power = triangle_areas(scene.triangles) * (radiance @ LUMINANCE)
+    keep = np.flatnonzero((power > 0.0) & (np.linalg.norm(normals, axis=1) > 0.0))
+    if len(keep) > settings.max_emitters:
+        keep = keep[:0]
+    share = power[keep] / max(float(power[keep].sum()), 1e-300)
+    per_side = np.maximum(1, np.rint(np.sqrt(settings.emitter_rays * share))).astype(np.int64)
+    return Emitters(keep, tris[keep], normals[keep], radiance[keep], per_side)
+
+
+@dataclass(frozen=True, eq=False)
+class Visibility:
+    """What the gather's rays found at M receivers, for neighbouring receivers to reuse.
+
+    emitters  (M, K) int8  per emitter triangle: UNKNOWN, HIDDEN, CLEAR or AWAY
+    inside    (M,) int8    -1 unknown, 0 open, 1 inside a closed solid (`enclosed`)
+
+    Given to `exitance` as `known`, a CLEAR or HIDDEN emitter takes share 1 or 0 without rays and
+    a known `inside` skips the probes; `visibility_out` receives what a call found."""
+
+    emitters: np.ndarray
+    inside: np.ndarray
+
+    @classmethod
+    def unknown(cls, count: int, emitter_count: int) -> Visibility:
+        return cls(np.full((count, emitter_count), UNKNOWN, np.int8), np.full(count, -1, np.int8))
+
+    @classmethod
+    def joined(cls, parts: list[Visibility]) -> Visibility:
+        return cls(np.concatenate([v.emitters for v in parts]),
+                   np.concatenate([v.inside for v in parts]))
+
+    def take(self, rows: np.ndarray) -> Visibility:
+        return Visibility(self.emitters[rows], self.inside[rows])
+
+    def put(self, rows: np.ndarray, found: Visibility) -> None:
+        """In place: receivers `rows` take what `found` (one per row) says."""
+        self.emitters[rows], self.inside[rows] = found.emitters, found.inside
+
+    def agreed(self, sources: np.ndarray) -> Visibility:
+        """(R,) receivers each lying among receivers `sources` (R, S) of these (-1: none, which
+        makes the receiver UNKNOWN): per emitter CLEAR where every source is CLEAR or AWAY and one
+        is CLEAR, HIDDEN likewise, UNKNOWN otherwise; inside where every source agrees. A shadow
+        edge or an enclosure's wall passing between the sources leaves them disagreeing, so the
+        receiver casts its own rays; what this misses fits between the sources without touching
+        one (the lattice's caveat, `bake_targets.py`)."""
+        missing = (sources < 0).any(axis=1)
+        states = self.emitters[np.maximum(sources, 0)]  # (R, S, K)
+        facing = states != AWAY
+        clear = np.all((states == CLEAR) | ~facing, axis=1) & np.any(facing, axis=1)
+        hidden = np.all((states == HIDDEN) | ~facing, axis=1) & np.any(facing, axis=1)
+        emitters = np.where(clear, CLEAR, np.where(hidden, HIDDEN, UNKNOWN)).astype(np.int8)
+        emitters[missing] = UNKNOWN
+        inside = self.inside[np.maximum(sources, 0)]  # (R, S)
+        agree = (inside == inside[:, :1]).all(axis=1) & ~missing
+        return Visibility(emitters, np.where(agree, inside[:, 0], -1).astype(np.int8))
+
+
+def stratified_triangle_points(poly: np.ndarray, m: int, n: int, rng: np.random.Generator
+                               ) -> np.ndarray:
+    """(m, n^2, 3) points on triangle `poly` (3, 3): m independent sets, one uniform point in each
+    cell of an n x n grid on the unit square, mapped by the area-preserving
+    (u, v) -> (1 - sqrt u) p0 + sqrt u (1 - v) p1 + sqrt u v p2 (Shirley; every cell maps to an
+    equal area, so the points weigh the same and stay stratified)."""
+    cell = np.arange(n * n)
+    u = (cell // n + rng.random((m, n * n))) / n
+    v = (cell % n + rng.random((m, n * n))) / n
+    root = np.sqrt(u)[..., None]
+    return (1.0 - root) * poly[0] + root * (1.0 - v[..., None]) * poly[1] + root * v[..., None] * poly[2]
+
+
+def _kernel_sums(jobs: list, occluded, offset: float, rng: np.random.Generator
+                 ) -> list[tuple[np.ndarray, np.ndarray]]:
+    """For each job (points (m, 3), normals (m, 3), lift (m, 3), triangle `poly` (3, 3), its
+    normal nj, n), rays leaving `offset` m along `lift` (the geometric normals; `normals` may be
+    shading normals):
+    (seen, total) (m,), the sums of the point-to-point kernel k_s over n x n stratified points s
+    of the triangle, over the visible ones and over all, for each receiver. Every job's shadow
+    rays go to the BVH in one call (a call costs ~2 ms besides its rays)."""
+    starts, ends, lengths, found = [], [], [], []
+    for points, normals, lift, poly, nj, n in jobs:
+        y = stratified_triangle_points(poly, len(points), n, rng)
+        kernel = pair_kernel(y - points[:, None, :], normals[:, None, :], nj)  # (m, S)
+        rays = kernel > 0.0
+        origins = points + offset * lift
+        seg = ((y + offset * nj) - origins[:, None, :])[rays]  # (R, 3)
+        starts.append(np.broadcast_to(origins[:, None, :], y.shape)[rays])
+        ends.append(seg)
+        lengths.append(np.sqrt(np.einsum("rc,rc->r", seg, seg)))
+        found.append((kernel, rays))
+    length = np.concatenate(lengths) if jobs else np.zeros(0)
+    blocked = np.zeros(len(length), bool)
+    if length.size:
+        dirs = np.concatenate(ends) / np.maximum(length, 1e-300)[:, None]
+        blocked = np.asarray(occluded(np.ascontiguousarray(np.concatenate(starts)),
+                                      np.ascontiguousarray(dirs), 0.0,
+                                      length * (1.0 - SHADOW_END_REL)), bool)
+    out, at = [], 0
+    for kernel, rays in found:
+        seen = kernel.copy()
+        count = int(rays.sum())
+        seen[rays] = np.where(blocked[at:at + count], 0.0, kernel[rays])
+        at += count
+        out.append((seen.sum(axis=1), kernel.sum(axis=1)))
+    return out
+
+
+def _pilot_side(n: int) -> int:
+    """The pilot's points per side for a triangle of n x n (`emitter_irradiance`): (n - 1)^2
+    from n = 3 on; below that the full set at once, since a pilot of one ray finds every receiver
+    wholly lit or wholly hidden and would never send a penumbra on to its n x n."""
+    return n - 1 if n >= 3 else n
+
+
+def emitter_irradiance(emitters: Emitters, points: np.ndarray, normals: np.ndarray, occluded,
+                       offset: float, rng: np.random.Generator,
+                       share_out: np.ndarray | None = None,
+                       clear: np.ndarray | None = None, known: np.ndarray | None = None,
+                       states_out: np.ndarray | None = None, lift: np.ndarray | None = None
+                       ) -> np.ndarray:
+    """(M, 3) irradiance W/m^2 at points (M, 3) m with unit normals (M, 3) from the emitters,
+    shadowed: pi L_j F(x -> j) V_j(x) summed over j (module docstring). share_out (M,), when
+    given, receives the visible share of the unshadowed irradiance (luminance; 1 where none
+    arrives), from which the first shot finds the patches across an emitter's shadow edge.
+
+    occluded(origins, directions, t_min, t_max) -> (R,) bool is the BVH's shadow-ray query;
+    `offset` m lifts ray ends off both surfaces. Adaptive: a pilot of (n - 1)^2 rays per triangle
+    first; only receivers that find the triangle partly hidden (a penumbra) get the n x n rays
+    as well, so fully lit and fully shadowed receivers cost about half the rays. The pilot can
+    miss an occluder thinner than its point spacing seen from the receiver: it takes the light
+    as unblocked there.
+
+    clear (M, K) bool, when given: receivers known to see emitter triangle k whole (their patch's
+    shaft to it is empty, `clear_shafts`), which take share 1 without rays. known (M, K) int8
+    (`Visibility.emitters`) likewise: CLEAR takes share 1, HIDDEN share 0, without rays.
+    states_out (M, K) int8, when given, receives what was found (CLEAR, HIDDEN, AWAY, UNKNOWN for
+    a penumbra). lift (M, 3), when given: the unit directions the rays leave the points along
+    (the faces' geometric normals where `normals` are shading normals); `normals` otherwise.
+    """
+    lift = normals if lift is None else lift
+    out = np.zeros((len(points), 3))
+    unshadowed = np.zeros(len(points)) if share_out is not None else None
+    states = np.full((len(points), len(emitters.triangles)), UNKNOWN, np.int8)
+    if known is not None:
+        states[...] = known
+    if clear is not None:
+        states[clear] = CLEAR
+    factors, todo = [], []  # per emitter triangle: its exact factors, the receivers to trace
+    for j in range(len(emitters.triangles)):
+        poly, nj = emitters.triangles[j], emitters.normals[j]
+        factor = point_to_polygon(points, normals, poly[None], nj[None])  # (M,) exact, unoccluded
+        factors.append(factor)
+        live = np.flatnonzero(factor > 0.0)
+        if unshadowed is not None:
+            unshadowed[live] += np.pi * factor[live] * (emitters.radiance[j] @ LUMINANCE)
+        state = states[live, j]
+        seen_whole = live[state == CLEAR]
+        out[seen_whole] += np.pi * factor[seen_whole, None] * emitters.radiance[j]
+        states[factor <= 0.0, j] = AWAY
+        live = live[(state != CLEAR) & (state != HIDDEN)]
+        if live.size:
+            todo.append((j, live))
+    # The pilot of every triangle in one BVH call, then the penumbrae's full sets in another.
+    pilots = [(points[live], normals[live], lift[live], emitters.triangles[j], emitters.normals[j],
+               _pilot_side(int(emitters.per_side[j]))) for j, live in todo]
+    sums = _kernel_sums(pilots, occluded, offset, rng)
+    more, mixed_of = [], []
+    for (j, live), (seen, total) in zip(todo, sums, strict=True):
+        n = int(emitters.per_side[j])
+        mixed = np.flatnonzero((seen > 0.0) & (seen < total)) if _pilot_side(n) < n else \
+            np.zeros(0, np.int64)
+        mixed_of.append(mixed)
+        if mixed.size:
+            more.append((points[live[mixed]], normals[live[mixed]], lift[live[mixed]],
+                         emitters.triangles[j], emitters.normals[j], n))
+    extra = iter(_kernel_sums(more, occluded, offset, rng))
+    for (j, live), (seen, total), mixed in zip(todo, sums, mixed_of, strict=True):
+        if mixed.size:
+            more_seen, more_total = next(extra)
+            seen[mixed] += more_seen
+            total[mixed] += more_total
+        share = np.divide(seen, total, out=np.zeros_like(total), where=total > 0.0)
+        out[live] += (np.pi * factors[j][live] * share)[:, None] * emitters.radiance[j]
+        states[live, j] = np.where(total <= 0.0, UNKNOWN, np.where(
+            seen >= total, CLEAR, np.where(seen <= 0.0, HIDDEN, UNKNOWN)))
+    if states_out is not None:
+        states_out[...] = states
+    if share_out is not None:
+        np.divide(out @ LUMINANCE, unshadowed, out=share_out, where=unshadowed > 0.0)
+        share_out[unshadowed <= 0.0] = 1.0
+    return out
+
+
+def clear_shafts(patches: patching.Patches, emitters: Emitters, bvh, offset: float,
+                 min_area: float = 0.0) -> np.ndarray:
+    """(N, K) bool: patch i sees emitter triangle k whole, nothing in the shaft between them
+    (`shafts.clear_pairs`; slack: the rays' `offset` m). Patches under `min_area` m^2 are not
+    tested (False): a shaft costs about as much as the rays of the few receivers such a patch
+    holds (a mesh of 16k tiny triangles: 4.8 s of shafts)."""
+    n, k = len(patches), len(emitters.triangles)
+    out = np.zeros((n, k), bool)
+    tested = np.flatnonzero(patches.areas >= min_area)
+    if tested.size == 0 or k == 0:
+        return out
+    a = np.repeat(patches.corners[tested], k, axis=0)
+    b = np.tile(emitters.triangles, (tested.size, 1, 1))
+    out[tested] = shafts.clear_pairs(a, b, bvh, offset).reshape(tested.size, k)
+    return out
+
+
+def lamp_irradiance(scene: Scene, points: np.ndarray, normals: np.ndarray, occluded, offset: float,
+                    area_samples_per_side: int, lift: np.ndarray | None = None) -> np.ndarray:
+    """(M, 3) irradiance W/m^2 of the scene's lamps (point, spot, sun, area) with shadow rays, as
+    the radiosity first shot computes it for patch points; rays leave along `lift` (M, 3) when
+    given (`emitter_irradiance`)."""
+    from .radiosity import shadowed_irradiance
+
+    out = np.zeros((len(points), 3))
+    origins = points + offset * (normals if lift is None else lift)
+    for light in scene.lights:
+        out += shadowed_irradiance(light, points, normals, origins, occluded,
+                                   area_samples_per_side)[0]
+    return out
+
+
+def enclosed(points: np.ndarray, normals: np.ndarray, intersect, triangle_normals: np.ndarray,
+             offset: float) -> np.ndarray:
+    """(M,) bool: receivers inside a closed solid, every probe ray hitting a back face.
+
+    intersect(origins, directions) -> hits with `.tri` (-1: miss) is the BVH's closest-hit
+    query; triangle_normals (T, 3) the scene's front normals. The normal's ray decides for most
+    receivers (a miss or a front face: open); those it sends into a back face are probed four more
+    times at 45 degrees, so a single-sided sheet above a floor does not enclose it."""
+    def backs(rows: np.ndarray, dirs: np.ndarray) -> np.ndarray:
+        origins = points[rows] + offset * normals[rows]
+        hits = intersect(np.ascontiguousarray(origins), np.ascontiguousarray(dirs))
+        tri = np.asarray(hits.tri)
+        out = tri >= 0
+        out[out] = np.einsum("ij,ij->i", triangle_normals[tri[out]], dirs[out]) > 0.0
+        return out
+
+    inside = np.zeros(len(points), bool)
+    if len(points) == 0:
+        return inside
+    rows = np.flatnonzero(backs(np.arange(len(points)), normals))
+    if rows.size:
+        t1, t2 = tangent_frames(normals[rows])
+        # The four tilted probes in one BVH call (a call costs ~2 ms besides its rays).
+        dirs = np.concatenate([(normals[rows] + a * t1 + b * t2) / np.sqrt(2.0)
+                               for a, b in _PROBE_TILTS])
+        keep = backs(np.tile(rows, len(_PROBE_TILTS)), dirs).reshape(len(_PROBE_TILTS), -1)
+        inside[rows[keep.all(axis=0)]] = True
+    return inside
+
+
+@dataclass(frozen=True, eq=False)
+class FinalGather:
+    """Everything the gather reads at receivers, prepared once per solution (`prepare`)."""
+
+    scene: Scene
+    bvh: object  # kernels.geometry.bvh.BVH over scene.triangles
+    emitters: Emitters
+    clear: np.ndarray  # (N, K) bool: patch i sees emitter triangle k whole (`clear_shafts`)
+    open_above: np.ndarray  # (N,) bool: no back face over patch i (`shafts.open_above`)
+    patches: patching.Patches  # the solution's N patches
+    element_levels: int  # k: the indirect light is held on 4^k elements per patch (`elements.py`)
+    corner_indirect: np.ndarray  # (N 4^k, 3, 3) indirect irradiance at element corners, W/m^2
+    triangle_normals: np.ndarray  # (T, 3) float64
+    emission: np.ndarray  # (T, 3) float64 pi L_e per scene triangle, W/m^2
+    offset: float  # m, ray offset off surfaces
+    area_samples_per_side: int
+    settings: FinalGatherSettings
+    stats: dict
+
+    def thinned(self, k: int) -> FinalGather:
+        """This gather for receivers averaged k x k to one value: ceil(n / k) shadow points per
+        side where it had n, emitters' (`Emitters.thinned`) and area lights' alike."""
+        return replace(self, emitters=self.emitters.thinned(k),
+                       area_samples_per_side=thinned_side(self.area_samples_per_side, k))
+
+
+def _occluded(bvh):
+    return lambda o, d, t0, t1: bvh.occluded(o, d, t0, t1)
+
+
+def prepare(scene: Scene, patches: patching.Patches, radiosity: np.ndarray, emitted: np.ndarray,
+            reflectance: np.ndarray, direct: np.ndarray, emitters: Emitters, bvh,
+            smooth_angle: float, area_samples_per_side: int,
+            settings: FinalGatherSettings, clear: np.ndarray | None = None,
+            world: np.ndarray | None = None) -> FinalGather:
+    """The patch-level half: the indirect irradiance (W/m^2, RGB) at the corners of the patches,
+    or of their elements (`elements.py`, within `settings.element_pairs`).
+    clear (N, K): `clear_shafts` of these patches when the first shot already has it.
+
+    radiosity, emitted, reflectance, direct (N, 3): the solution B, pi L_e, rho and the first
+    shot's irradiance of `patches` (lamps and `emitters`, which the solver did not carry again:
+    `radiosity.first_shot`); world (N, 3): the world's irradiance on them (`radiosity.world_shot`,
+    None: none). What arrived at a patch less that first shot is what the solver carried between
+    patches, the same numbers it solved with, so no sampling noise of the direct light leaks into
+    the indirect part. Elements gather it afresh from the patches' B, plus the world's light of
+    their patch."""
+    flat = scene.triangles.reshape(-1, 3).astype(np.float64)
+    scale = float(np.linalg.norm(flat.max(axis=0) - flat.min(axis=0))) if len(flat) else 1.0
+    offset = RAY_OFFSET_REL * scale
+    tri_normals = geometric_normals(scene.triangles)
+    count = len(patches)
+    points, weights = sample_patches(patches.corners, settings.patch_samples, "midpoint")
+    samples = points.shape[1]
+    pts = points.reshape(-1, 3)
+    nrm = np.repeat(patches.normals, samples, axis=0)
+    arrived = np.divide(radiosity - emitted, reflectance, out=np.zeros_like(radiosity),
+                        where=reflectance > 0.0)
+    # Negative only by the solver's tolerance; the receivers' sums are clamped (`exitance`).
+    indirect = arrived - direct
+    # Idle patches (`radiosity.with_idle`: nothing reflected) hold no receiver that gathers
+    # (`exitance` skips black ones) and their indirect 0 is not what arrives there: they weigh 0
+    # in the corner fit, as enclosed patches do, and cast no probes.
+    reflects = reflectance.max(axis=1) > 0.0
+    weight = reflects.astype(np.float64)  # per patch, of its area in the corner fit
+    open_fraction = np.ones(count)
+    unroofed = np.ones(count, bool)  # without probes nothing counts as enclosed
+    if settings.enclosure_probes:
+        # Patches no back face hangs over cannot be enclosed: their receivers cast no probe.
+        unroofed[reflects] = shafts.open_above(patches.corners[reflects], patches.normals[reflects],
+                                               scale, bvh, offset)
+        inside = np.zeros((count, samples), bool)
+        probed = np.flatnonzero(~unroofed)
+        if probed.size:
+            rows = (probed[:, None] * samples + np.arange(samples)).ravel()
+            inside[probed] = enclosed(pts[rows], nrm[rows], bvh.intersect, tri_normals,
+                                      offset).reshape(-1, samples)
+        open_fraction = np.where(inside.any(axis=1), np.einsum("ns,ns->n", weights, ~inside), 1.0)
+        # The solver averaged each patch over its enclosed part too, which receives nothing.
+        indirect /= np.maximum(open_fraction, MIN_OPEN_FRACTION)[:, None]
+        # An enclosed patch weighs 0: its corners follow its open neighbours
+        # (`fitted_corner_values` floors the weights, so none is left undetermined).
+        weight = weight * open_fraction
+    # What each patch sends on: its B less the emission of the gathered emitters.
+    reflected = np.maximum(radiosity - emitted * emitters.covers(patches.parent)[:, None], 0.0)
+    levels = elements.element_levels(int(reflects.sum()),
+                                     int(np.count_nonzero(reflected.max(axis=1) > 0.0)),
+                                     settings.element_pairs)
+    if levels:
+        # A patch that straddles a solid's wall sends and receives through its open part only,
+        # while its rays (the visibility, the world's) averaged the enclosed part's darkness in.
+        open_part = np.maximum(open_fraction, MIN_OPEN_FRACTION)[:, None]
+        fine, indirect = elements.element_irradiance(
+            scene, patches, reflected / open_part, reflects, levels, _occluded(bvh), offset,
+            np.random.default_rng(settings.seed + 4))
+        if world is not None:
+            indirect += np.repeat(world, 4 ** levels, axis=0)[:, None]
+        indirect /= np.repeat(open_part, 4 ** levels, axis=0)[:, None]
+        # Point values at the corners already: where patches meet, their corners' values (each
+        # gathered with its own patch's visibility) are averaged, open patches before enclosed.
+        weights = fine.areas * np.maximum(np.repeat(weight, 4 ** levels), patching.FIT_MIN_WEIGHT)
+        corner = patching.corner_average(replace(fine, areas=weights), indirect, smooth_angle,
+                                         scale)
+    else:
+        corner = patching.fitted_corner_values(replace(patches, areas=patches.areas * weight),
+                                               indirect, smooth_angle, scale)
+    if clear is None:
+        clear = clear_shafts(patches, emitters, bvh, offset)
+    stats = {"emitter_triangles": int(len(emitters.triangles)),
+             "elements": count * 4 ** levels, "element_levels": levels,
+             "clear_shafts": int(clear.sum()),
+             "unroofed_patches": int(unroofed.sum()),
+             "emitter_rays_per_receiver": int((emitters.per_side ** 2).sum()),
+             "enclosed_patches": int((open_fraction == 0.0).sum()),
+             "straddling_patches": int(((open_fraction > 0.0) & (open_fraction < 1.0)).sum())}
+    return FinalGather(scene, bvh, emitters, clear, unroofed, patches, levels, corner, tri_normals,
+                       np.pi * triangle_emission(scene), offset, area_samples_per_side,
+                       settings, stats)
+
+
+def exitance(gather: FinalGather, tri: np.ndarray, bary: np.ndarray,
+             reflected_only: bool = False, known: Visibility | None = None,
+             visibility_out: Visibility | None = None) -> np.ndarray:
+    """(M, 3) exitance B(x) W/m^2 at receivers given as scene triangles (M,) and barycentric
+    coordinates (M, 3): E + rho (H_direct + H_indirect), or without E (`reflected_only`).
+
+    known: what neighbouring receivers' rays agree on (`Visibility.agreed`), taken without rays
+    of its own; visibility_out (M receivers) receives what this call found, for later neighbours.
+    The lamps' shadow rays are cast every time. A receiver that reflects nothing diffusely
+    (`direct_light.diffuse_at`: black, metal, glass) casts no ray and stays UNKNOWN."""
+    from ..shading.direct_light import diffuse_at
+
+    scene = gather.scene
+    tri = np.asarray(tri, np.int64)
+    bary = np.asarray(bary, np.float64)
+    out = np.zeros((len(tri), 3))
+    # A seed per call keeps repeated evaluations of the same receivers identical.
+    rng = np.random.default_rng(gather.settings.seed + 1)
+    for a in range(0, len(tri), GATHER_CHUNK):
+        t, b = tri[a:a + GATHER_CHUNK], bary[a:a + GATHER_CHUNK]
+        rho = diffuse_at(scene, t, b)
+        lit = np.flatnonzero(rho.max(axis=1) > 0.0)
+        given = None if known is None else known.take(a + lit)
+        h, found = _irradiance(gather, t[lit], b[lit], given, rng)
+        if visibility_out is not None:
+            visibility_out.put(a + lit, found)
+        value = np.zeros((len(t), 3))
+        value[lit] = rho[lit] * h
+        if not reflected_only:
+            value += gather.emission[t]
+        out[a:a + GATHER_CHUNK] = value
+    return out
+
+
+def back_exitance(gather: FinalGather, tri: np.ndarray, bary: np.ndarray, reflected=None
+                  ) -> np.ndarray:
+    """(M, 3) exitance W/m^2 of the BACK side of receivers (scene triangles (M,), barycentrics
+    (M, 3)): what a camera that sees a surface from behind shows, as Cycles shades every surface
+    on the side it is seen from:
+
+        B_back(x) = pi L_e + rho(x) (H_direct,back(x) + H_bounce,back(x))
+
+    with the lamps' and the gathered emitters' direct irradiance on the flipped normal, shadow
+    rays leaving on the back side (a sheet lit from behind, a wall seen from outside a lit room:
+    0), and what `world_rays` cosine-distributed rays from each receiver's back find
+    (`back_bounce`): the world's light, and where they meet a surface its reflected exitance
+    `reflected(tri, bary)` (M, 3) W/m^2 (the patch solution's; None: surfaces send nothing).
+    The emission counts on both sides (Cycles' emission shader glows on either face). The
+    patches are one-sided, so this is the one place where light reflected onto a back is known:
+    one bounce from the front sides' solution (an inside-out mesh, a plane lit from below)."""
+    from ..shading.direct_light import diffuse_at
+
+    scene = gather.scene
+    tri = np.asarray(tri, np.int64)
+    bary = np.asarray(bary, np.float64)
+    out = np.zeros((len(tri), 3))
+    rng = np.random.default_rng(gather.settings.seed + 2)  # a seed per call, as `exitance`
+    occluded = _occluded(gather.bvh)
+    for a in range(0, len(tri), GATHER_CHUNK):
+        t, b = tri[a:a + GATHER_CHUNK], bary[a:a + GATHER_CHUNK]
+        rho = diffuse_at(scene, t, b)
+        lit = np.flatnonzero(rho.max(axis=1) > 0.0)  # black ones cast no ray, as in `exitance`
+        inset, points = _inset_points(scene, t[lit], b[lit])
+        front = gather.triangle_normals[t[lit]]
+        normals = -shading_normals(scene, t[lit], inset, front)
+        h = emitter_irradiance(gather.emitters, points, normals, occluded, gather.offset, rng,
+                               lift=-front)
+        h += lamp_irradiance(scene, points, normals, occluded, gather.offset,
+                             gather.area_samples_per_side, lift=-front)
+        if gather.settings.world_rays:
+            h += back_bounce(gather, points, -front, reflected, rng)
+        value = gather.emission[t]
+        value[lit] += rho[lit] * h
+        out[a:a + GATHER_CHUNK] = value
+    return out
+
+
+def back_bounce(gather: FinalGather, points: np.ndarray, normals: np.ndarray, reflected,
+                rng: np.random.Generator) -> np.ndarray:
+    """(M, 3) irradiance W/m^2 at points (M, 3) m on the side of unit normals (M, 3): pi times
+    the mean radiance along `world_rays` cosine-distributed rays (`cosine_directions`), leaving
+    `offset` in front. A ray that escapes sees the world (when it lights the scene); one that
+    meets a surface's front sees B / pi there, `reflected(tri, bary)` (M, 3) W/m^2 of the hit
+    points (None: 0), plus the emission of emissive triangles the gathered emitters leave out
+    (those are counted exactly by `emitter_irradiance`), which glow on the back side too."""
+    rays = gather.settings.world_rays
+    k = cosine_ray_count(rays)
+    out = np.zeros((len(points), 3))
+    sky = world_lit(gather.scene)
+    glow = gather.emission.copy()  # pi L_e of the emissive triangles not gathered
+    glow[gather.emitters.index] = 0.0
+    per_call = max(1, RAYS_PER_CALL // k)
+    for a in range(0, len(points), per_call):
+        p, n = points[a:a + per_call], normals[a:a + per_call]
+        dirs = cosine_directions(n, rays, rng).reshape(-1, 3)
+        origins = np.repeat(p + gather.offset * n, k, axis=0)
+        hits = gather.bvh.intersect(np.ascontiguousarray(origins), np.ascontiguousarray(dirs))
+        tri = np.asarray(hits.tri, np.int64)
+        seen = np.zeros((len(dirs), 3))  # B: pi times the radiance along each ray
+        met = tri >= 0
+        if sky and (~met).any():
+            seen[~met] = np.pi * world_radiance(gather.scene, dirs[~met])
+        seen[met] = glow[tri[met]]
+        facing = np.flatnonzero(met)
+        facing = facing[np.einsum("ij,ij->i", gather.triangle_normals[tri[facing]],
+                                  dirs[facing]) < 0.0]
+        if reflected is not None and facing.size:
+            u, v = hits.u[facing].astype(np.float64), hits.v[facing].astype(np.float64)
+            seen[facing] += reflected(tri[facing], np.stack([1.0 - u - v, u, v], axis=1))
+        out[a:a + per_call] = seen.reshape(len(p), k, 3).mean(axis=1)
+    return out
+
+
+def _inset_points(scene: Scene, t: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Receivers' barycentrics moved `RECEIVER_INSET` towards their triangle's centroid (M, 3),
+    and the world points there (M, 3), m."""
+    inset = (1.0 - RECEIVER_INSET) * b + RECEIVER_INSET / 3.0
+    return inset, np.einsum("mk,mkc->mc", inset, scene.triangles[t].astype(np.float64))
+
+
+def shading_normals(scene: Scene, tri: np.ndarray, bary: np.ndarray, geometric: np.ndarray
+                    ) -> np.ndarray:
+    """(M, 3) unit shading normals at receivers (triangles (M,), barycentrics (M, 3)): the
+    corner normals interpolated, as Cycles shades a smooth mesh (its DIFFUSE bake weighs light by
+    the cosine to this normal, not the facet's), perturbed by the material's Bump or Normal Map
+    node as Cycles' bake does (`bump.scene_normals`), turned to the side of the geometric
+    normals (M, 3) where they point behind the face (a corner normal can, at a sharp fold). Flat
+    faces' corner normals are their face normal, so nothing changes there."""
+    normals = scene_normals(scene, tri, bary, interpolated_normals(scene, tri, bary, geometric))
+    back = np.einsum("mc,mc->m", normals, geometric) < 0.0
+    normals[back] *= -1.0
+    return normals
+
+
+def _irradiance(gather: FinalGather, t: np.ndarray, b: np.ndarray, known: Visibility | None,
+                rng: np.random.Generator) -> tuple[np.ndarray, Visibility]:
+    """(M, 3) irradiance H_direct + H_indirect W/m^2 at receivers (triangles t, barycentrics b)
+    and what its rays found (`exitance`)."""
+    scene = gather.scene
+    found = Visibility.unknown(len(t), len(gather.emitters.triangles))
+    inset, points = _inset_points(scene, t, b)
+    geometric = gather.triangle_normals[t]
+    normals = shading_normals(scene, t, inset, geometric)
+    # Located at the inset point: the one the rays leave from must lie in the patch whose shaft
+    # clears it.
+    patch, local = patching.locate(gather.patches, t, inset)
+    element, local = patching.descend(local, gather.element_levels)
+    element = np.where(patch >= 0, patch * 4 ** gather.element_levels + element, -1)
+    occluded = _occluded(gather.bvh)
+    # Enclosure first: a receiver inside a solid gets no light, so it casts no shadow ray (the
+    # floor under a block: a third of the edge texels' sub-texel points on the Cornell box).
+    found.inside[:] = 0  # receivers no back face hangs over are open
+    if gather.settings.enclosure_probes:
+        probed = np.flatnonzero(~gather.open_above[patch])
+        if known is not None:
+            found.inside[probed] = known.inside[probed]
+            probed = probed[found.inside[probed] < 0]
+        found.inside[probed] = enclosed(points[probed], geometric[probed], gather.bvh.intersect,
+                                        gather.triangle_normals, gather.offset)
+    inside = found.inside == 1
+    found.emitters[inside] = HIDDEN  # nothing of any emitter reaches inside
+    outside = np.flatnonzero(~inside)
+    h = np.zeros((len(t), 3))
+    states = np.full((outside.size, found.emitters.shape[1]), UNKNOWN, np.int8)
+    h[outside] = emitter_irradiance(gather.emitters, points[outside], normals[outside],
+                                    occluded, gather.offset, rng,
+                                    clear=gather.clear[patch[outside]],
+                                    known=None if known is None else known.emitters[outside],
+                                    states_out=states, lift=geometric[outside])
+    found.emitters[outside] = states
+    h[outside] += lamp_irradiance(scene, points[outside], normals[outside], occluded,
+                                  gather.offset, gather.area_samples_per_side,
+                                  lift=geometric[outside])
+    h[outside] += patching.interpolate(gather.corner_indirect, element[outside], local[outside])
+    np.maximum(h, 0.0, out=h)
+    return h, found

@@ -1,0 +1,1 @@
+"""shading: see docs/architecture.md."""

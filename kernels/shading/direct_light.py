@@ -1,0 +1,374 @@
+"""Direct light with shadow maps: the shadow mask of bake targets, and a camera render of it.
+
+For receivers f (lightmap texels, mesh corners or camera pixels) and every light l:
+    E_l(f)  unshadowed irradiance (`lights.direct_irradiance`, W/m^2)
+    V_l(f)  the lecture's shadow-map test (`shadowmap.py`), in [0, 1] with PCF
+    shadow mask  S(f) = sum_l Y(E_l) V_l / sum_l Y(E_l)   (Y: luminance; 0 where no light reaches)
+    radiance     L(f) = emission + albedo / pi * sum_l E_l V_l
+The mask is the fraction of the direct light that arrives, which for one light is V itself.
+Area lights are treated as points at their centre (hard shadows); emissive meshes are not lights.
+
+Map resolution is chosen from the receivers ("model no more than a scene needs"): a map texel no
+as large as the receivers' own spacing where they are, clamped to [MIN_MAP, MAX_MAP].
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..bake.bake_targets import BakeTargets
+from ..bake.camera_view import EDGE_SAMPLES, background_and_fragments, supersample_edges
+from ..geometry.scene import Scene, interpolated_normals
+from ..geometry.vec import bounds, row_norms
+from ..measure.metrics import REC709_LUMINANCE
+from ..shadow.shadowmap import (
+    Receivers,
+    ShadowMapSettings,
+    fit_sun,
+    plan_shadow_map,
+    potential_casters,
+    receivers_visibility,
+    render_shadow_map_steps,
+)
+from . import lights as light_units
+from .bump import scene_normals
+from .specular_layer import diffuse_factor, lamp_highlights, view_factors, view_tables
+from .textures import sample_texture
+
+MIN_MAP = 256  # below this a map cannot place even a coarse shadow edge
+MAX_MAP = 8192  # 256 MiB of float32 depth per face: the memory bound of one map
+LUMINANCE = np.array(REC709_LUMINANCE)
+# Map texels per receiver spacing at the receivers. One: a shadow edge then lands within about one
+# receiver of where it truly is (half a texel diagonal), which the receivers could not show finer.
+# bench/shadowmap.py (255k texels): two per spacing, rounded up to a power of two (maps of 2048,
+# 1024, 1024 texels for its sun, spot, point), disagreed with Cycles on 0.017 / 0.046 / 0.013% of
+# the texels; one per spacing (528, 448, 688) on 0.017 / 0.099 / 0.026%, far under 0.5%, with
+# 2.2x to 15x fewer map texels to draw.
+TEXELS_PER_SPACING = 1.0
+MAP_STEP = 16  # map sides are rounded up to a multiple of this: no power-of-two waste
+DISTANCE_SAMPLES = 4096  # receivers sampled (evenly strided) for their distances to a light
+DISTANCE_QUANTILE = 0.9  # perspective maps: texel <= spacing at this fraction of the receivers
+
+
+@dataclass(frozen=True)
+class DirectLightSettings:
+    """| field      | default          | meaning                                               |
+    |------------|------------------|-------------------------------------------------------|
+    | shadow     | ShadowMapSettings| eps mode, bias, PCF; its `resolution` is used when     |
+    |            |                  | `auto_resolution` is False                             |
+    | auto_resolution | True        | pick each map's resolution from the receivers          |
+    """
+
+    shadow: ShadowMapSettings = ShadowMapSettings()
+    auto_resolution: bool = True
+
+
+def map_resolution(light, points: np.ndarray, spacing: float, sun_span: float | None = None) -> int:
+    """Map texels (per side, per face) so that a texel is <= spacing / TEXELS_PER_SPACING at the
+    receivers.
+
+    A sun's map is `sun_span` m across (`shadowmap.fit_sun(...).span`: what the casters and the
+    receivers make it cover); without it, the receivers' whole extent across the beam (an upper
+    bound).
+    """
+    spacing = max(spacing, 1e-9)
+    target = spacing / TEXELS_PER_SPACING
+    pts = np.asarray(points, np.float64)
+    if light.kind == "SUN":
+        if sun_span is not None:
+            extent = sun_span
+        elif len(pts):
+            d = np.asarray(light.direction, np.float64)
+            lateral = pts - np.outer(pts @ d, d)
+            extent = float(np.subtract(*bounds(lateral)[::-1]).max())
+        else:
+            extent = 1.0
+        res = extent / target
+    else:
+        # A perspective texel grows with distance: size it for the farther receivers too, so that
+        # it is no larger than their spacing at DISTANCE_QUANTILE of them.
+        d = _distance_quantile(pts, light.position) if len(pts) else 1.0
+        angle = light.spot_size if light.kind == "SPOT" and light.spot_size < np.radians(120) else (
+            np.pi / 2)
+        res = 2.0 * d * np.tan(0.5 * angle) / target
+    return int(np.clip(MAP_STEP * np.ceil(res / MAP_STEP), MIN_MAP, MAX_MAP))
+
+
+def _distance_quantile(points: np.ndarray, position) -> float:
+    """The DISTANCE_QUANTILE-th distance (m) of an even stride of DISTANCE_SAMPLES receivers from
+    `position`: an order statistic by partition (np.quantile sorts and interpolates, ~5x the time)."""
+    sample = points[:: max(1, len(points) // DISTANCE_SAMPLES)]
+    d = row_norms(sample - np.asarray(position, np.float64))
+    k = min(len(d) - 1, int(np.ceil(DISTANCE_QUANTILE * (len(d) - 1))))
+    return float(np.partition(d, k)[k])
+
+
+def receiver_spacing(targets: BakeTargets, area_m2: float) -> float:
+    """Typical distance between neighbouring receivers: sqrt(area / count)."""
+    return float(np.sqrt(max(area_m2, 1e-12) / max(len(targets), 1)))
+
+
+def median_spacing(spacings, counts) -> float:
+    """The median receiver spacing (m) when counts[k] receivers share spacings[k]: np.median of
+    the repeated values, without building them (a bake's objects, 255k texels: 3 ms -> 20 us)."""
+    spacings = np.asarray(spacings, np.float64)
+    counts = np.asarray(counts, np.int64)
+    total = int(counts.sum())
+    if total == 0:
+        return 1.0
+    order = np.argsort(spacings)
+    ends = np.cumsum(counts[order])  # receivers up to and including each sorted spacing
+    low, high = (total - 1) // 2, total // 2  # the middle receiver(s), 0-based
+    pick = spacings[order]
+    return 0.5 * float(pick[np.searchsorted(ends, low, "right")] + pick[np.searchsorted(ends, high, "right")])
+
+
+def light_visibility_steps(scene: Scene, points, geo_normals, spacing: float,
+                           settings: DirectLightSettings, out: np.ndarray) -> Iterator[float]:
+    """Fill out (L, N) float32 with each light's shadow-map visibility; yields progress."""
+    maps = None
+    for step in shadow_maps_steps(scene, points, geo_normals, spacing, settings):
+        if isinstance(step, list):
+            maps = step
+        else:
+            yield step
+    maps_visibility(maps, points, geo_normals, out)
+
+
+def shadow_maps_steps(scene: Scene, points, geo_normals, spacing: float,
+                      settings: DirectLightSettings) -> Iterator[float | list]:
+    """Each light's shadow map, planned for and rendered over the receivers (points (N, 3),
+    geometric normals (N, 3), `spacing` m apart): yields progress, then the list (None for a
+    light that casts no shadow)."""
+    lights = scene.lights
+    # Prepared once for every light. Culling and planning read the receivers only through their
+    # bounding box (the sun's fit reads them all): its two corners stand in for them there.
+    receivers = Receivers.of(points, geo_normals)
+    box = receivers.box if len(receivers) else np.zeros((0, 3))
+    maps = []
+    for k, light in enumerate(lights):
+        if not light.cast_shadow or scene.triangle_count == 0:
+            maps.append(None)
+            continue
+        shadow = settings.shadow
+        casters = scene.triangles[potential_casters(scene.triangles, light, box)]
+        fit = fit_sun(casters, light, receivers) if light.kind == "SUN" else None
+        if settings.auto_resolution:
+            shadow = replace(shadow, resolution=map_resolution(
+                light, points, spacing, fit.span if fit is not None else None))
+        shadow_map = plan_shadow_map(casters, light, shadow, box, fit)  # casters: culled above
+        for _ in render_shadow_map_steps(shadow_map, casters):
+            pass
+        maps.append(shadow_map)
+        yield (k + 1) / max(len(lights), 1)
+    yield maps
+
+
+def maps_visibility(maps: list, points, geo_normals, out: np.ndarray) -> np.ndarray:
+    """Fill out (L, N) float32 with each light's visibility at receivers (points, geometric
+    normals (N, 3)) read from its shadow map (`shadow_maps_steps`; None: 1)."""
+    receivers = Receivers.of(points, geo_normals)
+    for k, shadow_map in enumerate(maps):
+        if shadow_map is None:
+            out[k] = 1.0
+        else:
+            receivers_visibility(shadow_map, receivers, out=out[k])
+    return out
+
+
+def irradiance_per_light(scene: Scene, points, normals) -> np.ndarray:
+    """(L, N, 3) unshadowed irradiance of each light at the receivers, W/m^2."""
+    out = np.zeros((len(scene.lights), len(points), 3))
+    for k, light in enumerate(scene.lights):
+        out[k] = light_units.direct_irradiance(light, points, normals)
+    return out
+
+
+def shadow_mask(irradiance: np.ndarray, visibility: np.ndarray) -> np.ndarray:
+    """(N,) float32: fraction of the direct light (by luminance) that arrives; 0 where none could."""
+    y = np.einsum("lnc,c->ln", irradiance, LUMINANCE)
+    total = y.sum(0)
+    arrived = (y * visibility).sum(0)
+    return np.where(total > 0, arrived / np.where(total > 0, total, 1.0), 0.0).astype(np.float32)
+
+
+def albedo_at(scene: Scene, tri: np.ndarray, bary: np.ndarray) -> np.ndarray:
+    """Base colour (N, 3) at barycentric points of triangles, textures sampled through their
+    coordinates (`Scene.texture_coords`: UVs or Generated)."""
+    mids = scene.material_ids[tri]
+    out = np.empty((len(tri), 3))
+    for m in np.unique(mids):
+        rows = mids == m
+        mat = scene.materials[m]
+        if mat.base_color_texture is None:
+            out[rows] = mat.base_color
+        else:
+            uv = np.einsum("nc,ncj->nj", bary[rows], scene.texture_coords[tri[rows]])
+            out[rows] = sample_texture(mat.base_color_texture, uv)
+    return out
+
+
+def metal_f0(scene: Scene, tri: np.ndarray, base: np.ndarray) -> np.ndarray:
+    """(N, 3) a metal's reflectance at normal incidence at points of triangles `tri`: their base
+    colour `base` (`albedo_at`), or their material's `metal_color` where it has one."""
+    tints = [(k, m.metal_color) for k, m in enumerate(scene.materials) if m.metal_color is not None]
+    if not tints:
+        return base
+    out = np.array(base, np.float64, copy=True)
+    mids = scene.material_ids[tri]
+    for k, tint in tints:
+        out[mids == k] = tint
+    return out
+
+
+def diffuse_weight(material, under_layer: bool = True) -> float:
+    """The Principled BSDF's diffuse weight, (1 - metallic)(1 - transmission): how much of the
+    base colour a surface reflects diffusely. A metal or a glass reflects nothing diffusely: its
+    light leaves along specular paths, which a diffuse solver does not follow (Cycles' DIFFUSE
+    bake of it is black too). `under_layer`: times the share the specular layer leaves the base
+    seen along the normal, as a bake sees every texel (`specular_layer.diffuse_factor`; 1 at
+    Specular IOR Level 0)."""
+    weight = (1.0 - material.metallic) * (1.0 - material.transmission)
+    return weight * diffuse_factor(material) if under_layer and weight > 0.0 else weight
+
+
+def diffuse_at(scene: Scene, tri: np.ndarray, bary: np.ndarray, under_layer: bool = True
+               ) -> np.ndarray:
+    """(N, 3) diffuse reflectance at barycentric points of triangles: the base colour
+    (`albedo_at`) times its material's `diffuse_weight`."""
+    weight = np.array([diffuse_weight(m, under_layer) for m in scene.materials], np.float64)
+    return albedo_at(scene, tri, bary) * weight[scene.material_ids[tri]][:, None]
+
+
+# --- the camera view ------------------------------------------------------------------------------
+
+
+def render_steps(scene: Scene, settings: DirectLightSettings, resolution=None,
+                 out: np.ndarray | None = None, edge_samples: int = EDGE_SAMPLES
+                 ) -> Iterator[float | np.ndarray]:
+    """The camera's view of direct light with shadow-mapped shadows: the lecture's step 2, with
+    the eye's own z-buffer giving the fragments f. Edge pixels (silhouettes, folds, shadow edges:
+    `camera_view.edge_pixels`) are then the mean of edge_samples x edge_samples rays through them,
+    as Cycles' 1-px box filter averages a pixel (0 or 1: the centres only). Yields progress, then
+    the (H, W, 3) image."""
+    image, f = background_and_fragments(scene, resolution, out)
+    camera = scene.camera
+    width = image.shape[1]
+    yield 0.2
+    if len(f) == 0:
+        yield image
+        return
+    # Pixel footprint at the receivers: the image plane's texel at distance t (PERSP) or in m.
+    texel = (camera.plane_max[0] - camera.plane_min[0]) / width
+    spacing = texel * (float(np.median(f.depth)) if camera.kind == "PERSP" else 1.0)
+    maps = None
+    geo = f.geometric.copy()
+    geo[f.back] *= -1  # seen from behind: shade the side we see
+    for step in shadow_maps_steps(scene, f.points, geo, spacing, settings):
+        if isinstance(step, list):
+            maps = step
+        else:
+            yield 0.2 + 0.6 * step
+    image[f.rows, f.cols] = _shade(scene, maps, f)
+    yield 0.8
+    if edge_samples > 1:
+        from ..geometry.bvh import BVH
+
+        # The maps planned for the pixel centres serve their sub-pixel rays too.
+        supersample_edges(scene, image, f, lambda g: _shade(scene, maps, g),
+                          BVH.build(scene.triangles), edge_samples)
+    yield image
+
+
+def _shade(scene: Scene, maps: list, f) -> np.ndarray:
+    """(M, 3) radiance of fragments f (`Fragments`): emission plus each light's diffuse light
+    times its shadow-map visibility (`maps`, `shadow_maps_steps`) and the rough lobes'
+    highlights."""
+    tri, bary, points, d = f.tri, f.bary, f.points, f.dirs
+    normals = scene_normals(scene, tri, bary, interpolated_normals(scene, tri, bary))
+    geo = f.geometric.copy()
+    geo[f.back] *= -1  # seen from behind: shade the side we see
+    normals[np.einsum("ij,ij->i", normals, d) > 0] *= -1
+    vis = maps_visibility(maps, points, geo, np.ones((len(scene.lights), len(points)), np.float32))
+    e = irradiance_per_light(scene, points, normals)
+    # What reflects diffusely toward the eye: no metal or glass, and the base under the specular
+    # layer darkened at this view (`specular_layer.py`), as Cycles' diffuse lobe.
+    mids = scene.material_ids[tri]
+    weight = np.array([diffuse_weight(m, under_layer=False) for m in scene.materials])[mids]
+    weight = weight * view_factors(view_tables(scene.materials), mids,
+                                   np.einsum("ij,ij->i", normals, d))
+    base = albedo_at(scene, tri, bary)
+    albedo = base * weight[:, None]
+    f0 = metal_f0(scene, tri, base)
+    emission = np.array([m.emission for m in scene.materials], np.float64)[scene.material_ids[tri]]
+    # The rough lobes' highlights (a layer's, a metal's), as Cycles' direct-light render draws
+    # them (lights as points).
+    shine = np.zeros_like(points)
+    for k, light in enumerate(scene.lights):
+        to_light, _ = light_units.light_vectors(light, points)
+        shine += lamp_highlights(scene.materials, mids, normals, -d, to_light, e[k],
+                                 f0) * vis[k, :, None]
+    return emission + albedo / np.pi * np.einsum("lnc,ln->nc", e, vis) + shine
+
+
+# --- baking the shadow mask -----------------------------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class ObjectShadowBake:
+    """One object's baked shadow mask."""
+
+    lightmap: np.ndarray | None  # (S, S, 1) float32, row 0 top, dilated over the padding
+    lightmap_mask: np.ndarray | None  # (S, S) bool: texels baked (before dilation)
+    corners: np.ndarray  # (T * 3,) float32, per triangle corner, scene corner order
+    per_light_lightmaps: np.ndarray | None  # (L, S, S) float32 visibility per light
+
+
+def shadow_bake_steps(scene: Scene, objects, lightmap_sizes: dict, padding: int,
+                      settings: DirectLightSettings) -> Iterator[float | dict]:
+    """Shadow masks of `objects` (indices into scene.objects) on their lightmap texels (when the
+    scene carries lightmap UVs; `lightmap_sizes` {object index: texels per side}) and corners.
+    Yields progress, then {object index: ObjectShadowBake}.
+    """
+    from ..bake.bake_targets import corner_targets, dilate, lightmap_targets
+    from ..geometry.scene import triangle_areas
+
+    # Every receiver of every object at once: one shadow map per light serves them all, at the
+    # resolution the median receiver spacing asks for (a small object with a dense lightmap does
+    # not set the map size for the whole scene).
+    areas = triangle_areas(scene.triangles)
+    sets = []  # (object, kind, targets)
+    for k in objects:
+        if scene.lightmap_uv is not None and scene.objects[k].has_lightmap_uv:
+            sets.append((k, "lightmap", lightmap_targets(scene, k, lightmap_sizes[k])))
+        sets.append((k, "corners", corner_targets(scene, k)))
+        yield 0.1 * (len(sets) / (2 * max(len(objects), 1)))
+    points = np.concatenate([t.points for _, _, t in sets]) if sets else np.zeros((0, 3))
+    geo = np.concatenate([t.geo_normals for _, _, t in sets]) if sets else np.zeros((0, 3))
+    normals = np.concatenate([t.normals for _, _, t in sets]) if sets else np.zeros((0, 3))
+    spacing = median_spacing([receiver_spacing(t, float(areas[scene.object_slice(k)].sum()))
+                              for k, _, t in sets], [len(t) for _, _, t in sets])
+    vis = np.ones((len(scene.lights), len(points)), np.float32)
+    for p in light_visibility_steps(scene, points, geo, spacing, settings, vis):
+        yield 0.1 + 0.85 * p
+    mask = shadow_mask(irradiance_per_light(scene, points, normals), vis)
+    results, start = {}, 0
+    parts: dict = {}
+    for k, kind, t in sets:
+        stop = start + len(t)
+        parts.setdefault(k, {})[kind] = (t, mask[start:stop], vis[:, start:stop])
+        start = stop
+    for k in objects:
+        out = parts[k]
+        lightmap = mask_image = per_light = None
+        if "lightmap" in out:
+            targets, m, v = out["lightmap"]
+            mask_image = targets.mask
+            lightmap = dilate(targets.to_image(m), targets.mask, padding)
+            per_light = np.stack([targets.to_image(row)[..., 0] for row in v]) if len(v) else None
+        results[k] = ObjectShadowBake(lightmap=lightmap, lightmap_mask=mask_image,
+                                      corners=out["corners"][1], per_light_lightmaps=per_light)
+    yield results

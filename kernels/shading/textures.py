@@ -1,0 +1,150 @@
+"""Texture mapping: image and procedural (checkerboard) textures looked up through UVs.
+
+The lecture's two sources of texture images: "computer programs (e.g. checkerboard)" and "digital
+cameras (image files)". Both are sampled the way Cycles samples them, so a kernel render and a
+Cycles render of the same material agree texel for texel:
+
+* image lookup: texel centres sit at ((i + 0.5) / W, (j + 0.5) / H) in UV; bilinear weights between
+  the four nearest centres (Cycles' `kernel_tex_image_interp` with `INTERPOLATION_LINEAR`);
+* wrap modes: REPEAT (periodic), EXTEND (clamp to the edge texel), CLIP (outside [0, 1] is
+  transparent black, and bilinear lookups near the border blend towards it), MIRROR;
+* 8-bit sRGB images: interpolated in their sRGB encoding and decoded after the look-up (Cycles'
+  byte textures with `compress_as_srgb`; measured against its colour bake, bench/texture.py);
+* checker: Cycles' `svm_checker` on (u, v, 0) or on Generated coordinates (x, y, z): colour1
+  where floor(x s) + floor(y s) + floor(z s) is odd. Coordinates are (N, 2) (z = 0) or (N, 3).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..geometry.scene import Texture
+
+# Cycles nudges checker coordinates by (p + 1e-6) * 0.999999 so that integer lattice points fall
+# on a definite side; the same nudge keeps our squares aligned with its squares.
+CHECKER_NUDGE_ADD = 1e-6
+CHECKER_NUDGE_MUL = 0.999999
+
+
+def _wrap_index(i: np.ndarray, n: int, mode: str) -> tuple[np.ndarray, np.ndarray]:
+    """Integer texel indices wrapped by `mode`: (index in [0, n), valid mask for CLIP)."""
+    if mode == "REPEAT":
+        return np.mod(i, n), np.ones(i.shape, bool)
+    if mode == "MIRROR":
+        period = np.mod(i, 2 * n)
+        return np.where(period < n, period, 2 * n - 1 - period), np.ones(i.shape, bool)
+    valid = (i >= 0) & (i < n)
+    return np.clip(i, 0, n - 1), (valid if mode == "CLIP" else np.ones(i.shape, bool))
+
+
+def sample_image(
+    pixels: np.ndarray,
+    uv: np.ndarray,
+    extension: str = "REPEAT",
+    interpolation: str = "LINEAR",
+    out: np.ndarray | None = None,
+) -> np.ndarray:
+    """Look up (N, 2) UVs in an (H, W, C) image (row 0 top). Returns (N, C) float32.
+
+    | parameter     | values                        | default | meaning                         |
+    |---------------|-------------------------------|---------|---------------------------------|
+    | extension     | REPEAT, EXTEND, CLIP, MIRROR  | REPEAT  | what lies outside [0, 1]^2      |
+    | interpolation | LINEAR, CLOSEST               | LINEAR  | bilinear or nearest texel       |
+    """
+    height, width, channels = pixels.shape
+    uv = np.asarray(uv, np.float64)
+    # Continuous texel coordinates: x grows with u, y with v; image row = H - 1 - y.
+    x = uv[:, 0] * width - 0.5
+    y = uv[:, 1] * height - 0.5
+    if out is None:
+        out = np.empty((uv.shape[0], channels), np.float32)
+    if interpolation == "CLOSEST":
+        ix, vx = _wrap_index(np.floor(x + 0.5).astype(np.int64), width, extension)
+        iy, vy = _wrap_index(np.floor(y + 0.5).astype(np.int64), height, extension)
+        np.multiply(pixels[height - 1 - iy, ix], (vx & vy)[:, None], out=out)
+        return out
+    x0 = np.floor(x)
+    y0 = np.floor(y)
+    fx = (x - x0)[:, None]
+    fy = (y - y0)[:, None]
+    x0 = x0.astype(np.int64)
+    y0 = y0.astype(np.int64)
+    ix0, vx0 = _wrap_index(x0, width, extension)
+    ix1, vx1 = _wrap_index(x0 + 1, width, extension)
+    iy0, vy0 = _wrap_index(y0, height, extension)
+    iy1, vy1 = _wrap_index(y0 + 1, height, extension)
+    r0, r1 = height - 1 - iy0, height - 1 - iy1
+    acc = (pixels[r0, ix0] * ((1 - fx) * (1 - fy) * (vx0 & vy0)[:, None])
+           + pixels[r0, ix1] * (fx * (1 - fy) * (vx1 & vy0)[:, None])
+           + pixels[r1, ix0] * ((1 - fx) * fy * (vx0 & vy1)[:, None])
+           + pixels[r1, ix1] * (fx * fy * (vx1 & vy1)[:, None]))
+    out[...] = acc
+    return out
+
+
+def checker(uv: np.ndarray, color1: np.ndarray, color2: np.ndarray, scale: float) -> np.ndarray:
+    """Cycles' Checker Texture at coordinates uv (N, 2) (z = 0) or (N, 3) -> (N, 3) float32.
+    Cycles' z = 0 nudges to floor 0, so (u, v) and (u, v, 0) agree."""
+    p = (np.asarray(uv, np.float64) * scale + CHECKER_NUDGE_ADD) * CHECKER_NUDGE_MUL
+    parity = np.floor(p).astype(np.int64).sum(axis=1) % 2
+    # An odd sum (with z = 0: x and y of different parity) -> colour 1, even -> colour 2.
+    return np.where(parity[:, None] == 1, np.asarray(color1, np.float32)[None],
+                    np.asarray(color2, np.float32)[None]).astype(np.float32)
+
+
+# Below this width (in checker squares) a box is a point: its mean is the value at its centre.
+MIN_BOX_WIDTH = 1e-9
+
+
+def _square_wave_mean(x0: np.ndarray, x1: np.ndarray) -> np.ndarray:
+    """Mean of s(x) = (-1)^floor(x) over [x0, x1] (N,), via its integral, the triangle wave
+    S(x) = 1 - |(x mod 2) - 1| (S rises on [0, 1), falls on [1, 2))."""
+    def integral(x):
+        return 1.0 - np.abs(np.mod(x, 2.0) - 1.0)
+
+    width = x1 - x0
+    wide = width > MIN_BOX_WIDTH
+    point = np.where(np.mod(np.floor(0.5 * (x0 + x1)), 2.0) == 0.0, 1.0, -1.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = (integral(x1) - integral(x0)) / np.where(wide, width, 1.0)
+    return np.where(wide, mean, point)
+
+
+def checker_box(lo: np.ndarray, hi: np.ndarray, color1: np.ndarray, color2: np.ndarray,
+                scale: float) -> np.ndarray:
+    """Cycles' Checker Texture averaged over boxes [lo, hi] (N, 2) or (N, 3) -> (N, 3) float64.
+
+    Exact: with s(x) = (-1)^floor(x), the parity sign is the product of s over the coordinates,
+    and its mean over a box is the product of the square waves' means (separable); colour 1
+    covers (1 - mean) / 2.
+    """
+    p0 = (np.asarray(lo, np.float64) * scale + CHECKER_NUDGE_ADD) * CHECKER_NUDGE_MUL
+    p1 = (np.asarray(hi, np.float64) * scale + CHECKER_NUDGE_ADD) * CHECKER_NUDGE_MUL
+    sign = np.prod([_square_wave_mean(p0[:, c], p1[:, c]) for c in range(p0.shape[1])], axis=0)
+    share1 = (0.5 * (1.0 - sign))[:, None]
+    return share1 * np.asarray(color1, np.float64) + (1.0 - share1) * np.asarray(color2, np.float64)
+
+
+def sample_texture_box(texture: Texture, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """RGB (N, 3) of a texture averaged over boxes [lo, hi] (N, 2 or 3): exact for the checker;
+    images are sampled (bilinear) at the box centre, which suits boxes up to about a texel."""
+    if texture.kind == "CHECKER":
+        return checker_box(lo, hi, texture.color1, texture.color2, texture.scale)
+    return sample_texture(texture, 0.5 * (np.asarray(lo) + np.asarray(hi))).astype(np.float64)
+
+
+def srgb_to_linear(c: np.ndarray) -> np.ndarray:
+    """The sRGB EOTF (IEC 61966-2-1): encoded values in [0, 1] to linear."""
+    c = np.asarray(c, np.float32)
+    return np.where(c <= 0.04045, c / 12.92, np.power((np.maximum(c, 0.0) + 0.055) / 1.055, 2.4))
+
+
+def sample_texture(texture: Texture, uv: np.ndarray) -> np.ndarray:
+    """RGB (N, 3) float32 linear of a kernel `Texture` at coordinates (N, 2) or (N, 3) (an image
+    reads the first two): an sRGB-encoded image is interpolated as stored and decoded
+    afterwards, as Cycles does."""
+    if texture.kind == "CHECKER":
+        return checker(uv, texture.color1, texture.color2, texture.scale)
+    uv = np.asarray(uv)[:, :2]
+    rgb = sample_image(texture.pixels, uv, texture.extension, texture.interpolation)[:, :3]
+    return srgb_to_linear(rgb).astype(np.float32) if texture.encoding == "sRGB" else rgb

@@ -1,0 +1,958 @@
+"""Whitted ray tracing: backward from the eye through pixel centres, to a fixed depth.
+
+The lecture: "cast rays from the centre of projection through each pixel centre into the scene";
+diffuse surfaces are not traced further (their reflected rays go everywhere), highly specular ones
+spawn "a single reflected ray", and the ray tree has a "pre-fixed number of bounces".
+
+At every hit this kernel adds
+* emission of emissive surfaces (what the eye sees of a light);
+* direct light from every light by shadow rays: Lambert diffuse rho/pi * E (the base under a
+  Principled specular layer darkened by the layer's albedo at the view, `specular_layer.py`),
+  plus GGX highlights of rough glossy lobes (a specular layer's, a metal's) from lamps and area
+  lights; area lights and emissive triangles on a fixed stratified pattern (soft shadows; an
+  emissive mesh of many triangles is one light of a fixed number of points), or as points where
+  they are small against their distance;
+and spawns
+* a mirror ray for metals (Schlick weight) and for dielectric specular layers (the layer's
+  albedo at the view: exact Fresnel when smooth); on a rough surface the one ray stands for its
+  lobe (the energy right, the blur not drawn);
+* for glass, a reflected and a refracted ray weighted by the exact Fresnel reflectance, with
+  total internal reflection.
+Escaping rays see the world colour. A branch whose weight (throughput) falls below `min_weight`
+stops early ("model no more than a scene needs"); the statistics count how many rays that saved.
+
+The whole tree is traced as a wavefront: all rays of one depth at once through the BVH.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass, field, replace
+from typing import Literal
+
+import numpy as np
+
+from ..bake.camera_view import edge_pixels, stratified_offsets
+from ..geometry.bvh import BVH
+from ..geometry.camera import Camera, camera_ray_lines, camera_rays, pixel_rays
+from ..geometry.scene import Light, Scene, geometric_normals
+from ..shading import lights as light_units
+from ..shading.bump import SHADING_MODES, ShadingMode, bump_shadowing, scene_normals, valid_reflection
+from ..shading.optics import fresnel_dielectric, reflect, refract
+from ..shading.specular_layer import (
+    MIRROR_ROUGHNESS,
+    ggx_highlight,
+    metal_tables,
+    view_factors,
+    view_tables,
+)
+from ..shading.textures import sample_texture, sample_texture_box
+from ..shading.world_light import extract_suns, world_radiance
+
+# A new ray starts this fraction of the scene's size off its surface, along the geometric normal:
+# float32 triangles locate a hit to ~1e-7 of the coordinates' magnitude, so 1e-5 clears the surface
+# with two orders of magnitude to spare while staying invisible (0.1 mm in a 10 m scene).
+DEFAULT_OFFSET_SCALE = 1e-5
+# Shading normals are renormalised; below this length (degenerate corner normals) the geometric
+# normal is used instead.
+MIN_NORMAL_LENGTH = 1e-8
+# An emissive object of more triangles than this is one light of this many triangles' samples
+# (`_mesh_light_samples`): each triangle its own n x n grid would make an emissive ball of 80
+# triangles cast 1280 shadow rays a hit (a test studio's 80 x 60 view: 7.3M shadow rays, 25 s).
+MESH_LIGHT_TRIANGLES = 4
+# Emitter samples handled together in area lighting: B x hits arrays stay a few MB per block for
+# a typical wavefront of ~100k hits.
+EMITTER_BLOCK = 8
+# Default branch weight below which the ray tree stops: a cut branch changes its pixel by < 1%.
+MIN_WEIGHT = 1e-2
+# Edge sub-samples traced per wavefront: large enough to amortise per-call work, small enough that
+# a wavefront's hit records (~1 KB per ray over its depths) stay a few hundred MB at most.
+EDGE_WAVEFRONT = 1 << 18
+# Texture boxes per side over each camera sample's cell of the image (the pixel / n): the box
+# filter the pixel applies to the image, applied to the base colour seen directly at the cost of
+# texture look-ups instead of rays. On the ray-tracing sample 3 x 3 boxes cost 0.1 s less than
+# 4 x 4 for the same error (2.79e-3 at the pixel centres); 2 x 2 raised the error by 12% with edges.
+TEXTURE_FILTER = 3
+# A cell's sample ray this close to edge-on with the hit triangle's plane (|cos|) keeps the centre's
+# UV: extrapolating along the plane would run off towards infinity.
+GRAZING_COS = 1e-4
+# An environment map read for reflected rays: (N, 3) world points, (N, 3) unit directions ->
+# (N, 3) radiance W/(m^2 sr) arriving at the points along the directions.
+EnvironmentLookup = Callable[[np.ndarray, np.ndarray], np.ndarray]
+# Rays that are sub-samples of pixels: (stratum of each ray (N,) int, number of strata m).
+Strata = tuple[np.ndarray, int]
+
+
+@dataclass(frozen=True)
+class TracerSettings:
+    """| field            | range    | default | meaning                                              |
+    |------------------|----------|---------|------------------------------------------------------|
+    | max_depth        | 0..64    | 8       | ray-tree depth: 0 traces camera rays and shadows only |
+    | supersample      | 1..16    | 1       | n: n x n stratified samples in every pixel           |
+    | adaptive         | 0..16    | 4       | n x n samples again in pixels at edges (0: off)      |
+    | min_weight       | 0..1     | 1e-2    | a branch whose throughput falls below stops          |
+    | offset_scale     | >= 0     | 1e-5    | ray offset, fraction of the scene's size (0: acne)   |
+    | area_samples     | 1..16    | 4       | per side of an area light / emissive triangle grid   |
+    | point_like_ratio | >= 0     | 0.05    | emitters smaller than this x distance act as points   |
+    | mirror_roughness | 0..1     | 0.1     | rougher metals and glass spawn no reflected or       |
+    |                  |          |         | refracted ray; rougher layers get lamp highlights    |
+    | shading          | flat, gouraud, | bump | normals: the triangles' own (flat); light at the  |
+    |                  | phong, bump |      | corners, interpolated (gouraud); the corners'        |
+    |                  |          |         | normals interpolated (phong); those perturbed by     |
+    |                  |          |         | normal and height maps (bump, `bump.py`)             |
+    | texture_filter   | 1..16    | 3       | g: the base colour seen directly is averaged over    |
+    |                  |          |         | each sample's pixel cell in g/n x g/n boxes (>= 1);   |
+    |                  |          |         | 1: point sampling, no filter                          |
+    | output           | radiance,| radiance| what a camera ray returns: the light it carries, or  |
+    |                  | albedo   |         | the diffuse albedo it sees first, textures filtered  |
+    |                  |          |         | over the pixel (0 where it misses: Cycles' Diffuse   |
+    |                  |          |         | Color pass; texture mapping's view)                   |
+    """
+
+    max_depth: int = 8
+    supersample: int = 1
+    adaptive: int = 4
+    # 1%: on the ray-tracing sample scene 1e-3 cost 52% more time for 2% less relative MSE.
+    min_weight: float = MIN_WEIGHT
+    offset_scale: float = DEFAULT_OFFSET_SCALE
+    area_samples: int = 4
+    point_like_ratio: float = 0.05
+    mirror_roughness: float = MIRROR_ROUGHNESS
+    texture_filter: int = TEXTURE_FILTER
+    shading: ShadingMode = "bump"
+    output: Literal["radiance", "albedo"] = "radiance"
+
+    def __post_init__(self):
+        if self.output not in ("radiance", "albedo"):
+            raise ValueError(f"output must be 'radiance' or 'albedo', got {self.output!r}")
+        if self.shading not in SHADING_MODES:
+            raise ValueError(f"shading must be one of {SHADING_MODES}, got {self.shading!r}")
+        if not 0 <= self.max_depth <= 64:
+            raise ValueError(f"max_depth must be in [0, 64], got {self.max_depth}")
+        if not 1 <= self.supersample <= 16 or not 0 <= self.adaptive <= 16:
+            raise ValueError("supersample must be in [1, 16] and adaptive in [0, 16]")
+        if not 1 <= self.texture_filter <= 16:
+            raise ValueError(f"texture_filter must be in [1, 16], got {self.texture_filter}")
+        if self.offset_scale < 0 or self.min_weight < 0:
+            raise ValueError("offset_scale and min_weight must be >= 0")
+
+
+def auto_settings(scene: Scene, **overrides) -> TracerSettings:
+    """Settings chosen from the scene: a ray tree only as deep as its specular materials need.
+
+    No mirror or glass: depth 0 (camera rays and shadow rays are all there is to trace). Mirrors
+    only: 4 bounces. Glass: each transmissive object can take 4 interfaces (in and out of a
+    hollow shell), plus 2 for mirrors around them, capped at 16.
+    """
+    used = set(np.unique(scene.material_ids).tolist()) if scene.triangle_count else set()
+    mats = [scene.materials[m] for m in used]
+    glassy = {scene.objects[o].name for o in np.unique(scene.object_ids[np.isin(
+        scene.material_ids, [m for m in used if scene.materials[m].transmission > 0])])}
+    mirrors = any(m.metallic > 0 or m.specular > 0 for m in mats)
+    if glassy:
+        depth = min(16, 2 + 4 * len(glassy))
+    elif mirrors:
+        depth = 4
+    else:
+        depth = 0
+    params = {"max_depth": depth}
+    params.update(overrides)
+    return TracerSettings(**params)
+
+
+@dataclass
+class TraceStats:
+    """What the tracer did: rays per kind and how many branches the weight threshold cut."""
+
+    camera_rays: int = 0
+    secondary_rays: int = 0
+    shadow_rays: int = 0
+    pruned_branches: int = 0  # reflected/refracted rays not traced because their weight was small
+    depth_limited: int = 0  # rays alive at max_depth (their energy is lost)
+    edge_pixels: int = 0
+    rays_per_depth: list = field(default_factory=list)
+
+    def as_dict(self) -> dict:
+        return dict(self.__dict__)
+
+
+@dataclass
+class _Emitters:
+    """Every light as a set of point samples: positions, a radiometric weight, and the kind."""
+
+    lights: list  # kernel Light objects (point, spot, sun handled analytically)
+    area_points: np.ndarray  # (S, 3) sample positions on area lights / emissive triangles
+    area_normals: np.ndarray  # (S, 3) emitting side's normal
+    area_radiance_da: np.ndarray  # (S, 3) radiance times the sample's area, W/sr
+    area_two_sided: np.ndarray  # (S,) bool: emissive meshes emit from both sides in Cycles
+    area_local: np.ndarray  # (S,) int: the sample's index among its emitter's samples
+    area_count: np.ndarray  # (S,) int: how many samples its emitter has
+
+
+def _scene_scale(scene: Scene) -> float:
+    if scene.triangle_count == 0:
+        return 1.0
+    lo = scene.triangles.reshape(-1, 3).min(0).astype(np.float64)
+    hi = scene.triangles.reshape(-1, 3).max(0).astype(np.float64)
+    return float(max(np.linalg.norm(hi - lo), np.abs(lo).max(), np.abs(hi).max(), 1e-6))
+
+
+def _mesh_light_samples(scene: Scene, tri_ids: np.ndarray, n: int
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
+    """Shadow-ray targets on one object's emissive triangles `tri_ids`: points (S, 3), their
+    faces' normals (S, 3), radiance x the area each stands for (S, 3, W/sr), each one's index
+    among its emitter's samples (S,) and that emitter's sample count (a triangle's, or the
+    object's when it is one light).
+
+    Up to MESH_LIGHT_TRIANGLES triangles, n x n stratified points on each (a folded square
+    grid). A finer mesh is one light of MESH_LIGHT_TRIANGLES x n x n points in all, spread
+    along the triangles' cumulative area (systematic sampling: a triangle gets points in
+    proportion to its area, a small one maybe none, each standing for an equal share of the
+    total): an emissive ball of 80 triangles casts 64 shadow rays a hit, not 1280."""
+    tris = scene.triangles[tri_ids].astype(np.float64)
+    ng = geometric_normals(tris)
+    area = 0.5 * np.linalg.norm(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]), axis=1)
+    radiance = np.stack([scene.materials[m].emission for m in scene.material_ids[tri_ids]])
+    if len(tri_ids) <= MESH_LIGHT_TRIANGLES:
+        st = stratified_offsets(n)
+        fold = st[:, 0] + st[:, 1] > 1.0
+        st[fold] = 1.0 - st[fold][:, ::-1]
+        bary = np.stack([1.0 - st[:, 0] - st[:, 1], st[:, 0], st[:, 1]], 1)  # (K, 3)
+        k = len(bary)
+        pts = np.einsum("kc,tcj->tkj", bary, tris).reshape(-1, 3)
+        return (pts, np.repeat(ng, k, axis=0), np.repeat(radiance * (area / k)[:, None], k, axis=0),
+                np.tile(np.arange(k), len(tri_ids)), k)
+    total = MESH_LIGHT_TRIANGLES * n * n
+    cdf = np.cumsum(area) / area.sum()
+    position = (np.arange(total) + 0.5) / total
+    t = np.minimum(np.searchsorted(cdf, position, side="right"), len(area) - 1)
+    start = np.concatenate([[0.0], cdf[:-1]])[t]
+    # Where in its triangle: the position within the triangle's stretch of the CDF, and a
+    # golden-ratio sequence across, mapped by the area-preserving square-root map.
+    u = np.clip((position - start) / np.maximum(cdf[t] - start, 1e-300), 0.0, 1.0)
+    v = (np.arange(total) * 0.6180339887498949 + 0.5) % 1.0
+    root = np.sqrt(u)
+    bary = np.stack([1.0 - root, root * (1.0 - v), root * v], axis=1)
+    pts = np.einsum("sc,scj->sj", bary, tris[t])
+    return pts, ng[t], radiance[t] * (area.sum() / total), np.arange(total), total
+
+
+def _emitters(scene: Scene, settings: TracerSettings) -> _Emitters:
+    points, normals, power, two_sided, local, count = [], [], [], [], [], []
+    n = settings.area_samples
+    for light in scene.lights:
+        if light.kind != "AREA":
+            continue
+        if light.shape in ("DISK", "ELLIPSE"):
+            samples = light_units.area_light_samples(light, max(n, 2) * 2)  # cells inside the shape
+        else:
+            samples = light_units.area_light_samples(light, n)
+        area = light_units.area_of_shape(light.shape, light.size_x, light.size_y)
+        points.append(samples)
+        normals.append(np.tile(light.direction, (len(samples), 1)))
+        power.append(np.tile(light.radiance * area / len(samples), (len(samples), 1)))
+        two_sided.append(np.zeros(len(samples), bool))
+        local.append(np.arange(len(samples)))
+        count.append(np.full(len(samples), len(samples)))
+    emissive = [k for k, m in enumerate(scene.materials) if m.is_emissive]
+    if emissive:
+        tri_ids = np.nonzero(np.isin(scene.material_ids, emissive))[0]
+        for obj in np.unique(scene.object_ids[tri_ids]):
+            own = tri_ids[scene.object_ids[tri_ids] == obj]
+            pts, ng, radiance_da, index, per_emitter = _mesh_light_samples(scene, own, n)
+            points.append(pts)
+            normals.append(ng)
+            power.append(radiance_da)
+            two_sided.append(np.ones(len(pts), bool))
+            local.append(index)
+            count.append(np.full(len(pts), per_emitter))
+    if points:
+        return _Emitters([li for li in scene.lights if li.kind != "AREA"], np.concatenate(points),
+                         np.concatenate(normals), np.concatenate(power), np.concatenate(two_sided),
+                         np.concatenate(local), np.concatenate(count))
+    z = np.zeros((0, 3))
+    none = np.zeros(0, np.int64)
+    return _Emitters(list(scene.lights), z, z, z, np.zeros(0, bool), none, none)
+
+
+@dataclass
+class _Hits:
+    """Surface data at a batch of hits (N rays)."""
+
+    p: np.ndarray  # (N, 3) float64 world position
+    ng: np.ndarray  # (N, 3) geometric normal facing the incoming ray
+    ns: np.ndarray  # (N, 3) shading normal facing the incoming ray
+    front: np.ndarray  # (N,) bool: the ray hit the triangle's front face
+    material: np.ndarray  # (N,) int32
+    albedo: np.ndarray  # (N, 3) base colour (textured)
+    # (N, 3) the shading normal before the relief (facing the incoming ray), for the bump
+    # shadowing term (`bump.bump_shadowing`); None when no relief is shaded
+    smooth: np.ndarray | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class _Footprint:
+    """The image cell each camera ray samples: for filtering the textures it sees directly."""
+
+    camera: Camera
+    width: int  # image pixels
+    height: int
+    x: np.ndarray  # (N,) float64 cell centre, pixels from the image's left edge
+    y: np.ndarray  # (N,) float64 cell centre, pixels from the image's top edge
+    cell: float  # cell side, pixels (1 / n for n x n supersampling)
+    grid: int  # g: g x g texture samples over the cell
+
+
+def _filtered_albedo(scene: Scene, tri: np.ndarray, centre: np.ndarray, fp: _Footprint,
+                     rays: np.ndarray) -> np.ndarray:
+    """Base colour (M, 3) averaged over the image cells of camera rays `rays` that hit `tri` at
+    barycentrics `centre` (M, 3).
+
+    The cell is cut into g x g sub-cells; the camera rays through their corners are carried onto
+    the hit triangle's plane, whose barycentrics (extrapolated past the triangle's edges, where its
+    texture coordinates continue linearly) give each sub-cell's corners in texture space (UV, or
+    Generated: `Scene.texture_coords`). Each sub-cell then contributes the texture's mean over
+    their bounding box (`sample_texture_box`: exact for the checker at any minification; a
+    Generated box around a slanted face is larger than the face's footprint in it). The
+    pixel's box filter applied to the texture: exact for a planar, evenly lit cell, at the
+    price of look-ups instead of rays.
+
+    The corner rays cost a few scalar operations each: a camera ray's line o + s d is affine in the
+    image position (`camera_ray_lines`), so its plane hit is a ratio of affine functions, whose
+    coefficients are dot products taken once per hit.
+    """
+    v = scene.triangles[tri].astype(np.float64)  # (M, 3, 3) world m
+    e1, e2 = v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]
+    n = np.cross(e1, e2)
+    d11 = np.einsum("ij,ij->i", e1, e1)
+    d12 = np.einsum("ij,ij->i", e1, e2)
+    d22 = np.einsum("ij,ij->i", e2, e2)
+    det = d11 * d22 - d12 * d12  # > 0: the BVH never returns a degenerate triangle
+    n_len = np.sqrt(np.einsum("ij,ij->i", n, n))
+    o, d, o_x, o_y, d_x, d_y = camera_ray_lines(fp.camera, fp.width, fp.height, fp.x[rays],
+                                                fp.y[rays])
+    rel = o - v[:, 0]
+    # For a corner at (dx, dy) pixels from the cell centre, with a . b of per-hit vectors:
+    #   line:  o' = o + dx o_x + dy o_y,  d' = d + dx d_x + dy d_y
+    #   plane: s = n.(v0 - o') / n.d',  q = o' + s d' - v0,  (b1, b2) from q.e1 and q.e2.
+    coef = {}
+    for name, w in (("n", n), ("e1", e1), ("e2", e2)):
+        coef[name] = (np.einsum("ij,ij->i", rel, w), w @ o_x, w @ o_y,
+                      np.einsum("ij,ij->i", d, w), w @ d_x, w @ d_y)
+    speed = np.sqrt(np.einsum("ij,ij->i", d, d))
+    corner_uv = scene.texture_coords[tri]  # (M, 3, 3): (u, v, 0) or Generated
+    g = fp.grid
+    steps = (np.arange(g + 1) / g - 0.5) * fp.cell
+    uv = np.empty((g + 1, g + 1, len(tri), 3))  # sub-cell corners in texture space, [row, column]
+    rn, onx, ony, dn0, dnx, dny = coef["n"]
+    for i, dy in enumerate(steps):
+        for j, dx in enumerate(steps):
+            dn = dn0 + dx * dnx + dy * dny
+            # Edge-on (|cos| below GRAZING_COS, with |d'| ~ |d| across a pixel) or behind: the
+            # ray's own hit point.
+            ok = np.abs(dn) > GRAZING_COS * n_len * speed
+            s = -(rn + dx * onx + dy * ony) / np.where(ok, dn, 1.0)
+            ok &= s > 0.0
+            s = np.where(ok, s, 0.0)
+            q = []
+            for name in ("e1", "e2"):
+                r0, rx, ry, w0, wx, wy = coef[name]
+                q.append(r0 + dx * rx + dy * ry + s * (w0 + dx * wx + dy * wy))
+            b1 = (d22 * q[0] - d12 * q[1]) / det
+            b2 = (d11 * q[1] - d12 * q[0]) / det
+            bary = np.stack([1.0 - b1 - b2, b1, b2], axis=1)
+            bary[~ok] = centre[~ok]
+            uv[i, j] = np.einsum("mc,mcj->mj", bary, corner_uv)
+    quads = np.stack([uv[:-1, :-1], uv[:-1, 1:], uv[1:, :-1], uv[1:, 1:]])  # (4, g, g, M, 3)
+    lo = quads.min(axis=0).reshape(-1, 3)  # (g*g*M, 3), sub-cell-major
+    hi = quads.max(axis=0).reshape(-1, 3)
+    mats = np.tile(scene.material_ids[tri], g * g)
+    acc = np.empty((len(lo), 3))
+    for m in np.unique(mats):
+        rows = mats == m
+        acc[rows] = sample_texture_box(scene.materials[m].base_color_texture, lo[rows], hi[rows])
+    return acc.reshape(g * g, len(tri), 3).mean(axis=0)
+
+
+def _surface(scene: Scene, tri_normals, origins, dirs, hits, shading: str = "bump") -> _Hits:
+    tri = hits.tri
+    t = hits.t.astype(np.float64)
+    p = origins + dirs * t[:, None]
+    u = hits.u.astype(np.float64)[:, None]
+    v = hits.v.astype(np.float64)[:, None]
+    w = 1.0 - u - v
+    ng = tri_normals[tri]
+    material = scene.material_ids[tri]
+    if shading == "flat":
+        ns = ng.copy()
+    else:
+        cn = scene.normals[tri].astype(np.float64)
+        ns = w * cn[:, 0] + u * cn[:, 1] + v * cn[:, 2]
+        length = np.linalg.norm(ns, axis=1, keepdims=True)
+        ns = np.where(length > MIN_NORMAL_LENGTH, ns / np.maximum(length, MIN_NORMAL_LENGTH), ng)
+    smooth = None
+    if shading == "bump":
+        smooth = ns
+        ns = scene_normals(scene, tri, np.concatenate([w, u, v], axis=1), ns)
+        if ns is smooth:  # no material with relief among these hits
+            smooth = None
+    front = np.einsum("ij,ij->i", dirs, ng) < 0.0
+    side = np.where(front, 1.0, -1.0)[:, None]
+    ng = ng * side
+    ns = ns * side
+    if smooth is not None:
+        smooth = smooth * side
+    # A shading normal turned away from the viewer would shade the back: fall back to geometry;
+    # a bump or normal map's is bent back just far enough (`bump.valid_reflection`), which keeps
+    # its tilt (a normal-mapped tile facing away: relMSE against Cycles 0.015 -> 0.0063).
+    away = np.einsum("ij,ij->i", ns, dirs) > 0.0
+    if shading == "bump" and away.any():
+        ns[away] = valid_reflection(ng[away], -dirs[away], ns[away])
+        away = np.einsum("ij,ij->i", ns, dirs) > 0.0
+    ns[away] = ng[away]
+    albedo = np.empty((len(tri), 3))
+    uv = None
+    for m in np.unique(material):
+        rows = material == m
+        mat = scene.materials[m]
+        if mat.base_color_texture is None:
+            albedo[rows] = mat.base_color
+            continue
+        if uv is None:
+            cuv = scene.texture_coords[tri]
+            uv = w * cuv[:, 0] + u * cuv[:, 1] + v * cuv[:, 2]
+        albedo[rows] = sample_texture(mat.base_color_texture, uv[rows])
+    return _Hits(p, ng, ns, front, material, albedo, smooth)
+
+
+class Tracer:
+    """The wavefront tracer over one scene and BVH: `radiance` of any rays (camera rays, or the
+    faces of a cube map in `envmap.py`), with statistics gathered in `stats`."""
+
+    def __init__(self, scene: Scene, bvh: BVH, settings: TracerSettings,
+                 environment: Mapping[int, EnvironmentLookup] | None = None,
+                 shadow_bvh: BVH | None = None):
+        self.scene = scene
+        self.bvh = bvh
+        # Shadow rays may test other geometry than the rays that see: a cube map's faces see
+        # past the hidden object, whose shadow still falls on its surroundings.
+        self.shadow_bvh = shadow_bvh or bvh
+        self.settings = settings
+        # Environment mapping: object index -> lookup(points, directions) -> radiance, each (N, 3).
+        # Mirror reflections off those objects read the lookup instead of spawning rays.
+        self.environment = dict(environment or {})
+        self.offset = settings.offset_scale * _scene_scale(scene)
+        self.tri_normals = geometric_normals(scene.triangles)
+        self.emitters = _emitters(scene, settings)
+        self.area_lamps = [li for li in scene.lights if li.kind == "AREA"]
+        # A world map's suns (`world_light.extract_suns`): highlights of the rough lobes, and
+        # the map without them for those lobes' rays (sky_scene).
+        self.map_suns, self.sky_scene = (), scene
+        if scene.world_texture is not None:
+            self.map_suns, residual = extract_suns(scene.world_texture, scene.world_transform)
+            self.sky_scene = replace(scene, world_texture=residual)
+        self.stats = TraceStats()
+        mats = scene.materials
+        self.metallic = np.array([m.metallic for m in mats])
+        # A metal part's own tint where it is not the base colour (`Material.metal_color`).
+        self.tinted = np.array([m.metal_color is not None for m in mats])
+        self.metal_color = np.array([m.base_color if m.metal_color is None else m.metal_color
+                                     for m in mats], np.float64).reshape(-1, 3)
+        self.transmission = np.array([m.transmission for m in mats])
+        self.roughness = np.array([m.roughness for m in mats])
+        self.ior = np.array([max(m.ior, 1.0 + 1e-6) for m in mats])
+        self.specular = np.array([m.specular for m in mats])
+        self.layer_tables = view_tables(mats)
+        self.metal_tables = metal_tables(mats)
+        self.emission = np.array([m.emission for m in mats], np.float64).reshape(-1, 3)
+        self.textured = np.array([m.base_color_texture is not None for m in mats], bool)
+        self.black = np.array([m.base_color_texture is None and not np.any(m.base_color > 0)
+                               for m in mats], bool)
+
+    # --- direct light ---------------------------------------------------------------------------
+
+    def _visible(self, origins, directions, t_max) -> np.ndarray:
+        self.stats.shadow_rays += len(origins)
+        return ~self.shadow_bvh.occluded(origins, directions, 0.0, t_max)
+
+    def direct(self, h: _Hits, wo: np.ndarray, diffuse_w: np.ndarray, lobes: list, rough,
+               strata: Strata | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Light from every light at the hits, shadow rays included: (radiance, lambert), each (N, 3).
+
+        radiance = albedo * lambert + highlights; lambert is the diffuse part for a white base
+        colour (diffuse weight / pi * sum of shadowed irradiance). lobes: the rough glossy lobes
+        lit directly, [(F0 (N, 3), weight (N,))] (a specular layer's, a metal's), GGX of each
+        hit's roughness (N,): lamps' and area lights' highlights (emissive meshes are met by the
+        lobe's mirror ray instead). strata: each hit's stratum and their count m, for area
+        lights (`_area_direct`).
+        """
+        out = np.zeros_like(h.p)
+        lambert = np.zeros_like(h.p)
+        shading = (diffuse_w > 0) | np.any([w > 0 for _, w in lobes], axis=0)
+        if not shading.any():
+            return out, lambert
+        idx = np.nonzero(shading)[0]
+        p, ng, ns = h.p[idx], h.ng[idx], h.ns[idx]
+        origin = p + ng * self.offset
+        brdf_w = np.repeat(diffuse_w[idx, None] / np.pi, 3, axis=1)  # white base colour
+        smooth = None if h.smooth is None else h.smooth[idx]
+        # The lamps light the diffuse base and the lobes; a world map's suns only the lobes (the
+        # world is hidden from diffuse rays in this model, but glossy ones see it).
+        lamps = [(light, True) for light in self.emitters.lights]
+        lamps += [(sun, False) for sun in self.map_suns] if lobes else []
+        for light, diffuse in lamps:
+            to_l, dist = light_units.light_vectors(light, p)
+            e = light_units.direct_irradiance(light, p, ns)  # (n, 3), includes cos and falloff
+            lit = np.any(e > 0, axis=1)
+            if not lit.any():
+                continue
+            sub = np.nonzero(lit)[0]
+            t_max = np.where(np.isinf(dist[sub]), np.inf, dist[sub] - self.offset)
+            if light.cast_shadow:
+                vis = self._visible(origin[sub], to_l[sub], t_max)
+            else:
+                vis = np.ones(len(sub), bool)
+            if diffuse:
+                # The relief's facets hide part of a low light from the diffuse base (Cycles).
+                relief = 1.0 if smooth is None else bump_shadowing(smooth[sub], ns[sub],
+                                                                    to_l[sub])[:, None]
+                lambert[idx[sub]] += brdf_w[sub] * e[sub] * vis[:, None] * relief
+            rows = idx[sub]
+            cos_i = np.maximum(np.einsum("ij,ij->i", ns[sub], to_l[sub]), 1e-6)
+            for f0, weight in lobes:
+                shine = ggx_highlight(ns[sub], to_l[sub], wo[rows], rough[rows], f0[rows])
+                out[rows] += shine * e[sub] * (weight[rows] * vis / cos_i)[:, None]
+        if len(self.emitters.area_points):
+            sub_strata = None if strata is None else (strata[0][idx], strata[1])
+            area_lobes = [(f0[idx], weight[idx]) for f0, weight in lobes]
+            diffuse, shine = self._area_direct(origin, ns, brdf_w, sub_strata, wo[idx], area_lobes,
+                                               rough[idx], smooth)
+            lambert[idx] += diffuse
+            out[idx] += shine
+        out += h.albedo * lambert
+        return out, lambert
+
+    def gouraud_direct(self, h: _Hits, hits, eye: np.ndarray, diffuse_w, lobes, rough,
+                       strata: Strata | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Gouraud (per-vertex) shading: `direct` evaluated at the hit triangle's three corners,
+        with their own normals, shadow rays and view directions (towards `eye`, each ray's
+        origin), then interpolated with the hit's barycentrics. The base colour stays per
+        fragment (a texture modulates the interpolated light), as in fixed-function OpenGL."""
+        corners = self.scene.triangles[hits.tri].astype(np.float64)  # (N, 3, 3)
+        normals = self.scene.normals[hits.tri].astype(np.float64)
+        side = np.where(h.front, 1.0, -1.0)[:, None]
+        u = hits.u.astype(np.float64)
+        v = hits.v.astype(np.float64)
+        weights = (1.0 - u - v, u, v)
+        lit, lambert = np.zeros_like(h.p), np.zeros_like(h.p)
+        for k, w in enumerate(weights):
+            p = corners[:, k]
+            n = normals[:, k] * side
+            n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), MIN_NORMAL_LENGTH)
+            wo = eye - p
+            wo /= np.maximum(np.linalg.norm(wo, axis=1, keepdims=True), 1e-12)
+            corner = _Hits(p, h.ng, n, h.front, h.material, h.albedo)
+            lit_k, lambert_k = self.direct(corner, wo, diffuse_w, lobes, rough, strata)
+            lit += w[:, None] * lit_k
+            lambert += w[:, None] * lambert_k
+        return lit, lambert
+
+    def _area_direct(self, origin, ns, brdf_d, strata: Strata | None = None, wo=None,
+                     lobes: tuple | list = (), rough=None, smooth=None
+                     ) -> tuple[np.ndarray, np.ndarray]:
+        """Light from area lights and emissive triangles: every emitter sample against every hit,
+        EMITTER_BLOCK samples at a time, with one batch of shadow rays per block. Returns the
+        diffuse part (N, 3) (brdf_d weighted) and the area lights' highlights in the glossy
+        `lobes` (as `direct`'s; view directions wo (N, 3), roughness (N,)). smooth (N, 3), when
+        given: the normals before the relief, for the diffuse part's bump shadowing.
+
+        strata (stratum (N,), m): the hits are m sub-samples of their pixels, and a hit in
+        stratum k takes only its emitters' samples j with j = k (mod m), weighted m: the pixel's
+        m sub-samples share out each emitter's stratified samples instead of each casting all
+        of them (m times fewer shadow rays for the same samples per pixel). Emitters whose
+        sample count m does not divide keep every sample for every hit.
+        """
+        em = self.emitters
+        out = np.zeros_like(origin)
+        shine = np.zeros_like(origin)
+        if strata is not None and strata[1] > 1:
+            stratum, m = strata
+            shared = em.area_count % m == 0  # (S,)
+            keep = ~shared[:, None] | (em.area_local[:, None] % m == stratum[None, :] % m)
+            scale = np.where(shared, float(m), 1.0)  # (S,)
+        else:
+            keep, scale = None, None
+        for first in range(0, len(em.area_points), EMITTER_BLOCK):
+            block = slice(first, first + EMITTER_BLOCK)
+            delta = em.area_points[block][:, None, :] - origin[None, :, :]  # (B, N, 3)
+            d2 = np.einsum("bnj,bnj->bn", delta, delta)
+            dist = np.sqrt(d2)
+            to_l = delta / np.maximum(dist, 1e-12)[..., None]
+            cos_r = np.einsum("nj,bnj->bn", ns, to_l)
+            cos_e = -np.einsum("bnj,bj->bn", to_l, em.area_normals[block])
+            cos_e = np.where(em.area_two_sided[block][:, None], np.abs(cos_e), cos_e)
+            g = np.clip(cos_r, 0, None) * np.clip(cos_e, 0, None) / np.maximum(d2, 1e-12)
+            if keep is not None:
+                g = g * keep[block] * scale[block][:, None]
+            b_idx, n_idx = np.nonzero(g > 0)
+            if len(n_idx) == 0:
+                continue
+            vis = self._visible(origin[n_idx], to_l[b_idx, n_idx],
+                                dist[b_idx, n_idx] * (1.0 - 1e-4) - self.offset)
+            weight = em.area_radiance_da[block][b_idx] * (g[b_idx, n_idx] * vis)[:, None]
+            relief = 1.0 if smooth is None else bump_shadowing(
+                smooth[n_idx], ns[n_idx], to_l[b_idx, n_idx])[:, None]
+            np.add.at(out, n_idx, brdf_d[n_idx] * weight * relief)
+            lamp = ~em.area_two_sided[block][b_idx]  # area lamps: no rough lobe's ray meets them
+            for f0, w in lobes:
+                pick = np.flatnonzero(lamp & (w[n_idx] > 0.0))
+                if pick.size:
+                    rows, l_dir = n_idx[pick], to_l[b_idx[pick], n_idx[pick]]
+                    brdf_cos = ggx_highlight(ns[rows], l_dir, wo[rows], rough[rows], f0[rows])
+                    cos_r = np.maximum(np.einsum("ij,ij->i", ns[rows], l_dir), 1e-6)
+                    np.add.at(shine, rows, brdf_cos * (weight[pick] * (w[rows] / cos_r)[:, None]))
+        return out, shine
+
+    def _area_lamp_hits(self, origins: np.ndarray, dirs: np.ndarray, t_hit: np.ndarray
+                        ) -> tuple[np.ndarray, np.ndarray]:
+        """(N, 3) radiance of the area lamps rays (origins, unit dirs (N, 3)) meet before their
+        hit distance t_hit (N,) (inf: none), on the lamp's emitting side (its -Z), and the
+        distance (N,) to the nearest lamp met (inf: none)."""
+        out = np.zeros((len(origins), 3))
+        nearest = np.full(len(origins), np.inf)
+        for lamp in self.area_lamps:
+            facing = dirs @ lamp.direction  # < 0: the ray meets the emitting side
+            t = np.divide((lamp.position - origins) @ lamp.direction, facing,
+                          out=np.full(len(origins), -1.0), where=facing < 0.0)
+            q = origins + t[:, None] * dirs - lamp.position
+            x = (q @ lamp.axis_x) / max(lamp.size_x, 1e-12)
+            y = (q @ lamp.axis_y) / max(lamp.size_y, 1e-12)
+            inside = (x * x + y * y <= 0.25) if lamp.shape in ("DISK", "ELLIPSE") else (
+                (np.abs(x) <= 0.5) & (np.abs(y) <= 0.5))
+            seen = inside & (t > 0.0) & (t < t_hit)
+            out[seen] += np.asarray(lamp.radiance, np.float64)
+            nearest[seen] = np.minimum(nearest[seen], t[seen])
+        return out, nearest
+
+    def _mapped(self, tri: np.ndarray) -> np.ndarray:
+        """(N,) bool: which hit triangles belong to an environment-mapped object."""
+        return np.isin(self.scene.object_ids[tri], list(self.environment))
+
+    def _environment(self, tri: np.ndarray, p: np.ndarray, r_dir: np.ndarray,
+                     mirror_w: np.ndarray) -> np.ndarray:
+        """(N, 3) radiance the mirror part reflects off environment-mapped objects (0 elsewhere):
+        the mirror weight times the object's map read for the reflected ray (hit point p, r),
+        plus the area lamps the ray meets unshadowed. The maps hold the scene's surfaces only: a
+        lamp, small and bright, smeared over a few texels and shifted by the look-up's parallax
+        shows as a misplaced blob (env_room's ceiling panel captured into the map: relMSE 0.0138
+        at the default faces; added here, 0.0025); one occlusion ray per mirror point that meets
+        a lamp shows it exactly."""
+        out = np.zeros_like(mirror_w)
+        objects = self.scene.object_ids[tri]
+        for k, lookup in self.environment.items():
+            rows = np.nonzero((objects == k) & (mirror_w.max(axis=1) > 0.0))[0]
+            if len(rows):
+                out[rows] = mirror_w[rows] * lookup(p[rows], r_dir[rows])
+                if self.area_lamps:
+                    lamp, t = self._area_lamp_hits(p[rows], r_dir[rows], np.full(len(rows), np.inf))
+                    meet = np.flatnonzero(np.isfinite(t))
+                    if meet.size:
+                        at = rows[meet]
+                        vis = self._visible(p[at] + r_dir[at] * self.offset, r_dir[at],
+                                            t[meet] - 2.0 * self.offset)
+                        out[at] += mirror_w[at] * lamp[meet] * vis[:, None]
+        return out
+
+    def hit_ids(self, tri: np.ndarray) -> np.ndarray:
+        """Object * (materials + 1) + material of each hit triangle; -1 where nothing was hit."""
+        ids = np.full(len(tri), -1, np.int64)
+        hit = tri >= 0
+        t = tri[hit]
+        ids[hit] = (self.scene.object_ids[t].astype(np.int64) * (len(self.scene.materials) + 1)
+                    + self.scene.material_ids[t])
+        return ids
+
+    # --- the wavefront ---------------------------------------------------------------------------
+
+    def radiance(self, origins: np.ndarray, dirs: np.ndarray,
+                 primary_ids: np.ndarray | None = None, footprint: _Footprint | None = None,
+                 untextured: np.ndarray | None = None, strata: Strata | None = None,
+                 primary_t: np.ndarray | None = None) -> np.ndarray:
+        """Radiance (N, 3) arriving at the camera along N primary rays.
+
+        primary_ids: optional (N,) int64 filled with what each camera ray hit (object and
+        material, -1 for the background), for edge detection without tracing twice.
+        footprint: each ray's cell of the image; the base colour seen directly is then the
+        texture's mean over the cell (`_filtered_albedo`), not its value at the ray's point.
+        untextured: optional (N, 3) filled with the same radiance but a white base colour at the
+        camera hits: what edge detection compares, so texture detail (filtered) is no edge.
+        strata: (stratum (N,), m) when the rays are m sub-samples of pixels: area lights' samples
+        are shared out among them (`_area_direct`).
+        primary_t: optional (N,) filled with each primary ray's hit distance (inf: none).
+        Area lamps are invisible to the primary rays and to rough lobes' rays, visible to rays
+        off smooth surfaces (Cycles' lamps: invisible to camera rays, visible to glossy and
+        transmission rays; a rough lobe's lamps are its highlights, from `direct`).
+        """
+        s = self.settings
+        result = np.zeros((len(origins), 3))
+        flat = untextured if untextured is not None else np.zeros((0, 3))
+        flat[...] = 0.0
+        pixel = np.arange(len(origins))
+        weight = np.ones((len(origins), 3))
+        t_min = np.zeros(len(origins))
+        # Whether a ray's path so far bounced off smooth surfaces only: those rays see area lamps
+        # (camera rays do not: Cycles' lamps are not drawn). A rough lobe's one ray does not (its
+        # lamps' highlights come from `direct`, which would count them twice), nor do rays past
+        # it: a mirror's sharp image of a lamp would be a hot spot that Cycles' lobe blurs over
+        # the surface.
+        sharp = np.ones(len(origins), bool)
+        self.stats.camera_rays += len(origins)
+        for depth in range(s.max_depth + 1):
+            if len(origins) == 0:
+                break
+            self.stats.rays_per_depth.append(len(origins))
+            if depth > 0:
+                self.stats.secondary_rays += len(origins)
+            hits = self.bvh.intersect(origins, dirs, t_min, np.inf)
+            miss = hits.tri < 0
+            if depth > 0 and sharp.any() and self.area_lamps:
+                rows = np.flatnonzero(sharp)
+                lamps, _ = self._area_lamp_hits(origins[rows], dirs[rows],
+                                                np.where(miss[rows], np.inf, hits.t[rows]))
+                np.add.at(result, pixel[rows], weight[rows] * lamps)
+            if depth == 0 and primary_ids is not None:
+                primary_ids[...] = self.hit_ids(hits.tri)
+            if depth == 0 and primary_t is not None:
+                primary_t[...] = np.where(miss, np.inf, hits.t)
+            if s.output == "albedo":
+                background = 0.0
+            elif self.scene.world_texture is None:
+                background = self.scene.world_color
+            else:  # the world's map along each escaping ray; a rough lobe's ray (off no smooth
+                # surface) reads it without the suns that the lobes' highlights already carry
+                escaped = dirs[miss]
+                rough_ray = ~sharp[miss] if depth > 0 and self.map_suns else \
+                    np.zeros(len(escaped), bool)
+                background = np.empty((len(escaped), 3))
+                background[~rough_ray] = world_radiance(self.scene, escaped[~rough_ray])
+                background[rough_ray] = world_radiance(self.sky_scene, escaped[rough_ray])
+            np.add.at(result, pixel[miss], weight[miss] * background)
+            if untextured is not None:
+                np.add.at(flat, pixel[miss], weight[miss] * background)
+            keep = ~miss
+            origins, dirs, pixel, weight = origins[keep], dirs[keep], pixel[keep], weight[keep]
+            sharp = sharp[keep]
+            hits = type(hits)(t=hits.t[keep], tri=hits.tri[keep], u=hits.u[keep], v=hits.v[keep])
+            if len(origins) == 0:
+                break
+            h = _surface(self.scene, self.tri_normals, origins, dirs, hits, s.shading)
+            m = h.material
+            if depth == 0 and footprint is not None:
+                textured = self.textured[m]
+                if textured.any():
+                    rows = np.nonzero(textured)[0]
+                    u, v = hits.u[rows].astype(np.float64), hits.v[rows].astype(np.float64)
+                    centre = np.stack([1.0 - u - v, u, v], axis=1)
+                    h.albedo[rows] = _filtered_albedo(self.scene, hits.tri[rows], centre,
+                                                      footprint, pixel[rows])
+            metallic, trans, rough = self.metallic[m], self.transmission[m], self.roughness[m]
+            dielectric = (1.0 - metallic) * (1.0 - trans)
+            # The diffuse base shows through the specular layer less the layer's albedo at this
+            # view (`specular_layer.py`), in Cycles' Diffuse Color pass and diffuse lobe alike.
+            diffuse_w = dielectric * view_factors(self.layer_tables, m,
+                                                  np.einsum("ij,ij->i", dirs, h.ns))
+            if s.output == "albedo":  # what the first hit reflects diffusely; no light, no ray
+                np.add.at(result, pixel, weight * h.albedo * diffuse_w[:, None])
+                if untextured is not None:
+                    np.add.at(flat, pixel, weight * diffuse_w[:, None])
+                break
+            wo = -dirs
+            spec_level = self.specular[m]
+            has_spec = (dielectric > 0) & (spec_level > 0) & (rough >= s.mirror_roughness)
+            f0_dielectric = ((self.ior[m] - 1.0) / (self.ior[m] + 1.0)) ** 2 * 2.0 * spec_level
+            # Rough glossy lobes lit directly: the specular layer's and a rough metal's.
+            lobes = []
+            if has_spec.any():
+                lobes.append((np.where(has_spec[:, None], f0_dielectric[:, None], 0.0)
+                              * np.ones((1, 3)), np.where(has_spec, dielectric, 0.0)))
+            rough_metal = (metallic > 0) & (rough >= s.mirror_roughness)
+            f0_metal = np.where(self.tinted[m][:, None], self.metal_color[m], h.albedo)
+            if rough_metal.any():
+                lobes.append((f0_metal, np.where(rough_metal, metallic, 0.0)))
+            hit_strata = None if strata is None else (strata[0][pixel], strata[1])
+            # A black base reflects nothing diffusely: no shadow rays for it. A dark texel of a
+            # coloured or textured material keeps them at the camera hits when the white-base
+            # image (edge detection) needs their light; a black material never does.
+            dark = h.albedo.max(axis=1) <= 0.0
+            if untextured is not None and depth == 0:
+                dark &= self.black[m]
+            lit_w = np.where(dark, 0.0, diffuse_w)
+            if s.shading == "gouraud":
+                lit, lambert = self.gouraud_direct(h, hits, origins, lit_w, lobes, rough,
+                                                   hit_strata)
+            else:
+                lit, lambert = self.direct(h, wo, lit_w, lobes, rough, hit_strata)
+            own = self.emission[m] + lit
+            smooth = rough < s.mirror_roughness
+            # Mirror and refraction directions about the (smooth) shading normal, falling back to
+            # the geometric normal where that would send the ray to the wrong side of the surface.
+            r_dir = reflect(dirs, h.ns)
+            wrong = np.einsum("ij,ij->i", r_dir, h.ng) <= 0.0
+            r_dir[wrong] = reflect(dirs[wrong], h.ng[wrong])
+            cos_o = np.einsum("ij,ij->i", wo, h.ns)
+            # Metals: a tinted mirror (Schlick with F0 = base colour); a rough metal's one ray
+            # stands for its lobe, as a rough layer's does (its lamps' highlights: `direct`),
+            # with Schlick's grazing term averaged over the lobe (`schlick_grazing_curve`: a
+            # wide lobe keeps the tint at grazing views).
+            grazing = np.where(smooth, (1.0 - np.clip(np.abs(cos_o), 0.0, 1.0)) ** 5,
+                               view_factors(self.metal_tables, m, cos_o))
+            metal_w = np.where((metallic > 0)[:, None], metallic[:, None] * (
+                f0_metal + (1.0 - f0_metal) * grazing[:, None]), 0.0)
+            # The dielectric specular layer of opaque surfaces reflects its surroundings along
+            # the mirror direction with its albedo at this view, what the base lost under it:
+            # exact Fresnel at the level-scaled F0 when smooth (`specular_layer.py`). A rough
+            # layer's one ray stands for its lobe (Cycles' glossy rays see the surroundings; the
+            # lamps' highlights come from `direct`): the energy is right, the blur is not drawn.
+            layer_w = np.where((dielectric > 0) & (spec_level > 0), dielectric - diffuse_w, 0.0)
+            mirror_w = metal_w + layer_w[:, None]
+            if self.environment:  # environment-mapped mirrors: a look-up, whatever the depth
+                own = own + self._environment(hits.tri, h.p, r_dir, mirror_w)
+            np.add.at(result, pixel, weight * own)
+            if untextured is not None:  # white base colour at the camera hits only
+                flat_own = own + (1.0 - h.albedo) * lambert if depth == 0 else own
+                np.add.at(flat, pixel, weight * flat_own)
+            if depth == s.max_depth:
+                self.stats.depth_limited += int(np.count_nonzero(
+                    ((rough < s.mirror_roughness) & (trans > 0)) | (metallic > 0) | (layer_w > 0)))
+                break
+            # --- spawn the next generation: mirror reflection and refraction -----------------------
+            eta = np.where(h.front, 1.0 / self.ior[m], self.ior[m])
+            t_dir, tir = refract(dirs, h.ns, eta)
+            wrong = ~tir & (np.einsum("ij,ij->i", t_dir, h.ng) >= 0.0)
+            if wrong.any():
+                t_dir[wrong], tir[wrong] = refract(dirs[wrong], h.ng[wrong], eta[wrong])
+            children = []  # (origins, dirs, pixel, weight, sharp)
+            # glass: Fresnel split between the reflected and the refracted ray
+            glass = smooth & (trans > 0) & (metallic < 1)
+            f_g = fresnel_dielectric(cos_o, eta)
+            glass_w = ((1.0 - metallic) * trans)[:, None]
+            refl_w = mirror_w + np.where(glass[:, None], glass_w * f_g[:, None], 0.0)
+            if self.environment:  # their mirror part was looked up above: no ray for it
+                refl_w = np.where(self._mapped(hits.tri)[:, None],
+                                  refl_w - mirror_w, refl_w)
+            refr_w = np.where((glass & ~tir)[:, None], glass_w * (1.0 - f_g)[:, None] * h.albedo, 0.0)
+            sees = sharp & smooth
+            for w_new, d_new, side in ((refl_w, r_dir, 1.0), (refr_w, t_dir, -1.0)):
+                w_total = weight * w_new
+                alive = np.max(w_total, axis=1) > 0.0
+                strong = alive & (np.max(w_total, axis=1) >= s.min_weight)
+                self.stats.pruned_branches += int(np.count_nonzero(alive & ~strong))
+                if strong.any():
+                    o_new = h.p[strong] + side * h.ng[strong] * self.offset
+                    children.append((o_new, d_new[strong], pixel[strong], w_total[strong],
+                                     sees[strong]))
+            if not children:
+                break
+            origins = np.concatenate([c[0] for c in children])
+            dirs = np.concatenate([c[1] for c in children])
+            pixel = np.concatenate([c[2] for c in children])
+            weight = np.concatenate([c[3] for c in children])
+            sharp = np.concatenate([c[4] for c in children])
+            t_min = np.zeros(len(origins))
+        return result
+
+
+@dataclass
+class TraceResult:
+    image: np.ndarray  # (H, W, 3) float32 linear radiance, row 0 top
+    stats: TraceStats
+    settings: TracerSettings
+
+
+def trace_steps(scene: Scene, settings: TracerSettings, bvh: BVH | None = None,
+                resolution: tuple[int, int] | None = None, out: np.ndarray | None = None,
+                environment: Mapping[int, EnvironmentLookup] | None = None
+                ) -> Iterator[float | TraceResult]:
+    """Trace the scene camera's view; yields progress in [0, 1), then the `TraceResult`.
+
+    resolution: (W, H) pixels, default the camera's. out: optional (H, W, 3) float32 buffer.
+    environment: object index -> radiance lookup(points, directions), each (N, 3); those
+    objects' mirror reflections read it instead of tracing rays (`envmap.py`).
+    """
+    if scene.camera is None:
+        raise ValueError("the scene has no camera to trace from")
+    width, height = resolution or scene.camera.resolution
+    bvh = bvh or BVH.build(scene.triangles)
+    tracer = Tracer(scene, bvh, settings, environment)
+    image = out if out is not None else np.empty((height, width, 3), np.float32)
+    n = settings.supersample
+    passes = n * n
+    # --- pass 1: n x n stratified samples everywhere (1: the pixel centres) ----------------------
+    acc = np.zeros((height * width, 3))
+    flat, flat_k = np.zeros((height * width, 3)), np.empty((height * width, 3))
+    first_ids = np.empty(height * width, np.int64)
+    row, col = np.divmod(np.arange(height * width), width)
+    # Each sample stands for a 1/n cell of its pixel; its textures are averaged over that cell.
+    grid = max(1, settings.texture_filter // n)
+    for k, (ox, oy) in enumerate(stratified_offsets(n)):
+        o, d = camera_rays(scene.camera, width, height, offsets=(ox, oy))
+        footprint = None if settings.texture_filter == 1 else _Footprint(
+            scene.camera, width, height, col + ox, row + oy, 1.0 / n, grid)
+        acc += tracer.radiance(o.reshape(-1, 3), d.reshape(-1, 3), first_ids if k == 0 else None,
+                               footprint=footprint, untextured=flat_k,
+                               strata=(np.full(height * width, k), passes))
+        flat += flat_k
+        yield 0.6 * (k + 1) / passes
+    pixels = acc / passes
+    # --- pass 2: supersample only where it changes the image (edges) -----------------------------
+    a = settings.adaptive
+    if a > 1:
+        # Texture detail is already filtered: edges are where geometry, shadows or what the
+        # mirrors show change, seen with a white base colour at the camera hits.
+        seen = flat / passes if settings.texture_filter > 1 else pixels
+        mark = edge_pixels(seen.reshape(height, width, 3), first_ids.reshape(height, width)).ravel()
+        tracer.stats.edge_pixels = int(mark.sum())
+        if mark.any():
+            sel = np.nonzero(mark)[0]
+            grid = stratified_offsets(a)
+            # All sub-samples of all edge pixels go out as few large wavefronts: per-call costs
+            # (BVH pool set-up, one pass per depth) are paid once, not once per sub-sample.
+            rays = [pixel_rays(scene.camera, width, height, col[sel] + ox, row[sel] + oy)
+                    for ox, oy in grid]
+            origins = np.concatenate([o for o, _ in rays])  # (a*a*E, 3)
+            dirs = np.concatenate([d for _, d in rays])
+            del rays
+            radiance = np.empty((len(origins), 3))
+            stratum = np.repeat(np.arange(len(grid)), len(sel))  # the sub-sample of each ray
+            # Each sub-sample's textures averaged over its 1/a cell, as in pass 1: a minified
+            # texture at a silhouette would alias between a x a point samples.
+            cell_x = np.concatenate([col[sel] + ox for ox, _ in grid])
+            cell_y = np.concatenate([row[sel] + oy for _, oy in grid])
+            for first in range(0, len(origins), EDGE_WAVEFRONT):
+                last = first + EDGE_WAVEFRONT
+                footprint = None if settings.texture_filter == 1 else _Footprint(
+                    scene.camera, width, height, cell_x[first:last], cell_y[first:last], 1.0 / a,
+                    max(1, settings.texture_filter // a))
+                radiance[first:last] = tracer.radiance(
+                    origins[first:last], dirs[first:last], footprint=footprint,
+                    strata=(stratum[first:last], len(grid)))
+                yield 0.6 + 0.4 * min(last, len(origins)) / len(origins)
+            pixels[sel] = radiance.reshape(len(grid), len(sel), 3).mean(axis=0)
+    image[...] = pixels.reshape(height, width, 3)
+    yield TraceResult(image=image, stats=tracer.stats, settings=settings)
+
+
+def trace(scene: Scene, settings: TracerSettings | None = None, **kwargs) -> TraceResult:
+    """Blocking form of `trace_steps` (settings default to `auto_settings(scene)`)."""
+    settings = settings or auto_settings(scene)
+    for step in trace_steps(scene, settings, **kwargs):
+        if isinstance(step, TraceResult):
+            return step
+    raise RuntimeError("trace_steps ended without a result")
+
+
+def point_light(name: str, position, intensity) -> Light:
+    """A kernel point light of radiant intensity `intensity` (W/sr, RGB) — for tests and tools."""
+    return Light(name=name, kind="POINT", position=np.asarray(position, np.float64),
+                 direction=np.array([0.0, 0.0, -1.0]), axis_x=np.array([1.0, 0.0, 0.0]),
+                 axis_y=np.array([0.0, 1.0, 0.0]), intensity=np.asarray(intensity, np.float64))

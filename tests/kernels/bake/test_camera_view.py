@@ -1,0 +1,50 @@
+"""The camera views' edge pass (`camera_view.supersample_edges`): pixel coverage of silhouettes."""
+
+import numpy as np
+from scene_builder import build, ortho_camera, quad
+
+from classic_bake.kernels.bake.camera_view import (
+    background_and_fragments,
+    edge_pixels,
+    stratified_offsets,
+    supersample_edges,
+)
+from classic_bake.kernels.geometry.bvh import BVH
+from classic_bake.kernels.geometry.scene import Material
+
+
+def test_stratified_offsets_are_cell_centres():
+    np.testing.assert_allclose(stratified_offsets(2), [[0.25, 0.25], [0.75, 0.25], [0.25, 0.75],
+                                                       [0.75, 0.75]])
+    assert stratified_offsets(3).shape == (9, 2)
+
+
+def test_edge_pixels_mark_both_sides_of_an_id_or_contrast_step():
+    image = np.zeros((4, 6, 3))
+    ids = np.zeros((4, 6), np.int64)
+    ids[:, 3:] = 1  # another object from column 3
+    mark = edge_pixels(image, ids)
+    assert mark[:, 2:4].all() and not mark[:, [0, 1, 4, 5]].any()
+    image[2:, :, :] = 1.0  # a bright lower half of one object: a contrast step between rows 1, 2
+    mark = edge_pixels(image, np.zeros((4, 6), np.int64))
+    assert mark[1:3].all() and not mark[[0, 3]].any()
+
+
+def test_a_silhouette_pixel_takes_the_share_of_it_the_surface_covers():
+    """A white quad over a black world, its left edge at x = 0.3 m under an orthographic camera
+    of 8 pixels across 1 m (pixel edges at multiples of 0.125 m): the pixel from 0.25 to 0.375 m
+    is 60% covered. With 5 x 5 sub-pixel rays the pass finds 3 of 5 columns inside (centres at
+    0.2625, ..., 0.3625: those past 0.3), exactly 0.6; covered pixels keep 1, empty ones 0."""
+    white = Material(name="w", base_color=np.ones(3, np.float32), specular=0.0)
+    sheet = quad([(0.3, -2, 0), (2, -2, 0), (2, 2, 0), (0.3, 2, 0)])
+    camera = ortho_camera((0.5, 0.0, 1.0), (0, 0, -1), (0, 1, 0), 1.0, resolution=(8, 8))
+    scene = build([(sheet, white)], camera=camera)
+    image, f = background_and_fragments(scene)
+    image[f.rows, f.cols] = 1.0
+    np.testing.assert_array_equal(image[:, 2, 0], 1.0)  # its centre (0.3125) is on the sheet
+    count = supersample_edges(scene, image, f, lambda g: np.ones((len(g), 3)),
+                              BVH.build(scene.triangles), 5)
+    assert count == 16  # the two columns either side of the edge, 8 rows each
+    np.testing.assert_allclose(image[:, 2], 0.6, atol=1e-12)
+    np.testing.assert_array_equal(image[:, 1], 0.0)
+    np.testing.assert_array_equal(image[:, 3:], 1.0)

@@ -1,0 +1,157 @@
+"""The Principled specular layer's directional albedo (kernels/specular_layer.py)."""
+
+import numpy as np
+import pytest
+
+from classic_bake.kernels.geometry.scene import Material
+from classic_bake.kernels.shading.direct_light import diffuse_at, diffuse_weight
+from classic_bake.kernels.shading.optics import fresnel_dielectric
+from classic_bake.kernels.shading.specular_layer import (
+    diffuse_factor,
+    directional_albedo,
+    layer_f0,
+    schlick_grazing_curve,
+)
+
+F0_GLASS = 0.04  # IOR 1.5 at the default level 0.5
+
+
+def test_a_smooth_layer_reflects_its_fresnel_reflectance():
+    """Roughness 0 is a mirror: E(mu) is the exact Fresnel reflectance at the view angle (the
+    integrand is then a constant)."""
+    for mu in (1.0, 0.8, 0.5, 0.2):
+        np.testing.assert_allclose(directional_albedo(mu, 0.0, F0_GLASS),
+                                   fresnel_dielectric(np.array([mu]), 1.0 / 1.5)[0], rtol=1e-9)
+
+
+def test_albedo_matches_cycles_measured_darkening():
+    """Cycles 5.2.3 darkens the base by 4.0% at roughness 0, 3.7% at 0.5 and 1.4% at 1 (ALBEDO
+    bakes, IOR 1.5, level 0.5: addon/cycles_reference.py, "albedo()"); tests/blender re-measures
+    it through the bridge."""
+    got = [directional_albedo(1.0, r, F0_GLASS) for r in (0.0, 0.5, 1.0)]
+    np.testing.assert_allclose(got[:2], [0.040, 0.037], atol=5e-4)
+    assert abs(got[2] - 0.014) < 2e-3
+
+
+def test_the_level_scales_f0_and_zero_is_lambertian():
+    assert layer_f0(1.5, 0.5) == pytest.approx(0.04)
+    assert layer_f0(1.5, 1.0) == pytest.approx(0.08)
+    assert layer_f0(1.5, 0.0) == 0.0 and layer_f0(3.0, 50.0) == 1.0
+    lambertian = Material(name="l", specular=0.0, roughness=0.3)
+    assert diffuse_factor(lambertian) == 1.0 and diffuse_weight(lambertian) == 1.0
+    assert directional_albedo(1.0, 0.5, layer_f0(1.5, 1.0)) > directional_albedo(1.0, 0.5, 0.04)
+
+
+@pytest.mark.parametrize("roughness", [0.0, 0.3, 0.6, 1.0])
+def test_albedo_is_bounded_and_rises_towards_grazing(roughness):
+    """0 < E <= 1; a near-total reflector (F0 -> 1) at roughness 0 reflects everything; Fresnel
+    makes grazing views reflect more than head-on ones."""
+    values = [directional_albedo(mu, roughness, F0_GLASS) for mu in (1.0, 0.7, 0.4, 0.15)]
+    assert all(0.0 < v < 1.0 for v in values)
+    assert values == sorted(values)
+    assert directional_albedo(1.0, 0.0, 1.0 - 1e-12) == pytest.approx(1.0, abs=1e-5)
+
+
+def test_the_texel_sees_the_base_under_the_layer_the_solver_without_it():
+    """`diffuse_at` (what a bake shows) carries the layer; `under_layer=False` (the radiosity
+    solver's reflectance, radiosity.patch_reflectance) does not; metals reflect nothing
+    diffusely either way."""
+    from scene_builder import build, quad
+
+    layered = Material(name="p", base_color=np.full(3, 0.5, np.float32), specular=0.5,
+                       roughness=0.5)
+    metal = Material(name="m", base_color=np.full(3, 0.5, np.float32), metallic=1.0)
+    scene = build([(quad([(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)]), layered),
+                   (quad([(0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)]), metal)])
+    tri, bary = np.array([0, 2]), np.full((2, 3), 1.0 / 3.0)
+    factor = 1.0 - directional_albedo(1.0, 0.5, 0.04)
+    np.testing.assert_allclose(diffuse_at(scene, tri, bary), [[0.5 * factor] * 3, [0.0] * 3])
+    np.testing.assert_allclose(diffuse_at(scene, tri, bary, under_layer=False),
+                               [[0.5] * 3, [0.0] * 3])
+
+
+@pytest.mark.parametrize("tilt_deg", [0.0, 60.0, 80.0])
+def test_the_camera_sees_the_base_darken_towards_grazing(tilt_deg):
+    """The tracer's albedo view of a layered plane (roughness 0: E is Fresnel's reflectance)
+    seen by an orthographic camera tilted `tilt_deg` from the normal: every pixel shows
+    base x (1 - F(cos tilt)), as Cycles' Diffuse Color pass does (4% head-on, 10% at 60
+    degrees, 39% at 80)."""
+    from scene_builder import build, ortho_camera, quad
+
+    from classic_bake.kernels.trace.tracer import TracerSettings, trace
+
+    base = 0.6
+    layered = Material(name="p", base_color=np.full(3, base, np.float32), specular=0.5,
+                       roughness=0.0)
+    t = np.radians(tilt_deg)
+    forward = (0.0, -np.sin(t), -np.cos(t))
+    camera = ortho_camera(np.array([0.0, 0.0, 0.0]) - 5.0 * np.array(forward), forward,
+                          (0.0, 1.0, 0.0) if tilt_deg == 0.0 else (0.0, 0.0, 1.0), 0.5, (4, 4))
+    scene = build([(quad([(-2, -2, 0), (2, -2, 0), (2, 2, 0), (-2, 2, 0)]), layered)],
+                  camera=camera)
+    image = trace(scene, TracerSettings(max_depth=0, output="albedo")).image
+    expected = base * (1.0 - fresnel_dielectric(np.array([np.cos(t)]), 1.0 / 1.5)[0])
+    np.testing.assert_allclose(image, expected, rtol=1e-3)
+
+
+@pytest.mark.parametrize("roughness, level", [(0.5, 0.5), (0.0, 1.0)])
+def test_a_layer_reflects_its_surroundings(roughness, level):
+    """A black plane under a specular layer seen 60 degrees off its normal, facing a large
+    emissive wall of radiance 2 across the mirror direction: each pixel shows the layer's albedo
+    at that view times the wall, E(0.5) x 2, through one mirror-direction ray. Rough (0.5): the
+    ray stands for the lobe (Cycles' glossy rays see the wall; the blur is not drawn). Smooth at
+    level 1: Fresnel's reflectance at the doubled F0 (0.08)."""
+    from scene_builder import build, ortho_camera, quad
+
+    from classic_bake.kernels.trace.tracer import TracerSettings, trace
+
+    black = Material(name="b", base_color=np.zeros(3, np.float32), specular=level,
+                     roughness=roughness)
+    wall = Material(name="w", base_color=np.zeros(3, np.float32), specular=0.0,
+                    emission=np.full(3, 2.0, np.float32))
+    t = np.radians(60.0)
+    forward = np.array([0.0, np.sin(t), -np.cos(t)])
+    camera = ortho_camera(-3.0 * forward, forward, (0, 0, 1), 0.4, (4, 4))
+    # The wall stands at y = 4, facing -y, high enough to catch every reflected ray.
+    scene = build([(quad([(-2, -2, 0), (2, -2, 0), (2, 2, 0), (-2, 2, 0)]), black),
+                   (quad([(20, 4, -1), (20, 4, 40), (-20, 4, 40), (-20, 4, -1)]), wall)],
+                  camera=camera)
+    image = trace(scene, TracerSettings(max_depth=1, adaptive=0)).image
+    expected = 2.0 * directional_albedo(0.5, roughness, layer_f0(1.5, level))
+    np.testing.assert_allclose(image, expected, rtol=2e-3)
+
+
+@pytest.mark.parametrize("metallic", [0.0, 0.5])
+def test_the_tracers_highlight_is_the_layers_share(metallic):
+    """A black plane under a rough layer (roughness 0.3), a sun 45 degrees off its normal, the
+    camera in the mirror direction: the tracer draws the analytic GGX highlight
+    (`mirror_highlight`) of each lobe times its share: the layer's (F0 0.04) 1 - metallic, the
+    metal's (F0 = the black base colour: Schlick's grazing term alone) metallic."""
+    from scene_builder import build, mirror_highlight, mirror_view, quad
+
+    from classic_bake.kernels.geometry.scene import Light
+    from classic_bake.kernels.trace.tracer import TracerSettings, trace
+
+    black = Material(name="b", base_color=np.zeros(3, np.float32), specular=0.5, roughness=0.3,
+                     metallic=metallic)
+    cam, sun_dir = mirror_view(45.0)
+    sun = Light(name="Sun", kind="SUN", position=np.zeros(3),
+                direction=sun_dir / np.linalg.norm(sun_dir), axis_x=np.array([1.0, 0, 0]),
+                axis_y=np.array([0, 1.0, 0]), irradiance=np.full(3, 3.0))
+    scene = build([(quad([(-2, -2, 0), (2, -2, 0), (2, 2, 0), (-2, 2, 0)]), black)], camera=cam,
+                  lights=[sun])
+    image = trace(scene, TracerSettings(max_depth=1, adaptive=0)).image
+    expected = ((1.0 - metallic) * mirror_highlight(0.3, 0.04, 3.0, 45.0)
+                + metallic * mirror_highlight(0.3, 0.0, 3.0, 45.0))
+    np.testing.assert_allclose(image, expected, rtol=1e-6)
+
+
+def test_schlicks_grazing_term_over_a_lobe():
+    """Roughness 0: exactly (1 - mu)^5. Rougher, the lobe's microfacets face the view less
+    obliquely, so at grazing views the term is smaller (a wide lobe keeps a metal's tint):
+    roughness 0.5 at mu 0.1 gives well under half of the mirror's 0.59."""
+    mu = np.array([1.0, 0.5, 0.3, 0.1])
+    np.testing.assert_allclose(schlick_grazing_curve(mu, 0.0), (1.0 - mu) ** 5, atol=1e-12)
+    wide = schlick_grazing_curve(mu, 0.5)
+    assert wide[-1] < 0.5 * (1.0 - mu[-1]) ** 5
+    assert np.all(np.diff(wide) > 0.0)  # still rising towards grazing

@@ -1,0 +1,116 @@
+"""Texture lookups (kernels/textures.py): bilinear weights, wrap modes and the checkerboard, with
+exact expected values worked out by hand."""
+
+import numpy as np
+import pytest
+
+from classic_bake.kernels.geometry.scene import Texture
+from classic_bake.kernels.shading.textures import checker, checker_box, sample_image, sample_texture
+
+
+def ramp(w=4, h=2):
+    """Texel value = column index in R, row-from-bottom in G (row 0 of the array is the top)."""
+    img = np.zeros((h, w, 4), np.float32)
+    img[..., 0] = np.arange(w)[None, :]
+    img[..., 1] = (h - 1 - np.arange(h))[:, None]
+    img[..., 3] = 1
+    return img
+
+
+def test_texel_centres_return_the_texel():
+    img = ramp()
+    u = (np.arange(4) + 0.5) / 4
+    v = np.full(4, 0.25)  # centre of the bottom row
+    out = sample_image(img, np.stack([u, v], 1))
+    np.testing.assert_allclose(out[:, 0], [0, 1, 2, 3])
+    np.testing.assert_allclose(out[:, 1], 0)
+
+
+def test_bilinear_is_linear_between_centres():
+    img = ramp()
+    out = sample_image(img, np.array([[0.5, 0.5], [0.3125, 0.5]]), extension="EXTEND")
+    np.testing.assert_allclose(out[:, 0], [1.5, 0.75])  # halfway and a quarter way
+    np.testing.assert_allclose(out[:, 1], [0.5, 0.5])
+
+
+@pytest.mark.parametrize("mode, expected, alpha", [
+    ("REPEAT", 2.25, 1.0),  # x = -0.75: 3/4 of texel -1 (wraps to 3) + 1/4 of texel 0
+    ("EXTEND", 0.0, 1.0),   # texel -1 clamps to the edge texel 0
+    ("CLIP", 0.0, 0.25),    # texel -1 is transparent black: only texel 0's quarter is left
+    ("MIRROR", 0.0, 1.0),   # texel -1 mirrors to texel 0
+])
+def test_wrap_modes_left_of_the_image(mode, expected, alpha):
+    out = sample_image(ramp(), np.array([[-0.0625, 0.25]]), extension=mode)
+    assert out[0, 0] == pytest.approx(expected)
+    assert out[0, 3] == pytest.approx(alpha)
+
+
+def test_clip_is_transparent_outside_and_fades_at_the_border():
+    img = np.ones((2, 2, 4), np.float32)
+    out = sample_image(img, np.array([[1.5, 0.5], [0.0, 0.5], [0.25, 0.5]]), extension="CLIP")
+    np.testing.assert_allclose(out[:, 3], [0.0, 0.5, 1.0])
+
+
+def test_closest_interpolation():
+    out = sample_image(ramp(), np.array([[0.49, 0.75], [0.51, 0.75]]), interpolation="CLOSEST")
+    np.testing.assert_allclose(out[:, 0], [1, 2])
+    np.testing.assert_allclose(out[:, 1], [1, 1])
+
+
+def test_checker_parity_follows_cycles():
+    # Scale 2: the top-left quadrant (u < 0.5, v > 0.5) is colour 1 (different parities).
+    uv = np.array([[0.25, 0.75], [0.75, 0.75], [0.25, 0.25], [0.75, 0.25], [-0.25, 0.25]])
+    c1, c2 = np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0])
+    out = checker(uv, c1, c2, 2.0)
+    np.testing.assert_array_equal(out[:, 0], [1, 0, 0, 1, 1])
+
+
+def test_checker_in_three_dimensions_follows_cycles():
+    """On Generated coordinates the checker is Cycles' 3-D one: colour 1 where the floors of
+    x s, y s and z s sum to an odd number. z = 0 gives the (u, v) pattern; z = 0.5 at scale 4
+    (a flat plane's Generated z) floors to 1 under Cycles' nudge and swaps the colours; an image
+    reads x and y alone."""
+    c1, c2 = np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0])
+    uv = np.array([[0.1, 0.1], [0.1, 0.3], [0.3, 0.3], [0.6, 0.1]])
+    flat = checker(uv, c1, c2, 4.0)
+    np.testing.assert_array_equal(checker(np.c_[uv, np.zeros(4)], c1, c2, 4.0), flat)
+    np.testing.assert_array_equal(checker(np.c_[uv, np.full(4, 0.5)], c1, c2, 4.0), flat[:, ::-1])
+    np.testing.assert_array_equal(checker(np.array([[0.1, 0.1, 0.3]]), c1, c2, 4.0)[0], c1)
+    image = Texture(kind="IMAGE", pixels=ramp(), extension="EXTEND")
+    xyz = np.array([[0.125, 0.25, 0.9]])
+    np.testing.assert_array_equal(sample_texture(image, xyz), sample_texture(image, xyz[:, :2]))
+
+
+def test_checker_box_in_three_dimensions_is_the_mean_over_the_box():
+    c1, c2 = np.array([0.9, 0.2, 0.1]), np.array([0.1, 0.3, 0.8])
+    lo, hi = np.array([0.05, 0.3, 0.2]), np.array([0.7, 0.45, 0.95])
+    n = 81
+    axes = [lo[c] + (np.arange(n) + 0.5) / n * (hi[c] - lo[c]) for c in range(3)]
+    grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
+    dense = checker(grid, c1, c2, 3.0).mean(axis=0)
+    box = checker_box(lo[None], hi[None], c1, c2, 3.0)[0]
+    np.testing.assert_allclose(box, dense, atol=0.03)
+
+
+def test_sample_texture_dispatches_on_kind():
+    tex = Texture(kind="IMAGE", pixels=ramp(), extension="EXTEND")
+    assert sample_texture(tex, np.array([[0.125, 0.25]])).shape == (1, 3)
+    chk = Texture(kind="CHECKER", color1=np.ones(3, np.float32), color2=np.zeros(3, np.float32), scale=1)
+    assert sample_texture(chk, np.array([[0.5, 0.5]]))[0, 0] == 0.0
+
+
+@pytest.mark.parametrize("lo, hi, scale", [
+    ((0.1, 0.2), (0.13, 0.21), 2.0),  # inside one square
+    ((0.2, 0.3), (0.9, 0.4), 2.0),  # across one edge
+    ((-1.3, 0.7), (2.9, 5.2), 3.0),  # many squares, negative coordinates
+    ((0.25, 0.25), (0.25, 0.75), 2.0),  # zero width: a line
+])
+def test_checker_box_is_the_mean_of_the_checker_over_the_box(lo, hi, scale):
+    c1, c2 = np.array([0.9, 0.2, 0.1]), np.array([0.1, 0.3, 0.8])
+    n = 801  # midpoint rule: error ~ squares crossed / n
+    u = lo[0] + (np.arange(n) + 0.5) / n * (hi[0] - lo[0])
+    v = lo[1] + (np.arange(n) + 0.5) / n * (hi[1] - lo[1])
+    uu, vv = np.meshgrid(u, v)
+    dense = checker(np.stack([uu.ravel(), vv.ravel()], 1), c1, c2, scale).mean(axis=0)
+    box = checker_box(np.array([lo]), np.array([hi]), c1, c2, scale)[0]
+    np.testing.assert_allclose(box, dense, atol=0.02)

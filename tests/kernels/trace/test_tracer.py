@@ -1,0 +1,361 @@
+"""Whitted ray tracing (kernels/tracer.py) on scenes with closed-form answers.
+
+Fresnel and slab values: tests/data/fresnel_snell.json.
+"""
+
+
+import numpy as np
+import pytest
+from reference_data import reference
+from scene_builder import build, ortho_camera, persp_camera, quad, uv_sphere
+
+from classic_bake.kernels.bake.camera_view import stratified_offsets
+from classic_bake.kernels.geometry.bvh import BVH
+from classic_bake.kernels.geometry.camera import camera_rays
+from classic_bake.kernels.geometry.scene import Light, Material, Texture
+from classic_bake.kernels.measure.metrics import rel_mse
+from classic_bake.kernels.shading.specular_layer import schlick_grazing_curve
+from classic_bake.kernels.trace.tracer import (
+    Tracer,
+    TracerSettings,
+    auto_settings,
+    point_light,
+    trace,
+)
+
+REF = reference("fresnel_snell.json")
+EXACT = TracerSettings(max_depth=48, adaptive=0, min_weight=0.0)
+GLASS = Material(name="glass", base_color=np.ones(3, np.float32), transmission=1.0, roughness=0.0,
+                 ior=1.5, specular=0.5)
+
+
+def emitter(level=1.0):
+    return Material(name="emit", base_color=np.zeros(3, np.float32), specular=0.0,
+                    emission=np.full(3, level, np.float32))
+
+
+def test_diffuse_plane_under_a_point_light_is_rho_e_over_pi_at_every_pixel():
+    rho, intensity, height = 0.5, 40.0, 2.0
+    plane = quad([(-2, -2, 0), (2, -2, 0), (2, 2, 0), (-2, 2, 0)])
+    cam = ortho_camera((0, 0, 5), (0, 0, -1), (0, 1, 0), 3.0, (16, 16))
+    light = point_light("P", (0.3, -0.2, height), np.full(3, intensity))
+    mat = Material(name="white", base_color=np.full(3, rho, np.float32), specular=0.0)
+    scene = build([(plane, mat)], cam, [light])
+    image = trace(scene, TracerSettings(max_depth=0, adaptive=0)).image
+    # Pixel centres of the orthographic camera on the plane z = 0.
+    xs = -1.5 + (np.arange(16) + 0.5) / 16 * 3.0
+    x, y = np.meshgrid(xs, xs[::-1])
+    d2 = (x - 0.3) ** 2 + (y + 0.2) ** 2 + height**2
+    expected = rho / np.pi * intensity * height / d2**1.5  # E = I cos / d^2, cos = h / d
+    np.testing.assert_allclose(image[..., 0], expected, rtol=1e-5)
+
+
+def test_fresnel_reflectance_at_normal_incidence_is_0_04():
+    # Ortho camera looks down at a glass surface; an emitter of radiance 1 behind the camera is seen
+    # only in the reflection; the refracted ray escapes into the black world.
+    glass_top = quad([(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)])
+    light = quad([(-2, -2, 3), (-2, 2, 3), (2, 2, 3), (2, -2, 3)])  # faces down
+    cam = ortho_camera((0, 0, 2), (0, 0, -1), (0, 1, 0), 1.0, (4, 4))
+    scene = build([(glass_top, GLASS), (light, emitter())], cam)
+    image = trace(scene, EXACT).image
+    np.testing.assert_allclose(image, REF["R0 n=1.5"], rtol=1e-5)
+
+
+@pytest.mark.parametrize("depth, expected", [
+    (1, 0.0),  # enter, then the exit ray is never traced
+    (2, REF["T two interfaces at normal incidence n=1.5 (1-R0)^2"]),
+    (48, REF["T slab incoherent multiple reflections n=1.5 (1-R)/(1+R)"]),
+])
+def test_glass_slab_transmission_by_depth(depth, expected):
+    # A slab between z = 0 and z = 0.2 over an emitter: (1-R)^2 sum R^2k, truncated by the depth.
+    top = quad([(-1, -1, 0.2), (1, -1, 0.2), (1, 1, 0.2), (-1, 1, 0.2)])
+    bottom = quad([(-1, -1, 0), (-1, 1, 0), (1, 1, 0), (1, -1, 0)])
+    light = quad([(-2, -2, -1), (2, -2, -1), (2, 2, -1), (-2, 2, -1)])  # faces up
+    cam = ortho_camera((0, 0, 2), (0, 0, -1), (0, 1, 0), 1.0, (2, 2))
+    scene = build([(np.concatenate([top, bottom]), GLASS), (light, emitter())], cam)
+    image = trace(scene, TracerSettings(max_depth=depth, adaptive=0, min_weight=0.0)).image
+    assert image[0, 0, 0] == pytest.approx(expected, rel=1e-6, abs=1e-7)
+
+
+def prism_scene(ior):
+    """A right-angle glass prism: light enters the top face, meets the hypotenuse at 45 degrees and
+    leaves through the side face towards an emitter at x = -0.5."""
+    a, b, c = np.array([0.0, 1.0]), np.array([1.0, 1.0]), np.array([0.0, 0.0])  # (x, z)
+
+    def p(xz, y):
+        return (xz[0], y, xz[1])
+
+    y0, y1 = -1.0, 1.0
+    tris = [
+        quad([p(a, y0), p(a, y1), p(b, y1), p(b, y0)]),  # top z = 1
+        quad([p(c, y0), p(c, y1), p(a, y1), p(a, y0)]),  # side x = 0
+        quad([p(b, y0), p(b, y1), p(c, y1), p(c, y0)]),  # hypotenuse x = z
+    ]
+    caps = np.array([[p(a, y0), p(b, y0), p(c, y0)], [p(a, y1), p(c, y1), p(b, y1)]])
+    solid = np.concatenate(tris + [caps])[:, ::-1]  # listed clockwise from outside: flip to CCW
+    light = quad([(-0.5, -2, -1), (-0.5, 2, -1), (-0.5, 2, 2), (-0.5, -2, 2)])
+    glass = Material(name="glass", base_color=np.ones(3, np.float32), transmission=1.0,
+                     roughness=0.0, ior=ior)
+    cam = ortho_camera((0.5, 0, 3), (0, 0, -1), (0, 1, 0), 0.2, (2, 2))
+    return build([(solid, glass), (light, emitter())], cam)
+
+
+def test_total_internal_reflection_in_a_prism():
+    # n = 1.5: 45 degrees is beyond the 41.8-degree critical angle, so the hypotenuse is a perfect
+    # mirror: the prism acts as a folded slab, (1 - R)^2 sum R^2k = (1 - R)/(1 + R), where the
+    # light reflected at the exit face returns via the hypotenuse and the top face.
+    image = trace(prism_scene(1.5), EXACT).image
+    expected = REF["T slab incoherent multiple reflections n=1.5 (1-R)/(1+R)"]
+    assert image[0, 0, 0] == pytest.approx(expected, rel=1e-5)
+    shallow = trace(prism_scene(1.5), TracerSettings(max_depth=3, adaptive=0, min_weight=0.0)).image
+    assert shallow[0, 0, 0] == pytest.approx((1 - REF["R0 n=1.5"]) ** 2, rel=1e-5)
+
+
+def test_below_the_critical_angle_the_prism_leaks():
+    # n = 1.3: critical angle 50.3 degrees > 45, so most light leaves through the hypotenuse.
+    from classic_bake.kernels.shading.optics import fresnel_dielectric
+
+    r0 = ((1.3 - 1) / 2.3) ** 2
+    r45 = fresnel_dielectric(np.array([np.cos(np.radians(45))]), 1.3)[0]
+    image = trace(prism_scene(1.3), EXACT).image
+    assert image[0, 0, 0] == pytest.approx((1 - r0) ** 2 * r45, rel=1e-5)
+
+
+def acne_scene():
+    # A sphere lit by a point light: every lit pixel must match the unshadowed diffuse value.
+    sphere = uv_sphere((0, 0, 0), 1.0, rings=24, segments=48)
+    mat = Material(name="white", base_color=np.full(3, 0.8, np.float32), specular=0.0)
+    cam = ortho_camera((0, -5, 0), (0, 1, 0), (0, 0, 1), 2.2, (48, 48))
+    return build([(sphere, mat)], cam, [point_light("P", (3, -3, 3), np.full(3, 50.0))])
+
+
+def test_zero_offset_shows_acne_and_the_default_offset_none():
+    scene = acne_scene()
+    clean = trace(scene, TracerSettings(max_depth=0, adaptive=0)).image[..., 0]
+    acne = trace(scene, TracerSettings(max_depth=0, adaptive=0, offset_scale=0.0)).image[..., 0]
+    lit = clean > 0
+    speckled = np.count_nonzero(acne[lit] < 0.5 * clean[lit])
+    assert speckled > 0.01 * lit.sum()  # self-shadowing speckles without an offset
+    # With the default offset no lit pixel goes dark (the reference: shadow rays never re-hit).
+    unshadowed = trace(scene, TracerSettings(max_depth=0, adaptive=0, offset_scale=0.0)).stats
+    assert unshadowed.shadow_rays > 0
+    assert np.all(clean[lit] > 0)
+
+
+def test_facing_mirrors_lose_energy_at_the_depth_limit():
+    # Two emissive mirrors face each other; a ray between them sees E * sum_k rho^k up to the depth.
+    rho, e = 0.8, 1.0
+    mirror = Material(name="mirror", base_color=np.full(3, rho, np.float32), metallic=1.0,
+                      roughness=0.0, emission=np.full(3, e, np.float32))
+    a = quad([(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)])  # faces +z
+    b = quad([(-1, -1, 1), (-1, 1, 1), (1, 1, 1), (1, -1, 1)])  # faces -z
+    cam = ortho_camera((0, 0, 0.5), (0, 0, -1), (0, 1, 0), 0.5, (2, 2))
+    lost = []
+    for depth in range(6):
+        scene = build([(a, mirror), (b, mirror)], cam)
+        image = trace(scene, TracerSettings(max_depth=depth, adaptive=0, min_weight=0.0)).image
+        expected = e * sum(rho**k for k in range(depth + 1))
+        assert image[0, 0, 0] == pytest.approx(expected, rel=1e-6)
+        lost.append(e / (1 - rho) - image[0, 0, 0])
+    np.testing.assert_allclose(lost, e * rho ** (np.arange(6) + 1) / (1 - rho), rtol=1e-5)
+
+
+def test_weight_threshold_prunes_and_counts():
+    image_full = trace(prism_scene(1.5), EXACT)
+    pruned = trace(prism_scene(1.5), TracerSettings(max_depth=48, adaptive=0, min_weight=0.05))
+    assert pruned.stats.pruned_branches > 0
+    assert pruned.stats.secondary_rays < image_full.stats.secondary_rays
+    # The branches cut carry less than min_weight each: the image barely moves.
+    np.testing.assert_allclose(pruned.image, image_full.image, atol=0.01)
+
+
+def test_auto_settings_trace_only_as_deep_as_needed():
+    diffuse = build([(quad([(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)]), Material(name="d", specular=0.0))])
+    assert auto_settings(diffuse).max_depth == 0
+    assert auto_settings(prism_scene(1.5)).max_depth > 2
+
+
+def test_no_nan_with_degenerate_triangles_and_grazing_rays():
+    plane = quad([(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)])
+    degenerate = np.array([[[0, 0, 0.5], [0, 0, 0.5], [0, 0, 0.5]], [[0, 0, 1], [1, 1, 1], [2, 2, 1]]])
+    cam = ortho_camera((0, -3, 0.0), (0, 1, 0), (0, 0, 1), 2.0, (8, 8))  # grazing the plane
+    scene = build([(plane, GLASS), (degenerate, GLASS)], cam, [point_light("P", (0, 0, 2), np.ones(3))],
+                  world=(0.2, 0.3, 0.4))
+    image = trace(scene, TracerSettings(max_depth=8)).image
+    assert np.all(np.isfinite(image))
+
+
+def test_emissive_surface_lights_a_diffuse_plane():
+    # A 0.2 m emissive square 2 m above a white plane, facing down: irradiance below its centre is
+    # L * integral of cos cos / r^2 over the square (midpoint rule on a 400 x 400 grid, exact to
+    # 1e-6); the tracer's fixed 4 x 4 pattern per triangle must land within 0.2%.
+    rho, radiance, side, height = 0.5, 10.0, 0.2, 2.0
+    plane = quad([(-3, -3, 0), (3, -3, 0), (3, 3, 0), (-3, 3, 0)])
+    h = side / 2
+    lamp = quad([(-h, -h, height), (-h, h, height), (h, h, height), (h, -h, height)])
+    cam = ortho_camera((0, 0, 1), (0, 0, -1), (0, 1, 0), 0.01, (2, 2))
+    mat = Material(name="white", base_color=np.full(3, rho, np.float32), specular=0.0)
+    scene = build([(plane, mat), (lamp, emitter(radiance))], cam)
+    image = trace(scene, TracerSettings(max_depth=0, adaptive=0)).image
+    g = (np.arange(400) + 0.5) / 400 * side - h
+    x, y = np.meshgrid(g, g)
+    r2 = x * x + y * y + height**2
+    irradiance = radiance * np.sum(height**2 / r2**2) * (side / 400) ** 2
+    np.testing.assert_allclose(image[..., 0], rho / np.pi * irradiance, rtol=2e-3)
+
+
+def sun(direction, irradiance):
+    d = np.asarray(direction, np.float64) / np.linalg.norm(direction)
+    return Light(name="Sun", kind="SUN", position=np.zeros(3), direction=d,
+                 axis_x=np.array([1.0, 0.0, 0.0]), axis_y=np.array([0.0, 1.0, 0.0]),
+                 irradiance=np.full(3, irradiance))
+
+
+def checker_floor(scale, camera):
+    tex = Texture(kind="CHECKER", color1=np.array([0.8, 0.1, 0.1], np.float32),
+                  color2=np.array([0.1, 0.7, 0.2], np.float32), scale=scale)
+    mat = Material(name="checker", base_color=np.ones(3, np.float32), specular=0.0,
+                   base_color_texture=tex)
+    floor = quad([(-50, -50, 0), (50, -50, 0), (50, 50, 0), (-50, 50, 0)])
+    return build([(floor, mat)], camera, [sun((0, 0, -1), 3.0)])
+
+
+def test_texture_filter_averages_a_checker_finer_than_the_pixels():
+    # Ortho pixels of 3/16 m aligned with checker squares of 3/32 m: every pixel holds 2 x 2
+    # squares, so its box-filtered base colour is exactly the mean of the two colours.
+    cam = ortho_camera((0, 0, 5), (0, 0, -1), (0, 1, 0), 3.0, (16, 16))
+    scene = checker_floor(32.0 / 3.0, cam)
+    mean = (np.array([0.8, 0.1, 0.1]) + np.array([0.1, 0.7, 0.2])) / 2
+    filtered = trace(scene, TracerSettings(max_depth=0, adaptive=0)).image
+    np.testing.assert_allclose(filtered, np.broadcast_to(mean * 3.0 / np.pi, filtered.shape), rtol=1e-5)
+    point = trace(scene, TracerSettings(max_depth=0, adaptive=0, texture_filter=1)).image
+    # A point sample sees one colour or the other: red 0.8 or 0.1, never the mean 0.45.
+    assert np.abs(point[..., 0] - mean[0] * 3.0 / np.pi).min() > 0.3
+
+
+def test_texture_filter_matches_supersampling_in_perspective():
+    # A fine checker floor seen obliquely, squares shrinking to a fraction of a pixel far away: the
+    # filtered pixel centres land as close to 16 x 16 supersampling (256 rays a pixel) as 12 x 12
+    # does (measured 4e-4 and 8e-4); point-sampled centres alias (0.19).
+    cam = persp_camera((0, -6, 1.5), (0, 1, -0.6), (0, 0, 1), np.radians(60), (48, 32))
+    scene = checker_floor(4.0, cam)
+    reference = trace(scene, TracerSettings(max_depth=0, supersample=16, adaptive=0,
+                                            texture_filter=1)).image
+    filtered = trace(scene, TracerSettings(max_depth=0, adaptive=0)).image
+    point = trace(scene, TracerSettings(max_depth=0, adaptive=0, texture_filter=1)).image
+    assert rel_mse(filtered, reference) < 1.5e-3
+    assert rel_mse(point, reference) > 0.1
+
+
+def test_edge_sub_samples_share_out_an_area_lights_samples():
+    # Two halves of one grey (two objects: an edge down the middle) under a square area light of
+    # 4 x 4 samples and nothing in between. Each edge pixel's 4 x 4 sub-samples take one light
+    # sample each (weighted 16) instead of all 16: one shadow ray per sub-sample, and the pixel
+    # still sums every light sample once. Against every sub-sample taking every light sample,
+    # the pixel differs by 0.36% (sub-sample position and light sample now go together); its
+    # centre sample alone by 0.06%.
+    grey_a = Material(name="a", base_color=np.full(3, 0.5, np.float32), specular=0.0)
+    grey_b = Material(name="b", base_color=np.full(3, 0.5, np.float32), specular=0.0)
+    left = quad([(-1, -1, 0), (0, -1, 0), (0, 1, 0), (-1, 1, 0)])
+    right = quad([(0, -1, 0), (1, -1, 0), (1, 1, 0), (0, 1, 0)])
+    light = Light(name="Panel", kind="AREA", position=np.array([0.3, 0.1, 2.0]),
+                  direction=np.array([0.0, 0.0, -1.0]), axis_x=np.array([1.0, 0.0, 0.0]),
+                  axis_y=np.array([0.0, 1.0, 0.0]), radiance=np.full(3, 5.0), shape="SQUARE",
+                  size_x=1.0, size_y=1.0)
+    cam = ortho_camera((0, 0, 3), (0, 0, -1), (0, 1, 0), 1.6, (16, 16))
+    scene = build([(left, grey_a), (right, grey_b)], cam, [light])
+    settings = TracerSettings(max_depth=0, adaptive=0, area_samples=4)
+    centres = trace(scene, settings)
+    edges = trace(scene, TracerSettings(max_depth=0, adaptive=4, area_samples=4))
+    count = edges.stats.edge_pixels
+    assert count == 32  # the two columns along the middle
+    assert edges.stats.shadow_rays == 256 * 16 + count * 16 * 1
+    changed = np.abs(edges.image - centres.image).max(axis=2) > 0
+    assert changed.sum() == count  # the edge pixels, resampled
+    tracer = Tracer(scene, BVH.build(scene.triangles), settings)
+    full = np.zeros((16, 16, 3))
+    for ox, oy in stratified_offsets(4):  # every sub-sample against every light sample
+        o, d = camera_rays(cam, 16, 16, offsets=(ox, oy))
+        full += tracer.radiance(o.reshape(-1, 3), d.reshape(-1, 3)).reshape(16, 16, 3) / 16
+    np.testing.assert_allclose(edges.image[changed], full[changed], rtol=5e-3)
+
+
+def test_a_rough_metal_reflects_its_surroundings():
+    """A rough gold plane (roughness 0.4) seen 60 degrees off its normal, facing a large emissive
+    wall of radiance 2 across the mirror direction: one mirror ray stands for the metal's lobe,
+    weighted by Schlick's Fresnel of the base colour with its grazing term averaged over the
+    lobe (`specular_layer.schlick_grazing_curve`; it used to be black: only roughness below
+    `mirror_roughness` made a metal reflect)."""
+    gold = np.array([0.9, 0.7, 0.4])
+    metal = Material(name="gold", base_color=gold.astype(np.float32), metallic=1.0, roughness=0.4)
+    t = np.radians(60.0)
+    forward = np.array([0.0, np.sin(t), -np.cos(t)])
+    cam = ortho_camera(-3.0 * forward, forward, (0, 0, 1), 0.4, (4, 4))
+    wall = quad([(20, 4, -1), (20, 4, 40), (-20, 4, 40), (-20, 4, -1)])
+    scene = build([(quad([(-2, -2, 0), (2, -2, 0), (2, 2, 0), (-2, 2, 0)]), metal),
+                   (wall, emitter(2.0))], cam)
+    image = trace(scene, TracerSettings(max_depth=1, adaptive=0)).image
+    grazing = schlick_grazing_curve(np.array([np.cos(t)]), 0.4)[0]
+    expected = 2.0 * (gold + (1.0 - gold) * grazing)
+    # The tracer reads a table of 65 views: within 1e-3 of the integral.
+    np.testing.assert_allclose(image, np.broadcast_to(expected, image.shape), atol=2e-3)
+
+
+def _panel_over_chrome():
+    """(a 1 m area lamp of radiance 5 at z = 2 facing down, a chrome material, a 10 m floor)."""
+    lamp = Light(name="Panel", kind="AREA", position=np.array([0.0, 0.0, 2.0]),
+                 direction=np.array([0.0, 0.0, -1.0]), axis_x=np.array([1.0, 0.0, 0.0]),
+                 axis_y=np.array([0.0, 1.0, 0.0]), radiance=np.full(3, 5.0), size_x=1.0,
+                 size_y=1.0)
+    chrome = Material(name="chrome", base_color=np.full(3, 0.9, np.float32), metallic=1.0,
+                      roughness=0.0)
+    return lamp, chrome, quad([(-5, -5, 0), (5, -5, 0), (5, 5, 0), (-5, 5, 0)])
+
+
+def test_mirrors_and_glass_show_area_lamps_the_camera_does_not():
+    """A 1 m area lamp of radiance 5 hangs 2 m over a chrome floor, facing down, and an
+    orthographic camera looks at the floor 30 degrees off vertical: the rays it reflects meet the
+    lamp, which shows with Schlick's Fresnel of the chrome (Cycles' lamps are visible to glossy
+    and transmission rays); the camera looking at the lamp itself sees the black world."""
+    lamp, chrome, floor = _panel_over_chrome()
+    t = np.radians(30.0)
+    forward = np.array([0.0, np.sin(t), -np.cos(t)])
+    # Aimed at the floor 1.15 m before the lamp's foot: the mirror rays rise to it at (0, 0, 2).
+    target = np.array([0.0, -2.0 * np.tan(t), 0.0])
+    cam = ortho_camera(target - 3.0 * forward, forward, (0, 0, 1), 0.2, (2, 2))
+    scene = build([(floor, chrome)], cam, [lamp])
+    image = trace(scene, TracerSettings(max_depth=1, adaptive=0)).image
+    fresnel = 0.9 + 0.1 * (1.0 - np.cos(t)) ** 5
+    np.testing.assert_allclose(image, 5.0 * fresnel, rtol=1e-6)
+    up = ortho_camera((0.0, 0.0, 0.5), (0, 0, 1), (0, 1, 0), 0.2, (2, 2))
+    looking_up = trace(build([(floor, chrome)], up, [lamp]), TracerSettings(max_depth=1, adaptive=0))
+    assert looking_up.image.max() == 0.0
+
+
+def test_a_lamp_seen_in_a_mirror_through_a_rough_lobe_is_not_a_hot_spot():
+    """The path camera -> plate -> chrome floor -> area lamp: a black plate's specular layer
+    sends its one ray along the mirror direction to the floor, whose mirror ray meets the lamp.
+    Smooth, the plate shows the lamp (Fresnel of the layer and the chrome times L = 5); rough
+    (0.5), its one ray stands for a lobe that Cycles blurs over the surface, and the lamp's
+    sharp image through it would be a hot spot: rays past a rough lobe see no area lamp, as the
+    lobe's own ray does not (the plate is above the lamp, which lights it not at all)."""
+    lamp, chrome, floor = _panel_over_chrome()
+    t = np.radians(30.0)
+    down = np.array([0.0, np.sin(t), -np.cos(t)])  # meets the floor and rises to the lamp
+    plate_at = np.array([0.0, -2.0 * np.tan(t), 0.0]) - 3.0 * down
+    normal = down - np.array([0.0, 1.0, 0.0])  # turns the camera's +y ray into `down`
+    normal /= np.linalg.norm(normal)
+    a = np.array([1.0, 0.0, 0.0])
+    b = np.cross(normal, a)
+    plate = quad([plate_at + 0.2 * (sa * a + sb * b) for sa, sb in
+                  ((-1, -1), (1, -1), (1, 1), (-1, 1))])
+    cam = ortho_camera(plate_at - 2.0 * np.array([0.0, 1.0, 0.0]), (0, 1, 0), (0, 0, 1), 0.05,
+                       (2, 2))
+    images = {}
+    for roughness in (0.0, 0.5):
+        layer = Material(name="layer", base_color=np.zeros(3, np.float32), specular=0.5,
+                         roughness=roughness)
+        scene = build([(floor, chrome), (plate, layer)], cam, [lamp])
+        images[roughness] = trace(scene, TracerSettings(max_depth=2, adaptive=0)).image
+    assert images[0.0].min() > 0.05  # the path exists: a smooth plate shows the lamp
+    assert images[0.5].max() == 0.0
