@@ -28,7 +28,8 @@ test: lint test-kernels test-blender test-blender45
 lint: $(VENV)/.stamp
 	$(VENV)/bin/ruff check .
 
-# The report's browser test needs Debian's Chromium (installed once, as root; a no-op when present).
+# The report's browser test needs Chromium: installed when possible (root or passwordless sudo, apt-get),
+# otherwise one line says why and the test skips. Never fails the build; a no-op when present.
 chromium:
 	tools/install_chromium.sh
 

