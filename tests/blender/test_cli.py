@@ -85,10 +85,32 @@ def test_in_process_entry_point_matches(tmp_path, capsys):
     assert main(["info", str(tmp_path / "missing.blend")]) == 2
 
 
-def test_cli_command_is_registered_with_blender(addon):
+def test_cli_command_is_registered_with_blender(tmp_path, capsys, monkeypatch):
+    # `blender -c classic_bake ARGS...` calls the function registered under "classic_bake" with the
+    # list of arguments after the id and exits with its return value: record what register() hands
+    # to Blender, then call it as Blender does.
     import classic_bake
 
-    assert classic_bake._cli_handle is not None
+    registered = {}
+    real_register = bpy.utils.register_cli_command
+
+    def recording_register(cli_id, execute):
+        registered[cli_id] = execute
+        return real_register(cli_id, execute)
+
+    monkeypatch.setattr(bpy.utils, "register_cli_command", recording_register)
+    classic_bake.register()
+    try:
+        assert classic_bake._cli_handle is not None
+        assert list(registered) == ["classic_bake"]
+        execute = registered["classic_bake"]
+        assert execute(["info", str(CORNELL), "--out", str(tmp_path)]) == 0
+        assert "TallBlock" in capsys.readouterr().out
+        assert (tmp_path / "metrics.json").is_file()
+        assert execute(["info", str(tmp_path / "missing.blend")]) == 2
+    finally:
+        classic_bake.unregister()
+    assert classic_bake._cli_handle is None
 
 
 @pytest.mark.parametrize("name, expected", [
