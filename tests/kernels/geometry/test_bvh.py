@@ -1,4 +1,5 @@
-"""The BVH (kernels/bvh.py): exact agreement with the brute force, watertightness, edge cases.
+"""The BVH (kernels/geometry/bvh*.py): exact agreement with the brute force, watertightness, edge
+cases.
 
 The BVH and `intersect_all` share the triangle test, and the BVH never culls a node holding the
 closest hit (see kernels/intersect.py), so the answers must be *identical*: same triangle, same
@@ -14,8 +15,8 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from classic_bake.bench import meshes
-from classic_bake.kernels.geometry.bvh import BVH, BVHSettings, Hits
-from classic_bake.kernels.geometry.intersect import intersect_all, occluded_all
+from classic_bake.kernels.geometry.bvh import BVH, BVHSettings
+from classic_bake.kernels.geometry.intersect import Hits, intersect_all, occluded_all
 
 ONE_THREAD = BVHSettings(threads=1)
 
