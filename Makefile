@@ -1,6 +1,7 @@
 # Two commands do all set-up on a fresh machine (see README.md):
 #   make demo   build the environment and run the main job on the sample scenes
 #   make test   build the environments and run the whole test suite (what CI runs)
+# Inner loop: make test-quick (tests not marked slow); documents: make docs.
 SHELL := /bin/bash
 VENV   := .venv
 VENV45 := .venv45
@@ -10,7 +11,8 @@ OUT    ?= out
 # Keep the test suite inside the 2-core machine: one process, hypothesis profile "ci".
 PYTEST_FLAGS ?= -q -p no:cacheprovider
 
-.PHONY: all demo test test-kernels test-blender test-blender45 lint samples extension bench clean chromium
+.PHONY: all demo test test-quick test-kernels test-blender test-blender45 lint samples extension bench \
+	docs clean chromium
 
 all: test
 
@@ -39,6 +41,10 @@ test-kernels: $(VENV)/.stamp chromium
 test-blender: $(VENV)/.stamp
 	$(PY) -m pytest $(PYTEST_FLAGS) tests/blender
 
+# The inner loop: lint and every test not marked slow (pytest -m "not slow"), on Blender 5.2 only.
+test-quick: lint $(VENV)/.stamp
+	$(PY) -m pytest $(PYTEST_FLAGS) -m "not slow" tests/kernels tests/pipeline tests/blender
+
 # Compatibility run: the same Blender tests on the previous LTS (bpy 4.5, CPython 3.11).
 test-blender45: $(VENV45)/.stamp
 	$(PY45) -m pytest $(PYTEST_FLAGS) tests/blender
@@ -54,6 +60,10 @@ BENCHES := rays trace texture envmap bump shadowmap radiosity
 
 bench: $(VENV)/.stamp
 	for b in $(BENCHES); do $(PY) bench/$$b.py || exit 1; done
+
+# The documents' generated blocks: parameters from the settings dataclasses, figures from out/bench.
+docs: $(VENV)/.stamp
+	$(PY) tools/gen_docs.py
 
 clean:
 	rm -rf $(OUT) dist wheels

@@ -67,6 +67,7 @@ def assert_same_hits(a: Hits, b: Hits) -> None:
     np.testing.assert_array_equal(a.v, b.v)
 
 
+@pytest.mark.slow
 @settings(
     max_examples=250,
     deadline=None,
@@ -131,6 +132,7 @@ def test_occluded_passes_through_the_triangle_each_ray_skips(mesh):
     assert not np.array_equal(got, bvh.occluded(o, d, 0.0, np.inf))
 
 
+@pytest.mark.slow
 def test_watertight_icosphere_two_million_rays():
     """2,000,000 rays through the shared vertices and edges of a closed icosphere (5120 triangles):
     1M from inside it, 1M from outside aimed at the near side. Every ray crosses the surface at
@@ -241,6 +243,7 @@ def test_invalid_rays_and_limits():
         bvh.intersect(o[:, :2], d[:, :2])
 
 
+@pytest.mark.slow
 def test_results_do_not_depend_on_chunks_or_threads():
     # Enough rays that every thread gets work (`bvh.THREAD_RAYS` per thread).
     tris = meshes.lumpy_sphere(3)
@@ -254,6 +257,7 @@ def test_results_do_not_depend_on_chunks_or_threads():
     assert_same_hits(base.intersect(o, d), ref)
 
 
+@pytest.mark.slow
 def test_out_buffers_and_progress():
     tris = meshes.lumpy_sphere(3)
     bvh = BVH.build(tris, BVHSettings(threads=2, chunk_size=256))

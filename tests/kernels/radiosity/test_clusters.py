@@ -96,6 +96,7 @@ def test_split_children_group_apart_by_their_direct_light():
                                                                                    size).count
 
 
+@pytest.mark.slow
 def test_clustered_agrees_with_the_hierarchical_solver_on_the_same_patches():
     """The lamp-lit room with a ball of 992 triangles: the clustered solve (179 unknowns)
     against the hierarchical solver over all 1070 patches, which agrees with Gauss-Seidel within
@@ -123,6 +124,7 @@ def test_clustered_agrees_with_the_hierarchical_solver_on_the_same_patches():
     assert floor_tint(clustered) == pytest.approx(floor_tint(full), rel=0.01)
 
 
+@pytest.mark.slow
 def test_auto_clusters_only_what_cuts_the_unknowns_fourfold():
     """auto runs the clustered solver on the tessellated room, and not when clusters are off,
     nor on a room of a few large triangles."""

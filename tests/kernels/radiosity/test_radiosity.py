@@ -126,6 +126,7 @@ def test_metal_and_glass_reflect_nothing_diffusely():
         np.testing.assert_allclose(result.radiosity, np.pi / (1.0 - rho), rtol=0.01)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("solver", ["gauss_seidel", "hierarchical"])
 def test_surfaces_that_send_nothing_are_solved_without(solver):
     """A chrome ball in a lamp-lit room: its triangles reflect nothing diffusely and emit nothing,
@@ -411,6 +412,7 @@ def test_auto_solver_goes_progressive_when_the_matrix_does_not_fit():
     np.testing.assert_allclose(result.radiosity, np.pi / 0.7, rtol=0.01)
 
 
+@pytest.mark.slow
 def test_auto_solver_goes_hierarchical_beyond_small_scenes_within_its_bound():
     """auto: more than AUTO_DENSE_PATCHES patches go to the hierarchical solver when its up-front
     bound fits the memory limit (the furnace holds); a limit below the bound sends the same scene
@@ -463,6 +465,7 @@ def test_many_small_triangles_bound_only_the_root_pairs_that_face():
     np.testing.assert_allclose(result.radiosity, np.pi / 0.7, rtol=0.01)
 
 
+@pytest.mark.slow
 def test_auto_caps_refinement_to_keep_the_hierarchy_within_memory():
     """Where refined leaves (up to max_patches) would break the memory limit but the unrefined
     ones fit, auto keeps the hierarchical solver and lowers max_patches to the largest cap whose
@@ -588,6 +591,7 @@ def test_with_the_final_gather_refinement_follows_the_indirect_light_only():
     assert split.any() and not split[np.abs(x - 0.5) > 0.3].any()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("solver", ["gauss_seidel", "hierarchical"])
 def test_shadow_edge_splits_give_the_bounce_under_a_plate(solver):
     """A sun straight down on a 4 m ground, a 1 m plate 0.5 m above it facing down: the plate's
@@ -672,6 +676,7 @@ def _outward_box(lo, hi):
     return np.concatenate([quad(f) for f in faces])
 
 
+@pytest.mark.slow
 def test_hierarchical_keeps_the_energy_of_a_block_on_the_floor():
     """A room lit by a ceiling lamp with a block standing on the floor: the hierarchical solution's
     area means match a fine Gauss-Seidel solution within 1.5% on the room and the block. Its
@@ -693,6 +698,7 @@ def test_hierarchical_keeps_the_energy_of_a_block_on_the_floor():
     np.testing.assert_allclose(tree, fine, rtol=0.015)
 
 
+@pytest.mark.slow
 def test_hierarchical_agrees_with_gauss_seidel_where_a_block_shadows():
     """A lamp square over a floor with a block between: the hierarchical solution and a fine
     Gauss-Seidel solution agree on the floor (area-weighted means within 2%, and the shadow)."""

@@ -151,6 +151,7 @@ def _answered(steps, bvh):
         return stop.value
 
 
+@pytest.mark.slow
 def test_the_solver_with_source_clusters_agrees_with_every_link_exact():
     """A lit room with a ball of 1024 triangles (over MIN_ROOTS roots): over a third of the links
     are reached through far groups (measured 42%; fewer groups than links, each casting the rays
@@ -170,6 +171,7 @@ def test_the_solver_with_source_clusters_agrees_with_every_link_exact():
                                reflected_means(exact, (0, 2)), rtol=0.01)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("rho", [0.5, 0.9])
 def test_furnace_with_source_clusters(rho):
     """A closed box of 1728 small triangles emitting E = pi L and reflecting rho, solved by the
