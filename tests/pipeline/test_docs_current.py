@@ -1,0 +1,92 @@
+"""The documents' generated blocks are current (tools/gen_docs.py, `make docs`).
+
+Parameters blocks come from the kernels' settings dataclasses, so they are regenerated in memory
+and compared with the pages. Figures and results blocks come from the benches run on a machine
+(out/bench/*.json), so only their form is checked: markers paired, a body that is either a table
+or the sentence saying to run `make bench`.
+"""
+
+import importlib.util
+import json
+import re
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+TOOL = REPO / "tools" / "gen_docs.py"
+TECHNIQUE_PAGES = ("texture", "envmap", "bump", "shadowmap", "trace", "radiosity")
+MACHINE_PATH = re.compile(r"(?<![\w.])/(?:work|tmp|home|root|Users)/")
+
+
+@pytest.fixture(scope="module")
+def gen_docs():
+    spec = importlib.util.spec_from_file_location("gen_docs", TOOL)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_every_technique_has_a_page_with_the_generated_blocks(gen_docs):
+    for name in TECHNIQUE_PAGES:
+        page = REPO / "docs" / "techniques" / f"{name}.md"
+        assert page.is_file(), f"missing {page.relative_to(REPO)}"
+        kinds = [kind for kind, _, _ in gen_docs.blocks(page.read_text(encoding="utf-8"))]
+        assert "parameters" in kinds and "figures" in kinds, page.name
+    assert set(TECHNIQUE_PAGES) <= set(gen_docs.TECHNIQUES)
+
+
+def test_parameters_blocks_are_current(gen_docs):
+    stale = []
+    for path, subject in gen_docs.documents():
+        text = path.read_text(encoding="utf-8")
+        if gen_docs.fill(text, subject, kinds=("parameters",)) != text:
+            stale.append(str(path.relative_to(REPO)))
+    assert not stale, f"parameters out of date in {stale}: run `make docs`"
+
+
+def test_parameters_name_every_field_with_its_default(gen_docs):
+    import dataclasses
+
+    classes = gen_docs.settings_classes(
+        {name for t in gen_docs.TECHNIQUES.values() for name in t["settings"]})
+    for cls in classes.values():
+        table = gen_docs.parameters_table(cls)
+        for spec in dataclasses.fields(cls):
+            assert f"| `{spec.name}` |" in table, (cls.__name__, spec.name)
+    # The docstring's wrapped rows are joined: a range split over two rows, a field name too.
+    described = gen_docs.docstring_table(classes["TracerSettings"])
+    assert described["shading"]["range"] == "flat, gouraud, phong, bump"
+    assert "shadow_back_faces" in gen_docs.docstring_table(classes["ShadowMapSettings"])
+
+
+def test_figures_and_results_blocks_are_well_formed(gen_docs):
+    for path, _ in gen_docs.documents():
+        for kind, _, body in gen_docs.blocks(path.read_text(encoding="utf-8")):
+            if kind not in ("figures", "results"):
+                continue
+            assert body.strip(), f"empty {kind} block in {path.name}"
+            assert gen_docs.NO_FIGURES in body or "| ratio | value |" in body, (path.name, kind)
+
+
+def test_figures_render_a_bench_report(gen_docs, tmp_path):
+    report = {"bench": "trace", "ratios": {"cycles_vs_tracer": 0.67, "unreached": None},
+              "figures": {"scales": {"x1": {"kernel": [
+                  {"setting": "pixel centres", "seconds": 0.71, "rel_mse": 2.8e-3, "ratio": 0.4}]}}},
+              "versions": {"bpy": "5.2.3"}}
+    (tmp_path / "trace.json").write_text(json.dumps(report), encoding="utf-8")
+    block = gen_docs.figures_block("trace", tmp_path)
+    assert "| `cycles_vs_tracer` | 0.67 |" in block and "| `unreached` | - |" in block
+    assert "| pixel centres | 0.71 | 0.0028 | 0.4 |" in block
+    assert "bpy 5.2.3" in block
+    # rays.json is missing: that part says how to make it.
+    assert "bench/rays.py" in block and gen_docs.NO_FIGURES in block
+
+
+def test_documents_name_no_machine_path():
+    pages = [REPO / "README.md", REPO / "bench" / "README.md",
+             *sorted((REPO / "docs").rglob("*.md"))]
+    for page in pages:
+        if page.is_file():
+            found = MACHINE_PATH.search(page.read_text(encoding="utf-8"))
+            assert found is None, f"{page.relative_to(REPO)} names a machine path: {found[0]}"
