@@ -43,7 +43,8 @@ def main() -> int:
     from classic_bake.addon import cycles_reference as cr
     from classic_bake.kernels.geometry.bvh import BVH
     from classic_bake.kernels.measure.metrics import compare, rel_mse
-    from classic_bake.kernels.trace.tracer import auto_settings, trace
+    from classic_bake.kernels.trace.settings import auto_settings
+    from classic_bake.kernels.trace.tracer import trace
     from classic_bake.pipeline.charts import speed_accuracy_chart, sweep_chart
     from classic_bake.pipeline.images import write_preview_png
 

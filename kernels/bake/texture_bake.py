@@ -39,12 +39,12 @@ Mesh corners take the value at the corner itself (a colour-attribute bake sample
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..geometry.scene import Scene
+from ..progress import Steps
 from ..shading.direct_light import diffuse_at, diffuse_weight
 from ..shading.textures import checker_box, sample_texture
 
@@ -285,10 +285,10 @@ def texel_albedo(scene: Scene, targets, settings: TextureBakeSettings = TextureB
 
 def texture_bake_steps(scene: Scene, objects, lightmap_sizes: dict, padding: int,
                        settings: TextureBakeSettings = TextureBakeSettings()  # noqa: B008
-                       ) -> Iterator[float | dict]:
+                       ) -> Steps[dict[int, ObjectTextureBake]]:
     """The diffuse albedo of `objects` (indices into scene.objects) on their lightmap texels (when
     the scene carries lightmap UVs; sizes {object index: texels per side}) and at their mesh
-    corners. Yields progress, then {object index: ObjectTextureBake}."""
+    corners. Yields progress, returns {object index: ObjectTextureBake}."""
     from .bake_targets import corner_targets, dilate, lightmap_targets
 
     out = {}
@@ -303,7 +303,7 @@ def texture_bake_steps(scene: Scene, objects, lightmap_sizes: dict, padding: int
         corner_values = diffuse_at(scene, corners.triangles, corners.bary).astype(np.float32)
         out[k] = ObjectTextureBake(lightmap, mask, corner_values, cells)
         yield (i + 1) / max(len(objects), 1)
-    yield out
+    return out
 
 
 def stats(bakes: dict) -> dict:
@@ -319,17 +319,17 @@ def render_settings(**overrides):
     """The tracer settings of texture mapping's camera view: camera rays only (depth 0), each
     returning the diffuse albedo it sees, its textures averaged over the pixel (`tracer.py`,
     output "albedo": Cycles' Diffuse Color pass), silhouettes supersampled."""
-    from ..trace.tracer import TracerSettings
+    from ..trace.settings import TracerSettings
 
     return TracerSettings(**{"max_depth": 0, "output": "albedo", **overrides})
 
 
 def render_steps(scene: Scene, resolution=None, bvh=None, out: np.ndarray | None = None,
-                 **overrides) -> Iterator[float | np.ndarray]:
-    """The scene camera's view of the albedo (`render_settings`). Yields progress, then (H, W, 3)
-    float32, 0 where no surface is seen."""
-    from ..trace.tracer import TraceResult, trace_steps
+                 **overrides) -> Steps[np.ndarray]:
+    """The scene camera's view of the albedo (`render_settings`). Yields progress, returns
+    (H, W, 3) float32, 0 where no surface is seen."""
+    from ..trace.tracer import trace_steps
 
-    for step in trace_steps(scene, render_settings(**overrides), bvh=bvh,
-                            resolution=resolution, out=out):
-        yield step.image if isinstance(step, TraceResult) else step
+    result = yield from trace_steps(scene, render_settings(**overrides), bvh=bvh,
+                                    resolution=resolution, out=out)
+    return result.image

@@ -29,14 +29,16 @@ Faces are (6, S + 2B, S + 2B, 3) float32 radiance, W/(m^2 sr), face order and or
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from ..geometry.bvh import BVH
 from ..geometry.scene import Scene, triangle_areas
-from ..trace.tracer import Tracer, TraceResult, TracerSettings, trace_steps
+from ..progress import Steps, drain, scaled
+from ..trace.settings import TraceResult, TracerSettings
+from ..trace.tracer import Tracer, trace_steps
 from .cubemap import FACE_FORWARD, FACE_U, FACE_V, direction_to_face
 
 # Texels rendered beyond each face's edge: one is what a bilinear lookup can reach past the
@@ -313,10 +315,10 @@ def hidden_bvh(scene: Scene, hidden: Sequence[int]) -> BVH:
 
 def capture_steps(scene: Scene, index: int, size: int, tracer_settings: TracerSettings,
                   supersample: int = 1, bvh: BVH | None = None
-                  ) -> Iterator[float | EnvironmentMap]:
+                  ) -> Steps[EnvironmentMap]:
     """Render the six bordered faces from the centre of object `index`, the object hidden.
 
-    Yields progress in [0, 1), then the `EnvironmentMap`. Each texel is the Whitted tracer's
+    Yields progress in [0, 1], returns the `EnvironmentMap`. Each texel is the Whitted tracer's
     radiance along n x n directions spread over it (n = supersample), averaged. The object is
     hidden from the rays that see, not from shadow rays: its shadow on the floor under it is part
     of what it reflects. `bvh`: the whole scene's (built when omitted).
@@ -348,7 +350,7 @@ def capture_steps(scene: Scene, index: int, size: int, tracer_settings: TracerSe
                 yield done / total
     faces /= n * n
     inverse /= n * n
-    yield EnvironmentMap(object_index=index, centre=centre, faces=faces.astype(np.float32),
+    return EnvironmentMap(object_index=index, centre=centre, faces=faces.astype(np.float32),
                          inverse_distance=inverse.astype(np.float32))
 
 
@@ -367,9 +369,9 @@ def resolve_objects(scene: Scene, names: Sequence[str], mirror_roughness: float)
 
 def render_steps(scene: Scene, settings: EnvMapSettings, tracer_settings: TracerSettings,
                  bvh: BVH | None = None, resolution: tuple[int, int] | None = None,
-                 out: np.ndarray | None = None) -> Iterator[float | EnvMapResult]:
+                 out: np.ndarray | None = None) -> Steps[EnvMapResult]:
     """Capture a cube map for every mapped object, then trace the camera's view with those objects'
-    mirror reflections read from their maps. Yields progress in [0, 1), then the `EnvMapResult`.
+    mirror reflections read from their maps. Yields progress in [0, 1], returns the `EnvMapResult`.
 
     The faces are rendered with `tracer_settings` (depth from `settings.face_depth`), so other
     mirrors and glass appear in them; the camera view uses `tracer_settings` unchanged.
@@ -395,39 +397,29 @@ def render_steps(scene: Scene, settings: EnvMapSettings, tracer_settings: Tracer
         start = time.perf_counter()
         size = settings.face_size or auto_face_size(scene, k, resolution,
                                                      settings.parallax_steps > 0)
-        for step in capture_steps(scene, k, size, face_tracer, settings.face_supersample, bvh):
-            if isinstance(step, EnvironmentMap):
-                maps.append(step)
-            else:
-                yield share * (number + step)
+        maps.append((yield from scaled(
+            capture_steps(scene, k, size, face_tracer, settings.face_supersample, bvh),
+            share * number, share)))
         face_rays += maps[-1].faces[..., 0].size * settings.face_supersample ** 2
         seconds["capture"] += time.perf_counter() - start
     start = time.perf_counter()
     steps = settings.parallax_steps
     environment = {m.object_index: (lambda p, r, m=m: m.reflected(p, r, steps)) for m in maps}
-    result = None
-    for step in trace_steps(scene, tracer_settings, bvh=bvh, resolution=resolution, out=out,
-                            environment=environment):
-        if isinstance(step, TraceResult):
-            result = step
-        else:
-            yield 0.5 + 0.5 * step
+    result = yield from scaled(trace_steps(scene, tracer_settings, bvh=bvh, resolution=resolution,
+                                           out=out, environment=environment), 0.5, 0.5)
     seconds["render"] = time.perf_counter() - start
-    yield EnvMapResult(image=result.image, maps=maps, trace=result, face_rays=face_rays,
+    return EnvMapResult(image=result.image, maps=maps, trace=result, face_rays=face_rays,
                        seconds=seconds)
 
 
 def render(scene: Scene, settings: EnvMapSettings | None = None,
            tracer_settings: TracerSettings | None = None, **kwargs) -> EnvMapResult:
     """Blocking form of `render_steps` (tracer settings default to the tracer's automatic ones)."""
-    from ..trace.tracer import auto_settings
+    from ..trace.settings import auto_settings
 
     settings = settings or EnvMapSettings()
     tracer_settings = tracer_settings or auto_settings(scene)
-    for step in render_steps(scene, settings, tracer_settings, **kwargs):
-        if isinstance(step, EnvMapResult):
-            return step
-    raise RuntimeError("render_steps ended without a result")
+    return drain(render_steps(scene, settings, tracer_settings, **kwargs))
 
 
 def strip_image(env: EnvironmentMap) -> np.ndarray:

@@ -14,7 +14,6 @@ as large as the receivers' own spacing where they are, clamped to [MIN_MAP, MAX_
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -24,8 +23,10 @@ from ..bake.camera_view import EDGE_SAMPLES, background_and_fragments, supersamp
 from ..geometry.scene import Scene, interpolated_normals
 from ..geometry.vec import bounds, row_norms
 from ..measure.metrics import REC709_LUMINANCE
+from ..progress import Steps, drain, scaled
 from ..shadow.shadowmap import (
     Receivers,
+    ShadowMap,
     ShadowMapSettings,
     fit_sun,
     plan_shadow_map,
@@ -127,21 +128,17 @@ def median_spacing(spacings, counts) -> float:
 
 
 def light_visibility_steps(scene: Scene, points, geo_normals, spacing: float,
-                           settings: DirectLightSettings, out: np.ndarray) -> Iterator[float]:
-    """Fill out (L, N) float32 with each light's shadow-map visibility; yields progress."""
-    maps = None
-    for step in shadow_maps_steps(scene, points, geo_normals, spacing, settings):
-        if isinstance(step, list):
-            maps = step
-        else:
-            yield step
-    maps_visibility(maps, points, geo_normals, out)
+                           settings: DirectLightSettings, out: np.ndarray) -> Steps[np.ndarray]:
+    """Fill out (L, N) float32 with each light's shadow-map visibility; yields progress, returns
+    `out`."""
+    maps = yield from shadow_maps_steps(scene, points, geo_normals, spacing, settings)
+    return maps_visibility(maps, points, geo_normals, out)
 
 
 def shadow_maps_steps(scene: Scene, points, geo_normals, spacing: float,
-                      settings: DirectLightSettings) -> Iterator[float | list]:
+                      settings: DirectLightSettings) -> Steps[list[ShadowMap | None]]:
     """Each light's shadow map, planned for and rendered over the receivers (points (N, 3),
-    geometric normals (N, 3), `spacing` m apart): yields progress, then the list (None for a
+    geometric normals (N, 3), `spacing` m apart): yields progress, returns the list (None for a
     light that casts no shadow)."""
     lights = scene.lights
     # Prepared once for every light. Culling and planning read the receivers only through their
@@ -160,11 +157,10 @@ def shadow_maps_steps(scene: Scene, points, geo_normals, spacing: float,
             shadow = replace(shadow, resolution=map_resolution(
                 light, points, spacing, fit.span if fit is not None else None))
         shadow_map = plan_shadow_map(casters, light, shadow, box, fit)  # casters: culled above
-        for _ in render_shadow_map_steps(shadow_map, casters):
-            pass
+        drain(render_shadow_map_steps(shadow_map, casters))
         maps.append(shadow_map)
         yield (k + 1) / max(len(lights), 1)
-    yield maps
+    return maps
 
 
 def maps_visibility(maps: list, points, geo_normals, out: np.ndarray) -> np.ndarray:
@@ -248,30 +244,24 @@ def diffuse_at(scene: Scene, tri: np.ndarray, bary: np.ndarray, under_layer: boo
 
 def render_steps(scene: Scene, settings: DirectLightSettings, resolution=None,
                  out: np.ndarray | None = None, edge_samples: int = EDGE_SAMPLES
-                 ) -> Iterator[float | np.ndarray]:
+                 ) -> Steps[np.ndarray]:
     """The camera's view of direct light with shadow-mapped shadows: the lecture's step 2, with
     the eye's own z-buffer giving the fragments f. Edge pixels (silhouettes, folds, shadow edges:
     `camera_view.edge_pixels`) are then the mean of edge_samples x edge_samples rays through them,
-    as Cycles' 1-px box filter averages a pixel (0 or 1: the centres only). Yields progress, then
-    the (H, W, 3) image."""
+    as Cycles' 1-px box filter averages a pixel (0 or 1: the centres only). Yields progress,
+    returns the (H, W, 3) image."""
     image, f = background_and_fragments(scene, resolution, out)
     camera = scene.camera
     width = image.shape[1]
     yield 0.2
     if len(f) == 0:
-        yield image
-        return
+        return image
     # Pixel footprint at the receivers: the image plane's texel at distance t (PERSP) or in m.
     texel = (camera.plane_max[0] - camera.plane_min[0]) / width
     spacing = texel * (float(np.median(f.depth)) if camera.kind == "PERSP" else 1.0)
-    maps = None
     geo = f.geometric.copy()
     geo[f.back] *= -1  # seen from behind: shade the side we see
-    for step in shadow_maps_steps(scene, f.points, geo, spacing, settings):
-        if isinstance(step, list):
-            maps = step
-        else:
-            yield 0.2 + 0.6 * step
+    maps = yield from scaled(shadow_maps_steps(scene, f.points, geo, spacing, settings), 0.2, 0.6)
     image[f.rows, f.cols] = _shade(scene, maps, f)
     yield 0.8
     if edge_samples > 1:
@@ -280,7 +270,7 @@ def render_steps(scene: Scene, settings: DirectLightSettings, resolution=None,
         # The maps planned for the pixel centres serve their sub-pixel rays too.
         supersample_edges(scene, image, f, lambda g: _shade(scene, maps, g),
                           BVH.build(scene.triangles), edge_samples)
-    yield image
+    return image
 
 
 def _shade(scene: Scene, maps: list, f) -> np.ndarray:
@@ -328,10 +318,10 @@ class ObjectShadowBake:
 
 
 def shadow_bake_steps(scene: Scene, objects, lightmap_sizes: dict, padding: int,
-                      settings: DirectLightSettings) -> Iterator[float | dict]:
+                      settings: DirectLightSettings) -> Steps[dict[int, ObjectShadowBake]]:
     """Shadow masks of `objects` (indices into scene.objects) on their lightmap texels (when the
     scene carries lightmap UVs; `lightmap_sizes` {object index: texels per side}) and corners.
-    Yields progress, then {object index: ObjectShadowBake}.
+    Yields progress, returns {object index: ObjectShadowBake}.
     """
     from ..bake.bake_targets import corner_targets, dilate, lightmap_targets
     from ..geometry.scene import triangle_areas
@@ -352,8 +342,7 @@ def shadow_bake_steps(scene: Scene, objects, lightmap_sizes: dict, padding: int,
     spacing = median_spacing([receiver_spacing(t, float(areas[scene.object_slice(k)].sum()))
                               for k, _, t in sets], [len(t) for _, _, t in sets])
     vis = np.ones((len(scene.lights), len(points)), np.float32)
-    for p in light_visibility_steps(scene, points, geo, spacing, settings, vis):
-        yield 0.1 + 0.85 * p
+    yield from scaled(light_visibility_steps(scene, points, geo, spacing, settings, vis), 0.1, 0.85)
     mask = shadow_mask(irradiance_per_light(scene, points, normals), vis)
     results, start = {}, 0
     parts: dict = {}
@@ -371,4 +360,4 @@ def shadow_bake_steps(scene: Scene, objects, lightmap_sizes: dict, padding: int,
             per_light = np.stack([targets.to_image(row)[..., 0] for row in v]) if len(v) else None
         results[k] = ObjectShadowBake(lightmap=lightmap, lightmap_mask=mask_image,
                                       corners=out["corners"][1], per_light_lightmaps=per_light)
-    yield results
+    return results

@@ -22,171 +22,43 @@ Escaping rays see the world colour. A branch whose weight (throughput) falls bel
 stops early ("model no more than a scene needs"); the statistics count how many rays that saved.
 
 The whole tree is traced as a wavefront: all rays of one depth at once through the BVH.
+
+The settings and result types are in `settings.py`, the lights' samples in `emitters.py`, the
+surface at a hit in `surface.py`; this module holds the wavefront (`Tracer`) and `trace_steps`.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator, Mapping
-from dataclasses import dataclass, field, replace
-from typing import Literal
+from collections.abc import Callable, Mapping
+from dataclasses import replace
 
 import numpy as np
 
 from ..bake.camera_view import edge_pixels, stratified_offsets
 from ..geometry.bvh import BVH
-from ..geometry.camera import Camera, camera_ray_lines, camera_rays, pixel_rays
-from ..geometry.scene import Light, Scene, geometric_normals
+from ..geometry.camera import camera_rays, pixel_rays
+from ..geometry.scene import Scene, geometric_normals
+from ..progress import Steps, drain
 from ..shading import lights as light_units
-from ..shading.bump import SHADING_MODES, ShadingMode, bump_shadowing, scene_normals, valid_reflection
+from ..shading.bump import bump_shadowing
 from ..shading.optics import fresnel_dielectric, reflect, refract
-from ..shading.specular_layer import (
-    MIRROR_ROUGHNESS,
-    ggx_highlight,
-    metal_tables,
-    view_factors,
-    view_tables,
-)
-from ..shading.textures import sample_texture, sample_texture_box
+from ..shading.specular_layer import ggx_highlight, metal_tables, view_factors, view_tables
 from ..shading.world_light import extract_suns, world_radiance
+from .emitters import scene_emitters
+from .settings import TraceResult, TracerSettings, TraceStats, auto_settings
+from .surface import MIN_NORMAL_LENGTH, Footprint, SurfaceHits, filtered_albedo, surface_at
 
-# A new ray starts this fraction of the scene's size off its surface, along the geometric normal:
-# float32 triangles locate a hit to ~1e-7 of the coordinates' magnitude, so 1e-5 clears the surface
-# with two orders of magnitude to spare while staying invisible (0.1 mm in a 10 m scene).
-DEFAULT_OFFSET_SCALE = 1e-5
-# Shading normals are renormalised; below this length (degenerate corner normals) the geometric
-# normal is used instead.
-MIN_NORMAL_LENGTH = 1e-8
-# An emissive object of more triangles than this is one light of this many triangles' samples
-# (`_mesh_light_samples`): each triangle its own n x n grid would make an emissive ball of 80
-# triangles cast 1280 shadow rays a hit (a test studio's 80 x 60 view: 7.3M shadow rays, 25 s).
-MESH_LIGHT_TRIANGLES = 4
 # Emitter samples handled together in area lighting: B x hits arrays stay a few MB per block for
 # a typical wavefront of ~100k hits.
 EMITTER_BLOCK = 8
-# Default branch weight below which the ray tree stops: a cut branch changes its pixel by < 1%.
-MIN_WEIGHT = 1e-2
 # Edge sub-samples traced per wavefront: large enough to amortise per-call work, small enough that
 # a wavefront's hit records (~1 KB per ray over its depths) stay a few hundred MB at most.
 EDGE_WAVEFRONT = 1 << 18
-# Texture boxes per side over each camera sample's cell of the image (the pixel / n): the box
-# filter the pixel applies to the image, applied to the base colour seen directly at the cost of
-# texture look-ups instead of rays. On the ray-tracing sample 3 x 3 boxes cost 0.1 s less than
-# 4 x 4 for the same error (2.79e-3 at the pixel centres); 2 x 2 raised the error by 12% with edges.
-TEXTURE_FILTER = 3
-# A cell's sample ray this close to edge-on with the hit triangle's plane (|cos|) keeps the centre's
-# UV: extrapolating along the plane would run off towards infinity.
-GRAZING_COS = 1e-4
 # An environment map read for reflected rays: (N, 3) world points, (N, 3) unit directions ->
 # (N, 3) radiance W/(m^2 sr) arriving at the points along the directions.
 EnvironmentLookup = Callable[[np.ndarray, np.ndarray], np.ndarray]
 # Rays that are sub-samples of pixels: (stratum of each ray (N,) int, number of strata m).
 Strata = tuple[np.ndarray, int]
-
-
-@dataclass(frozen=True)
-class TracerSettings:
-    """| field            | range    | default | meaning                                              |
-    |------------------|----------|---------|------------------------------------------------------|
-    | max_depth        | 0..64    | 8       | ray-tree depth: 0 traces camera rays and shadows only |
-    | supersample      | 1..16    | 1       | n: n x n stratified samples in every pixel           |
-    | adaptive         | 0..16    | 4       | n x n samples again in pixels at edges (0: off)      |
-    | min_weight       | 0..1     | 1e-2    | a branch whose throughput falls below stops          |
-    | offset_scale     | >= 0     | 1e-5    | ray offset, fraction of the scene's size (0: acne)   |
-    | area_samples     | 1..16    | 4       | per side of an area light / emissive triangle grid   |
-    | point_like_ratio | >= 0     | 0.05    | emitters smaller than this x distance act as points   |
-    | mirror_roughness | 0..1     | 0.1     | rougher metals and glass spawn no reflected or       |
-    |                  |          |         | refracted ray; rougher layers get lamp highlights    |
-    | shading          | flat, gouraud, | bump | normals: the triangles' own (flat); light at the  |
-    |                  | phong, bump |      | corners, interpolated (gouraud); the corners'        |
-    |                  |          |         | normals interpolated (phong); those perturbed by     |
-    |                  |          |         | normal and height maps (bump, `bump.py`)             |
-    | texture_filter   | 1..16    | 3       | g: the base colour seen directly is averaged over    |
-    |                  |          |         | each sample's pixel cell in g/n x g/n boxes (>= 1);   |
-    |                  |          |         | 1: point sampling, no filter                          |
-    | output           | radiance,| radiance| what a camera ray returns: the light it carries, or  |
-    |                  | albedo   |         | the diffuse albedo it sees first, textures filtered  |
-    |                  |          |         | over the pixel (0 where it misses: Cycles' Diffuse   |
-    |                  |          |         | Color pass; texture mapping's view)                   |
-    """
-
-    max_depth: int = 8
-    supersample: int = 1
-    adaptive: int = 4
-    # 1%: on the ray-tracing sample scene 1e-3 cost 52% more time for 2% less relative MSE.
-    min_weight: float = MIN_WEIGHT
-    offset_scale: float = DEFAULT_OFFSET_SCALE
-    area_samples: int = 4
-    point_like_ratio: float = 0.05
-    mirror_roughness: float = MIRROR_ROUGHNESS
-    texture_filter: int = TEXTURE_FILTER
-    shading: ShadingMode = "bump"
-    output: Literal["radiance", "albedo"] = "radiance"
-
-    def __post_init__(self):
-        if self.output not in ("radiance", "albedo"):
-            raise ValueError(f"output must be 'radiance' or 'albedo', got {self.output!r}")
-        if self.shading not in SHADING_MODES:
-            raise ValueError(f"shading must be one of {SHADING_MODES}, got {self.shading!r}")
-        if not 0 <= self.max_depth <= 64:
-            raise ValueError(f"max_depth must be in [0, 64], got {self.max_depth}")
-        if not 1 <= self.supersample <= 16 or not 0 <= self.adaptive <= 16:
-            raise ValueError("supersample must be in [1, 16] and adaptive in [0, 16]")
-        if not 1 <= self.texture_filter <= 16:
-            raise ValueError(f"texture_filter must be in [1, 16], got {self.texture_filter}")
-        if self.offset_scale < 0 or self.min_weight < 0:
-            raise ValueError("offset_scale and min_weight must be >= 0")
-
-
-def auto_settings(scene: Scene, **overrides) -> TracerSettings:
-    """Settings chosen from the scene: a ray tree only as deep as its specular materials need.
-
-    No mirror or glass: depth 0 (camera rays and shadow rays are all there is to trace). Mirrors
-    only: 4 bounces. Glass: each transmissive object can take 4 interfaces (in and out of a
-    hollow shell), plus 2 for mirrors around them, capped at 16.
-    """
-    used = set(np.unique(scene.material_ids).tolist()) if scene.triangle_count else set()
-    mats = [scene.materials[m] for m in used]
-    glassy = {scene.objects[o].name for o in np.unique(scene.object_ids[np.isin(
-        scene.material_ids, [m for m in used if scene.materials[m].transmission > 0])])}
-    mirrors = any(m.metallic > 0 or m.specular > 0 for m in mats)
-    if glassy:
-        depth = min(16, 2 + 4 * len(glassy))
-    elif mirrors:
-        depth = 4
-    else:
-        depth = 0
-    params = {"max_depth": depth}
-    params.update(overrides)
-    return TracerSettings(**params)
-
-
-@dataclass
-class TraceStats:
-    """What the tracer did: rays per kind and how many branches the weight threshold cut."""
-
-    camera_rays: int = 0
-    secondary_rays: int = 0
-    shadow_rays: int = 0
-    pruned_branches: int = 0  # reflected/refracted rays not traced because their weight was small
-    depth_limited: int = 0  # rays alive at max_depth (their energy is lost)
-    edge_pixels: int = 0
-    rays_per_depth: list = field(default_factory=list)
-
-    def as_dict(self) -> dict:
-        return dict(self.__dict__)
-
-
-@dataclass
-class _Emitters:
-    """Every light as a set of point samples: positions, a radiometric weight, and the kind."""
-
-    lights: list  # kernel Light objects (point, spot, sun handled analytically)
-    area_points: np.ndarray  # (S, 3) sample positions on area lights / emissive triangles
-    area_normals: np.ndarray  # (S, 3) emitting side's normal
-    area_radiance_da: np.ndarray  # (S, 3) radiance times the sample's area, W/sr
-    area_two_sided: np.ndarray  # (S,) bool: emissive meshes emit from both sides in Cycles
-    area_local: np.ndarray  # (S,) int: the sample's index among its emitter's samples
-    area_count: np.ndarray  # (S,) int: how many samples its emitter has
 
 
 def _scene_scale(scene: Scene) -> float:
@@ -195,234 +67,6 @@ def _scene_scale(scene: Scene) -> float:
     lo = scene.triangles.reshape(-1, 3).min(0).astype(np.float64)
     hi = scene.triangles.reshape(-1, 3).max(0).astype(np.float64)
     return float(max(np.linalg.norm(hi - lo), np.abs(lo).max(), np.abs(hi).max(), 1e-6))
-
-
-def _mesh_light_samples(scene: Scene, tri_ids: np.ndarray, n: int
-                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
-    """Shadow-ray targets on one object's emissive triangles `tri_ids`: points (S, 3), their
-    faces' normals (S, 3), radiance x the area each stands for (S, 3, W/sr), each one's index
-    among its emitter's samples (S,) and that emitter's sample count (a triangle's, or the
-    object's when it is one light).
-
-    Up to MESH_LIGHT_TRIANGLES triangles, n x n stratified points on each (a folded square
-    grid). A finer mesh is one light of MESH_LIGHT_TRIANGLES x n x n points in all, spread
-    along the triangles' cumulative area (systematic sampling: a triangle gets points in
-    proportion to its area, a small one maybe none, each standing for an equal share of the
-    total): an emissive ball of 80 triangles casts 64 shadow rays a hit, not 1280."""
-    tris = scene.triangles[tri_ids].astype(np.float64)
-    ng = geometric_normals(tris)
-    area = 0.5 * np.linalg.norm(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]), axis=1)
-    radiance = np.stack([scene.materials[m].emission for m in scene.material_ids[tri_ids]])
-    if len(tri_ids) <= MESH_LIGHT_TRIANGLES:
-        st = stratified_offsets(n)
-        fold = st[:, 0] + st[:, 1] > 1.0
-        st[fold] = 1.0 - st[fold][:, ::-1]
-        bary = np.stack([1.0 - st[:, 0] - st[:, 1], st[:, 0], st[:, 1]], 1)  # (K, 3)
-        k = len(bary)
-        pts = np.einsum("kc,tcj->tkj", bary, tris).reshape(-1, 3)
-        return (pts, np.repeat(ng, k, axis=0), np.repeat(radiance * (area / k)[:, None], k, axis=0),
-                np.tile(np.arange(k), len(tri_ids)), k)
-    total = MESH_LIGHT_TRIANGLES * n * n
-    cdf = np.cumsum(area) / area.sum()
-    position = (np.arange(total) + 0.5) / total
-    t = np.minimum(np.searchsorted(cdf, position, side="right"), len(area) - 1)
-    start = np.concatenate([[0.0], cdf[:-1]])[t]
-    # Where in its triangle: the position within the triangle's stretch of the CDF, and a
-    # golden-ratio sequence across, mapped by the area-preserving square-root map.
-    u = np.clip((position - start) / np.maximum(cdf[t] - start, 1e-300), 0.0, 1.0)
-    v = (np.arange(total) * 0.6180339887498949 + 0.5) % 1.0
-    root = np.sqrt(u)
-    bary = np.stack([1.0 - root, root * (1.0 - v), root * v], axis=1)
-    pts = np.einsum("sc,scj->sj", bary, tris[t])
-    return pts, ng[t], radiance[t] * (area.sum() / total), np.arange(total), total
-
-
-def _emitters(scene: Scene, settings: TracerSettings) -> _Emitters:
-    points, normals, power, two_sided, local, count = [], [], [], [], [], []
-    n = settings.area_samples
-    for light in scene.lights:
-        if light.kind != "AREA":
-            continue
-        if light.shape in ("DISK", "ELLIPSE"):
-            samples = light_units.area_light_samples(light, max(n, 2) * 2)  # cells inside the shape
-        else:
-            samples = light_units.area_light_samples(light, n)
-        area = light_units.area_of_shape(light.shape, light.size_x, light.size_y)
-        points.append(samples)
-        normals.append(np.tile(light.direction, (len(samples), 1)))
-        power.append(np.tile(light.radiance * area / len(samples), (len(samples), 1)))
-        two_sided.append(np.zeros(len(samples), bool))
-        local.append(np.arange(len(samples)))
-        count.append(np.full(len(samples), len(samples)))
-    emissive = [k for k, m in enumerate(scene.materials) if m.is_emissive]
-    if emissive:
-        tri_ids = np.nonzero(np.isin(scene.material_ids, emissive))[0]
-        for obj in np.unique(scene.object_ids[tri_ids]):
-            own = tri_ids[scene.object_ids[tri_ids] == obj]
-            pts, ng, radiance_da, index, per_emitter = _mesh_light_samples(scene, own, n)
-            points.append(pts)
-            normals.append(ng)
-            power.append(radiance_da)
-            two_sided.append(np.ones(len(pts), bool))
-            local.append(index)
-            count.append(np.full(len(pts), per_emitter))
-    if points:
-        return _Emitters([li for li in scene.lights if li.kind != "AREA"], np.concatenate(points),
-                         np.concatenate(normals), np.concatenate(power), np.concatenate(two_sided),
-                         np.concatenate(local), np.concatenate(count))
-    z = np.zeros((0, 3))
-    none = np.zeros(0, np.int64)
-    return _Emitters(list(scene.lights), z, z, z, np.zeros(0, bool), none, none)
-
-
-@dataclass
-class _Hits:
-    """Surface data at a batch of hits (N rays)."""
-
-    p: np.ndarray  # (N, 3) float64 world position
-    ng: np.ndarray  # (N, 3) geometric normal facing the incoming ray
-    ns: np.ndarray  # (N, 3) shading normal facing the incoming ray
-    front: np.ndarray  # (N,) bool: the ray hit the triangle's front face
-    material: np.ndarray  # (N,) int32
-    albedo: np.ndarray  # (N, 3) base colour (textured)
-    # (N, 3) the shading normal before the relief (facing the incoming ray), for the bump
-    # shadowing term (`bump.bump_shadowing`); None when no relief is shaded
-    smooth: np.ndarray | None = None
-
-
-@dataclass(frozen=True, eq=False)
-class _Footprint:
-    """The image cell each camera ray samples: for filtering the textures it sees directly."""
-
-    camera: Camera
-    width: int  # image pixels
-    height: int
-    x: np.ndarray  # (N,) float64 cell centre, pixels from the image's left edge
-    y: np.ndarray  # (N,) float64 cell centre, pixels from the image's top edge
-    cell: float  # cell side, pixels (1 / n for n x n supersampling)
-    grid: int  # g: g x g texture samples over the cell
-
-
-def _filtered_albedo(scene: Scene, tri: np.ndarray, centre: np.ndarray, fp: _Footprint,
-                     rays: np.ndarray) -> np.ndarray:
-    """Base colour (M, 3) averaged over the image cells of camera rays `rays` that hit `tri` at
-    barycentrics `centre` (M, 3).
-
-    The cell is cut into g x g sub-cells; the camera rays through their corners are carried onto
-    the hit triangle's plane, whose barycentrics (extrapolated past the triangle's edges, where its
-    texture coordinates continue linearly) give each sub-cell's corners in texture space (UV, or
-    Generated: `Scene.texture_coords`). Each sub-cell then contributes the texture's mean over
-    their bounding box (`sample_texture_box`: exact for the checker at any minification; a
-    Generated box around a slanted face is larger than the face's footprint in it). The
-    pixel's box filter applied to the texture: exact for a planar, evenly lit cell, at the
-    price of look-ups instead of rays.
-
-    The corner rays cost a few scalar operations each: a camera ray's line o + s d is affine in the
-    image position (`camera_ray_lines`), so its plane hit is a ratio of affine functions, whose
-    coefficients are dot products taken once per hit.
-    """
-    v = scene.triangles[tri].astype(np.float64)  # (M, 3, 3) world m
-    e1, e2 = v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]
-    n = np.cross(e1, e2)
-    d11 = np.einsum("ij,ij->i", e1, e1)
-    d12 = np.einsum("ij,ij->i", e1, e2)
-    d22 = np.einsum("ij,ij->i", e2, e2)
-    det = d11 * d22 - d12 * d12  # > 0: the BVH never returns a degenerate triangle
-    n_len = np.sqrt(np.einsum("ij,ij->i", n, n))
-    o, d, o_x, o_y, d_x, d_y = camera_ray_lines(fp.camera, fp.width, fp.height, fp.x[rays],
-                                                fp.y[rays])
-    rel = o - v[:, 0]
-    # For a corner at (dx, dy) pixels from the cell centre, with a . b of per-hit vectors:
-    #   line:  o' = o + dx o_x + dy o_y,  d' = d + dx d_x + dy d_y
-    #   plane: s = n.(v0 - o') / n.d',  q = o' + s d' - v0,  (b1, b2) from q.e1 and q.e2.
-    coef = {}
-    for name, w in (("n", n), ("e1", e1), ("e2", e2)):
-        coef[name] = (np.einsum("ij,ij->i", rel, w), w @ o_x, w @ o_y,
-                      np.einsum("ij,ij->i", d, w), w @ d_x, w @ d_y)
-    speed = np.sqrt(np.einsum("ij,ij->i", d, d))
-    corner_uv = scene.texture_coords[tri]  # (M, 3, 3): (u, v, 0) or Generated
-    g = fp.grid
-    steps = (np.arange(g + 1) / g - 0.5) * fp.cell
-    uv = np.empty((g + 1, g + 1, len(tri), 3))  # sub-cell corners in texture space, [row, column]
-    rn, onx, ony, dn0, dnx, dny = coef["n"]
-    for i, dy in enumerate(steps):
-        for j, dx in enumerate(steps):
-            dn = dn0 + dx * dnx + dy * dny
-            # Edge-on (|cos| below GRAZING_COS, with |d'| ~ |d| across a pixel) or behind: the
-            # ray's own hit point.
-            ok = np.abs(dn) > GRAZING_COS * n_len * speed
-            s = -(rn + dx * onx + dy * ony) / np.where(ok, dn, 1.0)
-            ok &= s > 0.0
-            s = np.where(ok, s, 0.0)
-            q = []
-            for name in ("e1", "e2"):
-                r0, rx, ry, w0, wx, wy = coef[name]
-                q.append(r0 + dx * rx + dy * ry + s * (w0 + dx * wx + dy * wy))
-            b1 = (d22 * q[0] - d12 * q[1]) / det
-            b2 = (d11 * q[1] - d12 * q[0]) / det
-            bary = np.stack([1.0 - b1 - b2, b1, b2], axis=1)
-            bary[~ok] = centre[~ok]
-            uv[i, j] = np.einsum("mc,mcj->mj", bary, corner_uv)
-    quads = np.stack([uv[:-1, :-1], uv[:-1, 1:], uv[1:, :-1], uv[1:, 1:]])  # (4, g, g, M, 3)
-    lo = quads.min(axis=0).reshape(-1, 3)  # (g*g*M, 3), sub-cell-major
-    hi = quads.max(axis=0).reshape(-1, 3)
-    mats = np.tile(scene.material_ids[tri], g * g)
-    acc = np.empty((len(lo), 3))
-    for m in np.unique(mats):
-        rows = mats == m
-        acc[rows] = sample_texture_box(scene.materials[m].base_color_texture, lo[rows], hi[rows])
-    return acc.reshape(g * g, len(tri), 3).mean(axis=0)
-
-
-def _surface(scene: Scene, tri_normals, origins, dirs, hits, shading: str = "bump") -> _Hits:
-    tri = hits.tri
-    t = hits.t.astype(np.float64)
-    p = origins + dirs * t[:, None]
-    u = hits.u.astype(np.float64)[:, None]
-    v = hits.v.astype(np.float64)[:, None]
-    w = 1.0 - u - v
-    ng = tri_normals[tri]
-    material = scene.material_ids[tri]
-    if shading == "flat":
-        ns = ng.copy()
-    else:
-        cn = scene.normals[tri].astype(np.float64)
-        ns = w * cn[:, 0] + u * cn[:, 1] + v * cn[:, 2]
-        length = np.linalg.norm(ns, axis=1, keepdims=True)
-        ns = np.where(length > MIN_NORMAL_LENGTH, ns / np.maximum(length, MIN_NORMAL_LENGTH), ng)
-    smooth = None
-    if shading == "bump":
-        smooth = ns
-        ns = scene_normals(scene, tri, np.concatenate([w, u, v], axis=1), ns)
-        if ns is smooth:  # no material with relief among these hits
-            smooth = None
-    front = np.einsum("ij,ij->i", dirs, ng) < 0.0
-    side = np.where(front, 1.0, -1.0)[:, None]
-    ng = ng * side
-    ns = ns * side
-    if smooth is not None:
-        smooth = smooth * side
-    # A shading normal turned away from the viewer would shade the back: fall back to geometry;
-    # a bump or normal map's is bent back just far enough (`bump.valid_reflection`), which keeps
-    # its tilt (a normal-mapped tile facing away: relMSE against Cycles 0.015 -> 0.0063).
-    away = np.einsum("ij,ij->i", ns, dirs) > 0.0
-    if shading == "bump" and away.any():
-        ns[away] = valid_reflection(ng[away], -dirs[away], ns[away])
-        away = np.einsum("ij,ij->i", ns, dirs) > 0.0
-    ns[away] = ng[away]
-    albedo = np.empty((len(tri), 3))
-    uv = None
-    for m in np.unique(material):
-        rows = material == m
-        mat = scene.materials[m]
-        if mat.base_color_texture is None:
-            albedo[rows] = mat.base_color
-            continue
-        if uv is None:
-            cuv = scene.texture_coords[tri]
-            uv = w * cuv[:, 0] + u * cuv[:, 1] + v * cuv[:, 2]
-        albedo[rows] = sample_texture(mat.base_color_texture, uv[rows])
-    return _Hits(p, ng, ns, front, material, albedo, smooth)
 
 
 class Tracer:
@@ -443,7 +87,7 @@ class Tracer:
         self.environment = dict(environment or {})
         self.offset = settings.offset_scale * _scene_scale(scene)
         self.tri_normals = geometric_normals(scene.triangles)
-        self.emitters = _emitters(scene, settings)
+        self.emitters = scene_emitters(scene, settings)
         self.area_lamps = [li for li in scene.lights if li.kind == "AREA"]
         # A world map's suns (`world_light.extract_suns`): highlights of the rough lobes, and
         # the map without them for those lobes' rays (sky_scene).
@@ -475,7 +119,7 @@ class Tracer:
         self.stats.shadow_rays += len(origins)
         return ~self.shadow_bvh.occluded(origins, directions, 0.0, t_max)
 
-    def direct(self, h: _Hits, wo: np.ndarray, diffuse_w: np.ndarray, lobes: list, rough,
+    def direct(self, h: SurfaceHits, wo: np.ndarray, diffuse_w: np.ndarray, lobes: list, rough,
                strata: Strata | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Light from every light at the hits, shadow rays included: (radiance, lambert), each (N, 3).
 
@@ -532,7 +176,7 @@ class Tracer:
         out += h.albedo * lambert
         return out, lambert
 
-    def gouraud_direct(self, h: _Hits, hits, eye: np.ndarray, diffuse_w, lobes, rough,
+    def gouraud_direct(self, h: SurfaceHits, hits, eye: np.ndarray, diffuse_w, lobes, rough,
                        strata: Strata | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Gouraud (per-vertex) shading: `direct` evaluated at the hit triangle's three corners,
         with their own normals, shadow rays and view directions (towards `eye`, each ray's
@@ -551,7 +195,7 @@ class Tracer:
             n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), MIN_NORMAL_LENGTH)
             wo = eye - p
             wo /= np.maximum(np.linalg.norm(wo, axis=1, keepdims=True), 1e-12)
-            corner = _Hits(p, h.ng, n, h.front, h.material, h.albedo)
+            corner = SurfaceHits(p, h.ng, n, h.front, h.material, h.albedo)
             lit_k, lambert_k = self.direct(corner, wo, diffuse_w, lobes, rough, strata)
             lit += w[:, None] * lit_k
             lambert += w[:, None] * lambert_k
@@ -675,7 +319,7 @@ class Tracer:
     # --- the wavefront ---------------------------------------------------------------------------
 
     def radiance(self, origins: np.ndarray, dirs: np.ndarray,
-                 primary_ids: np.ndarray | None = None, footprint: _Footprint | None = None,
+                 primary_ids: np.ndarray | None = None, footprint: Footprint | None = None,
                  untextured: np.ndarray | None = None, strata: Strata | None = None,
                  primary_t: np.ndarray | None = None) -> np.ndarray:
         """Radiance (N, 3) arriving at the camera along N primary rays.
@@ -683,7 +327,7 @@ class Tracer:
         primary_ids: optional (N,) int64 filled with what each camera ray hit (object and
         material, -1 for the background), for edge detection without tracing twice.
         footprint: each ray's cell of the image; the base colour seen directly is then the
-        texture's mean over the cell (`_filtered_albedo`), not its value at the ray's point.
+        texture's mean over the cell (`filtered_albedo`), not its value at the ray's point.
         untextured: optional (N, 3) filled with the same radiance but a white base colour at the
         camera hits: what edge detection compares, so texture detail (filtered) is no edge.
         strata: (stratum (N,), m) when the rays are m sub-samples of pixels: area lights' samples
@@ -745,7 +389,7 @@ class Tracer:
             hits = type(hits)(t=hits.t[keep], tri=hits.tri[keep], u=hits.u[keep], v=hits.v[keep])
             if len(origins) == 0:
                 break
-            h = _surface(self.scene, self.tri_normals, origins, dirs, hits, s.shading)
+            h = surface_at(self.scene, self.tri_normals, origins, dirs, hits, s.shading)
             m = h.material
             if depth == 0 and footprint is not None:
                 textured = self.textured[m]
@@ -753,7 +397,7 @@ class Tracer:
                     rows = np.nonzero(textured)[0]
                     u, v = hits.u[rows].astype(np.float64), hits.v[rows].astype(np.float64)
                     centre = np.stack([1.0 - u - v, u, v], axis=1)
-                    h.albedo[rows] = _filtered_albedo(self.scene, hits.tri[rows], centre,
+                    h.albedo[rows] = filtered_albedo(self.scene, hits.tri[rows], centre,
                                                       footprint, pixel[rows])
             metallic, trans, rough = self.metallic[m], self.transmission[m], self.roughness[m]
             dielectric = (1.0 - metallic) * (1.0 - trans)
@@ -862,18 +506,11 @@ class Tracer:
         return result
 
 
-@dataclass
-class TraceResult:
-    image: np.ndarray  # (H, W, 3) float32 linear radiance, row 0 top
-    stats: TraceStats
-    settings: TracerSettings
-
-
 def trace_steps(scene: Scene, settings: TracerSettings, bvh: BVH | None = None,
                 resolution: tuple[int, int] | None = None, out: np.ndarray | None = None,
                 environment: Mapping[int, EnvironmentLookup] | None = None
-                ) -> Iterator[float | TraceResult]:
-    """Trace the scene camera's view; yields progress in [0, 1), then the `TraceResult`.
+                ) -> Steps[TraceResult]:
+    """Trace the scene camera's view; yields progress in [0, 1), returns the `TraceResult`.
 
     resolution: (W, H) pixels, default the camera's. out: optional (H, W, 3) float32 buffer.
     environment: object index -> radiance lookup(points, directions), each (N, 3); those
@@ -896,7 +533,7 @@ def trace_steps(scene: Scene, settings: TracerSettings, bvh: BVH | None = None,
     grid = max(1, settings.texture_filter // n)
     for k, (ox, oy) in enumerate(stratified_offsets(n)):
         o, d = camera_rays(scene.camera, width, height, offsets=(ox, oy))
-        footprint = None if settings.texture_filter == 1 else _Footprint(
+        footprint = None if settings.texture_filter == 1 else Footprint(
             scene.camera, width, height, col + ox, row + oy, 1.0 / n, grid)
         acc += tracer.radiance(o.reshape(-1, 3), d.reshape(-1, 3), first_ids if k == 0 else None,
                                footprint=footprint, untextured=flat_k,
@@ -930,7 +567,7 @@ def trace_steps(scene: Scene, settings: TracerSettings, bvh: BVH | None = None,
             cell_y = np.concatenate([row[sel] + oy for _, oy in grid])
             for first in range(0, len(origins), EDGE_WAVEFRONT):
                 last = first + EDGE_WAVEFRONT
-                footprint = None if settings.texture_filter == 1 else _Footprint(
+                footprint = None if settings.texture_filter == 1 else Footprint(
                     scene.camera, width, height, cell_x[first:last], cell_y[first:last], 1.0 / a,
                     max(1, settings.texture_filter // a))
                 radiance[first:last] = tracer.radiance(
@@ -939,20 +576,10 @@ def trace_steps(scene: Scene, settings: TracerSettings, bvh: BVH | None = None,
                 yield 0.6 + 0.4 * min(last, len(origins)) / len(origins)
             pixels[sel] = radiance.reshape(len(grid), len(sel), 3).mean(axis=0)
     image[...] = pixels.reshape(height, width, 3)
-    yield TraceResult(image=image, stats=tracer.stats, settings=settings)
+    return TraceResult(image=image, stats=tracer.stats, settings=settings)
 
 
 def trace(scene: Scene, settings: TracerSettings | None = None, **kwargs) -> TraceResult:
     """Blocking form of `trace_steps` (settings default to `auto_settings(scene)`)."""
-    settings = settings or auto_settings(scene)
-    for step in trace_steps(scene, settings, **kwargs):
-        if isinstance(step, TraceResult):
-            return step
-    raise RuntimeError("trace_steps ended without a result")
+    return drain(trace_steps(scene, settings or auto_settings(scene), **kwargs))
 
-
-def point_light(name: str, position, intensity) -> Light:
-    """A kernel point light of radiant intensity `intensity` (W/sr, RGB) — for tests and tools."""
-    return Light(name=name, kind="POINT", position=np.asarray(position, np.float64),
-                 direction=np.array([0.0, 0.0, -1.0]), axis_x=np.array([1.0, 0.0, 0.0]),
-                 axis_y=np.array([0.0, 1.0, 0.0]), intensity=np.asarray(intensity, np.float64))

@@ -32,7 +32,7 @@ def test_operator_renders_each_shading_mode(addon, open_sample):
 
 
 def test_cancelled_shading_writes_nothing(addon, open_sample):
-    from classic_bake.kernels.trace.tracer import auto_settings
+    from classic_bake.kernels.trace.settings import auto_settings
     from classic_bake.operators.bump import IMAGE_NAME, shading_job
 
     open_sample("bump")
@@ -62,7 +62,8 @@ def test_bumped_view_matches_cycles_bump_nodes(open_sample):
     view's relMSE was 4.2e-4, Phong's (the relief left out) 3.6e-3."""
     from classic_bake.addon import cycles_reference as cr
     from classic_bake.kernels.measure.metrics import rel_mse
-    from classic_bake.kernels.trace.tracer import auto_settings, trace
+    from classic_bake.kernels.trace.settings import auto_settings
+    from classic_bake.kernels.trace.tracer import trace
 
     open_sample("bump")
     resolution = (80, 60)
@@ -105,7 +106,8 @@ def test_normal_map_nodes_match_cycles(open_sample):
     wrong way."""
     from classic_bake.addon import cycles_reference as cr
     from classic_bake.kernels.measure.metrics import rel_mse
-    from classic_bake.kernels.trace.tracer import auto_settings, trace
+    from classic_bake.kernels.trace.settings import auto_settings
+    from classic_bake.kernels.trace.tracer import trace
 
     open_sample("bump")
     size = 128

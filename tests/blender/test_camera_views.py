@@ -8,6 +8,7 @@ import pytest
 from classic_bake.addon import bridge
 from classic_bake.addon import cycles_reference as cr
 from classic_bake.kernels.measure.metrics import rel_mse
+from classic_bake.kernels.progress import drain
 from classic_bake.kernels.radiosity import radiosity
 from classic_bake.kernels.shading import direct_light
 
@@ -33,8 +34,8 @@ def test_camera_views_of_the_shadows_scene_match_cycles_at_their_edges(open_samp
         model = cr.direct()
 
         def view(k):
-            return list(direct_light.render_steps(snap, direct_light.DirectLightSettings(),
-                                                  RESOLUTION, edge_samples=k))[-1]
+            return drain(direct_light.render_steps(snap, direct_light.DirectLightSettings(),
+                                                   RESOLUTION, edge_samples=k))
     theirs, _ = cr.render_camera(bpy.context.scene, model, 256, RESOLUTION)
     edges, centres = rel_mse(view(3), theirs), rel_mse(view(1), theirs)
     print(f"{technique}: relMSE {edges:.5f} with edge rays, {centres:.5f} at pixel centres")

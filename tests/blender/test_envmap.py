@@ -44,7 +44,7 @@ def test_selected_only_without_a_selection_is_a_clear_error(addon, open_sample):
 
 def test_cancelled_envmap_writes_nothing(addon, open_sample):
     from classic_bake.kernels.envmap.envmap import EnvMapSettings
-    from classic_bake.kernels.trace.tracer import auto_settings
+    from classic_bake.kernels.trace.settings import auto_settings
     from classic_bake.operators.envmap import IMAGE_NAME, envmap_job
 
     open_sample("env_room")
@@ -85,7 +85,8 @@ def test_mapped_mirror_is_close_to_cycles_true_reflections(tmp_path, open_sample
     from classic_bake.addon import cycles_reference as cr
     from classic_bake.kernels.envmap import envmap
     from classic_bake.kernels.measure.metrics import rel_mse
-    from classic_bake.kernels.trace.tracer import auto_settings, trace
+    from classic_bake.kernels.trace.settings import auto_settings
+    from classic_bake.kernels.trace.tracer import trace
 
     open_sample("env_room")
     resolution = (96, 72)

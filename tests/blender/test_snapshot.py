@@ -235,6 +235,7 @@ def test_faces_without_a_material_shade_as_cycles_default_surface():
     import math
 
     from classic_bake.addon import cycles_reference as cr
+    from classic_bake.kernels.progress import drain
     from classic_bake.kernels.shading import direct_light
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
@@ -252,8 +253,8 @@ def test_faces_without_a_material_shade_as_cycles_default_surface():
     scene.camera = cam
     resolution = (16, 12)
     snap = bridge.snapshot(resolution=resolution)
-    ours = list(direct_light.render_steps(snap, direct_light.DirectLightSettings(), resolution,
-                                          edge_samples=1))[-1]
+    ours = drain(direct_light.render_steps(snap, direct_light.DirectLightSettings(), resolution,
+                                           edge_samples=1))
     theirs, _ = cr.render_camera(scene, cr.direct(), 64, resolution)
     ratio = float(ours[4:9, 4:12].mean() / theirs[4:9, 4:12].mean())
     print(f"default surface, ours/cycles {ratio:.4f}")

@@ -162,7 +162,8 @@ def test_the_view_darkens_under_the_specular_layer_as_cycles_does():
     tracer's albedo view follows it (measured relMSE 3.5e-4 over the plane, rows within 0.1%)."""
     from blender_parts import BASE, lit_scene, oblique_camera, plane, principled
 
-    from classic_bake.kernels.trace.tracer import TracerSettings, trace
+    from classic_bake.kernels.trace.settings import TracerSettings
+    from classic_bake.kernels.trace.tracer import trace
 
     scene = lit_scene()
     mat, bsdf = principled("Layered")

@@ -58,7 +58,8 @@ def test_tracer_matches_cycles_on_the_sample_scene(tmp_path, open_sample):
     """Cycles set up to compute the Whitted model (lights as points, no diffuse bounces, the world
     not lighting diffuse surfaces, box filter): relative MSE under 1% at 48 x 36 pixels."""
     from classic_bake.kernels.measure.metrics import rel_mse
-    from classic_bake.kernels.trace.tracer import auto_settings, trace
+    from classic_bake.kernels.trace.settings import auto_settings
+    from classic_bake.kernels.trace.tracer import trace
 
     open_sample("raytrace")
     scene = bpy.context.scene
@@ -87,7 +88,8 @@ def _plane_against_cycles(material):
     from blender_parts import lit_scene, oblique_camera, plane
 
     from classic_bake.addon import cycles_reference
-    from classic_bake.kernels.trace.tracer import TracerSettings, trace
+    from classic_bake.kernels.trace.settings import TracerSettings
+    from classic_bake.kernels.trace.tracer import trace
 
     scene = lit_scene()
     plane(material, size=6.0)

@@ -14,7 +14,8 @@ from classic_bake.addon.jobs import radiosity_bake_job
 from classic_bake.kernels.bake.lightmap_uv import LightmapUVSettings
 from classic_bake.kernels.measure.metrics import rel_mse
 from classic_bake.kernels.radiosity.radiosity import RadiositySettings
-from classic_bake.kernels.trace.tracer import TracerSettings, trace
+from classic_bake.kernels.trace.settings import TracerSettings
+from classic_bake.kernels.trace.tracer import trace
 
 
 @pytest.mark.parametrize("mapping", [None, "POINT", "TEXTURE"])

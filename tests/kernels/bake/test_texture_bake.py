@@ -18,8 +18,10 @@ from classic_bake.kernels.bake.texture_bake import (
     texture_bake_steps,
 )
 from classic_bake.kernels.geometry.scene import Material, Texture
+from classic_bake.kernels.progress import drain
 from classic_bake.kernels.shading.textures import checker, checker_box, sample_texture
-from classic_bake.kernels.trace.tracer import TracerSettings, trace
+from classic_bake.kernels.trace.settings import TracerSettings
+from classic_bake.kernels.trace.tracer import trace
 
 SIZE = 16
 WHITE, BLACK = np.ones(3, np.float32), np.zeros(3, np.float32)
@@ -164,8 +166,8 @@ def test_jacobian_of_a_scaled_and_turned_map():
 def test_bake_steps_give_lightmaps_corners_and_progress():
     mat = lambertian(name="c", base_color_texture=checker_texture(2.0))
     scene = unit_square(mat)
-    steps = list(texture_bake_steps(scene, [0], {0: SIZE}, padding=2))
-    progress, out = steps[:-1], steps[-1]
+    progress = []
+    out = drain(texture_bake_steps(scene, [0], {0: SIZE}, padding=2), progress.append)
     assert progress == sorted(progress) and progress[-1] == 1.0
     bake = out[0]
     assert bake.lightmap.shape == (SIZE, SIZE, 3) and bake.lightmap_mask.all()

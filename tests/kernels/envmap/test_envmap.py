@@ -8,7 +8,10 @@ from scene_builder import build, ortho_camera, persp_camera, quad, tessellated_b
 from classic_bake.kernels.envmap import cubemap, envmap
 from classic_bake.kernels.geometry.bvh import BVH
 from classic_bake.kernels.geometry.scene import Light, Material
-from classic_bake.kernels.trace.tracer import Tracer, TracerSettings, point_light, trace
+from classic_bake.kernels.progress import drain
+from classic_bake.kernels.trace.emitters import point_light
+from classic_bake.kernels.trace.settings import TracerSettings
+from classic_bake.kernels.trace.tracer import Tracer, trace
 
 CHROME = Material(name="chrome", base_color=np.array([0.9, 0.7, 0.5], np.float32), metallic=1.0,
                   roughness=0.0)
@@ -91,9 +94,7 @@ def test_capture_holds_what_rays_from_the_centre_see_with_the_object_hidden():
     scene = lit_room_with_sphere(radius=0.3)
     settings = TracerSettings(max_depth=0, adaptive=0)
     size = 16
-    env = None
-    for step in envmap.capture_steps(scene, 1, size, settings):
-        env = step
+    env = drain(envmap.capture_steps(scene, 1, size, settings))
     assert isinstance(env, envmap.EnvironmentMap) and env.size == size
     np.testing.assert_allclose(env.centre, 0.0, atol=1e-6)
     # The same directions traced in the whole scene from just outside the sphere (radius 0.3, its

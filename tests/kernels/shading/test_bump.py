@@ -7,7 +7,9 @@ from scene_builder import build, ortho_camera, quad
 
 from classic_bake.kernels.geometry.scene import Light, Material, Texture
 from classic_bake.kernels.shading import bump
-from classic_bake.kernels.trace.tracer import TracerSettings, point_light, trace
+from classic_bake.kernels.trace.emitters import point_light
+from classic_bake.kernels.trace.settings import TracerSettings
+from classic_bake.kernels.trace.tracer import trace
 
 
 def random_triangles(n, seed=0):

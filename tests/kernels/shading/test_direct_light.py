@@ -15,6 +15,7 @@ from classic_bake.kernels.bake.bake_targets import (
     lightmap_targets,
 )
 from classic_bake.kernels.geometry.scene import Light, Material
+from classic_bake.kernels.progress import drain
 from classic_bake.kernels.shading import direct_light as dl
 
 WHITE = Material(name="white", base_color=np.full(3, 0.8, np.float32), specular=0.0)
@@ -88,7 +89,7 @@ def test_unoccluded_sun_render_is_exact():
     d = np.array([0.3, -0.4, -1.0])
     cam = ortho_camera((0, 0, 5), (0, 0, -1), (0, 1, 0), 2.0, (8, 8))
     scene = replace(scene, camera=cam, lights=(sun(d),))
-    image = list(dl.render_steps(scene, dl.DirectLightSettings()))[-1]
+    image = drain(dl.render_steps(scene, dl.DirectLightSettings()))
     cos = -d[2] / np.linalg.norm(d)
     np.testing.assert_allclose(image, 0.8 / np.pi * 3.0 * cos, rtol=1e-5)
 
@@ -112,7 +113,7 @@ def test_the_view_shows_only_diffuse_reflection():
                        metallic=1.0 if name == "metal" else 0.0,
                        transmission=1.0 if name == "glass" else 0.0)
         scene = build([(ground, mat)], camera=cam, lights=[sun([0, 0, -1])])
-        image = list(dl.render_steps(scene, dl.DirectLightSettings()))[-1]
+        image = drain(dl.render_steps(scene, dl.DirectLightSettings()))
         np.testing.assert_allclose(image, value, rtol=1e-3, atol=1e-9, err_msg=name)
 
 
@@ -125,7 +126,7 @@ def test_the_view_draws_the_layers_lamp_highlight():
     ground = quad([(-2, -2, 0), (2, -2, 0), (2, 2, 0), (-2, 2, 0)])
     cam, sun_dir = mirror_view(45.0)
     scene = build([(ground, black)], camera=cam, lights=[sun(sun_dir)])
-    image = list(dl.render_steps(scene, dl.DirectLightSettings()))[-1]
+    image = drain(dl.render_steps(scene, dl.DirectLightSettings()))
     np.testing.assert_allclose(image, mirror_highlight(0.3, 0.04, 3.0, 45.0), rtol=1e-6)
 
 

@@ -78,7 +78,8 @@ def test_the_camera_sees_the_base_darken_towards_grazing(tilt_deg):
     degrees, 39% at 80)."""
     from scene_builder import build, ortho_camera, quad
 
-    from classic_bake.kernels.trace.tracer import TracerSettings, trace
+    from classic_bake.kernels.trace.settings import TracerSettings
+    from classic_bake.kernels.trace.tracer import trace
 
     base = 0.6
     layered = Material(name="p", base_color=np.full(3, base, np.float32), specular=0.5,
@@ -103,7 +104,8 @@ def test_a_layer_reflects_its_surroundings(roughness, level):
     level 1: Fresnel's reflectance at the doubled F0 (0.08)."""
     from scene_builder import build, ortho_camera, quad
 
-    from classic_bake.kernels.trace.tracer import TracerSettings, trace
+    from classic_bake.kernels.trace.settings import TracerSettings
+    from classic_bake.kernels.trace.tracer import trace
 
     black = Material(name="b", base_color=np.zeros(3, np.float32), specular=level,
                      roughness=roughness)
@@ -130,7 +132,8 @@ def test_the_tracers_highlight_is_the_layers_share(metallic):
     from scene_builder import build, mirror_highlight, mirror_view, quad
 
     from classic_bake.kernels.geometry.scene import Light
-    from classic_bake.kernels.trace.tracer import TracerSettings, trace
+    from classic_bake.kernels.trace.settings import TracerSettings
+    from classic_bake.kernels.trace.tracer import trace
 
     black = Material(name="b", base_color=np.zeros(3, np.float32), specular=0.5, roughness=0.3,
                      metallic=metallic)

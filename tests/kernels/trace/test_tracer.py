@@ -15,13 +15,9 @@ from classic_bake.kernels.geometry.camera import camera_rays
 from classic_bake.kernels.geometry.scene import Light, Material, Texture
 from classic_bake.kernels.measure.metrics import rel_mse
 from classic_bake.kernels.shading.specular_layer import schlick_grazing_curve
-from classic_bake.kernels.trace.tracer import (
-    Tracer,
-    TracerSettings,
-    auto_settings,
-    point_light,
-    trace,
-)
+from classic_bake.kernels.trace.emitters import point_light
+from classic_bake.kernels.trace.settings import TracerSettings, auto_settings
+from classic_bake.kernels.trace.tracer import Tracer, trace
 
 REF = reference("fresnel_snell.json")
 EXACT = TracerSettings(max_depth=48, adaptive=0, min_weight=0.0)

@@ -1,0 +1,170 @@
+"""What the tracer knows at a hit: position, normals, side and base colour, the colour filtered
+over the camera ray's image cell where it is seen directly."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..geometry.camera import Camera, camera_ray_lines
+from ..geometry.scene import Scene
+from ..shading.bump import scene_normals, valid_reflection
+from ..shading.textures import sample_texture, sample_texture_box
+
+# Shading normals are renormalised; below this length (degenerate corner normals) the geometric
+# normal is used instead.
+MIN_NORMAL_LENGTH = 1e-8
+# A cell's sample ray this close to edge-on with the hit triangle's plane (|cos|) keeps the centre's
+# UV: extrapolating along the plane would run off towards infinity.
+GRAZING_COS = 1e-4
+
+
+@dataclass
+class SurfaceHits:
+    """Surface data at a batch of hits (N rays)."""
+
+    p: np.ndarray  # (N, 3) float64 world position
+    ng: np.ndarray  # (N, 3) geometric normal facing the incoming ray
+    ns: np.ndarray  # (N, 3) shading normal facing the incoming ray
+    front: np.ndarray  # (N,) bool: the ray hit the triangle's front face
+    material: np.ndarray  # (N,) int32
+    albedo: np.ndarray  # (N, 3) base colour (textured)
+    # (N, 3) the shading normal before the relief (facing the incoming ray), for the bump
+    # shadowing term (`bump.bump_shadowing`); None when no relief is shaded
+    smooth: np.ndarray | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class Footprint:
+    """The image cell each camera ray samples: for filtering the textures it sees directly."""
+
+    camera: Camera
+    width: int  # image pixels
+    height: int
+    x: np.ndarray  # (N,) float64 cell centre, pixels from the image's left edge
+    y: np.ndarray  # (N,) float64 cell centre, pixels from the image's top edge
+    cell: float  # cell side, pixels (1 / n for n x n supersampling)
+    grid: int  # g: g x g texture samples over the cell
+
+
+def filtered_albedo(scene: Scene, tri: np.ndarray, centre: np.ndarray, fp: Footprint,
+                     rays: np.ndarray) -> np.ndarray:
+    """Base colour (M, 3) averaged over the image cells of camera rays `rays` that hit `tri` at
+    barycentrics `centre` (M, 3).
+
+    The cell is cut into g x g sub-cells; the camera rays through their corners are carried onto
+    the hit triangle's plane, whose barycentrics (extrapolated past the triangle's edges, where its
+    texture coordinates continue linearly) give each sub-cell's corners in texture space (UV, or
+    Generated: `Scene.texture_coords`). Each sub-cell then contributes the texture's mean over
+    their bounding box (`sample_texture_box`: exact for the checker at any minification; a
+    Generated box around a slanted face is larger than the face's footprint in it). The
+    pixel's box filter applied to the texture: exact for a planar, evenly lit cell, at the
+    price of look-ups instead of rays.
+
+    The corner rays cost a few scalar operations each: a camera ray's line o + s d is affine in the
+    image position (`camera_ray_lines`), so its plane hit is a ratio of affine functions, whose
+    coefficients are dot products taken once per hit.
+    """
+    v = scene.triangles[tri].astype(np.float64)  # (M, 3, 3) world m
+    e1, e2 = v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]
+    n = np.cross(e1, e2)
+    d11 = np.einsum("ij,ij->i", e1, e1)
+    d12 = np.einsum("ij,ij->i", e1, e2)
+    d22 = np.einsum("ij,ij->i", e2, e2)
+    det = d11 * d22 - d12 * d12  # > 0: the BVH never returns a degenerate triangle
+    n_len = np.sqrt(np.einsum("ij,ij->i", n, n))
+    o, d, o_x, o_y, d_x, d_y = camera_ray_lines(fp.camera, fp.width, fp.height, fp.x[rays],
+                                                fp.y[rays])
+    rel = o - v[:, 0]
+    # For a corner at (dx, dy) pixels from the cell centre, with a . b of per-hit vectors:
+    #   line:  o' = o + dx o_x + dy o_y,  d' = d + dx d_x + dy d_y
+    #   plane: s = n.(v0 - o') / n.d',  q = o' + s d' - v0,  (b1, b2) from q.e1 and q.e2.
+    coef = {}
+    for name, w in (("n", n), ("e1", e1), ("e2", e2)):
+        coef[name] = (np.einsum("ij,ij->i", rel, w), w @ o_x, w @ o_y,
+                      np.einsum("ij,ij->i", d, w), w @ d_x, w @ d_y)
+    speed = np.sqrt(np.einsum("ij,ij->i", d, d))
+    corner_uv = scene.texture_coords[tri]  # (M, 3, 3): (u, v, 0) or Generated
+    g = fp.grid
+    steps = (np.arange(g + 1) / g - 0.5) * fp.cell
+    uv = np.empty((g + 1, g + 1, len(tri), 3))  # sub-cell corners in texture space, [row, column]
+    rn, onx, ony, dn0, dnx, dny = coef["n"]
+    for i, dy in enumerate(steps):
+        for j, dx in enumerate(steps):
+            dn = dn0 + dx * dnx + dy * dny
+            # Edge-on (|cos| below GRAZING_COS, with |d'| ~ |d| across a pixel) or behind: the
+            # ray's own hit point.
+            ok = np.abs(dn) > GRAZING_COS * n_len * speed
+            s = -(rn + dx * onx + dy * ony) / np.where(ok, dn, 1.0)
+            ok &= s > 0.0
+            s = np.where(ok, s, 0.0)
+            q = []
+            for name in ("e1", "e2"):
+                r0, rx, ry, w0, wx, wy = coef[name]
+                q.append(r0 + dx * rx + dy * ry + s * (w0 + dx * wx + dy * wy))
+            b1 = (d22 * q[0] - d12 * q[1]) / det
+            b2 = (d11 * q[1] - d12 * q[0]) / det
+            bary = np.stack([1.0 - b1 - b2, b1, b2], axis=1)
+            bary[~ok] = centre[~ok]
+            uv[i, j] = np.einsum("mc,mcj->mj", bary, corner_uv)
+    quads = np.stack([uv[:-1, :-1], uv[:-1, 1:], uv[1:, :-1], uv[1:, 1:]])  # (4, g, g, M, 3)
+    lo = quads.min(axis=0).reshape(-1, 3)  # (g*g*M, 3), sub-cell-major
+    hi = quads.max(axis=0).reshape(-1, 3)
+    mats = np.tile(scene.material_ids[tri], g * g)
+    acc = np.empty((len(lo), 3))
+    for m in np.unique(mats):
+        rows = mats == m
+        acc[rows] = sample_texture_box(scene.materials[m].base_color_texture, lo[rows], hi[rows])
+    return acc.reshape(g * g, len(tri), 3).mean(axis=0)
+
+
+def surface_at(scene: Scene, tri_normals, origins, dirs, hits, shading: str = "bump") -> SurfaceHits:
+    tri = hits.tri
+    t = hits.t.astype(np.float64)
+    p = origins + dirs * t[:, None]
+    u = hits.u.astype(np.float64)[:, None]
+    v = hits.v.astype(np.float64)[:, None]
+    w = 1.0 - u - v
+    ng = tri_normals[tri]
+    material = scene.material_ids[tri]
+    if shading == "flat":
+        ns = ng.copy()
+    else:
+        cn = scene.normals[tri].astype(np.float64)
+        ns = w * cn[:, 0] + u * cn[:, 1] + v * cn[:, 2]
+        length = np.linalg.norm(ns, axis=1, keepdims=True)
+        ns = np.where(length > MIN_NORMAL_LENGTH, ns / np.maximum(length, MIN_NORMAL_LENGTH), ng)
+    smooth = None
+    if shading == "bump":
+        smooth = ns
+        ns = scene_normals(scene, tri, np.concatenate([w, u, v], axis=1), ns)
+        if ns is smooth:  # no material with relief among these hits
+            smooth = None
+    front = np.einsum("ij,ij->i", dirs, ng) < 0.0
+    side = np.where(front, 1.0, -1.0)[:, None]
+    ng = ng * side
+    ns = ns * side
+    if smooth is not None:
+        smooth = smooth * side
+    # A shading normal turned away from the viewer would shade the back: fall back to geometry;
+    # a bump or normal map's is bent back just far enough (`bump.valid_reflection`), which keeps
+    # its tilt (a normal-mapped tile facing away: relMSE against Cycles 0.015 -> 0.0063).
+    away = np.einsum("ij,ij->i", ns, dirs) > 0.0
+    if shading == "bump" and away.any():
+        ns[away] = valid_reflection(ng[away], -dirs[away], ns[away])
+        away = np.einsum("ij,ij->i", ns, dirs) > 0.0
+    ns[away] = ng[away]
+    albedo = np.empty((len(tri), 3))
+    uv = None
+    for m in np.unique(material):
+        rows = material == m
+        mat = scene.materials[m]
+        if mat.base_color_texture is None:
+            albedo[rows] = mat.base_color
+            continue
+        if uv is None:
+            cuv = scene.texture_coords[tri]
+            uv = w * cuv[:, 0] + u * cuv[:, 1] + v * cuv[:, 2]
+        albedo[rows] = sample_texture(mat.base_color_texture, uv[rows])
+    return SurfaceHits(p, ng, ns, front, material, albedo, smooth)
