@@ -24,16 +24,10 @@ from ..geometry.scene import Scene, interpolated_normals
 from ..geometry.vec import bounds, row_norms
 from ..measure.metrics import REC709_LUMINANCE
 from ..progress import Steps, drain, scaled
-from ..shadow.shadowmap import (
-    Receivers,
-    ShadowMap,
-    ShadowMapSettings,
-    fit_sun,
-    plan_shadow_map,
-    potential_casters,
-    receivers_visibility,
-    render_shadow_map_steps,
-)
+from ..shadow.depth_maps import render_shadow_map_steps
+from ..shadow.depth_test import receivers_visibility
+from ..shadow.shadowmap import Receivers, ShadowMap, ShadowMapSettings
+from ..shadow.views import fit_sun, plan_shadow_map, potential_casters
 from . import lights as light_units
 from .bump import scene_normals
 from .specular_layer import diffuse_factor, lamp_highlights, view_factors, view_tables
@@ -71,7 +65,7 @@ def map_resolution(light, points: np.ndarray, spacing: float, sun_span: float | 
     """Map texels (per side, per face) so that a texel is <= spacing / TEXELS_PER_SPACING at the
     receivers.
 
-    A sun's map is `sun_span` m across (`shadowmap.fit_sun(...).span`: what the casters and the
+    A sun's map is `sun_span` m across (`views.fit_sun(...).span`: what the casters and the
     receivers make it cover); without it, the receivers' whole extent across the beam (an upper
     bound).
     """

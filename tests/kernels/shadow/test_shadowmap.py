@@ -14,19 +14,11 @@ from reference_data import reference
 
 from classic_bake.kernels.geometry.raster import Projection
 from classic_bake.kernels.geometry.scene import Light
-from classic_bake.kernels.shadow.shadowmap import (
-    ShadowMapSettings,
-    ShadowView,
-    acne_fraction,
-    build_shadow_map,
-    debug_image,
-    depth_tolerance,
-    light_visibility,
-    peter_panning_gap,
-    plan_shadow_map,
-    render_shadow_map_steps,
-    shadow_visibility,
-)
+from classic_bake.kernels.shadow.depth_maps import build_shadow_map, render_shadow_map_steps
+from classic_bake.kernels.shadow.depth_test import depth_tolerance, light_visibility, shadow_visibility
+from classic_bake.kernels.shadow.measures import acne_fraction, debug_image, peter_panning_gap
+from classic_bake.kernels.shadow.shadowmap import ShadowMapSettings, ShadowView
+from classic_bake.kernels.shadow.views import plan_shadow_map
 
 BIAS_REFERENCE = reference("shadow_bias.json")
 
@@ -470,7 +462,9 @@ def test_cube_faces_draw_only_what_reaches_them_and_miss_nothing():
 def test_prepared_receivers_plan_and_look_up_as_the_arrays_do():
     """Receivers prepared once (columns, unit normals, bounds) give the sun the same fit and every
     light the same visibility as the (N, 3) arrays, and their box corners plan the same maps."""
-    from classic_bake.kernels.shadow.shadowmap import Receivers, fit_sun, receivers_visibility
+    from classic_bake.kernels.shadow.depth_test import receivers_visibility
+    from classic_bake.kernels.shadow.shadowmap import Receivers
+    from classic_bake.kernels.shadow.views import fit_sun
 
     tris = np.concatenate([_quad((-2, -2, 0), (4, 0, 0), (0, 4, 0)),
                            _quad((-0.3, -0.2, 0.9), (0.5, 0, 0), (0, 0.6, 0.1))])
@@ -516,7 +510,7 @@ def test_prepared_normals_are_unit_or_zero():
 def test_threaded_lookup_matches_one_thread():
     """The lookup split over threads (equal shares of the receivers, any chunking) gives the same
     visibility as one thread, bit for bit, on every kind of map."""
-    from classic_bake.kernels.shadow import shadowmap
+    from classic_bake.kernels.shadow import depth_test as shadowmap
 
     tris = np.concatenate([_quad((-2, -2, 0), (4, 0, 0), (0, 4, 0)),
                            _quad((-0.3, -0.2, 0.9), (0.5, 0, 0), (0, 0.6, 0.1))])
