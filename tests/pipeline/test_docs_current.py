@@ -90,3 +90,17 @@ def test_documents_name_no_machine_path():
         if page.is_file():
             found = MACHINE_PATH.search(page.read_text(encoding="utf-8"))
             assert found is None, f"{page.relative_to(REPO)} names a machine path: {found[0]}"
+
+
+WORK_LOG = re.compile(r"\bsession \d+\b|\(session\b|^#+ .*\bsession\b", re.I | re.M)
+
+
+def test_readme_is_a_short_guide_and_documents_keep_no_work_log():
+    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    assert len(readme.splitlines()) <= 300
+    for name in TECHNIQUE_PAGES:
+        assert f"docs/techniques/{name}.md" in readme, f"README does not link the {name} page"
+    pages = [REPO / "README.md", REPO / "bench" / "README.md", *sorted((REPO / "docs").rglob("*.md"))]
+    for page in pages:
+        found = WORK_LOG.search(page.read_text(encoding="utf-8"))
+        assert found is None, f"{page.relative_to(REPO)} keeps a work-log entry: {found[0]!r}"
