@@ -114,7 +114,7 @@ def whitted_reference(scene: Path, quick: bool, max_samples: int) -> tuple:
     import bpy
 
     from classic_bake.addon import bridge
-    from classic_bake.addon import cycles_reference as cr
+    from classic_bake.addon import cycles as cr
     from classic_bake.kernels.trace.settings import auto_settings
 
     bpy.ops.wm.open_mainfile(filepath=str(scene), load_ui=False, use_scripts=False)

@@ -2,7 +2,7 @@
 
     .venv/bin/python bench/bump.py [--quick]
 
-Cycles runs the matched `whitted` model (addon/cycles_reference.py) and renders the scene's Bump
+Cycles runs the matched `whitted` model (addon/cycles/) and renders the scene's Bump
 nodes itself: the reference for every mode is the bumped scene, so the modes without bump show
 what leaving the relief out costs. A converged Cycles render (cached in out/cache) is the
 reference; the kernel's modes and Cycles' sample ladder run alternately, and for each mode the
@@ -40,7 +40,7 @@ def main() -> int:
     import bpy
 
     from classic_bake.addon import bridge
-    from classic_bake.addon import cycles_reference as cr
+    from classic_bake.addon import cycles as cr
     from classic_bake.kernels.geometry.bvh import BVH
     from classic_bake.kernels.measure.metrics import compare, rel_mse
     from classic_bake.kernels.trace.settings import auto_settings

@@ -2,7 +2,7 @@
 
     .venv/bin/python bench/envmap.py [--quick]
 
-Cycles runs the matched `whitted` model (addon/cycles_reference.py), whose mirror reflections are
+Cycles runs the matched `whitted` model (addon/cycles/), whose mirror reflections are
 traced rays: what the cube map approximates. A converged Cycles render (cached in out/cache) is
 the reference. The kernel's ladder (face size x parallax steps, and the Whitted tracer itself,
 which traces the reflections) and Cycles' sample ladder run alternately; for each kernel setting
@@ -60,7 +60,7 @@ def main() -> int:
     import bpy
 
     from classic_bake.addon import bridge
-    from classic_bake.addon import cycles_reference as cr
+    from classic_bake.addon import cycles as cr
     from classic_bake.kernels.envmap import envmap
     from classic_bake.kernels.geometry.bvh import BVH
     from classic_bake.kernels.geometry.camera import camera_rays

@@ -2,7 +2,7 @@
 
     .venv/bin/python bench/trace.py [--scales 1 2] [--quick]
 
-Cycles runs the matched `whitted` model (addon/cycles_reference.py: lights as points, no diffuse
+Cycles runs the matched `whitted` model (addon/cycles/: lights as points, no diffuse
 bounces, the world not lighting diffuse surfaces, box filter). A converged Cycles render (cached
 in out/cache) is the reference. The tracer's quality ladder (supersampling, adaptive edge samples)
 and Cycles' sample ladder run alternately; for each tracer setting the time Cycles needs to reach
@@ -40,7 +40,7 @@ def main() -> int:
     import bpy
 
     from classic_bake.addon import bridge
-    from classic_bake.addon import cycles_reference as cr
+    from classic_bake.addon import cycles as cr
     from classic_bake.kernels.geometry.bvh import BVH
     from classic_bake.kernels.measure.metrics import compare, rel_mse
     from classic_bake.kernels.trace.settings import auto_settings

@@ -60,7 +60,7 @@ def test_cli_bump_writes_every_mode(tmp_path):
 def test_bumped_view_matches_cycles_bump_nodes(open_sample):
     """Cycles (the `whitted` model, 128 samples) renders the Bump nodes; at 80 x 60 the bumped
     view's relMSE was 4.2e-4, Phong's (the relief left out) 3.6e-3."""
-    from classic_bake.addon import cycles_reference as cr
+    from classic_bake.addon import cycles as cr
     from classic_bake.kernels.measure.metrics import rel_mse
     from classic_bake.kernels.trace.settings import auto_settings
     from classic_bake.kernels.trace.tracer import trace
@@ -104,7 +104,7 @@ def test_normal_map_nodes_match_cycles(open_sample):
     64 samples, 80 x 60): measured 0.0055 against Phong's 0.096 (the tiles left out); at
     160 x 120, 0.0063 and 0.107. A wrong green channel or tangent would shade half the tiles the
     wrong way."""
-    from classic_bake.addon import cycles_reference as cr
+    from classic_bake.addon import cycles as cr
     from classic_bake.kernels.measure.metrics import rel_mse
     from classic_bake.kernels.trace.settings import auto_settings
     from classic_bake.kernels.trace.tracer import trace

@@ -6,7 +6,7 @@ import bpy
 import pytest
 
 from classic_bake.addon import bridge
-from classic_bake.addon import cycles_reference as cr
+from classic_bake.addon import cycles as cr
 from classic_bake.kernels.measure.metrics import rel_mse
 from classic_bake.kernels.progress import drain
 from classic_bake.kernels.radiosity import radiosity

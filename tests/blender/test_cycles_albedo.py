@@ -1,4 +1,4 @@
-"""Cycles' albedo model (addon/cycles_reference.py: `albedo()`, bake_type "ALBEDO").
+"""Cycles' albedo model (addon/cycles/: `albedo()`, bake_type "ALBEDO").
 
 The texture-mapping technique bakes each surface's diffuse albedo, base colour x (1 - metallic) x
 (1 - transmission), and renders the camera's view of it. Cycles' counterparts: a DIFFUSE bake
@@ -14,7 +14,7 @@ import pytest
 from blender_parts import BASE, checker, lit_scene, plane, principled
 
 from classic_bake.addon import bridge
-from classic_bake.addon import cycles_reference as cr
+from classic_bake.addon import cycles as cr
 from classic_bake.kernels.shading.direct_light import diffuse_weight
 
 EXACT = 1e-3  # the bound for uniform colours (they agree to ~1e-7 in practice)

@@ -1,4 +1,4 @@
-"""Cycles as the reference (addon/cycles_reference.py), checked against analytic values.
+"""Cycles as the reference (addon/cycles/), checked against analytic values.
 
 Scenes are built here: planes of known albedo (Principled, Specular IOR Level 0: exactly
 Lambertian, tests/data/cycles_facts.md), a sun of strength E (irradiance E W/m^2 on a
@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from classic_bake.addon import bridge
-from classic_bake.addon import cycles_reference as cr
+from classic_bake.addon import cycles as cr
 
 SUN_E = 3.0  # W/m^2
 SUN_TILT = math.radians(60.0)  # from the zenith: cos = 0.5 on a horizontal plane

@@ -82,7 +82,7 @@ def test_mapped_mirror_is_close_to_cycles_true_reflections(tmp_path, open_sample
     by parallax (the sphere stands on a pedestal: the floor is a metre away) and the map's
     resolution; the parallax search takes most of the parallax away. Measured at 96 x 72: relMSE
     over the sphere's pixels 0.041 traced, 0.081 mapped, 0.258 with the lecture's look-up alone."""
-    from classic_bake.addon import cycles_reference as cr
+    from classic_bake.addon import cycles as cr
     from classic_bake.kernels.envmap import envmap
     from classic_bake.kernels.measure.metrics import rel_mse
     from classic_bake.kernels.trace.settings import auto_settings

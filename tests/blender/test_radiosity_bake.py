@@ -9,7 +9,8 @@ from pathlib import Path
 import bpy
 import numpy as np
 
-from classic_bake.addon import bridge, cycles_reference
+from classic_bake.addon import bridge
+from classic_bake.addon import cycles as cr
 from classic_bake.addon.jobs import radiosity_bake_job
 from classic_bake.kernels.bake.lightmap_uv import LightmapUVSettings
 from classic_bake.kernels.measure.exr import read_exr
@@ -99,8 +100,8 @@ def test_lightmaps_agree_with_cycles_diffuse_bake(open_sample):
     total_err = total_ref = 0.0
     for size in sorted({sizes[n] for n in names}):
         group = [n for n in names if sizes[n] == size]
-        images, seconds, masks = cycles_reference.bake_lightmaps(
-            bpy.context.scene, cycles_reference.radiosity(), 128, group, "Lightmap", size,
+        images, seconds, masks = cr.bake_lightmaps(
+            bpy.context.scene, cr.radiosity(), 128, group, "Lightmap", size,
             "DIFFUSE")
         for name in group:
             ours, baked = summary["lightmaps"][name]

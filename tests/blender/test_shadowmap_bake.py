@@ -8,7 +8,8 @@ from pathlib import Path
 import bpy
 import numpy as np
 
-from classic_bake.addon import bridge, cycles_reference
+from classic_bake.addon import bridge
+from classic_bake.addon import cycles as cr
 from classic_bake.addon.jobs import shadow_bake_job
 from classic_bake.kernels.bake.lightmap_uv import LightmapUVSettings
 from classic_bake.kernels.measure.exr import read_exr
@@ -75,8 +76,8 @@ def test_each_light_agrees_with_cycles_shadow_bake(open_sample):
     for k, name in enumerate(names):
         for obj in lights:
             obj.hide_render = obj.name != name
-        images, _, masks = cycles_reference.bake_lightmaps(
-            bpy.context.scene, cycles_reference.direct(), 1, ["Ground"], "Lightmap", 64, "SHADOW")
+        images, _, masks = cr.bake_lightmaps(
+            bpy.context.scene, cr.direct(), 1, ["Ground"], "Lightmap", 64, "SHADOW")
         theirs = images["Ground"][..., 0] > 0.5
         valid = masks["Ground"] & summary["lightmaps"]["Ground"][1]
         disagree = np.count_nonzero(((ours[k] > 0.5) != theirs) & valid) / valid.sum()

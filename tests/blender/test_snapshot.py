@@ -234,7 +234,7 @@ def test_faces_without_a_material_shade_as_cycles_default_surface():
     0.907)."""
     import math
 
-    from classic_bake.addon import cycles_reference as cr
+    from classic_bake.addon import cycles as cr
     from classic_bake.kernels.progress import drain
     from classic_bake.kernels.shading import direct_light
 

@@ -10,7 +10,8 @@ import bpy
 import numpy as np
 import pytest
 
-from classic_bake.addon import bridge, cycles_reference
+from classic_bake.addon import bridge
+from classic_bake.addon import cycles as cr
 from classic_bake.addon.jobs import texture_bake_job
 from classic_bake.kernels.bake.lightmap_uv import LightmapUVSettings
 from classic_bake.kernels.bake.texture_bake import TextureBakeSettings
@@ -99,15 +100,15 @@ def test_a_minified_checker_matches_cycles_converged_colour_bake(open_sample):
     open_sample("raytrace")
     filtered = _bake(16)
     centre = _bake(16, cells=1)
-    images, _, masks = cycles_reference.bake_lightmaps(
-        bpy.context.scene, cycles_reference.albedo(), 256, [PLANE], "Lightmap", 16, "ALBEDO")
+    images, _, masks = cr.bake_lightmaps(
+        bpy.context.scene, cr.albedo(), 256, [PLANE], "Lightmap", 16, "ALBEDO")
     ref, mask = images[PLANE], masks[PLANE]
     ours = filtered["lightmaps"][PLANE][0]
     err = rel_mse(ours[mask][:, None], ref[mask][:, None])
     err_centre = rel_mse(centre["lightmaps"][PLANE][0][mask][:, None], ref[mask][:, None])
     assert err < 0.01 and err_centre > 20 * err
-    one, _, _ = cycles_reference.bake_lightmaps(
-        bpy.context.scene, cycles_reference.albedo(), 4, [PLANE], "Lightmap", 16, "ALBEDO")
+    one, _, _ = cr.bake_lightmaps(
+        bpy.context.scene, cr.albedo(), 4, [PLANE], "Lightmap", 16, "ALBEDO")
     assert rel_mse(one[PLANE][mask][:, None], ref[mask][:, None]) > err
 
 
@@ -117,8 +118,8 @@ def test_the_view_matches_cycles_diffuse_color_pass(open_sample):
     the background 0 (measured relMSE 0.0015)."""
     open_sample("raytrace")
     summary = _bake(16, render=True)
-    image, _ = cycles_reference.render_camera(bpy.context.scene, cycles_reference.albedo(), 256,
-                                              resolution=(48, 36))
+    image, _ = cr.render_camera(bpy.context.scene, cr.albedo(), 256,
+                                resolution=(48, 36))
     assert rel_mse(summary["render"], image) < 0.01
     assert np.abs(summary["render"][0]).max() == 0.0  # the top row sees the sky: 0, as Cycles
 
@@ -143,14 +144,14 @@ def test_a_checker_on_generated_coordinates_matches_cycles():
     cube = bpy.context.object
     cube.data.materials.append(mat)
     summary = _bake(32, render=True)  # the view at 48 x 36
-    image, _ = cycles_reference.render_camera(scene, cycles_reference.albedo(), 64,
-                                              resolution=(48, 36))
+    image, _ = cr.render_camera(scene, cr.albedo(), 64,
+                                resolution=(48, 36))
     assert rel_mse(summary["render"], image) < 0.02
     if bpy.app.version < (5, 0, 0):
         return  # Cycles 4.5 filters baked texels otherwise (the minified checker's test above)
     ours = summary["lightmaps"][cube.name][0]
-    images, _, masks = cycles_reference.bake_lightmaps(
-        scene, cycles_reference.albedo(), 64, [cube.name], "Lightmap", len(ours), "ALBEDO")
+    images, _, masks = cr.bake_lightmaps(
+        scene, cr.albedo(), 64, [cube.name], "Lightmap", len(ours), "ALBEDO")
     ref, mask = images[cube.name], masks[cube.name]
     assert rel_mse(ours[mask][:, None], ref[mask][:, None]) < 0.02
 
@@ -171,8 +172,8 @@ def test_the_view_darkens_under_the_specular_layer_as_cycles_does():
     bsdf.inputs["Roughness"].default_value = 0.2
     plane(mat, size=6.0)
     oblique_camera(scene)
-    cycles, _ = cycles_reference.render_camera(scene, cycles_reference.albedo(), 64,
-                                               resolution=(32, 24))
+    cycles, _ = cr.render_camera(scene, cr.albedo(), 64,
+                                 resolution=(32, 24))
     ours = trace(bridge.snapshot(resolution=(32, 24)),
                  TracerSettings(max_depth=0, output="albedo")).image
     plane = (cycles.sum(axis=2) > 0) & (ours.sum(axis=2) > 0)

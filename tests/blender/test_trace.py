@@ -87,15 +87,15 @@ def _plane_against_cycles(material):
     the plane."""
     from blender_parts import lit_scene, oblique_camera, plane
 
-    from classic_bake.addon import cycles_reference
+    from classic_bake.addon import cycles as cr
     from classic_bake.kernels.trace.settings import TracerSettings
     from classic_bake.kernels.trace.tracer import trace
 
     scene = lit_scene()
     plane(material, size=6.0)
     oblique_camera(scene)
-    cycles, _ = cycles_reference.render_camera(scene, cycles_reference.whitted(2), 256,
-                                               resolution=(32, 24))
+    cycles, _ = cr.render_camera(scene, cr.whitted(2), 256,
+                                 resolution=(32, 24))
     snap = bridge.snapshot(resolution=(32, 24))
     ours = trace(snap, TracerSettings(max_depth=2)).image
     on_plane = np.abs(ours - snap.world_color).sum(axis=2) > 1e-6

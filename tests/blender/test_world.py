@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 from blender_parts import colour_world, hdri_world, node_world
 
-from classic_bake.addon import bridge, cycles_reference
+from classic_bake.addon import bridge
+from classic_bake.addon import cycles as cr
 from classic_bake.addon.jobs import radiosity_bake_job
 from classic_bake.kernels.bake.lightmap_uv import LightmapUVSettings
 from classic_bake.kernels.measure.metrics import rel_mse
@@ -58,8 +59,8 @@ def _traced_against_cycles(scene, resolution, depth: int, samples: int) -> float
     ours = trace(bridge.snapshot(resolution=resolution),
                  TracerSettings(max_depth=depth, adaptive=0, supersample=2),
                  resolution=resolution).image
-    theirs, _ = cycles_reference.render_camera(scene, cycles_reference.whitted(depth), samples,
-                                               resolution=resolution)
+    theirs, _ = cr.render_camera(scene, cr.whitted(depth), samples,
+                                 resolution=resolution)
     return rel_mse(ours, theirs)
 
 
@@ -83,8 +84,8 @@ def _floor_and_box_against_cycles(scene, lift=0.25, floor=None) -> tuple[list[fl
     sizes = summary["lightmap_sizes"]
     ratios, ours, theirs = [], [], []
     for name in ("Plane", "Cube"):
-        images, _, masks = cycles_reference.bake_lightmaps(
-            scene, cycles_reference.radiosity(world_lighting=True), 128, [name], "Lightmap",
+        images, _, masks = cr.bake_lightmaps(
+            scene, cr.radiosity(world_lighting=True), 128, [name], "Lightmap",
             sizes[name], "DIFFUSE")
         texels, baked = summary["lightmaps"][name]
         valid = baked & masks[name]
@@ -140,7 +141,7 @@ def _plane_view_against_cycles(material, facing_down: bool = False) -> float:
     image = None
     for step in radiosity.render_steps(snap, result, resolution):
         image = step
-    theirs, _ = cycles_reference.render_camera(scene, cycles_reference.radiosity(
+    theirs, _ = cr.render_camera(scene, cr.radiosity(
         world_lighting=True), 128, resolution=resolution)
     on_plane = np.abs(image - np.asarray(WORLD, np.float32)).max(axis=2) > 1e-6
     assert on_plane.mean() > 0.5
@@ -247,7 +248,7 @@ def _sky_world(elevation_deg: float = 30.0):
 
 def test_a_sky_texture_world_bakes_as_cycles_does():
     """A Sky Texture (which the bridge cannot read itself) is rendered into a map by Cycles
-    (`cycles_reference.render_world_map`); its sun disc leaves the map as a sun lamp, the rest
+    (`cycles.world_map.render_world_map`); its sun disc leaves the map as a sun lamp, the rest
     lights through the sky rays. The floor and the resting box within 3% of Cycles' world-lit
     DIFFUSE bake, relMSE under 0.03, most of it Cycles' noise of a sun it finds through the
     world's importance map (measured: 5.2's Multiple Scattering sky 0.999 and 1.000, relMSE
@@ -322,7 +323,7 @@ def test_a_floor_of_mixed_shaders_bakes_as_cycles_does(kind):
 def test_a_light_path_world_lights_as_diffuse_rays_see_it():
     """The common backdrop set-up: a Mix Shader of two Backgrounds by Light Path's Is Camera Ray,
     the camera shown black, everything else lit by the blue-grey colour. The world is rendered as
-    a diffuse bounce ray reads the Light Path node (`cycles_reference.render_world_map(lighting=
+    a diffuse bounce ray reads the Light Path node (`cycles.world_map.render_world_map(lighting=
     True)`), so the floor and the box bake within 3% of Cycles (measured on 5.2 and 4.5: 0.999
     and 0.999, relMSE 0.0022; 0 before, lit by the camera's black version)."""
     from blender_parts import WORLD

@@ -1,0 +1,76 @@
+"""Blender lights as kernel `Light`s: Blender's power turned into radiometric quantities by
+`kernels/shading/lights.py` (intensity, irradiance, radiance)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...kernels.geometry.scene import Light
+from ...kernels.shading import lights as light_units
+from .nodes import active_output, follow, node_tree
+from .transforms import unit
+
+
+def light_power(light) -> tuple[float, np.ndarray]:
+    """(power or strength scalar, linear colour (3,)) of a Blender light, exposure included."""
+    power = float(light.energy) * 2.0 ** float(getattr(light, "exposure", 0.0))
+    color = np.array(light.color[:3], np.float64)
+    if getattr(light, "use_temperature", False):
+        color = color * np.array(light.temperature_color[:3], np.float64)
+    return power, color
+
+
+def _light_nodes_are_default(tree) -> bool:
+    """True if a light's node tree only passes an untouched Emission (colour 1, strength 1) out."""
+    if tree is None:
+        return True
+    output = active_output(tree, "OUTPUT_LIGHT")
+    if output is None:
+        return True
+    node, _ = follow(output.inputs["Surface"])
+    if node is None:
+        return True
+    if node.type != "EMISSION" or any(s.is_linked for s in node.inputs):
+        return False
+    color = tuple(node.inputs["Color"].default_value[:3])
+    return np.allclose(color, 1.0) and np.isclose(node.inputs["Strength"].default_value, 1.0)
+
+
+def read_light(name: str, light, matrix: np.ndarray) -> tuple[Light, list[str]]:
+    """A Blender light datablock placed by `matrix` (4, 4) as a kernel `Light`, plus what was ignored."""
+    ignored: list[str] = []
+    rot = matrix[:3, :3]
+    scale = np.linalg.norm(rot, axis=0)
+    position = matrix[:3, 3].copy()
+    axis_x, axis_y = unit(rot[:, 0]), unit(rot[:, 1])
+    direction = unit(-rot[:, 2])
+    power, color = light_power(light)
+    common = dict(name=name, position=position, direction=direction, axis_x=axis_x, axis_y=axis_y,
+                  cast_shadow=bool(getattr(light, "use_shadow", True)))
+    if not _light_nodes_are_default(node_tree(light)):
+        ignored.append(f"light '{name}': light nodes are not modelled")
+    kind = light.type
+    if kind in ("POINT", "SPOT"):
+        extra = {}
+        if kind == "SPOT":
+            extra = dict(spot_size=float(light.spot_size), spot_blend=float(light.spot_blend),
+                         spot_square=bool(light.use_square))
+            if not np.allclose(scale[0], scale[1]):
+                ignored.append(f"light '{name}': non-uniform spot scale (elliptic cone) not modelled")
+        return Light(kind=kind, intensity=light_units.point_intensity(power, color),
+                     radius=float(light.shadow_soft_size), **extra, **common), ignored
+    if kind == "SUN":
+        return Light(kind="SUN", irradiance=light_units.sun_irradiance(power, color),
+                     angle=float(light.angle), **common), ignored
+    if kind == "AREA":
+        shape = light.shape
+        size_x = float(light.size) * scale[0]
+        size_y = (float(light.size_y) if shape in ("RECTANGLE", "ELLIPSE") else float(light.size))
+        size_y *= scale[1]
+        area = light_units.area_of_shape(shape, size_x, size_y)
+        radiance = light_units.area_radiance(power, color, area, getattr(light, "normalize", True))
+        if getattr(light, "spread", np.pi) < np.pi - 1e-6:
+            ignored.append(f"light '{name}': area light spread is not modelled (full hemisphere)")
+        return Light(kind="AREA", radiance=radiance, shape=shape, size_x=size_x, size_y=size_y,
+                     **common), ignored
+    raise ValueError(f"light '{name}' has unknown type {kind}")

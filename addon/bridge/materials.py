@@ -1,0 +1,345 @@
+"""Blender materials reduced to kernel `Material`s: the node-tree reader (Principled, Diffuse,
+Glossy, Glass and Emission shaders, Mix and Add Shaders of them, image and checker textures,
+normal maps and bumps) and a record of everything it does not model (`Material.ignored`).
+
+Textures keep their encoding: an sRGB byte image is decoded per look-up after interpolation, as
+Cycles does (`Texture.encoding`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import bpy
+import numpy as np
+
+from ...kernels.geometry.scene import Material, Texture
+from .images import image_pixels, stored_srgb
+from .nodes import active_output, follow, node_tree
+from .request import SnapshotRequest
+
+DEFAULT_MATERIAL_NAME = "(default surface)"
+# What Cycles shades faces without a material with (measured: a plane under a sun renders to the
+# same float as with a material of that surface): Blender 5 a Principled BSDF of its node's
+# defaults (base 0.8, roughness 0.5, IOR 1.5, Specular IOR Level 0.5: a specular layer), 4.5 a
+# 0.8 grey Diffuse BSDF.
+DEFAULT_MATERIAL = (Material(name=DEFAULT_MATERIAL_NAME) if bpy.app.version >= (5, 0, 0)
+                    else Material(name=DEFAULT_MATERIAL_NAME, specular=0.0))
+
+
+# Mix and Add Shaders nested deeper than this are not followed (a shader tree is finite, but a
+# node group could repeat one mix many times; eight levels hold 256 leaves).
+MAX_SHADER_MIX_DEPTH = 8
+
+
+def mix_materials(name: str, parts: list, ignored: list) -> Material:
+    """One `Material` for the weighted sum of parts [(weight, Material)] (a Mix Shader's 1 - Fac
+    and Fac, an Add Shader's 1 and 1), as a Principled BSDF splits a surface: part i reflects
+    diffusely with weight w_i (1 - m_i)(1 - t_i), as a metal with w_i m_i, transmits with
+    w_i (1 - m_i) t_i (m: metallic, t: transmission). The sum keeps the diffuse albedo exactly
+    (sum of the diffuse weights times base colours: what radiosity and Cycles' DIFFUSE bake read),
+    the emission exactly, and the three weights' shares; the metal parts keep their own tint
+    (`Material.metal_color`: a white Glossy over a red Diffuse reflects white), the glass parts
+    take the base colour, roughness and IOR their parts' weighted means, the specular layer the
+    diffuse parts' weighted level. A base texture is kept where its part is the only diffuse one
+    (else the first textured part's, noted)."""
+    weights = np.array([w for w, _ in parts], np.float64)
+    d_w = np.array([w * (1.0 - m.metallic) * (1.0 - m.transmission) for w, m in parts])
+    m_w = np.array([w * m.metallic for w, m in parts])
+    t_w = np.array([w * (1.0 - m.metallic) * m.transmission for w, m in parts])
+    diffuse, metal, glass = float(d_w.sum()), float(m_w.sum()), float(t_w.sum())
+    total = diffuse + metal + glass
+    emission = sum((w * m.emission.astype(np.float64) for w, m in parts), np.zeros(3))
+    if total <= 0.0:
+        return Material(name=name, base_color=np.zeros(3, np.float32), specular=0.0,
+                        emission=emission.astype(np.float32), ignored=tuple(ignored))
+
+    def mean(values: list, *by: np.ndarray):  # one value per part, weighted by the first of `by`
+        w = next(x for x in by if x.sum() > 0.0)  # with a positive sum
+        return np.tensordot(w, np.asarray(values, np.float64), axes=1) / w.sum()
+
+    colours = [m.base_color for _, m in parts]
+
+    if diffuse > 0.0:
+        # (1 - metallic)(1 - transmission) = diffuse / total below, so this base gives the sum's
+        # diffuse albedo.
+        base = mean(colours, d_w) * total
+    else:
+        base = mean(colours, m_w + t_w)
+    textured = [(dw, m) for dw, (_, m) in zip(d_w, parts, strict=True)
+                if m.base_color_texture is not None and dw > 0.0]
+    texture = None
+    if textured:
+        dw, source = textured[0]
+        if len(textured) > 1 or any(x > 0.0 and m.base_color_texture is None
+                                    for x, (_, m) in zip(d_w, parts, strict=True)):
+            ignored.append("a mix of shaders with a texture: the first textured part's texture "
+                           "stands for every diffuse part's colour")
+        texture = _scaled_texture(source.base_color_texture, dw * total / diffuse, ignored)
+    normal = next((m for _, m in parts if m.normal_texture is not None or
+                   m.height_texture is not None), None)
+    # The metal parts' own tint (a white Glossy over a red Diffuse reflects white), where it is
+    # not the base colour the diffuse albedo fixed.
+    tint = None
+    if metal > 0.0:
+        tint = mean([m.base_color if m.metal_color is None else m.metal_color
+                     for _, m in parts], m_w)
+        if texture is None and np.allclose(tint, base, rtol=1e-6, atol=1e-7):
+            tint = None
+    return Material(
+        name=name, base_color=base.astype(np.float32), base_color_texture=texture,
+        metal_color=None if tint is None else tint.astype(np.float32),
+        metallic=metal / total,
+        roughness=float(mean([m.roughness for _, m in parts], m_w + t_w, weights)),
+        ior=float(mean([m.ior for _, m in parts], t_w, weights)),
+        transmission=glass / (glass + diffuse) if glass + diffuse > 0.0 else 0.0,
+        specular=float(mean([m.specular for _, m in parts], d_w, weights)),
+        emission=emission.astype(np.float32),
+        normal_texture=None if normal is None else normal.normal_texture,
+        height_texture=None if normal is None else normal.height_texture,
+        bump_strength=1.0 if normal is None else normal.bump_strength,
+        bump_distance=1.0 if normal is None else normal.bump_distance,
+        ignored=tuple(ignored))
+
+
+def _scaled_texture(texture: Texture, factor: float, ignored: list) -> Texture:
+    """`texture` with its colours times `factor` (1: itself); an sRGB-encoded image, whose
+    texels are decoded after filtering, is kept as it is (noted)."""
+    if abs(factor - 1.0) < 1e-9:
+        return texture
+    if texture.kind == "CHECKER":
+        return replace(texture, color1=(texture.color1 * factor).astype(np.float32),
+                       color2=(texture.color2 * factor).astype(np.float32))
+    if texture.encoding == "sRGB":
+        ignored.append(f"texture '{texture.name}' in a mix of shaders: its share "
+                       f"{factor:.3g} of the colour not applied (an sRGB image)")
+        return texture
+    pixels = texture.pixels.copy()
+    pixels[..., :3] *= factor
+    return replace(texture, pixels=pixels)
+
+
+class MaterialReader:
+    """Reduces Blender materials to kernel `Material`s, recording what it could not model."""
+
+    def __init__(self, request: SnapshotRequest):
+        self.request = request
+        self.images: dict[str, np.ndarray | None] = {}
+
+    def read(self, mat) -> Material:
+        if mat is None:
+            return DEFAULT_MATERIAL
+        if not self.request.materials:
+            return Material(name=mat.name, specular=0.0)
+        tree = node_tree(mat)
+        if tree is None:
+            return Material(
+                name=mat.name,
+                base_color=np.array(mat.diffuse_color[:3], np.float32),
+                metallic=float(mat.metallic),
+                roughness=float(mat.roughness),
+                ignored=("no shader nodes: viewport display colour used",),
+            )
+        ignored: list[str] = []
+        output = active_output(tree, "OUTPUT_MATERIAL")
+        if output is None:
+            return Material(name=mat.name, ignored=("no Material Output node",))
+        if output.inputs["Volume"].is_linked:
+            ignored.append("volume shader")
+        if output.inputs["Displacement"].is_linked:
+            ignored.append("displacement (bump mapping reads Bump/Normal Map nodes only)")
+        node, _ = follow(output.inputs["Surface"])
+        if node is None:
+            return Material(name=mat.name, base_color=np.zeros(3, np.float32),
+                            ignored=tuple(ignored + ["no surface shader: black"]))
+        return self._shader(mat.name, node, ignored)
+
+    def _shader(self, name: str, node, ignored: list, depth: int = 0) -> Material:
+        """The kernel `Material` of the shader node `node` (a BSDF, an emission, or a Mix or
+        Add Shader of such, `_mixed`)."""
+        kind = node.type
+        if kind in ("MIX_SHADER", "ADD_SHADER") and depth < MAX_SHADER_MIX_DEPTH:
+            return self._mixed(name, node, ignored, depth)
+        if kind == "BSDF_PRINCIPLED":
+            return self._principled(name, node, ignored)
+        if kind == "BSDF_DIFFUSE":
+            color, tex = self._color(node.inputs["Color"], ignored)
+            return Material(name=name, base_color=color, base_color_texture=tex, specular=0.0,
+                            ignored=tuple(ignored))
+        if kind == "EMISSION":
+            color, _ = self._color(node.inputs["Color"], ignored, textures=False)
+            strength = self._value(node.inputs["Strength"], ignored)
+            return Material(name=name, base_color=np.zeros(3, np.float32), specular=0.0,
+                            emission=(color * strength).astype(np.float32), ignored=tuple(ignored))
+        if kind == "BSDF_GLASS":
+            color, _ = self._color(node.inputs["Color"], ignored, textures=False)
+            return Material(name=name, base_color=color, transmission=1.0,
+                            roughness=self._value(node.inputs["Roughness"], ignored),
+                            ior=self._value(node.inputs["IOR"], ignored), ignored=tuple(ignored))
+        if kind in ("BSDF_GLOSSY", "BSDF_ANISOTROPIC"):
+            color, tex = self._color(node.inputs["Color"], ignored)
+            return Material(name=name, base_color=color, base_color_texture=tex, metallic=1.0,
+                            roughness=self._value(node.inputs["Roughness"], ignored),
+                            ignored=tuple(ignored))
+        ignored.append(f"surface shader '{node.bl_idname}' is not modelled: grey diffuse used")
+        return Material(name=name, ignored=tuple(ignored))
+
+    def _mixed(self, name: str, node, ignored: list, depth: int) -> Material:
+        """A Mix Shader (weights 1 - Fac and Fac; a Fac fed by a node takes its default, noted)
+        or an Add Shader (weights 1 and 1) of two shaders, as one `Material` (`mix_materials`);
+        an unlinked shader input is a black surface (no closure: Cycles absorbs there)."""
+        add = node.type == "ADD_SHADER"
+        sockets = [s for s in node.inputs if s.type == "SHADER"]
+        if add:
+            weights = [1.0, 1.0]
+        else:
+            fac = min(max(self._value(node.inputs["Fac"], ignored), 0.0), 1.0)
+            weights = [1.0 - fac, fac]
+        parts = []
+        for socket, weight in zip(sockets, weights, strict=True):
+            source, _ = follow(socket)
+            if source is None or weight == 0.0:
+                continue
+            parts.append((weight, self._shader(name, source, ignored, depth + 1)))
+        return mix_materials(name, parts, ignored)
+
+    def _principled(self, name, node, ignored) -> Material:
+        inputs = node.inputs
+        color, tex = self._color(inputs["Base Color"], ignored)
+        emission, _ = self._color(inputs["Emission Color"], ignored, textures=False)
+        strength = self._value(inputs["Emission Strength"], ignored)
+        for unmodelled in ("Subsurface Weight", "Coat Weight", "Sheen Weight"):
+            if unmodelled in inputs and (
+                inputs[unmodelled].is_linked or inputs[unmodelled].default_value > 0
+            ):
+                ignored.append(f"{unmodelled} is not modelled")
+        if "Alpha" in inputs and (inputs["Alpha"].is_linked or inputs["Alpha"].default_value < 1):
+            ignored.append("alpha is not modelled: opaque")
+        normal_tex, height_tex, strength_b, distance_b = self._normal(inputs["Normal"], ignored)
+        return Material(
+            name=name,
+            base_color=color,
+            base_color_texture=tex,
+            metallic=self._value(inputs["Metallic"], ignored),
+            roughness=self._value(inputs["Roughness"], ignored),
+            ior=self._value(inputs["IOR"], ignored),
+            transmission=self._value(inputs["Transmission Weight"], ignored),
+            specular=self._value(inputs["Specular IOR Level"], ignored),
+            emission=(emission * strength).astype(np.float32),
+            normal_texture=normal_tex,
+            height_texture=height_tex,
+            bump_strength=strength_b,
+            bump_distance=distance_b,
+            ignored=tuple(ignored),
+        )
+
+    def _value(self, socket, ignored) -> float:
+        node, _ = follow(socket)
+        if node is not None:
+            if node.type == "VALUE":
+                return float(node.outputs[0].default_value)
+            ignored.append(f"'{socket.name}' driven by a '{node.bl_idname}' node: its default used")
+        return float(socket.default_value)
+
+    def _color(self, socket, ignored, textures=True) -> tuple[np.ndarray, Texture | None]:
+        default = np.array(socket.default_value[:3], np.float32)
+        node, _ = follow(socket)
+        if node is None:
+            return default, None
+        if node.type == "RGB":
+            return np.array(node.outputs[0].default_value[:3], np.float32), None
+        if textures and self.request.textures:
+            tex = self._texture(node, ignored, what=socket.name)
+            if tex is not None:
+                return default, tex
+        elif node.type in ("TEX_IMAGE", "TEX_CHECKER"):
+            return default, None  # not requested: this bake does not read textures
+        ignored.append(f"'{socket.name}' driven by a '{node.bl_idname}' node: its default used")
+        return default, None
+
+    def _uv_layer(self, node, ignored, what, generated: bool
+                  ) -> tuple[bool, str | None, str]:
+        """(ok, uv layer name or None for the active render layer, "UV" or "GENERATED") of a
+        texture node's Vector: unlinked, an Image Texture reads UVs and a Checker the Generated
+        coordinates. `generated`: whether this use can read Generated coordinates (base colours
+        can; bump and normal maps, whose tangent frames follow the UVs, read UVs instead)."""
+        vec_node, vec_socket = follow(node.inputs["Vector"])
+        if vec_node is None and node.type != "TEX_CHECKER":
+            return True, None, "UV"
+        if vec_node is None or (vec_node.type == "TEX_COORD" and vec_socket.name == "Generated"):
+            if generated:
+                return True, None, "GENERATED"
+            ignored.append(f"{what}: a texture on Generated coordinates is read on UVs")
+            return True, None, "UV"
+        if vec_node.type == "UVMAP":
+            return True, (vec_node.uv_map or None), "UV"
+        if vec_node.type == "TEX_COORD" and vec_socket.name == "UV":
+            return True, None, "UV"
+        ignored.append(f"{what}: texture coordinates from '{vec_node.bl_idname}' are not modelled")
+        return False, None, "UV"
+
+    def _texture(self, node, ignored, what, generated: bool = True) -> Texture | None:
+        if node.type == "TEX_IMAGE":
+            ok, uv_layer, coordinates = self._uv_layer(node, ignored, what, generated)
+            image = node.image
+            if image is None or not ok:
+                return None
+            pixels = self.images.get(image.name)
+            if image.name not in self.images:
+                pixels = self.images[image.name] = image_pixels(image, decode=False)
+            if pixels is None:
+                ignored.append(f"{what}: image '{image.name}' has no pixels (missing file?)")
+                return None
+            return Texture(
+                kind="IMAGE",
+                name=image.name,
+                pixels=pixels,
+                extension=node.extension if node.extension != "MIRROR" else "MIRROR",
+                interpolation="CLOSEST" if node.interpolation == "Closest" else "LINEAR",
+                uv_layer=uv_layer,
+                coordinates=coordinates,
+                encoding="sRGB" if stored_srgb(image) else "linear",
+            )
+        if node.type == "TEX_CHECKER":
+            ok, uv_layer, coordinates = self._uv_layer(node, ignored, what, generated)
+            linked = [s.name for s in node.inputs if s.name != "Vector" and s.is_linked]
+            if not ok or linked:
+                if linked:
+                    ignored.append(f"{what}: checker inputs {linked} are linked: not modelled")
+                return None
+            return Texture(
+                kind="CHECKER",
+                name=node.name,
+                color1=np.array(node.inputs["Color1"].default_value[:3], np.float32),
+                color2=np.array(node.inputs["Color2"].default_value[:3], np.float32),
+                scale=float(node.inputs["Scale"].default_value),
+                uv_layer=uv_layer,
+                coordinates=coordinates,
+            )
+        return None
+
+    def _normal(self, socket, ignored):
+        node, _ = follow(socket)
+        if node is None:
+            return None, None, 1.0, 1.0
+        if node.type == "NORMAL_MAP":
+            if node.space != "TANGENT":
+                ignored.append(f"normal map in {node.space} space is not modelled")
+                return None, None, 1.0, 1.0
+            tex_node, _ = follow(node.inputs["Color"])
+            tex = self._texture(tex_node, ignored, "Normal Map", False) if tex_node else None
+            strength = self._value(node.inputs["Strength"], ignored)
+            return tex, None, strength, 1.0
+        if node.type == "BUMP":
+            tex_node, _ = follow(node.inputs["Height"])
+            tex = self._texture(tex_node, ignored, "Bump height", False) if tex_node else None
+            if tex_node is not None and tex is None:
+                ignored.append(f"bump height from '{tex_node.bl_idname}' is not modelled")
+            if node.inputs["Normal"].is_linked:
+                ignored.append("a Bump node's Normal input (chained bumps) is not modelled")
+            distance = self._value(node.inputs["Distance"], ignored)
+            # Invert: the height pushes the surface inwards, the same as a negated distance.
+            return (None, tex, self._value(node.inputs["Strength"], ignored),
+                    -distance if node.invert else distance)
+        ignored.append(f"normal input from '{node.bl_idname}' is not modelled")
+        return None, None, 1.0, 1.0

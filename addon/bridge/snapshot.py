@@ -1,0 +1,140 @@
+"""The snapshot: the evaluated depsgraph (modifiers applied, instances expanded) read into one
+kernel `Scene`: geometry, the scene's material table, lights, camera and world."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import bpy
+import numpy as np
+
+from ...kernels.geometry.scene import Light, Material, ObjectInfo, Scene
+from .camera import read_camera
+from .lights import read_light
+from .materials import DEFAULT_MATERIAL, MaterialReader
+from .mesh import MeshChunk, mesh_chunk
+from .request import SnapshotRequest
+from .transforms import matrix_array
+from .world import read_world, read_world_texture, world_env_mapping
+
+# What `snapshot` reads unless told otherwise: everything (a frozen dataclass, shared safely).
+DEFAULT_REQUEST = SnapshotRequest()
+
+
+def snapshot(context=None, request: SnapshotRequest = DEFAULT_REQUEST,
+             resolution: tuple[int, int] | None = None) -> Scene:
+    """Read the evaluated scene of `context` (default: bpy.context) into a kernel `Scene`."""
+    context = context or bpy.context
+    scene = context.scene
+    depsgraph = context.evaluated_depsgraph_get()
+    ignored: list[str] = []
+    chunks: list[MeshChunk] = []
+    lights: list[Light] = []
+    instance_counts: dict[str, int] = {}
+
+    for original in scene.objects:
+        if original.hide_viewport and not original.hide_render:
+            ignored.append(f"object '{original.name}': disabled in viewports, so not evaluated")
+
+    for inst in depsgraph.object_instances:
+        obj = inst.object
+        source = obj.original
+        holder = inst.parent.original if inst.is_instance and inst.parent else source
+        if source.hide_render or holder.hide_render:
+            continue
+        # The depsgraph lists a curve, surface, text or metaball object twice: as itself and as
+        # a MESH instance of its evaluated geometry parented to itself (4.5 and 5.2; the same
+        # triangles, which Cycles renders once). Only MESH entries are read, and that instance
+        # stands for the object itself.
+        if obj.type not in ("MESH", "LIGHT"):
+            continue
+        is_instance = inst.is_instance and not (holder == source and source.type != "MESH")
+        matrix = matrix_array(inst.matrix_world)
+        base = source.name if not is_instance else f"{holder.name}/{source.name}"
+        k = instance_counts.get(base, 0)
+        instance_counts[base] = k + 1
+        name = base if k == 0 else f"{base}#{k}"
+        if obj.type == "LIGHT":
+            if request.lights:
+                light, why = read_light(name, obj.data, matrix)
+                lights.append(light)
+                ignored.extend(why)
+            continue
+        if request.objects is not None and source.name not in request.objects:
+            continue
+        slot_materials = [slot.material for slot in obj.material_slots]
+        original_mesh = source.data if source.type == "MESH" and not is_instance else None
+        chunks.append(mesh_chunk(name, source.name, is_instance, obj.data, matrix, request,
+                                  original_mesh, slot_materials,
+                                  source.data if source.type == "MESH" else None))
+
+    # Materials: one table for the whole scene, in first-seen order; index 0 is the default surface.
+    reader = MaterialReader(request)
+    materials: list[Material] = [DEFAULT_MATERIAL]
+    material_index: dict[str, int] = {}
+    for chunk in chunks:
+        table = np.zeros(max(1, len(chunk.slot_materials)), np.int32)
+        for slot, mat in enumerate(chunk.slot_materials):
+            if mat is None:
+                continue
+            key = mat.name_full
+            if key not in material_index:
+                material_index[key] = len(materials)
+                materials.append(reader.read(mat))
+            table[slot] = material_index[key]
+        # Out-of-range slots render with the default surface in Cycles; do the same.
+        in_range = chunk.slot_ids < len(chunk.slot_materials)
+        chunk.slot_ids = np.where(in_range, table[np.minimum(chunk.slot_ids, table.size - 1)], 0)
+    for mat in materials:
+        ignored.extend(f"material '{mat.name}': {why}" for why in mat.ignored)
+
+    camera = None
+    if request.camera:
+        if scene.camera is None:
+            ignored.append("the scene has no camera")
+        else:
+            camera = read_camera(scene, scene.camera, resolution)
+    texture = read_world_texture(scene, render=request.world_render)
+    world, why = read_world(scene, texture)
+    ignored.extend(why)
+    return replace(_assemble(chunks, materials, lights, camera, world, request, ignored),
+                   world_texture=texture,
+                   world_transform=None if texture is None else world_env_mapping(scene))
+
+
+def _assemble(chunks, materials, lights, camera, world, request, ignored) -> Scene:
+    counts = [c.triangles.shape[0] for c in chunks]
+    starts = np.concatenate([[0], np.cumsum(counts)]).astype(int)
+    objects = []
+    for k, chunk in enumerate(chunks):
+        if chunk.uv is None and request.uv:
+            ignored.append(f"object '{chunk.name}' has no UV layer: textures read UV (0, 0)")
+        objects.append(ObjectInfo(
+            name=chunk.name, source_name=chunk.source_name, tri_start=int(starts[k]),
+            tri_count=counts[k], has_uv=chunk.uv is not None,
+            has_lightmap_uv=chunk.lightmap_uv is not None,
+            topology_matches_original=chunk.topology_matches_original,
+            is_instance=chunk.is_instance))
+
+    def stack(attr, shape, dtype):
+        parts = [getattr(c, attr) if getattr(c, attr) is not None else np.zeros((n,) + shape, dtype)
+                 for c, n in zip(chunks, counts, strict=True)]
+        return np.concatenate(parts).astype(dtype) if parts else np.zeros((0,) + shape, dtype)
+
+    return Scene(
+        triangles=stack("triangles", (3, 3), np.float32),
+        normals=stack("normals", (3, 3), np.float32),
+        uv=stack("uv", (3, 2), np.float32),
+        lightmap_uv=stack("lightmap_uv", (3, 2), np.float32) if request.lightmap_uv else None,
+        generated=stack("generated", (3, 3), np.float32) if request.uv else None,
+        material_ids=stack("slot_ids", (), np.int32),
+        object_ids=np.repeat(np.arange(len(chunks), dtype=np.int32), counts),
+        corner_loops=stack("corner_loops", (3,), np.int32),
+        corner_verts=stack("corner_verts", (3,), np.int32),
+        objects=tuple(objects),
+        materials=tuple(materials),
+        lights=tuple(lights),
+        camera=camera,
+        world_color=np.asarray(world, np.float32),
+        ignored=tuple(ignored),
+    )
