@@ -57,8 +57,9 @@ PARALLAX_STEPS = 4
 SEARCH_OCTAVES = 12
 # A corrected look-up reads the map for surroundings seen from the object's surface, which is
 # nearer to them than the centre is: a surface k radii from the centre looks k / (k - 1) times
-# larger from the near side, 2x at two radii (a floor under a ball on a stand). On the sample
-# room the mirror's error fell 0.164 -> 0.099 from 32 to 64 texels, 0.045 at 128 (README).
+# larger from the near side, 2x at two radii (a floor under a ball on a stand): the face size is
+# chosen for that magnification (on the sample room the mirror's error falls steadily from 32 to
+# 128 texels per face).
 PARALLAX_MAGNIFICATION = 2.0
 # The automatic face size renders at most this many face texels per camera pixel, all six faces
 # together: a map of several times the view's own rays is more than one view can show.

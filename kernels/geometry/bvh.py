@@ -90,7 +90,7 @@ class BVHSettings:
     @property
     def query_bytes(self) -> int:
         """Memory of one query in flight, all threads: ~810 B per pool slot (53 MB per thread at
-        65536 slots, measured with tracemalloc; see the module docstring)."""
+        65536 slots, by tracemalloc; see the module docstring)."""
         return self.thread_count * self.chunk_size * QUERY_BYTES_PER_SLOT
 
 

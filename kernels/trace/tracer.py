@@ -288,9 +288,9 @@ class Tracer:
         the mirror weight times the object's map read for the reflected ray (hit point p, r),
         plus the area lamps the ray meets unshadowed. The maps hold the scene's surfaces only: a
         lamp, small and bright, smeared over a few texels and shifted by the look-up's parallax
-        shows as a misplaced blob (env_room's ceiling panel captured into the map: relMSE 0.0138
-        at the default faces; added here, 0.0025); one occlusion ray per mirror point that meets
-        a lamp shows it exactly."""
+        shows as a misplaced blob (env_room's ceiling panel read from the map has about five times
+        the error of the panel added here); one occlusion ray per mirror point that meets a lamp
+        shows it exactly."""
         out = np.zeros_like(mirror_w)
         objects = self.scene.object_ids[tri]
         for k, lookup in self.environment.items():
