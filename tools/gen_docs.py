@@ -73,8 +73,14 @@ def settings_classes(names) -> dict[str, type]:
 
     wanted = set(names)
     found: dict[str, type] = {}
-    for info in pkgutil.walk_packages(kernels.__path__, prefix=f"{kernels.__name__}."):
-        module = importlib.import_module(info.name)
+    failed: dict[str, str] = {}
+    for info in pkgutil.walk_packages(kernels.__path__, prefix=f"{kernels.__name__}.",
+                                      onerror=lambda name: failed.setdefault(name, "import failed")):
+        try:
+            module = importlib.import_module(info.name)
+        except Exception as exc:  # a module that does not import cannot be documented
+            failed[info.name] = f"{type(exc).__name__}: {exc}"
+            continue
         for name in wanted - set(found):
             cls = getattr(module, name, None)
             if (isinstance(cls, type) and dataclasses.is_dataclass(cls)
@@ -82,8 +88,10 @@ def settings_classes(names) -> dict[str, type]:
                 found[name] = cls
     missing = wanted - set(found)
     if missing:
+        because = "".join(f"\n  {name}: {why}" for name, why in sorted(failed.items()))
         raise LookupError(f"no settings dataclass named {', '.join(sorted(missing))} under "
-                          f"{kernels.__name__}")
+                          f"{kernels.__name__}" + (f"; modules that did not import:{because}"
+                                                   if failed else ""))
     return found
 
 
@@ -271,7 +279,8 @@ def fill(text: str, subject: str | None, kinds=("parameters", "figures", "result
         if kind == "parameters" and arg not in TECHNIQUES:
             raise KeyError(f"no technique {arg!r} in tools/gen_docs.py TECHNIQUES")
         head = f"<!-- BEGIN {kind}{' ' + match['arg'] if match['arg'] else ''} -->\n"
-        return f"{head}{makers[kind](arg).rstrip()}\n<!-- END {kind} -->"
+        # Blank lines around the body: a table must not run into the END comment.
+        return f"{head}\n{makers[kind](arg).strip()}\n\n<!-- END {kind} -->"
 
     return BLOCK.sub(replace, text)
 
