@@ -17,6 +17,7 @@ def run_cli(*args, timeout=600, env=None):
                           env=None if env is None else {**os.environ, **env})
 
 
+@pytest.mark.slow
 def test_compare_writes_both_ladders_errors_and_chart_and_feeds_auto_quality(tmp_path):
     db = {"CLASSIC_BAKE_QUALITY_DB": str(tmp_path / "ladders.json")}
     scene = ROOT / "sample_blends" / "shadows.blend"
@@ -47,6 +48,7 @@ def test_compare_writes_both_ladders_errors_and_chart_and_feeds_auto_quality(tmp
     assert auto["met_target"] and auto["expected_seconds"] == min(r["seconds"] for r in met)
 
 
+@pytest.mark.slow
 def test_report_of_the_sample_scenes_opens_in_chromium(tmp_path):
     done = run_cli("demo", ROOT / "sample_blends", "--out", tmp_path, "--resolution", "32", "24")
     assert done.returncode == 0, done.stderr[-2000:]
@@ -81,6 +83,7 @@ def test_compare_button_shows_figures_and_an_error_image(addon, open_sample):
     assert "Classic Bake Cycles View" in bpy.data.images
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("technique, scene, rungs", [("envmap", "env_room", 4), ("bump", "bump", 5)])
 def test_compare_runs_the_ladders_of_the_mapping_techniques(tmp_path, technique, scene, rungs):
     done = run_cli("compare", ROOT / "sample_blends" / f"{scene}.blend", "--technique", technique,

@@ -77,6 +77,7 @@ def test_cli_envmap_refuses_an_unknown_object(tmp_path):
     assert done.returncode == 2 and "Nope" in done.stderr
 
 
+@pytest.mark.slow
 def test_mapped_mirror_is_close_to_cycles_true_reflections(tmp_path, open_sample):
     """Cycles with the Whitted model (true mirror rays) at 128 samples. The mapped sphere differs
     by parallax (the sphere stands on a pedestal: the floor is a metre away) and the map's

@@ -30,6 +30,7 @@ def probe(tmp_path_factory):
     return json.loads(line[len("PROBE"):]), user
 
 
+@pytest.mark.slow
 def test_install_enables_every_class(probe):
     report, _ = probe
     assert report["before"] == []

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import bpy
 import numpy as np
+import pytest
 
 from classic_bake.addon import bridge
 from classic_bake.addon import cycles as cr
@@ -48,6 +49,7 @@ def test_cancel_removes_the_lightmap_uvs_it_created(open_sample):
     assert not any(img.name.startswith("Shadow ") for img in bpy.data.images)
 
 
+@pytest.mark.slow
 def test_cli_writes_lightmaps_render_and_metrics(tmp_path):
     done = subprocess.run([sys.executable, "-m", "classic_bake", "shadowmap", str(SCENE), "--out",
                            str(tmp_path), "--lightmap-size", "64", "--resolution", "32", "24"],

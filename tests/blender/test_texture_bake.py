@@ -48,6 +48,7 @@ def test_operator_bakes_lightmaps_colour_attributes_and_the_view(addon, open_sam
     assert view.shape[:2] == (24, 32)
 
 
+@pytest.mark.slow
 def test_cancel_removes_the_lightmap_uvs_it_created(open_sample):
     open_sample("raytrace")
     before = {o.name: [lay.name for lay in o.data.uv_layers] for o in bpy.data.objects
@@ -62,6 +63,7 @@ def test_cancel_removes_the_lightmap_uvs_it_created(open_sample):
     assert not any(img.name.startswith("Texture ") for img in bpy.data.images)
 
 
+@pytest.mark.slow
 def test_a_text_object_is_reported_not_written(open_sample):
     open_sample("raytrace")
     bpy.ops.object.text_add(location=(0.0, 0.0, 0.5))
@@ -72,6 +74,7 @@ def test_a_text_object_is_reported_not_written(open_sample):
     assert PLANE in summary["attributes"]
 
 
+@pytest.mark.slow
 def test_cli_writes_lightmaps_render_and_metrics(tmp_path):
     done = subprocess.run([sys.executable, "-m", "classic_bake", "texture", str(SCENE), "--out",
                            str(tmp_path), "--lightmap-size", "32", "--resolution", "32", "24"],
@@ -88,6 +91,7 @@ def test_cli_writes_lightmaps_render_and_metrics(tmp_path):
     assert bad.returncode == 2 and "samples_per_side" in bad.stderr
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(bpy.app.version < (5, 0, 0), reason=(
     "Cycles 4.5 filters baked texels otherwise: its 256-sample bake of this plane differs from "
     "its 1-sample one in 54 distinct texel values against 5.2's 126, and from the kernel's "
@@ -112,6 +116,7 @@ def test_a_minified_checker_matches_cycles_converged_colour_bake(open_sample):
     assert rel_mse(one[PLANE][mask][:, None], ref[mask][:, None]) > err
 
 
+@pytest.mark.slow
 def test_the_view_matches_cycles_diffuse_color_pass(open_sample):
     """The camera view of the albedo (48 x 36) against Cycles' Diffuse Color pass at 256
     samples: the checker plane, the spheres black (metal and glass reflect nothing diffusely),
