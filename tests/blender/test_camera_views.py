@@ -15,6 +15,7 @@ from classic_bake.kernels.shading import direct_light
 RESOLUTION = (80, 60)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("technique, bound", [("radiosity", 0.0015), ("shadowmap", 0.0015)])
 def test_camera_views_of_the_shadows_scene_match_cycles_at_their_edges(open_sample, technique,
                                                                        bound):

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import bpy
 import numpy as np
+import pytest
 
 from classic_bake.addon import bridge
 from classic_bake.addon import cycles as cr
@@ -61,6 +62,7 @@ def test_cancel_removes_the_lightmap_uvs_it_created(open_sample):
                if o.type == "MESH")
 
 
+@pytest.mark.slow
 def test_cli_writes_render_lightmaps_and_patch_counts(tmp_path):
     done = subprocess.run([sys.executable, "-m", "classic_bake", "radiosity", str(SCENE), "--out",
                            str(tmp_path), "--patches", "40", "--refine", "1", "--lightmap-size",
@@ -83,6 +85,7 @@ def test_cli_writes_render_lightmaps_and_patch_counts(tmp_path):
     assert bad.returncode == 2 and "patch" in bad.stderr
 
 
+@pytest.mark.slow
 def test_lightmaps_agree_with_cycles_diffuse_bake(open_sample):
     """The baked radiance B / pi against Cycles' DIFFUSE bake with colour (rho E / pi) of the same
     32^2 texels, diffuse bounces 32, 128 samples. Bound: mean relative error (sum |ours - Cycles|
@@ -117,6 +120,7 @@ def test_lightmaps_agree_with_cycles_diffuse_bake(open_sample):
     assert error < 0.08
 
 
+@pytest.mark.slow
 def test_cli_clusters_a_finely_tessellated_ball(tmp_path, open_sample):
     """A ball of 960 triangles standing in the Cornell box: auto solves its small patches as
     groups (kernels/clusters.py), and the ball's lightmap and corners carry its light."""

@@ -111,6 +111,7 @@ def test_a_uniform_world_lights_an_open_scene_as_cycles_does(lift):
     assert error < 0.01
 
 
+@pytest.mark.slow
 def test_a_floor_under_a_bright_sky_and_dark_ground_is_lit_from_above():
     """A sky of radiance 1.2 above the horizon over a ground of 0.1 below: the floor sees the sky
     only, so the map's mean (0.65) would leave it 46% dark; read along each sky ray, both
@@ -166,6 +167,7 @@ def test_the_radiosity_view_shows_the_world_in_the_glossy_layer(base, roughness,
     assert abs(ratio - 1.0) < bound
 
 
+@pytest.mark.slow
 def test_a_sunny_map_bakes_as_cycles_does():
     """A map of a blue-grey sky (0.3) with a small bright sun (2 x 2 texels of 440 at 45 degrees
     up, ~3 W/m^2 on a surface facing it): the sun leaves the map as a sun lamp
@@ -246,6 +248,7 @@ def _sky_world(elevation_deg: float = 30.0):
     return scene
 
 
+@pytest.mark.slow
 def test_a_sky_texture_world_bakes_as_cycles_does():
     """A Sky Texture (which the bridge cannot read itself) is rendered into a map by Cycles
     (`cycles.world_map.render_world_map`); its sun disc leaves the map as a sun lamp, the rest
