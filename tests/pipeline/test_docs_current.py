@@ -8,6 +8,7 @@ or the sentence saying to run `make bench`.
 
 import importlib.util
 import json
+import os
 import re
 from pathlib import Path
 
@@ -83,13 +84,20 @@ def test_figures_render_a_bench_report(gen_docs, tmp_path):
     assert "bench/rays.py" in block and gen_docs.NO_FIGURES in block
 
 
-def test_documents_name_no_machine_path():
-    pages = [REPO / "README.md", REPO / "bench" / "README.md",
-             *sorted((REPO / "docs").rglob("*.md"))]
-    for page in pages:
-        if page.is_file():
-            found = MACHINE_PATH.search(page.read_text(encoding="utf-8"))
-            assert found is None, f"{page.relative_to(REPO)} names a machine path: {found[0]}"
+NOT_SOURCES = {".git", ".venv", ".venv45", "out", "dist", "wheels", "__pycache__"}
+SOURCE_SUFFIXES = {".py", ".md", ".sh", ".toml", ".txt", ".json"}
+
+
+def test_code_and_documents_name_no_machine_path():
+    files = []
+    for folder, subfolders, names in os.walk(REPO):
+        subfolders[:] = [d for d in subfolders if d not in NOT_SOURCES]
+        files += [Path(folder) / n for n in names
+                  if Path(n).suffix in SOURCE_SUFFIXES or n == "Makefile"]
+    assert any(p.name == "README.md" for p in files)
+    for path in files:
+        found = MACHINE_PATH.search(path.read_text(encoding="utf-8", errors="replace"))
+        assert found is None, f"{path.relative_to(REPO)} names a machine path: {found[0]}"
 
 
 WORK_LOG = re.compile(r"\bsession \d+\b|\(session\b|^#+ .*\bsession\b", re.I | re.M)
