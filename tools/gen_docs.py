@@ -250,15 +250,26 @@ def figures_block(technique: str, out_dir: Path = BENCH_OUT) -> str:
 
 
 def results_block(out_dir: Path = BENCH_OUT) -> str:
-    parts = []
+    """One table of every bench's ratios (bench, ratio, value), then what ran and what did not."""
+    rows, ran, missing = [], [], []
     for name in BENCHES:
         report = _read_bench(name, out_dir)
         if report is None:
-            parts.append(f"**{name}**: {NO_FIGURES} (or `.venv/bin/python bench/{name}.py`).")
-        else:
-            parts.append(f"**{name}** (`out/bench/{name}.json`):\n\n"
-                         + bench_tables(report, ladders=False))
-    return "\n\n".join(parts)
+            missing.append(name)
+            continue
+        ran.append((name, report.get("versions") or {}))
+        rows += [f"| `{name}` | `{_cell(key)}` | {_number(value)} |"
+                 for key, value in sorted((report.get("ratios") or {}).items())]
+    lines = []
+    if rows:
+        lines += ["| bench | ratio | value |", "|-------|-------|-------|", *rows, ""]
+    for name, versions in ran:
+        lines.append(f"* `{name}` ran with " + (", ".join(f"{k} {v}" for k, v in sorted(versions.items()))
+                                                 or "versions not recorded"))
+    if missing:
+        lines += ["", f"{NO_FIGURES} for " + ", ".join(f"`{n}`" for n in missing)
+                  + " (`.venv/bin/python bench/NAME.py` runs one), then `make docs`."]
+    return "\n".join(lines).strip()
 
 
 # --- documents -----------------------------------------------------------------------------------
