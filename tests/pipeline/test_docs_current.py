@@ -32,8 +32,13 @@ def test_every_technique_has_a_page_with_the_generated_blocks(gen_docs):
     for name in TECHNIQUE_PAGES:
         page = REPO / "docs" / "techniques" / f"{name}.md"
         assert page.is_file(), f"missing {page.relative_to(REPO)}"
-        kinds = [kind for kind, _, _ in gen_docs.blocks(page.read_text(encoding="utf-8"))]
+        text = page.read_text(encoding="utf-8")
+        kinds = [kind for kind, _, _ in gen_docs.blocks(text)]
         assert "parameters" in kinds and "figures" in kinds, page.name
+        pictures = re.findall(r"!\[[^\]]*\]\((\.\./images/[^)]+)\)", text)
+        assert pictures, f"{page.name} shows no picture from docs/images"
+        for picture in pictures:
+            assert (page.parent / picture).is_file(), f"{page.name}: missing {picture}"
     assert set(TECHNIQUE_PAGES) <= set(gen_docs.TECHNIQUES)
 
 
