@@ -80,7 +80,11 @@ def cornell(args) -> tuple[dict, dict, list]:
     from classic_bake.kernels.bake.lightmap_uv import LightmapUVSettings
     from classic_bake.kernels.geometry.bvh import BVH
     from classic_bake.kernels.measure.metrics import rel_mse
-    from classic_bake.kernels.radiosity import radiosity as rad
+    from classic_bake.kernels.progress import drain
+    from classic_bake.kernels.radiosity.lightmap import bake_steps
+    from classic_bake.kernels.radiosity.settings import RadiositySettings
+    from classic_bake.kernels.radiosity.solve import solve_radiosity
+    from classic_bake.kernels.radiosity.view import render_steps
     from classic_bake.pipeline.charts import frontier, speed_accuracy_chart
     from classic_bake.pipeline.images import write_preview_png
 
@@ -118,17 +122,13 @@ def cornell(args) -> tuple[dict, dict, list]:
     def radiosity_run(settings):
         start = time.perf_counter()
         bvh = BVH.build(scene.triangles)
-        result = rad.solve_radiosity(scene, settings, bvh)
-        bakes = None
-        for step in rad.bake_steps(scene, result, objects, sizes, 2):
-            bakes = step
+        result = solve_radiosity(scene, settings, bvh)
+        bakes = drain(bake_steps(scene, result, objects, sizes, 2))
         seconds = time.perf_counter() - start
         images = {scene.objects[k].source_name: b.lightmap for k, b in bakes.items()}
         masks = {scene.objects[k].source_name: b.lightmap_mask for k, b in bakes.items()}
         start = time.perf_counter()
-        image = None
-        for step in rad.render_steps(scene, result, RENDER_SIZE):
-            image = step
+        image = drain(render_steps(scene, result, RENDER_SIZE))
         render_s = seconds + time.perf_counter() - start  # solve + bake + camera view
         return images, masks, seconds, image, render_s, result
 
@@ -152,13 +152,13 @@ def cornell(args) -> tuple[dict, dict, list]:
     best_image = None
     # One untimed coarse run pays the radiosity side's one-off costs (lazy imports, first calls),
     # as `cr.warm_up` pays Cycles'.
-    radiosity_run(rad.RadiositySettings(patch_budget=25, refine_levels=0, samples_per_side=1))
+    radiosity_run(RadiositySettings(patch_budget=25, refine_levels=0, samples_per_side=1))
     for step in range(max(len(rungs), len(cycles_samples))):  # alternate the two sides
         if step < len(rungs):
             method, solver, budget, levels, gather, side = rungs[step]
-            settings = rad.RadiositySettings(method=method, solver=solver, patch_budget=budget,
-                                             refine_levels=levels, final_gather=gather,
-                                             samples_per_side=side)
+            settings = RadiositySettings(method=method, solver=solver, patch_budget=budget,
+                                         refine_levels=levels, final_gather=gather,
+                                         samples_per_side=side)
             runs, last = repeated(lambda r: r[4], radiosity_run, settings)
             images, masks, _, image, _, result = last
             seconds, render_s = median_of(runs, lambda r: r[2]), median_of(runs, lambda r: r[4])
@@ -167,7 +167,7 @@ def cornell(args) -> tuple[dict, dict, list]:
             label = (f"{method} {solver} {result.stats['patches']}p"
                      f"{' gather' if gather else ' interpolated'}"
                      f"{' 1pt' if result.stats['samples_per_side'] == 1 else ''}"
-                     f"{' (defaults)' if settings == rad.RadiositySettings() else ''}")
+                     f"{' (defaults)' if settings == RadiositySettings() else ''}")
             kernel.append({"setting": label, "seconds": seconds, "rel_mse": error,
                            "patches": result.stats["patches"],
                            "per_level": result.stats["per_level"]})
@@ -281,20 +281,22 @@ def scale_scene(target_triangles: int):
 def scale_run(args) -> tuple[dict, dict]:
     import tracemalloc
 
-    from classic_bake.kernels.radiosity import radiosity as rad
+    from classic_bake.kernels.radiosity.planning import memory_estimate
+    from classic_bake.kernels.radiosity.settings import RadiositySettings
+    from classic_bake.kernels.radiosity.solve import solve_radiosity
 
     scene = scale_scene(args.scale_triangles)
-    settings = rad.RadiositySettings(solver="progressive", patch_budget=1, patch_size=10.0,
-                                     refine_levels=0, samples_per_side=1,
-                                     visibility_samples_per_side=1, light_samples_per_side=1,
-                                     max_shots=args.scale_shots)
-    estimate = rad.memory_estimate(scene.triangle_count, scene.triangle_count, settings,
-                                   "progressive")
+    settings = RadiositySettings(solver="progressive", patch_budget=1, patch_size=10.0,
+                                 refine_levels=0, samples_per_side=1,
+                                 visibility_samples_per_side=1, light_samples_per_side=1,
+                                 max_shots=args.scale_shots)
+    estimate = memory_estimate(scene.triangle_count, scene.triangle_count, settings,
+                               "progressive")
     print(f"scale: {scene.triangle_count} triangles; memory estimate up front "
           f"{estimate['total'] / 2**20:.0f} MiB")
     tracemalloc.start()
     start = time.perf_counter()
-    result = rad.solve_radiosity(scene, settings)
+    result = solve_radiosity(scene, settings)
     seconds = time.perf_counter() - start
     _, peak = tracemalloc.get_traced_memory()
     tracemalloc.stop()

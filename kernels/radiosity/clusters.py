@@ -3,7 +3,7 @@
 Patches are whole scene triangles at least, so a finely tessellated mesh brings one patch per
 triangle. The Cornell box with a subdivided head of 15.7k triangles has 16k patches. The matrix
 solvers' cost then grows as N^2, and so does the hierarchical solver's, which starts every leaf
-linked to every root. auto fell back to progressive refinement: 115 s of solve.
+linked to every root. auto would hand it to progressive refinement: 115 s of solve.
 
 Such a head needs no more unknowns than a wall of its size ("model no more than a scene needs").
 `group_patches` keeps every patch, but puts those smaller than CLUSTER_AREA_SHARE of a patch of
@@ -30,19 +30,24 @@ Factors between groups, F_GH = sum_s w_s F(x_s -> H) V_s(H):
   progressive radiosity", SIGGRAPH 1989), which stays bounded as d -> 0. Members nearer than
   NEAR_AREAS times their area (d^2) take the exact point-to-polygon factor instead.
 * V_s(H) is the kernel-weighted visible share, from VISIBILITY_RAYS shadow rays from x_s to
-  receiver points of H, drawn by their weights (the estimator of `form_factors.RayCastSettings`).
+  receiver points of H, drawn by their weights (the estimator of
+  `form_factors.raycast.RayCastSettings`).
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..measure.metrics import REC709_LUMINANCE
+from ..progress import Steps
 from . import patches as patching
-from .form_factors import answer_rays, paired_share_steps, point_to_polygon, sample_patches
+from .form_factors.point_polygon import point_to_polygon
+from .form_factors.rays import answer_rays
+from .form_factors.sampling import sample_patches
+from .form_factors.visibility import paired_share_steps
+from .solvers import GaussSeidelSettings, GaussSeidelSolver
 
 # A patch whose area is under this share of size^2 (size: the patch edge asked for) is clustered.
 # A patch cut from a large triangle has an area of about size^2 / 4; 1/16 of size^2 is a
@@ -234,7 +239,7 @@ def _unoccluded(patches: patching.Patches, groups: Groups, x: np.ndarray, nx: np
 
 def factor_steps(patches: patching.Patches, groups: Groups, side: int, ray_offset: float,
                  occluded, rng: np.random.Generator, out: np.ndarray | None = None
-                 ) -> Iterator[float]:
+                 ) -> Steps[np.ndarray]:
     """Generator: yields progress in [0, 1] and returns the (G, G) group factors F_GH (module
     docstring); `out` receives them when given. occluded(origins, directions, t_min, t_max) ->
     (R,) bool is the BVH's shadow-ray query (None: nothing occludes)."""
@@ -288,12 +293,10 @@ def group_means(groups: Groups, areas: np.ndarray, values: np.ndarray) -> np.nda
 
 def solve_steps(patches: patching.Patches, groups: Groups, sources: np.ndarray,
                 reflectance: np.ndarray, factors: np.ndarray, tolerance: float
-                ) -> Iterator[float]:
+                ) -> Steps[tuple]:
     """Generator: Gauss-Seidel on the groups' system; yields progress, returns (B per patch
     (N, 3), the solver's `RadiositySolution` over the groups). sources, reflectance (N, 3) per
     patch."""
-    from .radiosity_solvers import GaussSeidelSettings, GaussSeidelSolver
-
     s = group_means(groups, patches.areas, sources)
     rho = group_means(groups, patches.areas, reflectance)
     solver = GaussSeidelSolver(factors, s, rho, GaussSeidelSettings(tolerance=tolerance))

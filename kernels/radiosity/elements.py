@@ -18,9 +18,9 @@ against a wall) takes what it sees there, not the mean of the elements beside it
 
 It pays where patches are large against how the light varies: the Cornell box at 74 patches
 (each block face one quad of two triangles, whose linear interpolation shows the diagonal) goes
-from relMSE 0.0101 to 0.0063 against Cycles with 4 elements per patch (bench/README.md,
-session 29). What it cannot place is a source's own variation: q sends its mean B, which a
-receiver right beside it (a block's foot on a floor half in its shadow) sees at close range.
+from relMSE 0.0101 to 0.0063 against Cycles with 4 elements per patch. What it cannot place is
+a source's own variation: q sends its mean B, which a receiver right beside it (a block's foot on
+a floor half in its shadow) sees at close range.
 Its cost grows as E x N, so `element_levels` splits only while the pairs stay within a budget:
 a fine solution takes no elements, and there the patches are small already.
 """
@@ -31,18 +31,21 @@ import numpy as np
 
 from ..geometry.scene import Scene
 from . import patches as patching
-from .form_factors import (
-    RAYS_PER_BATCH,
-    answer_rays,
-    disc_form,
-    paired_share_steps,
-    point_to_polygon,
-    sample_patches,
-)
+from .form_factors.closed_forms import disc_form
+from .form_factors.point_polygon import point_to_polygon
+from .form_factors.rays import RAYS_PER_BATCH, answer_rays
+from .form_factors.sampling import sample_patches
+from .form_factors.visibility import paired_share_steps
 
+# Element-to-patch pairs the indirect light is gathered over at most (elements times the patches
+# that send light). The Cornell box (solve and bake seconds times relMSE against Cycles, which
+# Cycles' bake seconds to the same error divide the speed-up by): 74 patches in 4 elements each
+# (22k pairs) 1.65 -> 1.08 (relMSE 0.0101 -> 0.0063 for 0.01 s); 176 patches (124k pairs) 1.14 ->
+# 1.19, none there: the patches are small enough already.
+ELEMENT_PAIRS = 50_000
 # Shadow rays per side of the point grids the patch-to-patch visibility pairs: 2 x 2 pairs a patch
 # pair. One ray per pair leaves each share 0 or 1: the Cornell box's elements then gather at
-# relMSE 0.0102 against 0.0078 with four (session 29).
+# relMSE 0.0102 against 0.0078 with four.
 VISIBILITY_SIDE = 2
 # Beyond this many times a patch's corner radius (from its centroid) a receiver takes the disc
 # form of the factor to it, A cos cos / (d^2 (pi d^2 + A)) (Wallace, Elmquist and Haines 1989;
@@ -55,8 +58,8 @@ DISC_FORM_RADII = 2.0
 # `final_gather.RECEIVER_INSET` moves receivers): far above the factor's PLANE_EPS, far below any
 # detail an element holds.
 VERTEX_INSET = 1e-4
-# Splits per patch at most: 4 elements, 6 vertices. The Cornell box at 74 patches (session 29;
-# relMSE against Cycles, and solve + bake seconds): 4 elements 0.00631 in 0.171 s, 16 0.00597
+# Splits per patch at most: 4 elements, 6 vertices. The Cornell box at 74 patches
+# (relMSE against Cycles, and solve + bake seconds): 4 elements 0.00631 in 0.171 s, 16 0.00597
 # in 0.188 s, 64 (centroid values) 0.0058 for 0.1 s more: Cycles' bake takes ~1 / error, so 4
 # reach each error level soonest.
 MAX_LEVELS = 1

@@ -14,13 +14,13 @@ floor, the floor inside a closed block. Most of that detail is DIRECT light. The
       H_j(x) = pi L_j F(x -> j) V_j(x),   V_j(x) = sum_s k_s v_s / sum_s k_s,
       k_s = cos(theta_x) cos(theta_s) / d_s^2   at stratified points s of triangle j
   (`stratified_triangle_points`: equal areas),
-  v_s one shadow ray each (the ratio estimator of `form_factors._visible_fraction_steps`: exact
+  v_s one shadow ray each (the ratio estimator of `visibility.visible_fraction_steps`: exact
   when nothing blocks, and its noise stays in penumbrae). Cosines at x are to its shading normal
   (`shading_normals`: a smooth mesh's interpolated corner normals, as Cycles shades it); the rays
   leave along the face's own normal, which no smoothing tilts into the surface.
 * H_indirect(x), interpolated from the patches: what the solution says arrives at patch i,
   (B_i - E_i) / rho_i, less the first shot H_direct(i), which the solver took from this same
-  estimator at the patch's points (`radiosity.first_shot`) and did not carry again. It is smooth
+  estimator at the patch's points (`sources.first_shot`) and did not carry again. It is smooth
   wherever the patches are, so patch-sized interpolation loses little; a coarse solution's
   patches are split into elements whose vertices gather it from the patches' B afresh
   (`elements.py`).
@@ -42,7 +42,7 @@ for it.
 Measured on the sample Cornell box (bench/radiosity.py: 21k lightmap texels, 296 patches,
 hierarchical): relative MSE against a 1024-sample Cycles bake 0.087 interpolated, 0.011 with the
 direct light gathered, 0.0065 with the enclosure probes as well, for ~0.5 s of gathering on top
-of a 0.6 s solve (bench/README.md has the steps).
+of a 0.6 s solve.
 """
 
 from __future__ import annotations
@@ -52,6 +52,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..geometry import shafts
+from ..geometry.frames import RAY_OFFSET_REL, tangent_frames
 from ..geometry.scene import (
     Scene,
     geometric_normals,
@@ -70,13 +71,10 @@ from ..shading.world_light import (
 )
 from . import elements
 from . import patches as patching
-from .form_factors import (
-    RAY_OFFSET_REL,
-    pair_kernel,
-    point_to_polygon,
-    sample_patches,
-    tangent_frames,
-)
+from .form_factors.point_polygon import point_to_polygon
+from .form_factors.sampling import sample_patches
+from .form_factors.visibility import pair_kernel
+from .lamps import lamp_irradiance
 
 # Shadow rays to points ON an emitter stop this fraction short of it; the target itself is lifted
 # off the emitter by the ray offset along its normal (the BVH's float32 hit distances differ from
@@ -95,13 +93,6 @@ RECEIVER_INSET = 1e-4
 # Probe rays at 45 degrees (after the normal ray): their tangent-frame directions.
 _PROBE_TILTS = ((1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0))
 LUMINANCE = np.array(REC709_LUMINANCE)
-# Element-to-patch pairs the indirect light is gathered over at most (`elements.py`: elements
-# times the patches that send light). The Cornell box (session 29; solve and
-# bake seconds times relMSE against Cycles, which Cycles' bake seconds to the same error divide
-# the speed-up by): 74 patches in 4 elements each (22k pairs) 1.65 -> 1.08 (relMSE 0.0101 ->
-# 0.0063 for 0.01 s); 176 patches (124k pairs) 1.14 -> 1.19, none there: the patches are small
-# enough already.
-ELEMENT_PAIRS = 50_000
 # What a receiver's rays found about one emitter triangle (`Visibility.emitters`): nothing known
 # (or a penumbra), all of it hidden, all of it seen, or it lies behind the receiver's plane.
 UNKNOWN, HIDDEN, CLEAR, AWAY = -1, 0, 1, 2
@@ -136,7 +127,7 @@ class FinalGatherSettings:
     patch_samples: int = 2
     seed: int = 0
     world_rays: int = 0
-    element_pairs: int = ELEMENT_PAIRS
+    element_pairs: int = elements.ELEMENT_PAIRS
 
     def __post_init__(self) -> None:
         if self.emitter_rays < 1 or self.patch_samples < 1 or self.max_emitters < 0:
@@ -387,21 +378,6 @@ def clear_shafts(patches: patching.Patches, emitters: Emitters, bvh, offset: flo
     return out
 
 
-def lamp_irradiance(scene: Scene, points: np.ndarray, normals: np.ndarray, occluded, offset: float,
-                    area_samples_per_side: int, lift: np.ndarray | None = None) -> np.ndarray:
-    """(M, 3) irradiance W/m^2 of the scene's lamps (point, spot, sun, area) with shadow rays, as
-    the radiosity first shot computes it for patch points; rays leave along `lift` (M, 3) when
-    given (`emitter_irradiance`)."""
-    from .radiosity import shadowed_irradiance
-
-    out = np.zeros((len(points), 3))
-    origins = points + offset * (normals if lift is None else lift)
-    for light in scene.lights:
-        out += shadowed_irradiance(light, points, normals, origins, occluded,
-                                   area_samples_per_side)[0]
-    return out
-
-
 def enclosed(points: np.ndarray, normals: np.ndarray, intersect, triangle_normals: np.ndarray,
              offset: float) -> np.ndarray:
     """(M,) bool: receivers inside a closed solid, every probe ray hitting a back face.
@@ -462,22 +438,36 @@ def _occluded(bvh):
     return lambda o, d, t0, t1: bvh.occluded(o, d, t0, t1)
 
 
-def prepare(scene: Scene, patches: patching.Patches, radiosity: np.ndarray, emitted: np.ndarray,
-            reflectance: np.ndarray, direct: np.ndarray, emitters: Emitters, bvh,
-            smooth_angle: float, area_samples_per_side: int,
-            settings: FinalGatherSettings, clear: np.ndarray | None = None,
-            world: np.ndarray | None = None) -> FinalGather:
-    """The patch-level half: the indirect irradiance (W/m^2, RGB) at the corners of the patches,
-    or of their elements (`elements.py`, within `settings.element_pairs`).
-    clear (N, K): `clear_shafts` of these patches when the first shot already has it.
+@dataclass(frozen=True, eq=False)
+class PatchSolution:
+    """A solution over N patches, as the gather reads it, W/m^2.
 
     radiosity, emitted, reflectance, direct (N, 3): the solution B, pi L_e, rho and the first
-    shot's irradiance of `patches` (lamps and `emitters`, which the solver did not carry again:
-    `radiosity.first_shot`); world (N, 3): the world's irradiance on them (`radiosity.world_shot`,
-    None: none). What arrived at a patch less that first shot is what the solver carried between
-    patches, the same numbers it solved with, so no sampling noise of the direct light leaks into
-    the indirect part. Elements gather it afresh from the patches' B, plus the world's light of
-    their patch."""
+    shot's irradiance of `patches` (lamps and the shot emitters, which the solver did not carry
+    again: `sources.first_shot`); clear (N, K): `clear_shafts` of these patches when the first
+    shot already has it (None: tested here); world (N, 3): the world's irradiance on them
+    (`sources.world_shot`, None: none)."""
+
+    patches: patching.Patches
+    radiosity: np.ndarray
+    emitted: np.ndarray
+    reflectance: np.ndarray
+    direct: np.ndarray
+    clear: np.ndarray | None = None
+    world: np.ndarray | None = None
+
+
+def prepare(scene: Scene, solution: PatchSolution, emitters: Emitters, bvh, smooth_angle: float,
+            area_samples_per_side: int, settings: FinalGatherSettings) -> FinalGather:
+    """The patch-level half: the indirect irradiance (W/m^2, RGB) at the corners of the patches,
+    or of their elements (`elements.py`, within `settings.element_pairs`).
+
+    What arrived at a patch less the first shot is what the solver carried between patches, the
+    same numbers it solved with, so no sampling noise of the direct light leaks into the indirect
+    part. Elements gather it afresh from the patches' B, plus the world's light of their patch."""
+    patches, radiosity, emitted = solution.patches, solution.radiosity, solution.emitted
+    reflectance, direct = solution.reflectance, solution.direct
+    clear, world = solution.clear, solution.world
     flat = scene.triangles.reshape(-1, 3).astype(np.float64)
     scale = float(np.linalg.norm(flat.max(axis=0) - flat.min(axis=0))) if len(flat) else 1.0
     offset = RAY_OFFSET_REL * scale
@@ -491,7 +481,7 @@ def prepare(scene: Scene, patches: patching.Patches, radiosity: np.ndarray, emit
                         where=reflectance > 0.0)
     # Negative only by the solver's tolerance; the receivers' sums are clamped (`exitance`).
     indirect = arrived - direct
-    # Idle patches (`radiosity.with_idle`: nothing reflected) hold no receiver that gathers
+    # Idle patches (`sources.with_idle`: nothing reflected) hold no receiver that gathers
     # (`exitance` skips black ones) and their indirect 0 is not what arrives there: they weigh 0
     # in the corner fit, as enclosed patches do, and cast no probes.
     reflects = reflectance.max(axis=1) > 0.0

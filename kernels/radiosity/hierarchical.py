@@ -12,12 +12,11 @@ exact over its source polygon, and only the radiosity of a coarse source is aver
 
 Elements. The roots are `patches.make_patches` at 2^max_depth times the patch size; each is split
 max_depth times into midpoint children (`patches.split`'s rule), and the leaves, about the patch
-size, are the patches of the result. Before any link, leaves across a point, spot or sun lamp's
-shadow edge are split `shadow_splits` times, as the matrix solvers split theirs
-(`radiosity.hard_shadow_edges`, `radiosity.shadow_edge_splits`).
-After a solve, leaves are split again where the matrix solvers would split their patches
-(`radiosity.refine_mask`), up to `refine_levels` times, and everything is linked and solved
-again.
+size, are the patches of the result (`TreeLevels`). The level loop of `solve.py` splits them as
+it splits the matrix solvers' patches: before any link, leaves across a point, spot or sun lamp's
+shadow edge `shadow_splits` times (`sources.hard_shadow_edges`, `refine.shadow_edge_splits`);
+after a solve, where a corner value is far from the leaf's own (`refine.refine_mask`), up to
+`refine_levels` times, and everything is linked and solved again.
 
 Links (p <- q: leaf p gathers from element q). Every leaf starts linked to every root that faces
 it. A link is refined while it carries more than `link_epsilon`, F_pq > epsilon, by linking p to
@@ -43,20 +42,22 @@ Memory is bounded before any link is made (`memory_bound`).
 from __future__ import annotations
 
 from collections.abc import Iterator
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..geometry import threads
+from ..geometry.frames import RAY_OFFSET_REL
 from ..geometry.scene import Scene, geometric_normals, triangle_areas
+from ..progress import Steps, scaled
 from . import patches as patching
 from . import source_clusters
-from .form_factors import (
-    RAY_OFFSET_REL,
-    answer_rays,
-    paired_share_steps,
-    point_to_polygon,
-    sample_patches,
-)
+from .form_factors.point_polygon import point_to_polygon
+from .form_factors.rays import answer_rays
+from .form_factors.sampling import sample_patches
+from .form_factors.visibility import paired_share_steps
+from .levels import LevelLight, LevelSolution
+from .settings import RadiositySettings
 
 # Links whose factors are evaluated at once: bounds point_to_polygon's (L, S, K, 3) temporaries.
 LINK_CHUNK = 1 << 15
@@ -69,7 +70,7 @@ THREAD_LINKS = 2048
 # Pairs still above the bound at the leaves (they meet at an edge or nearly) integrate over this
 # many times more points per side: their integrand varies within the patch. 2 (4x the points)
 # gives the Cornell lightmaps the same error as 3 (relMSE 0.00148 and 0.00150 at 1184 patches)
-# now that the points are sub-triangle centroids (`form_factors.triangle_midpoints`).
+# now that the points are sub-triangle centroids (`form_factors.sampling.triangle_midpoints`).
 NEAR_FIELD_SIDE = 2
 # Rays per shadow-ray call (the BVH reaches its full rate from about 50k).
 RAYS_PER_CALL = 1 << 18
@@ -84,7 +85,7 @@ LINK_BYTES = 96
 ELEMENT_BYTES = 500  # corners, barycentrics, normals, area, tree indices of one element
 # Working memory per point pair of a chunk: kernels, shadow-ray origins, directions, lengths.
 WORK_BYTES_PER_POINT_PAIR = 300
-# Root pairs at most that `radiosity.hierarchical_memory` has `facing_roots` count (~40 ms per
+# Root pairs at most that `planning.hierarchical_memory` has `facing_roots` count (~40 ms per
 # million); past it the bound takes every pair.
 FACING_COUNT_PAIRS = 1 << 28
 # `facing_roots` counts a pair as facing from this share of `_facing`'s epsilon
@@ -274,13 +275,13 @@ def refine_links(tree: _Tree, p: np.ndarray, q: np.ndarray, epsilon: float, side
 
 def _visible_share_steps(tree: _Tree, p: np.ndarray, q: np.ndarray, side: int,
                          ray_offset: float, shift: np.ndarray):
-    """Generator (asks for shadow rays, see form_factors.RayRequest): (L,) the visible share of
+    """Generator (asks for shadow rays, see form_factors.rays.RayRequest): (L,) the visible share of
     q's projected solid angle seen from leaf p, from one ray per point of p's side x side points
     to a point of q's: point s of p to point (s + shift) mod side^2 of q, `shift` (L,) int drawn
     at random per link.
 
     Each ray counts with the point-to-point kernel w_x w_y cos_x cos_y / d^2, as the matrix
-    solvers' estimator weights its rays (form_factors.RayCastSettings): a target behind the
+    solvers' estimator weights its rays (form_factors.raycast.RayCastSettings): a target behind the
     point's horizon (a floor element running under the block it meets) carries no weight instead
     of counting as blocked. The random shift makes every (point, target) pair equally likely, so
     the estimate's expectation is the kernel-weighted share over all of p x q. Pairing matching
@@ -316,7 +317,7 @@ def solve_links(tree: _Tree, leaves: np.ndarray, p: np.ndarray, q: np.ndarray, f
     """Jacobi iteration on the leaves with pull. source, reflectance (E, 3) per element (used on
     the leaves). Returns (B (E, 3), iterations, last error bound relative to the reflected light).
 
-    Stopping rule (radiosity_solvers' bound): the sweep contracts by c = max rho_p sum_q F_pq < 1
+    Stopping rule (solvers.py's bound): the sweep contracts by c = max rho_p sum_q F_pq < 1
     in the max norm, so after a sweep that changed B by d the remaining error is at most
     c / (1 - c) d. It stops when that is at most `tolerance` x the largest reflected radiosity
     max |B - source|: measured against an emitter's B instead (30x brighter in the Cornell box),
@@ -346,101 +347,101 @@ def solve_links(tree: _Tree, leaves: np.ndarray, p: np.ndarray, q: np.ndarray, f
     return b, max_iterations, bound
 
 
-def hierarchical_steps(scene: Scene, roots: patching.Patches, depth: int, occluded, settings,
-                       scale: float, lamp_irradiance, emitters=None,
-                       world_irradiance=None) -> Iterator[float | tuple]:
-    """Build, link, refine, solve. Yields progress, then (leaf Patches, B, emitted, reflectance,
-    direct irradiance and the world's irradiance of the leaves, stats).
+class TreeLevels:
+    """`levels.Levels` of the hierarchical solver: the leaves of the hierarchy over `roots`
+    (`hierarchy_roots` of the scene at the patch size asked for, `depth` levels below them).
 
-    roots, depth: `hierarchy_roots` of the scene at the patch size asked for.
+    Every level links its leaves afresh (`_link`) and solves the links (`solve_links`); leaves
+    are refined as the matrix solvers refine their patches (`refine.refine_splits`: a corner
+    value far from the leaf's own, or a lamp's shadow edge across it). occluded: the BVH's
+    shadow-ray query or None; settings: RadiositySettings (link_epsilon, samples_per_side,
+    tolerance, seed, cluster_sources, max_patches); scale: m, the scene's diagonal; memory: the
+    hierarchy's bound (`planning.hierarchical_memory`), for the figures."""
 
-    occluded: the BVH callback or None; lamp_irradiance(leaf Patches) -> (H (N, 3), shadow
-    boundary (N,) bool), the first shot; emitters: the emissive triangles whose light it
-    includes (`radiosity.shot_emitters`), whose emission is not carried again;
-    world_irradiance(leaf Patches) -> (N, 3), when given: the world's light on the leaves
-    (`radiosity.world_shot`), a source like the first shot but not part of it; settings:
-    RadiositySettings (link_epsilon, max_depth, samples_per_side, tolerance, refine_levels,
-    refine_threshold, max_patches, smooth_angle; shadow_splits and light_samples_per_side for
-    the splits at lamps' shadow edges made before any link).
+    def __init__(self, scene: Scene, roots: patching.Patches, depth: int, occluded,
+                 settings: RadiositySettings, scale: float, memory: dict) -> None:
+        self.scene, self.roots, self.depth = scene, roots, depth
+        self.occluded, self.settings, self.scale, self.memory = occluded, settings, scale, memory
+        self.tree = _Tree(scene, roots)
+        for _ in range(depth):
+            self.tree.split(np.flatnonzero(self.tree.child < 0))
+        self.fresh = np.flatnonzero(self.tree.child < 0)  # leaves no shadow-edge test has seen
+        self.leaves = self.fresh
 
-    Leaves are refined as the matrix solvers refine their patches (`radiosity.refine_splits`: a
-    corner value far from the leaf's own, or a lamp's shadow edge across it), up to
-    `refine_levels` times within `max_patches`; every level links and solves afresh.
-    """
-    from .radiosity import (
-        hard_shadow_edges,
-        patch_emission,
-        patch_reflectance,
-        refine_splits,
-        shadow_edge_splits,
-        shot_emission,
-    )
+    @property
+    def count(self) -> int:
+        return int(np.count_nonzero(self.tree.child < 0))
 
-    tree = _Tree(scene, roots)
-    for _ in range(depth):
-        tree.split(np.flatnonzero(tree.child < 0))
-    fresh = np.flatnonzero(tree.child < 0)  # leaves no shadow-edge test has seen
-    for _ in range(settings.shadow_splits):  # leaves across a shadow edge, before any link
-        tested = tree.patches(scene, fresh)
-        leaf_count = int(np.count_nonzero(tree.child < 0))
-        mask = shadow_edge_splits(hard_shadow_edges(scene, tested, occluded, settings, scale),
-                                  patch_emission(scene, tested), tested.areas,
-                                  (settings.max_patches - leaf_count) // 3)
-        if not mask.any():
-            break
-        first_kid = len(tree)
-        tree.split(fresh[mask])
-        fresh = np.arange(first_kid, len(tree))
-    levels = settings.refine_levels + 1
-    per_level = []
-    for level in range(levels):
-        leaves, elements, leaf_patches = tree.leaf_patches(scene)
-        emitted = patch_emission(scene, elements)
-        shot = shot_emission(scene, elements, emitters) if emitters is not None else 0.0
-        rho = patch_reflectance(scene, elements)
-        direct = np.zeros((len(tree), 3))
-        direct[leaves], boundary = lamp_irradiance(leaf_patches)
-        world = np.zeros((len(tree), 3))
-        if world_irradiance is not None:
-            world[leaves] = world_irradiance(leaf_patches)
-        base, span = level / levels, 1.0 / levels
-        links = None
-        for step in _link(tree, len(roots), leaves, occluded, settings, scale):
-            if isinstance(step, tuple):
-                links = step
-            else:
-                yield base + span * 0.9 * step
-        p, q, factor, near, clustering = links
-        b, iterations, change = solve_links(tree, leaves, p, q, factor,
-                                            emitted - shot + rho * (direct + world), rho,
-                                            settings.tolerance, MAX_ITERATIONS)
-        b += shot
-        per_level.append({"leaves": int(leaves.size), "links": int(len(p)),
-                          "near_field_links": int(near.sum()), **clustering,
-                          "iterations": iterations,
-                          "solver_error": change})
-        yield base + span
-        if level == levels - 1:
-            break
-        mask = refine_splits(leaf_patches, b[leaves], emitted[leaves], rho[leaves],
-                             direct[leaves], boundary, settings, scale)
-        if not mask.any():
-            break
-        tree.split(leaves[mask])
-    last = per_level[-1]
-    stats = {"roots": len(roots), "depth": depth, "elements": len(tree), "leaves": last["leaves"],
-             "links": last["links"], "all_pairs": last["leaves"] ** 2,
-             "near_field_links": last["near_field_links"], "iterations": last["iterations"],
-             "solver_error": last["solver_error"],
-             "converged": bool(last["solver_error"] <= settings.tolerance),
-             "refinement_levels": len(per_level) - 1, "per_refinement": per_level}
-    yield (leaf_patches, b[leaves], emitted[leaves], rho[leaves], direct[leaves], world[leaves],
-           stats)
+    def untested(self) -> patching.Patches:
+        return self.tree.patches(self.scene, self.fresh)
+
+    def split_untested(self, mask: np.ndarray) -> None:
+        first_kid = len(self.tree)
+        self.tree.split(self.fresh[mask])
+        self.fresh = np.arange(first_kid, len(self.tree))
+
+    def patches(self) -> patching.Patches:
+        self.leaves, _, leaf_patches = self.tree.leaf_patches(self.scene)
+        return leaf_patches
+
+    def refine(self, mask: np.ndarray) -> None:
+        self.tree.split(self.leaves[mask])
+
+    def solve_steps(self, light: LevelLight) -> Steps[LevelSolution]:
+        """Link and solve the leaves of `patches()` lit by `light` (per leaf)."""
+        tree, leaves, settings = self.tree, self.leaves, self.settings
+        links = yield from scaled(_link(tree, len(self.roots), leaves, self.occluded, settings,
+                                        self.scale), 0.0, 0.9)
+        source = np.zeros((len(tree), 3))  # only the leaves' are read
+        source[leaves] = light.sources
+        reflectance = np.zeros((len(tree), 3))
+        reflectance[leaves] = light.reflectance
+        b, iterations, change = solve_links(tree, leaves, links.p, links.q, links.factor, source,
+                                            reflectance, settings.tolerance, MAX_ITERATIONS)
+        yield 1.0
+        return LevelSolution(b[leaves], {
+            "leaves": int(leaves.size), "links": int(len(links.p)),
+            "near_field_links": int(links.near.sum()), "clustered_links": links.clustered_links,
+            "cluster_groups": links.cluster_groups, "iterations": iterations,
+            "solver_error": change})
+
+    def stats(self, levels: list[dict]) -> dict:
+        last = levels[-1]
+        info = {"roots": len(self.roots), "depth": self.depth, "elements": len(self.tree),
+                "leaves": last["leaves"], "links": last["links"],
+                "all_pairs": last["leaves"] ** 2, "near_field_links": last["near_field_links"],
+                "iterations": last["iterations"], "solver_error": last["solver_error"],
+                "converged": bool(last["solver_error"] <= self.settings.tolerance),
+                "refinement_levels": len(levels) - 1, "per_refinement": levels}
+        return {"solver": "hierarchical",
+                # bounded before linking, and as made
+                "memory_estimate": {**self.memory, "links_made": info["links"]},
+                "method": "raycast",
+                "max_patches": self.settings.max_patches,  # lowered by auto to fit the memory limit
+                "hierarchy": info,
+                "levels": [{"patches": level["leaves"], "solver": "hierarchical",
+                            "iterations": level["iterations"],
+                            "solver_error": level["solver_error"],
+                            "converged": bool(level["solver_error"] <= self.settings.tolerance)}
+                           for level in levels]}
 
 
-def _link(tree: _Tree, root_count: int, leaves: np.ndarray, occluded, settings, scale: float):
-    """Link every leaf to the roots and refine the links; yields progress in [0, 1], then
-    (p, q, factor with visibility, near-field mask, {"clustered_links", "cluster_groups"}).
+@dataclass(frozen=True, eq=False)
+class Links:
+    """Every leaf's links p <- q (L of them): leaf p gathers from element q."""
+
+    p: np.ndarray  # (L,) int64 receiving leaves
+    q: np.ndarray  # (L,) int64 source elements
+    factor: np.ndarray  # (L,) F_pq with visibility
+    near: np.ndarray  # (L,) bool: leaf-to-leaf links above the bound (near field)
+    clustered_links: int  # links reached through the source clusters
+    cluster_groups: int  # far groups that shared their shadow rays
+
+
+def _link(tree: _Tree, root_count: int, leaves: np.ndarray, occluded, settings: RadiositySettings,
+          scale: float) -> Steps[Links]:
+    """Link every leaf to the roots and refine the links; yields progress in [0, 1], returns
+    the `Links`.
 
     Over more than `source_clusters.MIN_ROOTS` roots (and `settings.cluster_sources`), roots far
     from a leaf are reached through `source_clusters`: each takes its disc factor and the
@@ -518,7 +519,6 @@ def _link(tree: _Tree, root_count: int, leaves: np.ndarray, occluded, settings, 
             yield 0.5 + 0.5 * (len(p) + b) / total
             a = b
         far_factor = far_factor * share[group]
-    stats = {"clustered_links": int(len(root)), "cluster_groups": int(len(group_p))}
-    yield (np.concatenate([p, group_p[group]]), np.concatenate([q, root]),
-           np.concatenate([factor, far_factor]), np.concatenate([near, np.zeros(len(root), bool)]),
-           stats)
+    return Links(np.concatenate([p, group_p[group]]), np.concatenate([q, root]),
+                 np.concatenate([factor, far_factor]),
+                 np.concatenate([near, np.zeros(len(root), bool)]), int(len(root)), int(len(group_p)))

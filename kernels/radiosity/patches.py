@@ -358,7 +358,7 @@ def corner_values(patches: Patches, values: np.ndarray, smooth_angle: float,
     corner's position, belong to the same object and whose normals are within `smooth_angle`
     (radians) of this patch's normal (the patch itself always counts). `scale` m: the scene size
     that sets the welding grid (default: the patches' bounding-box diagonal). Used where corners
-    should only tell neighbours apart (`radiosity.refine_mask`); the display reads
+    should only tell neighbours apart (`refine.refine_mask`); the display reads
     `fitted_corner_values`, which keeps peaks and slopes that averaging flattens.
     """
     values = np.asarray(values, np.float64)
@@ -412,7 +412,7 @@ def fitted_corner_values(patches: Patches, values: np.ndarray, smooth_angle: flo
     peak by half a patch and cannot extrapolate to a surface's border; the fit keeps each
     patch's total (its energy) instead, so slopes run through to the borders and peaks stay.
     On the Cornell box with the final gather it lowers the lightmaps' relMSE against Cycles by
-    38-48% at 296-600 patches, and halves it without the gather (bench/README.md, session 10).
+    38-48% at 296-600 patches, and halves it without the gather.
     The weak pull fixes what the means leave free (a lone triangle's corners take its value).
     Solved by conjugate gradients on the normal equations, Jacobi-preconditioned, to FIT_TOLERANCE.
     """

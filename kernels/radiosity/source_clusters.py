@@ -31,7 +31,7 @@ sum_m F_m V_m / sum_m F_m, from rays to the centroids of its roots drawn with pr
 F_m / F_g: the solver gives a group as many rays per point as it carries link bounds' worth of
 factor (at most one per root), so the rays go where the light is.
 
-Measured (bench/README.md, session 20), default settings, relMSE against Cycles unchanged:
+Measured with the default settings, relMSE against Cycles unchanged:
 shadows.blend's solve 3.55 -> 2.02 s (0.00068), env_room.blend's 7.74 -> 7.15 s (0.0239 -> 0.0240;
 most of its far roots lie within 8 sizes of the leaves and take the exact path).
 """
@@ -42,7 +42,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .form_factors import SHADOW_END_REL, disc_form
+from .form_factors.closed_forms import disc_form
+from .form_factors.visibility import SHADOW_END_REL
 
 # A node is far from a leaf when its radius is at most this share of its centre's distance to
 # the leaf's nearest point: its roots then lie within 15 degrees of that direction, and rays to
@@ -211,7 +212,7 @@ def member_links(tree: SourceTree, group_p: np.ndarray, group_n: np.ndarray, poi
 def group_share_steps(tree: SourceTree, start: np.ndarray, root: np.ndarray, factor: np.ndarray,
                       points: np.ndarray, weights: np.ndarray, normals: np.ndarray,
                       rays: np.ndarray, ray_offset: float, rng: np.random.Generator):
-    """Generator (asks for shadow rays, `form_factors.RayRequest`): (G,) the visible share of
+    """Generator (asks for shadow rays, `form_factors.rays.RayRequest`): (G,) the visible share of
     each far group seen from its leaf, sum_m F_m V_m / sum_m F_m over its roots m.
 
     start (G + 1,): group g's roots are root[start[g]:start[g + 1]] with their factors `factor`

@@ -30,9 +30,9 @@ from typing import Literal, get_args
 
 import numpy as np
 
+from ..geometry.frames import tangent_frames
 from ..geometry.scene import Material, Scene, Texture
 from ..measure.metrics import REC709_LUMINANCE
-from ..radiosity.form_factors import tangent_frames
 from .textures import sample_texture
 
 # Blender turns a colour into a float (the Bump node's Height) by its luminance weights.

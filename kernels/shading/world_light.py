@@ -41,9 +41,9 @@ from dataclasses import replace
 
 import numpy as np
 
+from ..geometry.frames import RAY_OFFSET_REL, tangent_frames
 from ..geometry.scene import Light, Scene, Texture
 from ..measure.metrics import REC709_LUMINANCE
-from ..radiosity.form_factors import RAY_OFFSET_REL, tangent_frames
 from .textures import sample_texture
 
 # Rays per patch by default: s to 0.024 rms under a plate (module docstring), 0.1 s per 1.5k

@@ -9,7 +9,9 @@ from classic_bake.addon import bridge
 from classic_bake.addon import cycles as cr
 from classic_bake.kernels.measure.metrics import rel_mse
 from classic_bake.kernels.progress import drain
-from classic_bake.kernels.radiosity import radiosity
+from classic_bake.kernels.radiosity.settings import RadiositySettings
+from classic_bake.kernels.radiosity.solve import solve_radiosity
+from classic_bake.kernels.radiosity.view import render_steps
 from classic_bake.kernels.shading import direct_light
 
 RESOLUTION = (80, 60)
@@ -26,11 +28,11 @@ def test_camera_views_of_the_shadows_scene_match_cycles_at_their_edges(open_samp
     open_sample("shadows")
     snap = bridge.snapshot(resolution=RESOLUTION)
     if technique == "radiosity":
-        result = radiosity.solve_radiosity(snap, radiosity.RadiositySettings())
+        result = solve_radiosity(snap, RadiositySettings())
         model = cr.radiosity(world_lighting=True)
 
         def view(k):
-            return list(radiosity.render_steps(snap, result, RESOLUTION, edge_samples=k))[-1]
+            return drain(render_steps(snap, result, RESOLUTION, edge_samples=k))
     else:
         model = cr.direct()
 
@@ -47,7 +49,7 @@ def test_camera_views_of_the_shadows_scene_match_cycles_at_their_edges(open_samp
 def test_an_area_lamps_highlight_spans_the_emitter(monkeypatch):
     """A black Principled plane (its specular layer alone, roughness 0.25) under a 1.5 m disk
     area lamp 1.5 m up, seen at 50-85 degrees: the radiosity view lights the glossy lobe from
-    every point of the lamp's grid (`radiosity._area_lamp_points`), as Cycles does, not from its
+    every point of the lamp's grid (`_area_lamp_points`), as Cycles does, not from its
     centre alone. relMSE over the plane against a 256-sample render of the radiosity model under
     0.05, and at least 3x below the highlight aimed from the centre (a one-point grid; measured on
     5.2: 0.0129 against 0.1415)."""
@@ -71,9 +73,9 @@ def test_an_area_lamps_highlight_spans_the_emitter(monkeypatch):
     theirs, _ = cr.render_camera(scene, cr.radiosity(), 256, RESOLUTION)
 
     def error(grid: int) -> float:
-        result = radiosity.solve_radiosity(snap, radiosity.RadiositySettings(
+        result = solve_radiosity(snap, RadiositySettings(
             patch_budget=50, area_light_samples_per_side=grid))
-        ours = list(radiosity.render_steps(snap, result, RESOLUTION))[-1]
+        ours = drain(render_steps(snap, result, RESOLUTION))
         return rel_mse(ours, theirs)
 
     spread, centre = error(4), error(1)

@@ -15,7 +15,7 @@ from classic_bake.addon import cycles as cr
 from classic_bake.addon.jobs import radiosity_bake_job
 from classic_bake.kernels.bake.lightmap_uv import LightmapUVSettings
 from classic_bake.kernels.measure.exr import read_exr
-from classic_bake.kernels.radiosity.radiosity import RadiositySettings
+from classic_bake.kernels.radiosity.settings import RadiositySettings
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENE = ROOT / "sample_blends" / "cornell_box.blend"

@@ -14,7 +14,7 @@ from classic_bake.addon import cycles as cr
 from classic_bake.addon.jobs import radiosity_bake_job
 from classic_bake.kernels.bake.lightmap_uv import LightmapUVSettings
 from classic_bake.kernels.measure.metrics import rel_mse
-from classic_bake.kernels.radiosity.radiosity import RadiositySettings
+from classic_bake.kernels.radiosity.settings import RadiositySettings
 from classic_bake.kernels.trace.settings import TracerSettings
 from classic_bake.kernels.trace.tracer import trace
 
@@ -129,7 +129,9 @@ def _plane_view_against_cycles(material, facing_down: bool = False) -> float:
     over the plane against a 128-sample Cycles render of the world-lit radiosity model."""
     from blender_parts import WORLD, oblique_camera, plane
 
-    from classic_bake.kernels.radiosity import radiosity
+    from classic_bake.kernels.progress import drain
+    from classic_bake.kernels.radiosity.solve import solve_radiosity
+    from classic_bake.kernels.radiosity.view import render_steps
 
     scene = colour_world()
     sheet = plane(material, size=6.0)
@@ -138,10 +140,8 @@ def _plane_view_against_cycles(material, facing_down: bool = False) -> float:
     oblique_camera(scene)
     resolution = (64, 48)
     snap = bridge.snapshot(resolution=resolution)
-    result = radiosity.solve_radiosity(snap, RadiositySettings(patch_budget=50))
-    image = None
-    for step in radiosity.render_steps(snap, result, resolution):
-        image = step
+    result = solve_radiosity(snap, RadiositySettings(patch_budget=50))
+    image = drain(render_steps(snap, result, resolution))
     theirs, _ = cr.render_camera(scene, cr.radiosity(
         world_lighting=True), 128, resolution=resolution)
     on_plane = np.abs(image - np.asarray(WORLD, np.float32)).max(axis=2) > 1e-6
@@ -154,7 +154,7 @@ def test_the_radiosity_view_shows_the_world_in_the_glossy_layer(base, roughness,
     """A Principled plane (Specular IOR Level 0.5) under the blue-grey world alone, seen at
     50-85 degrees: Cycles lights its glossy layer straight from the world (no glossy bounce
     needed), which the radiosity camera view draws along each pixel's mirror direction times
-    the layer's E(mu) (`radiosity._world_highlights`). Mean over the plane against a 128-sample
+    the layer's E(mu) (`_world_highlights`). Mean over the plane against a 128-sample
     render: measured 1.0006 (grey, roughness 0.5; 0.83 without the layer's world light) and
     0.985 (black, roughness 0.3, where the layer is all there is)."""
     from blender_parts import principled

@@ -13,7 +13,8 @@ from scene_builder import build, grey, lamp_room_with_ball, quad, tessellated_bo
 
 from classic_bake.kernels.radiosity import clusters
 from classic_bake.kernels.radiosity import patches as patching
-from classic_bake.kernels.radiosity.radiosity import RadiositySettings, solve_radiosity
+from classic_bake.kernels.radiosity.settings import RadiositySettings
+from classic_bake.kernels.radiosity.solve import solve_radiosity
 
 FAST = dict(samples_per_side=2, visibility_samples_per_side=2, refine_levels=0)
 

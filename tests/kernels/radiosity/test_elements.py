@@ -9,9 +9,10 @@ from classic_bake.kernels.geometry.bvh import BVH
 from classic_bake.kernels.geometry.scene import Light, Material
 from classic_bake.kernels.radiosity import elements
 from classic_bake.kernels.radiosity import patches as patching
-from classic_bake.kernels.radiosity.final_gather import ELEMENT_PAIRS
-from classic_bake.kernels.radiosity.form_factors import point_to_polygon
-from classic_bake.kernels.radiosity.radiosity import RadiositySettings, solve_radiosity
+from classic_bake.kernels.radiosity.elements import ELEMENT_PAIRS
+from classic_bake.kernels.radiosity.form_factors.point_polygon import point_to_polygon
+from classic_bake.kernels.radiosity.settings import RadiositySettings
+from classic_bake.kernels.radiosity.solve import solve_radiosity
 
 
 def grey(rho):

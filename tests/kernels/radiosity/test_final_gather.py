@@ -10,7 +10,8 @@ from scene_builder import build, quad
 from classic_bake.kernels.geometry.bvh import BVH
 from classic_bake.kernels.geometry.scene import Material, geometric_normals
 from classic_bake.kernels.radiosity import final_gather as fg
-from classic_bake.kernels.radiosity.radiosity import RadiositySettings, solve_radiosity
+from classic_bake.kernels.radiosity.settings import RadiositySettings
+from classic_bake.kernels.radiosity.solve import solve_radiosity
 
 
 def grey(rho, emission=0.0, name="grey"):
@@ -170,7 +171,7 @@ def test_the_gather_draws_the_shadow_that_coarse_patches_blur():
     # black surfaces and the lamp face it). What the patches add is the solver's and the gather's
     # two samplings of the same direct light disagreeing near the shadow (measured 0.15% here).
     lamp = scene.triangles[scene.object_slice(0)].astype(np.float64)
-    from classic_bake.kernels.radiosity.form_factors import point_to_polygon
+    from classic_bake.kernels.radiosity.form_factors.point_polygon import point_to_polygon
     f = point_to_polygon(targets[1], np.array([0.0, 0.0, 1.0]),
                          lamp[:, [0, 1, 2]], np.tile([0.0, 0.0, -1.0], (2, 1))).sum()
     assert gathered[1] == pytest.approx(np.full(3, 0.5 * np.pi * 5.0 * f), rel=5e-3)
@@ -329,7 +330,8 @@ def test_reused_visibility_leaves_the_bake_as_it_was():
     from dataclasses import replace
 
     from classic_bake.kernels.bake.bake_targets import TexelFilterSettings
-    from classic_bake.kernels.radiosity import radiosity as rad
+    from classic_bake.kernels.progress import drain
+    from classic_bake.kernels.radiosity.lightmap import bake_steps
 
     parts = [(square(0.6, 0.15, up=False, cx=0.5, cy=0.5), grey(0.0, emission=2.0, name="lamp")),
              (square(0.25, 0.15, up=False, cx=0.45, cy=0.5), grey(0.5)),
@@ -350,10 +352,8 @@ def test_reused_visibility_leaves_the_bake_as_it_was():
                                                                         self.emitters.shape[1])
         try:
             rays.clear()
-            out = None
-            for step in rad.bake_steps(scene, replace(result, gather=gather), [2], {2: 32}, 2,
-                                       TexelFilterSettings()):
-                out = step
+            out = drain(bake_steps(scene, replace(result, gather=gather), [2], {2: 32}, 2,
+                                   TexelFilterSettings()))
         finally:
             fg.Visibility.agreed = original
         return out[2].lightmap[out[2].lightmap_mask], sum(rays)
@@ -384,7 +384,7 @@ def test_smooth_normals_weigh_the_light_as_cycles_shades_them():
     from dataclasses import replace
 
     from classic_bake.kernels.geometry.scene import Light
-    from classic_bake.kernels.radiosity.form_factors import point_to_polygon
+    from classic_bake.kernels.radiosity.form_factors.point_polygon import point_to_polygon
 
     sun = Light(name="Sun", kind="SUN", position=np.zeros(3), direction=np.array([0, 0, -1.0]),
                 axis_x=np.array([1.0, 0, 0]), axis_y=np.array([0, 1.0, 0]),

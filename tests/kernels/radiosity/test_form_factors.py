@@ -16,7 +16,26 @@ import pytest
 import radiosity_scenes as T
 from reference_data import reference_path
 
-from classic_bake.kernels.radiosity import form_factors as ff
+from classic_bake.kernels.radiosity.form_factors.closed_forms import (
+    disk_to_disk,
+    element_to_disk,
+    parallel_rectangles,
+    perpendicular_rectangles,
+)
+from classic_bake.kernels.radiosity.form_factors.hemicube import (
+    HemicubeFormFactors,
+    HemicubeSettings,
+    hemicube_gather,
+    hemicube_pixels,
+)
+from classic_bake.kernels.radiosity.form_factors.point_polygon import point_to_polygon
+from classic_bake.kernels.radiosity.form_factors.raycast import (
+    RayCastFormFactors,
+    RayCastSettings,
+    raycast_gather,
+)
+from classic_bake.kernels.radiosity.form_factors.rows import enforce_reciprocity, form_factor_matrix
+from classic_bake.kernels.radiosity.form_factors.sampling import patch_geometry, sample_patches
 
 REFERENCE = reference_path("form_factors.json")
 
@@ -57,8 +76,8 @@ def parallel_pair(a: float, b: float, c: float) -> np.ndarray:
 def quadrature(x, n, polygon, m):
     """Reference F from point x (normal n) to a planar quad: m x m midpoint rule of
     max(cos_i, 0) max(cos_j, 0) / (pi s^2) over the polygon (no clipping logic involved)."""
-    points, weights = ff.sample_patches(polygon[None], m, "midpoint")
-    g = ff.patch_geometry(polygon[None])
+    points, weights = sample_patches(polygon[None], m, "midpoint")
+    g = patch_geometry(polygon[None])
     d = points[0] - x
     s2 = np.einsum("ij,ij->i", d, d)
     s = np.sqrt(s2)
@@ -75,33 +94,33 @@ def test_closed_forms_reproduce_reference_values(reference):
     values = reference["values"]
     for key, expected in values["parallel_C11"].items():
         p = _params(key)
-        assert ff.parallel_rectangles(p["a"], p["b"], p["c"]) == pytest.approx(expected, abs=1e-9)
+        assert parallel_rectangles(p["a"], p["b"], p["c"]) == pytest.approx(expected, abs=1e-9)
     for key, expected in values["perpendicular_C14"].items():
         p = _params(key)
-        got = ff.perpendicular_rectangles(p["w"], p["h"], p["l"])
+        got = perpendicular_rectangles(p["w"], p["h"], p["l"])
         assert got == pytest.approx(expected, abs=1e-9), key
     for key, expected in values["element_to_disk"].items():
         p = _params(key)
-        assert ff.element_to_disk(p["h"], p["r"]) == pytest.approx(expected, abs=1e-9)
+        assert element_to_disk(p["h"], p["r"]) == pytest.approx(expected, abs=1e-9)
     for key, expected in values["disk_to_disk"].items():
         p = _params(key)
-        assert ff.disk_to_disk(p["r1"], p["r2"], p["h"]) == pytest.approx(expected, abs=1e-9)
+        assert disk_to_disk(p["r1"], p["r2"], p["h"]) == pytest.approx(expected, abs=1e-9)
 
 
 def test_closed_forms_identities(reference):
     """The reference file's checks: a cube face sees the other five with total 1; C-14
     reciprocity A1 F12 = A2 F21; the closed forms broadcast over arrays."""
-    total = ff.parallel_rectangles(1, 1, 1) + 4 * ff.perpendicular_rectangles(1, 1, 1)
+    total = parallel_rectangles(1, 1, 1) + 4 * perpendicular_rectangles(1, 1, 1)
     assert total == pytest.approx(1.0, abs=1e-12)
-    f12 = ff.perpendicular_rectangles(1.0, 2.0, 1.0)  # A1 = 1 x 1
-    f21 = ff.perpendicular_rectangles(2.0, 1.0, 1.0)  # A2 = 2 x 1
+    f12 = perpendicular_rectangles(1.0, 2.0, 1.0)  # A1 = 1 x 1
+    f21 = perpendicular_rectangles(2.0, 1.0, 1.0)  # A2 = 2 x 1
     assert 1.0 * f12 == pytest.approx(2.0 * f21, rel=1e-12)
     c = np.array([0.5, 1.0, 2.0])
     np.testing.assert_allclose(
-        ff.parallel_rectangles(1.0, 1.0, c), [ff.parallel_rectangles(1.0, 1.0, v) for v in c]
+        parallel_rectangles(1.0, 1.0, c), [parallel_rectangles(1.0, 1.0, v) for v in c]
     )
     # Tilted element: cos(w) r^2 / (r^2 + h^2), the disk fully above the horizon.
-    assert ff.element_to_disk(1.0, 1.0, tilt=0.3) == pytest.approx(0.5 * math.cos(0.3))
+    assert element_to_disk(1.0, 1.0, tilt=0.3) == pytest.approx(0.5 * math.cos(0.3))
 
 
 # --- the point-to-polygon contour formula -------------------------------------------------------
@@ -114,14 +133,14 @@ def test_point_to_polygon_approaches_element_to_disk(reference):
         p = _params(key)
         for sides, tolerance in ((256, 3e-5), (1024, 2e-6)):
             disk = T.regular_polygon([0, 0, p["h"]], [0, 0, -1], p["r"], sides)
-            got = ff.point_to_polygon(np.zeros(3), UP, disk)
+            got = point_to_polygon(np.zeros(3), UP, disk)
             assert 0.0 < expected - got < tolerance, (key, sides)
     # Tilted receiver (h = 3, r = 1: tan(0.3) < h / r keeps the disk above the horizon).
     tilt = 0.3
     normal = np.array([math.sin(tilt), 0.0, math.cos(tilt)])
     disk = T.regular_polygon([0, 0, 3.0], [0, 0, -1], 1.0, 1024)
-    got = ff.point_to_polygon(np.zeros(3), normal, disk)
-    assert got == pytest.approx(ff.element_to_disk(3.0, 1.0, tilt), abs=2e-6)
+    got = point_to_polygon(np.zeros(3), normal, disk)
+    assert got == pytest.approx(element_to_disk(3.0, 1.0, tilt), abs=2e-6)
 
 
 def test_point_to_polygon_matches_numerical_integration():
@@ -141,7 +160,7 @@ def test_point_to_polygon_matches_numerical_integration():
     for n in receivers:
         n = n / np.linalg.norm(n)
         expected = quadrature(x, n, quad, 900)
-        got = ff.point_to_polygon(x, n, quad)
+        got = point_to_polygon(x, n, quad)
         assert got == pytest.approx(expected, rel=2e-6, abs=1e-8), n
 
 
@@ -153,40 +172,40 @@ def test_point_to_polygon_on_and_near_planes_and_edges():
     plane is the floor's, so F = pi / (2 pi)), with slope below 1 (measured 0.78); at d = 0 the
     wall is seen edge-on: F = 0 exactly (the PLANE_EPS band, |d| < 1e-10 x reach)."""
     wall = perpendicular_pair(1.0, 1.0, 1.0)[1]
-    wall_normal = ff.patch_geometry(wall[None]).normals[0]
+    wall_normal = patch_geometry(wall[None]).normals[0]
     np.testing.assert_allclose(wall_normal, [0, 1, 0])
     d = np.array([1e-2, 1e-4, 1e-6, 1e-8, 1e-9])
     points = np.stack([np.full_like(d, 0.5), d, np.zeros_like(d)], axis=1)
-    f = ff.point_to_polygon(points, UP, wall)
+    f = point_to_polygon(points, UP, wall)
     assert np.all(np.isfinite(f))
     assert np.all(np.diff(f) > 0.0)
     assert np.all((0.5 - f > 0.0) & (0.5 - f <= d))
     # On the plane, on the common edge, on a corner, behind: exactly 0.
     on = np.array([[0.5, 0.0, 0.0], [0.0, 0.0, 0.0], [0.5, 0.0, 0.3], [0.5, -0.2, 0.1]])
-    assert np.all(ff.point_to_polygon(on, UP, wall) == 0.0)
+    assert np.all(point_to_polygon(on, UP, wall) == 0.0)
     # Polygon below the horizon: 0; wound the other way (seen from behind): 0.
-    assert ff.point_to_polygon(np.array([0.5, 0.5, 2.0]), UP, wall) == 0.0
-    assert ff.point_to_polygon(np.array([0.5, 0.3, 0.0]), UP, wall[::-1]) == 0.0
+    assert point_to_polygon(np.array([0.5, 0.5, 2.0]), UP, wall) == 0.0
+    assert point_to_polygon(np.array([0.5, 0.3, 0.0]), UP, wall[::-1]) == 0.0
     # A triangle given as a quad with a repeated corner equals the triangle itself.
     tri = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 1.0], [1.0, 0.0, 1.0]])
     padded = np.concatenate([tri, tri[2:]])
     x = np.array([0.2, 0.3, 0.0])
-    assert ff.point_to_polygon(x, UP, padded) == pytest.approx(
-        ff.point_to_polygon(x, UP, tri), rel=1e-14
+    assert point_to_polygon(x, UP, padded) == pytest.approx(
+        point_to_polygon(x, UP, tri), rel=1e-14
     )
     # Coplanar neighbour: a floor point never sees the floor beside it.
-    assert ff.point_to_polygon(np.array([1.5, 0.5, 0.0]), UP, unit_floor()) == 0.0
+    assert point_to_polygon(np.array([1.5, 0.5, 0.0]), UP, unit_floor()) == 0.0
 
 
 def test_point_to_polygon_broadcasts_and_fills_out():
     polygons = np.stack([parallel_pair(1, 1, c)[1] for c in (0.5, 1.0, 2.0)])  # (3, 4, 3)
     points = np.random.default_rng(1).uniform(0.1, 0.9, size=(5, 1, 3)) * [1, 1, 0]
     out = np.empty((5, 3))
-    result = ff.point_to_polygon(points, UP, polygons, out=out)
+    result = point_to_polygon(points, UP, polygons, out=out)
     assert result is out
     for i in range(5):
         for j in range(3):
-            assert out[i, j] == pytest.approx(ff.point_to_polygon(points[i, 0], UP, polygons[j]))
+            assert out[i, j] == pytest.approx(point_to_polygon(points[i, 0], UP, polygons[j]))
 
 
 # --- the hemicube ---------------------------------------------------------------------------------
@@ -197,11 +216,11 @@ def test_hemicube_delta_form_factor_sums():
     the analytic 0.5541264 and each side to (1 - top)/4 up to the midpoint error O(R^-2)
     (measured total - 1: 8.6e-3 at R = 8, 5.3e-4 at R = 32, 1.3e-4 at R = 64, about 0.53 / R^2);
     exact deltas (contour formula per pixel) sum to 1 and 0.5541264 to rounding."""
-    assert ff.point_to_polygon(
+    assert point_to_polygon(
         np.zeros(3), UP, np.array([[-1, -1, 1], [-1, 1, 1], [1, 1, 1], [1, -1, 1]], float)
     ) == pytest.approx(HEMICUBE_TOP, rel=1e-14)
     for r in (8, 32, 64):
-        directions, delta = ff.hemicube_pixels(r, "midpoint")
+        directions, delta = hemicube_pixels(r, "midpoint")
         assert directions.shape == (3 * r * r, 3) and delta.shape == (3 * r * r,)
         np.testing.assert_allclose(np.linalg.norm(directions, axis=1), 1.0)
         assert np.all(directions[:, 2] > 0.0)
@@ -209,7 +228,7 @@ def test_hemicube_delta_form_factor_sums():
         assert delta[: r * r].sum() == pytest.approx(HEMICUBE_TOP, abs=0.6 / r**2)
         sides = delta[r * r :].reshape(4, -1).sum(axis=1)
         np.testing.assert_allclose(sides, (1.0 - HEMICUBE_TOP) / 4.0, atol=0.6 / r**2)
-        _, exact = ff.hemicube_pixels(r, "exact")
+        _, exact = hemicube_pixels(r, "exact")
         assert exact.sum() == pytest.approx(1.0, abs=1e-12)
         assert exact[: r * r].sum() == pytest.approx(HEMICUBE_TOP, abs=1e-12)
         assert np.abs(exact - delta).max() < 0.05 * delta.max()
@@ -219,10 +238,10 @@ def _pair_rows(corners, method):
     tris, tri_patch = T.quad_triangles(corners)
     tracer = T.BruteForceTracer(tris)
     if method == "hemicube":
-        settings = ff.HemicubeSettings(resolution=32, points_per_side=4)
-        rows = ff.HemicubeFormFactors(corners, tracer.closest_hit, tri_patch, settings)
+        settings = HemicubeSettings(resolution=32, points_per_side=4)
+        rows = HemicubeFormFactors(corners, tracer.closest_hit, tri_patch, settings)
     else:  # rays always cast (no quick test) so that visibility is exercised
-        rows = ff.RayCastFormFactors(corners, tracer.occluded)
+        rows = RayCastFormFactors(corners, tracer.occluded)
     return rows.row(0)[1], rows.row(1)[0]
 
 
@@ -234,8 +253,8 @@ def test_methods_on_unit_squares(method):
     perpendicular +0.26%, -0.56%. Ray-cast (4 x 4 Gauss points, near pairs 4 x 4 cells of them,
     3 x 3 visibility points): parallel -1.1e-10, perpendicular 2.7e-11."""
     tolerance = 1e-2 if method == "hemicube" else 1e-8
-    par = ff.parallel_rectangles(1, 1, 1)
-    perp = ff.perpendicular_rectangles(1, 1, 1)
+    par = parallel_rectangles(1, 1, 1)
+    perp = perpendicular_rectangles(1, 1, 1)
     for corners, expected in ((parallel_pair(1, 1, 1), par), (perpendicular_pair(1, 1, 1), perp)):
         forward, backward = _pair_rows(corners, method)
         assert forward == pytest.approx(expected, rel=tolerance)
@@ -246,14 +265,14 @@ def test_raycast_stratified_rule_on_unit_squares():
     """The jittered-stratified source rule (seeded), 4 x 4 strata (near pairs: 16 x 16).
     Measured: parallel -0.08%, perpendicular +0.15% (without the near-field rule: +1.1% and
     +2.4%); reproducible for a given seed."""
-    settings = ff.RayCastSettings(source_rule="stratified", seed=3)
+    settings = RayCastSettings(source_rule="stratified", seed=3)
     for corners, expected in (
-        (parallel_pair(1, 1, 1), ff.parallel_rectangles(1, 1, 1)),
-        (perpendicular_pair(1, 1, 1), ff.perpendicular_rectangles(1, 1, 1)),
+        (parallel_pair(1, 1, 1), parallel_rectangles(1, 1, 1)),
+        (perpendicular_pair(1, 1, 1), perpendicular_rectangles(1, 1, 1)),
     ):
-        rows = ff.RayCastFormFactors(corners, settings=settings)
+        rows = RayCastFormFactors(corners, settings=settings)
         assert rows.row(0)[1] == pytest.approx(expected, rel=1e-2)
-        again = ff.RayCastFormFactors(corners, settings=settings)
+        again = RayCastFormFactors(corners, settings=settings)
         assert again.row(0)[1] == rows.row(0)[1]
 
 
@@ -277,19 +296,19 @@ def test_methods_point_to_disk_and_occluded_annulus():
     -2e-4 (the polygon), annulus (8 x 8 stratified points per fan triangle) -0.22% (seed 0;
     within 0.31% over seeds 0-5)."""
     x, n, w = np.zeros((1, 3)), UP[None], np.ones(1)
-    disk_exact = ff.element_to_disk(1.0, 1.0)
-    annulus_exact = disk_exact - ff.element_to_disk(1.0, 0.5)
+    disk_exact = element_to_disk(1.0, 1.0)
+    annulus_exact = disk_exact - element_to_disk(1.0, 0.5)
     for blocker, expected in ((None, disk_exact), ((0.5, 0.25), annulus_exact)):
         disk, tris, tri_patch = _disk_scene(1.0, 1.0, 128, blocker)
         tracer = T.BruteForceTracer(tris)
-        normals = ff.patch_geometry(disk[None]).normals
-        hemi = ff.hemicube_gather(
-            x, n, w, tracer.closest_hit, tri_patch, normals, ff.HemicubeSettings(resolution=64),
+        normals = patch_geometry(disk[None]).normals
+        hemi = hemicube_gather(
+            x, n, w, tracer.closest_hit, tri_patch, normals, HemicubeSettings(resolution=64),
             np.random.default_rng(0), ray_offset=0.0,
         )
         assert hemi[0] == pytest.approx(expected, rel=1e-2)
-        settings = ff.RayCastSettings(visibility_samples_per_side=8)
-        unoccluded, visible = ff.raycast_gather(
+        settings = RayCastSettings(visibility_samples_per_side=8)
+        unoccluded, visible = raycast_gather(
             x, UP, w, disk[None], normals, tracer.occluded, settings, np.random.default_rng(0),
             ray_offset=1e-6,
         )
@@ -303,8 +322,8 @@ def test_hemicube_item_buffer_of_a_cube_floor():
     direction, and no pixel escapes the closed box."""
     corners = T.unit_cube_patches(1)  # floor, ceiling, x = 0, x = 1, y = 0, y = 1
     tris, tri_patch = T.quad_triangles(corners)
-    rows = ff.HemicubeFormFactors(
-        corners, T.BruteForceTracer(tris).closest_hit, tri_patch, ff.HemicubeSettings(resolution=8)
+    rows = HemicubeFormFactors(
+        corners, T.BruteForceTracer(tris).closest_hit, tri_patch, HemicubeSettings(resolution=8)
     )
     top, sides = rows.item_buffer(0)
     assert top.shape == (8, 8) and sides.shape == (4, 4, 8)
@@ -323,8 +342,8 @@ def test_unit_cube_faces_match_howell():
     Ray-cast (closed form, 4 x 4 Gauss, near-field cells): measured error -1.1e-10 (C-11),
     2.7e-11 (C-14)."""
     corners = T.unit_cube_patches(1)
-    f = ff.form_factor_matrix(ff.RayCastFormFactors(corners))
-    par, perp = ff.parallel_rectangles(1, 1, 1), ff.perpendicular_rectangles(1, 1, 1)
+    f = form_factor_matrix(RayCastFormFactors(corners))
+    par, perp = parallel_rectangles(1, 1, 1), perpendicular_rectangles(1, 1, 1)
     opposite = np.array([1, 0, 3, 2, 5, 4])
     for i in range(6):
         assert f[i, i] == 0.0
@@ -344,15 +363,15 @@ def test_closed_box_row_sums_and_reciprocity():
     within 2.3% (of the largest factor) of the ray-cast ones. Quick unoccluded test: nothing in
     a convex box is ray-tested."""
     corners = T.unit_cube_patches(2)
-    areas = ff.patch_geometry(corners).areas
+    areas = patch_geometry(corners).areas
     tris, tri_patch = T.quad_triangles(corners)
     tracer = T.BruteForceTracer(tris)
-    ray_rows = ff.RayCastFormFactors(corners, tracer.occluded, triangles=tris)
+    ray_rows = RayCastFormFactors(corners, tracer.occluded, triangles=tris)
     assert not any(ray_rows.maybe_occluded(i).any() for i in range(len(corners)))
-    ray = ff.form_factor_matrix(ray_rows)
-    settings = ff.HemicubeSettings(resolution=16, points_per_side=2)
-    hemi = ff.form_factor_matrix(
-        ff.HemicubeFormFactors(corners, tracer.closest_hit, tri_patch, settings)
+    ray = form_factor_matrix(ray_rows)
+    settings = HemicubeSettings(resolution=16, points_per_side=2)
+    hemi = form_factor_matrix(
+        HemicubeFormFactors(corners, tracer.closest_hit, tri_patch, settings)
     )
     for f, row_sums, recip in ((ray, 1e-6, 1e-12), (hemi, 1e-12, 5e-2)):
         np.testing.assert_allclose(f.sum(axis=1), 1.0, atol=row_sums)
@@ -360,7 +379,7 @@ def test_closed_box_row_sums_and_reciprocity():
         power = areas[:, None] * f
         assert np.abs(power - power.T).max() <= recip * power.max()
     assert np.abs(hemi - ray).max() < 0.03 * ray.max()
-    fixed = ff.enforce_reciprocity(hemi, areas)
+    fixed = enforce_reciprocity(hemi, areas)
     np.testing.assert_allclose(areas[:, None] * fixed, (areas[:, None] * fixed).T, atol=1e-15)
 
 
@@ -374,14 +393,14 @@ def test_uneven_closed_box_ray_cast():
     corners = np.concatenate(
         [T.subdivide_quad(face, 2 + k % 3, 1 + k % 2) for k, face in enumerate(faces)]
     )
-    areas = ff.patch_geometry(corners).areas
+    areas = patch_geometry(corners).areas
     cases = (
-        (ff.RayCastSettings(), 2e-4, 1e-12),
-        (ff.RayCastSettings(near_field_cells=1), 1e-2, 1e-12),
-        (ff.RayCastSettings(integrate_smaller=False), 1e-12, 1e-2),
+        (RayCastSettings(), 2e-4, 1e-12),
+        (RayCastSettings(near_field_cells=1), 1e-2, 1e-12),
+        (RayCastSettings(integrate_smaller=False), 1e-12, 1e-2),
     )
     for settings, row_sums, recip in cases:
-        f = ff.form_factor_matrix(ff.RayCastFormFactors(corners, settings=settings))
+        f = form_factor_matrix(RayCastFormFactors(corners, settings=settings))
         np.testing.assert_allclose(f.sum(axis=1), 1.0, atol=row_sums)
         power = areas[:, None] * f
         assert np.abs(power - power.T).max() <= recip * power.max()
@@ -409,11 +428,11 @@ def test_near_field_adjacent_patches(w, h, l, tolerance):  # noqa: E741
     beside each case; 100:1 slivers meeting at a short side remain hard: -12%)."""
     corners = perpendicular_pair(w, h, l)
     tris, _ = T.quad_triangles(corners)
-    rows = ff.RayCastFormFactors(corners, T.BruteForceTracer(tris).occluded)
+    rows = RayCastFormFactors(corners, T.BruteForceTracer(tris).occluded)
     f01, f10 = rows.row(0)[1], rows.row(1)[0]
     assert np.isfinite(f01) and np.isfinite(f10)
-    assert f01 == pytest.approx(ff.perpendicular_rectangles(w, h, l), rel=tolerance)
-    assert f10 == pytest.approx(ff.perpendicular_rectangles(h, w, l), rel=tolerance)
+    assert f01 == pytest.approx(perpendicular_rectangles(w, h, l), rel=tolerance)
+    assert f10 == pytest.approx(perpendicular_rectangles(h, w, l), rel=tolerance)
 
 
 def test_near_field_hemicube_stays_finite():
@@ -422,11 +441,11 @@ def test_near_field_hemicube_stays_finite():
     high: measured -80% with 4 x 4 points). The ray-cast method covers this case (above)."""
     corners = perpendicular_pair(1.0, 0.01, 1.0)
     tris, tri_patch = T.quad_triangles(corners)
-    rows = ff.HemicubeFormFactors(
-        corners, T.BruteForceTracer(tris).closest_hit, tri_patch, ff.HemicubeSettings(resolution=32)
+    rows = HemicubeFormFactors(
+        corners, T.BruteForceTracer(tris).closest_hit, tri_patch, HemicubeSettings(resolution=32)
     )
     f = rows.row(0)[1]
-    assert np.isfinite(f) and 0.0 < f < ff.perpendicular_rectangles(1.0, 0.01, 1.0)
+    assert np.isfinite(f) and 0.0 < f < perpendicular_rectangles(1.0, 0.01, 1.0)
 
 
 # --- occlusion in a real scene --------------------------------------------------------------------
@@ -446,17 +465,17 @@ def test_cornell_box_occlusion_reciprocity_and_quick_test():
     corners = box["corners"]
     tris, _ = T.quad_triangles(corners)
     tracer = T.BruteForceTracer(tris)
-    settings = ff.RayCastSettings(samples_per_side=2, visibility_samples_per_side=2)
-    quick = ff.RayCastFormFactors(corners, tracer.occluded, triangles=tris, settings=settings)
-    full = ff.RayCastFormFactors(corners, tracer.occluded, settings=settings)
+    settings = RayCastSettings(samples_per_side=2, visibility_samples_per_side=2)
+    quick = RayCastFormFactors(corners, tracer.occluded, triangles=tris, settings=settings)
+    full = RayCastFormFactors(corners, tracer.occluded, settings=settings)
     for i in [0, 20, 45, 47, 55]:  # floor, back wall, light, short block, tall block
         np.testing.assert_array_equal(quick.row(i), full.row(i))
     spared = np.mean([1.0 - quick.maybe_occluded(i).mean() for i in range(len(corners))])
     assert spared > 0.05
-    f = ff.form_factor_matrix(quick)
+    f = form_factor_matrix(quick)
     power = quick.areas[:, None] * f
     assert np.abs(power - power.T).max() <= 1e-12 * power.max()
-    free = ff.form_factor_matrix(ff.RayCastFormFactors(corners, settings=settings))
+    free = form_factor_matrix(RayCastFormFactors(corners, settings=settings))
     assert np.all(f <= free + 1e-15)
     floor, ceiling = box["names"] == "floor", box["names"] == "ceiling"
     seen = f[np.ix_(floor, ceiling)].sum(axis=1)
@@ -469,26 +488,26 @@ def test_cornell_box_occlusion_reciprocity_and_quick_test():
 
 def test_settings_are_validated():
     with pytest.raises(ValueError):
-        ff.HemicubeSettings(resolution=33)
+        HemicubeSettings(resolution=33)
     with pytest.raises(ValueError):
-        ff.HemicubeSettings(points_per_side=0)
+        HemicubeSettings(points_per_side=0)
     with pytest.raises(ValueError):
-        ff.HemicubeSettings(delta_rule="nearest")
+        HemicubeSettings(delta_rule="nearest")
     with pytest.raises(ValueError):
-        ff.RayCastSettings(visibility_samples_per_side=0)
+        RayCastSettings(visibility_samples_per_side=0)
     with pytest.raises(ValueError):
-        ff.RayCastSettings(ray_offset=-1.0)
+        RayCastSettings(ray_offset=-1.0)
     with pytest.raises(ValueError):
-        ff.patch_geometry(np.zeros((1, 4, 3)))
+        patch_geometry(np.zeros((1, 4, 3)))
     with pytest.raises(ValueError):
-        ff.sample_patches(unit_floor()[None], 2, "sobol")
+        sample_patches(unit_floor()[None], 2, "sobol")
 
 
 @pytest.mark.parametrize("m", [1, 2, 3, 5])
 def test_triangle_midpoints_integrate_linear_functions_exactly(m):
     rng = np.random.default_rng(m)
     tri = rng.normal(size=(4, 3, 3))
-    points, weights = ff.sample_patches(tri, m, "midpoint")
+    points, weights = sample_patches(tri, m, "midpoint")
     assert points.shape == (4, m * m, 3)
     np.testing.assert_allclose(weights, 1.0 / (m * m))
     # The mean of a linear function over a triangle is its value at the centroid.

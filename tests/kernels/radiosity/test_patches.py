@@ -9,7 +9,7 @@ from scene_builder import build, quad, uv_sphere
 
 from classic_bake.kernels.geometry.scene import Material
 from classic_bake.kernels.radiosity import patches as patching
-from classic_bake.kernels.radiosity.form_factors import sample_patches
+from classic_bake.kernels.radiosity.form_factors.sampling import sample_patches
 
 SMOOTH = np.radians(30.0)
 

@@ -28,19 +28,17 @@ from classic_bake.kernels.geometry.scene import (
     geometric_normals,
     triangle_areas,
 )
+from classic_bake.kernels.progress import drain
 from classic_bake.kernels.radiosity import patches as patching
-from classic_bake.kernels.radiosity.form_factors import parallel_rectangles, sample_patches
-from classic_bake.kernels.radiosity.radiosity import (
-    AUTO_SHADOW_SPLITS,
-    RadiositySettings,
-    _lattice_radiance,
-    bake_steps,
-    first_shot,
-    refine_splits,
-    render_steps,
-    resolve_auto,
-    solve_radiosity,
-)
+from classic_bake.kernels.radiosity.form_factors.closed_forms import parallel_rectangles
+from classic_bake.kernels.radiosity.form_factors.sampling import sample_patches
+from classic_bake.kernels.radiosity.lightmap import _lattice_radiance, bake_steps
+from classic_bake.kernels.radiosity.planning import AUTO_SHADOW_SPLITS, resolve_auto
+from classic_bake.kernels.radiosity.refine import refine_splits
+from classic_bake.kernels.radiosity.settings import RadiositySettings
+from classic_bake.kernels.radiosity.solve import solve_radiosity
+from classic_bake.kernels.radiosity.sources import first_shot
+from classic_bake.kernels.radiosity.view import render_steps
 from classic_bake.kernels.shading.lights import direct_irradiance
 from classic_bake.kernels.shading.specular_layer import albedo_curve, diffuse_factor
 
@@ -179,13 +177,9 @@ def test_furnace_closed_box(method, solver):
     if solver == "hierarchical":  # fewer links than pairs of patches: far sources stay coarse
         assert result.stats["hierarchy"]["links"] < result.stats["hierarchy"]["all_pairs"]
     # The camera sees outgoing radiance B / pi; corners of every object carry it too.
-    image = None
-    for step in render_steps(scene, result):
-        image = step
+    image = drain(render_steps(scene, result))
     np.testing.assert_allclose(image, expected / np.pi, rtol=tol)
-    bakes = None
-    for step in bake_steps(scene, result, [0], {}, 2):
-        bakes = step
+    bakes = drain(bake_steps(scene, result, [0], {}, 2))
     np.testing.assert_allclose(bakes[0].corners, expected / np.pi, rtol=tol)
 
 
@@ -208,9 +202,7 @@ def test_furnace_under_a_specular_layer(final_gather):
     np.testing.assert_allclose(result.radiosity, expected, rtol=0.01)
     shown = emitted + (expected - emitted) * diffuse_factor(layered)
     assert diffuse_factor(layered) < 0.97
-    bakes = None
-    for step in bake_steps(scene, result, [0], {}, 2):
-        bakes = step
+    bakes = drain(bake_steps(scene, result, [0], {}, 2))
     np.testing.assert_allclose(bakes[0].corners, shown / np.pi, rtol=0.01)
     # A camera inside the box, 65 degrees off the vertical, sees the layer at each pixel's view
     # angle: Cycles' diffuse lobe darkens towards grazing, (1 - E(mu)) instead of (1 - E(1)).
@@ -254,9 +246,7 @@ def test_the_view_draws_the_layers_lamp_highlight(final_gather):
 
 def _rendered(scene, result, edge_samples=1):
     """The camera view; by default its pixel centres alone, the values these tests work out."""
-    image = None
-    for step in render_steps(scene, result, edge_samples=edge_samples):
-        image = step
+    image = drain(render_steps(scene, result, edge_samples=edge_samples))
     return image
 
 
@@ -349,10 +339,8 @@ def test_lattice_keeps_texture_detail_between_lattice_texels():
     result = solve_radiosity(scene, RadiositySettings(patch_budget=40, **FAST))
     images = []
     for threshold in (0.0, 0.1):
-        bakes = None
-        for step in bake_steps(scene, result, [0], {0: size}, 2,
-                               TexelFilterSettings(samples_per_side=1, lattice_threshold=threshold)):
-            bakes = step
+        bakes = drain(bake_steps(scene, result, [0], {0: size}, 2,
+                                 TexelFilterSettings(samples_per_side=1, lattice_threshold=threshold)))
         images.append(bakes[0].lightmap[bakes[0].lightmap_mask])
     full, lattice = images
     np.testing.assert_allclose(lattice, full, rtol=0.02)
@@ -381,9 +369,7 @@ def test_hard_lamp_shadows_get_more_points_per_edge_texel():
     scene = replace(scene, lightmap_uv=scene.uv.copy(),
                     objects=[replace(o, has_lightmap_uv=True) for o in scene.objects])
     result = solve_radiosity(scene, RadiositySettings(patch_budget=16, **FAST))
-    bakes = None
-    for step in bake_steps(scene, result, [0], {0: size}, 2):
-        bakes = step
+    bakes = drain(bake_steps(scene, result, [0], {0: size}, 2))
     rows, cols = np.nonzero(bakes[0].lightmap_mask)
     lit = bakes[0].lightmap[rows, cols].mean(axis=1) / (0.5 / np.pi)  # B / pi of the lit floor
 
@@ -417,7 +403,7 @@ def test_auto_solver_goes_hierarchical_beyond_small_scenes_within_its_bound():
     """auto: more than AUTO_DENSE_PATCHES patches go to the hierarchical solver when its up-front
     bound fits the memory limit (the furnace holds); a limit below the bound sends the same scene
     to the matrix solvers, and small scenes stay with Gauss-Seidel."""
-    from classic_bake.kernels.radiosity.radiosity import AUTO_DENSE_PATCHES
+    from classic_bake.kernels.radiosity.planning import AUTO_DENSE_PATCHES
 
     scene = build([(inward_box(), grey(0.3, emission=1.0))])
     settings = RadiositySettings(patch_budget=2 * AUTO_DENSE_PATCHES, refine_levels=0, **FAST)
@@ -440,7 +426,7 @@ def test_many_small_triangles_bound_only_the_root_pairs_that_face():
     off: auto would solve the ball's small patches as groups, `test_clusters.py`.)"""
     from classic_bake.kernels.geometry.bvh import BVH
     from classic_bake.kernels.radiosity.hierarchical import _facing, facing_roots, hierarchy_roots
-    from classic_bake.kernels.radiosity.radiosity import hierarchical_memory
+    from classic_bake.kernels.radiosity.planning import hierarchical_memory
 
     ball = uv_sphere((0.5, 0.5, 0.5), 0.2, rings=10, segments=20)
     scene = build([(inward_box(), grey(0.3, emission=1.0)), (ball, grey(0.3, emission=1.0))])
@@ -473,7 +459,7 @@ def test_auto_caps_refinement_to_keep_the_hierarchy_within_memory():
     shadows.blend with refine_levels 2, 10 s hierarchical). Furnace: B = E / (1 - rho)."""
     from classic_bake.kernels.geometry.bvh import BVH
     from classic_bake.kernels.radiosity.hierarchical import hierarchy_roots
-    from classic_bake.kernels.radiosity.radiosity import hierarchical_memory
+    from classic_bake.kernels.radiosity.planning import hierarchical_memory
 
     scene = build([(inward_box(), grey(0.3, emission=1.0))])
     settings = RadiositySettings(patch_budget=400, refine_levels=1, max_patches=20_000, **FAST)

@@ -15,8 +15,10 @@ from scene_builder import build, grey, lamp_room_with_ball, quad, tessellated_bo
 from classic_bake.kernels.geometry.bvh import BVH
 from classic_bake.kernels.geometry.scene import geometric_normals, triangle_areas
 from classic_bake.kernels.radiosity import source_clusters as sc
-from classic_bake.kernels.radiosity.form_factors import point_to_polygon, sample_patches
-from classic_bake.kernels.radiosity.radiosity import RadiositySettings, solve_radiosity
+from classic_bake.kernels.radiosity.form_factors.point_polygon import point_to_polygon
+from classic_bake.kernels.radiosity.form_factors.sampling import sample_patches
+from classic_bake.kernels.radiosity.settings import RadiositySettings
+from classic_bake.kernels.radiosity.solve import solve_radiosity
 
 LINK_EPSILON = RadiositySettings().link_epsilon
 

@@ -10,9 +10,13 @@ import pytest
 from scene_builder import build, floor_quad, grey, inward_box, quad
 
 from classic_bake.kernels.geometry.bvh import BVH
+from classic_bake.kernels.progress import drain
 from classic_bake.kernels.radiosity import patches as patching
-from classic_bake.kernels.radiosity.form_factors import parallel_rectangles, point_to_polygon
-from classic_bake.kernels.radiosity.radiosity import RadiositySettings, bake_steps, solve_radiosity
+from classic_bake.kernels.radiosity.form_factors.closed_forms import parallel_rectangles
+from classic_bake.kernels.radiosity.form_factors.point_polygon import point_to_polygon
+from classic_bake.kernels.radiosity.lightmap import bake_steps
+from classic_bake.kernels.radiosity.settings import RadiositySettings
+from classic_bake.kernels.radiosity.solve import solve_radiosity
 from classic_bake.kernels.shading.world_light import sky_factors, world_irradiance
 
 FAST = dict(samples_per_side=2, visibility_samples_per_side=2, hemicube_resolution=16)
@@ -145,9 +149,7 @@ def test_the_gather_reads_the_world_light_at_every_texel():
     scene = replace(scene, lightmap_uv=scene.uv.copy(),
                     objects=[replace(o, has_lightmap_uv=True) for o in scene.objects])
     result = solve_radiosity(scene, RadiositySettings(patch_budget=16, **FAST))
-    bakes = None
-    for step in bake_steps(scene, result, [0], {0: 8}, 1):
-        bakes = step
+    bakes = drain(bake_steps(scene, result, [0], {0: 8}, 1))
     texels = bakes[0].lightmap[bakes[0].lightmap_mask]
     np.testing.assert_allclose(texels, np.broadcast_to(0.5 * np.array(WORLD), texels.shape),
                                rtol=1e-3)
@@ -238,7 +240,7 @@ def test_a_sunny_map_lights_the_floor_with_a_hard_shadow():
     E_sun cos + pi 0.2 s (s their sky share), within 2%."""
     from dataclasses import replace
 
-    from classic_bake.kernels.radiosity.radiosity import with_world_suns
+    from classic_bake.kernels.radiosity.sources import with_world_suns
 
     floor = quad([[-2, -2, 0], [2, -2, 0], [2, 2, 0], [-2, 2, 0]])
     scene = build([(floor, grey(0.5))], world=(0.2, 0.2, 0.2))
@@ -262,16 +264,14 @@ def test_the_back_of_a_sheet_is_lit_by_the_world_too():
     well, and with world_rays 0 the back is black."""
     from scene_builder import ortho_camera
 
-    from classic_bake.kernels.radiosity.radiosity import render_steps
+    from classic_bake.kernels.radiosity.view import render_steps
 
     sheet = quad([[0, 0, 1], [0, 1, 1], [1, 1, 1], [1, 0, 1]])  # facing -z
     above = ortho_camera([0.5, 0.5, 3.0], [0, 0, -1], [0, 1, 0], 0.8, (8, 8))
     scene = build([(sheet, grey(0.5))], camera=above, world=WORLD)
     for rays, expected in ((256, 0.5 * np.array(WORLD)), (0, np.zeros(3))):
         result = solve_radiosity(scene, RadiositySettings(patch_budget=8, world_rays=rays, **FAST))
-        image = None
-        for step in render_steps(scene, result):
-            image = step
+        image = drain(render_steps(scene, result))
         np.testing.assert_allclose(image.reshape(-1, 3), np.broadcast_to(expected, (64, 3)),
                                    atol=1e-9, rtol=0.01)
 

@@ -2,7 +2,7 @@
 
 Furnace: in a closed box whose rows of F sum to 1, uniform emission E and reflectance rho give
 B = E / (1 - rho) on every patch (B = E + rho B). The unit cube's factors come from both form
-factor methods of `kernels/form_factors.py`, whose rows sum to 1 there to rounding (see
+factor methods of `kernels/radiosity/form_factors/`, whose rows sum to 1 there to rounding (see
 test_form_factors.py). Cornell box: tests/data/cornell_box.json (geometry mapped
 (x, y, z) -> (-x, z, y), mm -> m; CornellBox-Original MTL colours).
 """
@@ -16,8 +16,14 @@ import pytest
 import radiosity_scenes as T
 from reference_data import DATA
 
-from classic_bake.kernels.radiosity import form_factors as ff
-from classic_bake.kernels.radiosity import radiosity_solvers as rs
+from classic_bake.kernels.radiosity import solvers as rs
+from classic_bake.kernels.radiosity.form_factors.hemicube import (
+    HemicubeFormFactors,
+    HemicubeSettings,
+)
+from classic_bake.kernels.radiosity.form_factors.raycast import RayCastFormFactors, RayCastSettings
+from classic_bake.kernels.radiosity.form_factors.rows import form_factor_matrix
+from classic_bake.kernels.radiosity.form_factors.sampling import patch_geometry
 
 REFERENCE = DATA
 
@@ -32,14 +38,14 @@ def cube() -> dict:
     tracer = T.BruteForceTracer(tris)
     # Convex: no pair is occluded, closed form alone. One 4 x 4 Gauss rule for every pair (no
     # finer near-field rule), so every row sums to 1 to rounding (measured 2.2e-16).
-    raycast = ff.RayCastFormFactors(corners, settings=ff.RayCastSettings(near_field_cells=1))
-    settings = ff.HemicubeSettings(resolution=16, points_per_side=2)
-    hemicube = ff.HemicubeFormFactors(corners, tracer.closest_hit, tri_patch, settings)
+    raycast = RayCastFormFactors(corners, settings=RayCastSettings(near_field_cells=1))
+    settings = HemicubeSettings(resolution=16, points_per_side=2)
+    hemicube = HemicubeFormFactors(corners, tracer.closest_hit, tri_patch, settings)
     return {
         "rows": raycast,
         "areas": raycast.areas,
-        "raycast": ff.form_factor_matrix(raycast),
-        "hemicube": ff.form_factor_matrix(hemicube),
+        "raycast": form_factor_matrix(raycast),
+        "hemicube": form_factor_matrix(hemicube),
     }
 
 
@@ -50,12 +56,12 @@ def cornell() -> dict:
     data = json.loads((REFERENCE / "cornell_box.json").read_text())
     box = T.cornell_box_patches(data, 3)
     tris, _ = T.quad_triangles(box["corners"])
-    rows = ff.RayCastFormFactors(
+    rows = RayCastFormFactors(
         box["corners"], T.BruteForceTracer(tris).occluded, triangles=tris,
-        settings=ff.RayCastSettings(samples_per_side=3, visibility_samples_per_side=2),
+        settings=RayCastSettings(samples_per_side=3, visibility_samples_per_side=2),
     )
     box["areas"] = rows.areas
-    box["F"] = ff.form_factor_matrix(rows)
+    box["F"] = form_factor_matrix(rows)
     return box
 
 
@@ -151,7 +157,7 @@ def test_cornell_box_colour_bleeding(cornell):
     f, e, reflectance = cornell["F"], cornell["emission"], cornell["reflectance"]
     b = rs.solve(f, e, reflectance).radiosity
     floor = cornell["names"] == "floor"
-    centres = ff.patch_geometry(cornell["corners"][floor]).centres
+    centres = patch_geometry(cornell["corners"][floor]).centres
     ratio = b[floor, 0] / b[floor, 1]
     near_red = centres[:, 0] < -0.4
     near_green = centres[:, 0] > -0.15
@@ -193,8 +199,8 @@ def test_ambient_term_in_an_open_scene():
     shots accumulate."""
     bottom = T.subdivide_quad(np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float), 4, 4)
     top = T.subdivide_quad(np.array([[0, 0, 1], [0, 1, 1], [1, 1, 1], [1, 0, 1]], float), 4, 4)
-    rows = ff.RayCastFormFactors(np.concatenate([bottom, top]))
-    f, areas = ff.form_factor_matrix(rows), rows.areas
+    rows = RayCastFormFactors(np.concatenate([bottom, top]))
+    f, areas = form_factor_matrix(rows), rows.areas
     count = len(areas)
     e = np.zeros((count, 3))
     e[: count // 2] = EMISSION

@@ -3,7 +3,7 @@
     B_i = E_i + rho_i sum_j F_ij B_j          i = 1..N, per colour channel
 
 B radiosity (W/m^2, or radiance x pi), E emitted radiosity, rho diffuse reflectance, F the form
-factors of `kernels.radiosity.form_factors`. Every surface is perfectly diffuse, so the solution does not
+factors of `form_factors`. Every surface is perfectly diffuse, so the solution does not
 depend on the viewer: it is solved once and then displayed from anywhere.
 
 | array | shape        | dtype   | meaning                                            |
@@ -16,8 +16,8 @@ depend on the viewer: it is solved once and then displayed from anywhere.
 | areas | (N,)         | float64 | patch areas, m^2 (progressive refinement)          |
 | B     | (N, 3)       | float64 | radiosity, same units as E                         |
 
-Two solvers (a third, hierarchical radiosity, will take its own settings class and a branch in
-`solve`; both solvers below already consume `FormFactorRows`, the interface it will provide):
+Two solvers, both consuming `FormFactorRows` (the hierarchical solver, `hierarchical.py`, iterates
+over its own links):
 
 * `GaussSeidelSolver` ("gathering"): sweeps B_i <- E_i + rho_i sum_j F_ij B_j in place (Jacobi:
   from the previous sweep). One sweep reads every row once, so F is dense or rows are cheap.
@@ -39,13 +39,14 @@ the remaining error is at most q / (1 - q) d. The solver stops when that bound f
 from __future__ import annotations
 
 from collections import OrderedDict
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
 
-from .form_factors import DenseRows, FormFactorRows
+from ..progress import Steps
+from .form_factors.rows import DenseRows, FormFactorRows
 
 # An error bound, unshot fraction or radiosity at or below this counts as exactly zero: a
 # scene without emission is solved by B = 0 at once (no 0/0 in relative criteria).
@@ -295,7 +296,7 @@ class GaussSeidelSolver:
             b[i] = new
         return change
 
-    def run(self) -> Iterator[float]:
+    def run(self) -> Steps[None]:
         """Sweep until converged or max_iterations; yields progress after each sweep."""
         if self.converged:
             yield 1.0
@@ -431,7 +432,7 @@ class ProgressiveSolver:
         self.shots += 1
         return _progress(self.unshot_fraction, 1.0, self.settings.tolerance)
 
-    def run(self) -> Iterator[float]:
+    def run(self) -> Steps[None]:
         """Shoot until converged or max_shots; yields progress after each shot."""
         if self.converged:
             yield 1.0
@@ -469,7 +470,7 @@ def solve(
         solver = GaussSeidelSolver(form_factors, emission, reflectance, settings)
     elif isinstance(settings, ProgressiveSettings):
         solver = ProgressiveSolver(form_factors, emission, reflectance, areas, settings)
-    else:  # hierarchical radiosity will add its settings class and solver here
+    else:
         raise TypeError(f"unknown solver settings {type(settings).__name__}")
     for value in solver.run():
         if progress is not None:

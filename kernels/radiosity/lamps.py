@@ -1,0 +1,67 @@
+"""The lamps' light with shadow rays: point, spot, sun and area lamps' direct irradiance at surface
+points times their visible fraction (BVH shadow rays; area lamps over a grid of emitter points)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..geometry.scene import Scene
+from ..shading import lights as light_units
+
+# Shadow rays stop this fraction short of a point light (it has no surface to hit).
+LIGHT_END_REL = 1e-6
+
+
+def shadowed_irradiance(light, points: np.ndarray, normals: np.ndarray, origins: np.ndarray,
+                        occluded, area_samples_per_side: int) -> tuple[np.ndarray, np.ndarray]:
+    """(M, 3) direct irradiance W/m^2 of `light` at points with unit normals, times its visible
+    fraction from `origins` (the points lifted off their surface), and that fraction (M,): 1 where
+    the light does not reach, casts no shadow, or `occluded` is None (no shadows)."""
+    e = light_units.direct_irradiance(light, points, normals)
+    lit = np.flatnonzero(e.max(axis=1) > 0.0)
+    vis = np.ones(len(points))
+    if occluded is not None and light.cast_shadow and lit.size:
+        vis[lit] = light_visibility(light, origins[lit], occluded, area_samples_per_side)
+    e *= vis[:, None]
+    return e, vis
+
+
+def light_visibility(light, origins: np.ndarray, occluded, area_samples_per_side: int,
+                     per_target: bool = False) -> np.ndarray:
+    """(R,) visible fraction of `light` from `origins` (area lights: over an n x n emitter grid);
+    with `per_target`, (K, R) float: each grid point's own (`area_light_samples` order)."""
+    if light.kind == "SUN":
+        dirs = np.broadcast_to(-np.asarray(light.direction, np.float64), origins.shape)
+        return 1.0 - np.asarray(occluded(origins, np.ascontiguousarray(dirs), 0.0, np.inf), float)
+    if light.kind == "AREA":
+        targets = light_units.area_light_samples(light, area_samples_per_side)
+    else:
+        targets = np.asarray(light.position, np.float64)[None]
+    # Every (target, origin) ray in one BVH call: a call costs ~2 ms besides its rays, and an
+    # area light has n^2 targets.
+    delta = (targets[:, None, :] - origins[None, :, :]).reshape(-1, 3)  # (K R, 3), target-major
+    dist = np.linalg.norm(delta, axis=1)
+    dirs = delta / np.maximum(dist, 1e-300)[:, None]
+    starts = np.ascontiguousarray(np.broadcast_to(origins, (len(targets),) + origins.shape)
+                                  .reshape(-1, 3))
+    blocked = np.asarray(occluded(starts, dirs, 0.0, dist * (1.0 - LIGHT_END_REL)), bool)
+    seen = (~blocked).reshape(len(targets), -1).astype(np.float64)
+    return seen if per_target else seen.mean(axis=0)
+
+
+def hard_lamps(scene: Scene) -> list:
+    """The point, spot and sun lamps that cast shadows: steps, not ramps."""
+    return [light for light in scene.lights if light.kind != "AREA" and light.cast_shadow]
+
+
+def lamp_irradiance(scene: Scene, points: np.ndarray, normals: np.ndarray, occluded, offset: float,
+                    area_samples_per_side: int, lift: np.ndarray | None = None) -> np.ndarray:
+    """(M, 3) irradiance W/m^2 of the scene's lamps (point, spot, sun, area) with shadow rays, as
+    the radiosity first shot computes it for patch points; rays leave along `lift` (M, 3) when
+    given (`emitter_irradiance`)."""
+    out = np.zeros((len(points), 3))
+    origins = points + offset * (normals if lift is None else lift)
+    for light in scene.lights:
+        out += shadowed_irradiance(light, points, normals, origins, occluded,
+                                   area_samples_per_side)[0]
+    return out

@@ -1,0 +1,73 @@
+"""The solved scene: `RadiosityResult`, B anywhere on the surface."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..geometry.scene import Scene, triangle_emission
+from . import final_gather
+from . import patches as patching
+from .final_gather import FinalGather
+
+
+@dataclass(frozen=True, eq=False)
+class RadiosityResult:
+    """The solved scene.
+
+    patches     `Patches` (N of them)
+    radiosity   (N, 3) float64  B, W/m^2 (exitance; outgoing radiance is B / pi)
+    emitted     (N, 3) float64  pi x emission radiance, W/m^2
+    direct      (N, 3) float64  the lights' direct irradiance H (first shot), W/m^2
+    reflectance (N, 3) float64  rho
+    corner_b    (N, 3, 3)       B at each patch corner (`patches.fitted_corner_values`),
+                                its reflected part under the specular layer (`layer_factors`)
+    corner_e    (N, 3, 3)       the same for `emitted`
+    stats       dict            patch counts per level, solver, memory estimate, seconds
+    gather      FinalGather     what the final gather reads at receivers; None: interpolate B
+    """
+
+    patches: patching.Patches
+    radiosity: np.ndarray
+    emitted: np.ndarray
+    direct: np.ndarray
+    reflectance: np.ndarray
+    corner_b: np.ndarray
+    corner_e: np.ndarray
+    stats: dict = field(default_factory=dict)
+    gather: FinalGather | None = None
+
+    def exitance_at(self, tri: np.ndarray, bary: np.ndarray, reflected_only: bool = False,
+                    interpolated: bool = False, known: final_gather.Visibility | None = None,
+                    visibility_out: final_gather.Visibility | None = None) -> np.ndarray:
+        """(M, 3) B at points given as scene triangles (M,) and barycentrics (M, 3): the final
+        gather's when the result has one (`final_gather.py`, which also takes `known` and fills
+        `visibility_out`), else (or with `interpolated`) B interpolated from the patch corners.
+        `reflected_only`: B minus the emission (what Cycles' DIFFUSE bake sees, times pi)."""
+        if self.gather is not None and not interpolated:
+            return final_gather.exitance(self.gather, tri, bary, reflected_only, known,
+                                         visibility_out)
+        patch, local = patching.locate(self.patches, tri, bary)
+        values = patching.interpolate(self.corner_b, patch, local)
+        if reflected_only:
+            values -= patching.interpolate(self.corner_e, patch, local)
+        return values
+
+    def radiance_at(self, tri: np.ndarray, bary: np.ndarray, reflected_only: bool = False,
+                    interpolated: bool = False, known: final_gather.Visibility | None = None,
+                    visibility_out: final_gather.Visibility | None = None) -> np.ndarray:
+        """(M, 3) outgoing radiance B / pi, W/(m^2 sr) (see `exitance_at`)."""
+        return self.exitance_at(tri, bary, reflected_only, interpolated, known,
+                                visibility_out) / np.pi
+
+    def back_radiance_at(self, scene: Scene, tri: np.ndarray, bary: np.ndarray) -> np.ndarray:
+        """(M, 3) outgoing radiance W/(m^2 sr) of the back side of surface points of `scene`
+        (triangles, barycentrics): the emission and, with the final gather, the direct light
+        that reaches the back and one bounce of this solution's light off the surfaces the back
+        faces (`final_gather.back_exitance`). The solution itself is one-sided: without the
+        gather a back side shows its emission only."""
+        if self.gather is not None:
+            return final_gather.back_exitance(self.gather, tri, bary, lambda t, b: self.exitance_at(
+                t, b, reflected_only=True, interpolated=True)) / np.pi
+        return triangle_emission(scene)[np.asarray(tri, np.int64)]

@@ -1,0 +1,156 @@
+"""The settings of a radiosity solve: `RadiositySettings` and the solvers it may name."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+from ..shading.world_light import WORLD_RAYS
+from .elements import ELEMENT_PAIRS
+
+SOLVERS = ("auto", "gauss_seidel", "progressive", "hierarchical", "clustered")
+
+
+@dataclass(frozen=True)
+class RadiositySettings:
+    """| field                       | range               | default  | unit / meaning             |
+    |-----------------------------|---------------------|----------|----------------------------|
+    | method                      | raycast / hemicube  | raycast  | form factor estimator      |
+    | solver                      | auto / gauss_seidel | auto     | auto: the clustered solver |
+    |                             | / progressive /     |          | when grouping the patches  |
+    |                             | hierarchical /      |          | of fine meshes cuts the    |
+    |                             | clustered           |          | unknowns fourfold; else    |
+    |                             |                     |          | above AUTO_DENSE_PATCHES   |
+    |                             |                     |          | patches the hierarchical   |
+    |                             |                     |          | solver if its bound fits   |
+    |                             |                     |          | the memory limit (raycast);|
+    |                             |                     |          | else Gauss-Seidel when the |
+    |                             |                     |          | dense F fits, else         |
+    |                             |                     |          | progressive                |
+    | patch_size                  | >= 0                | 0        | m, longest patch edge; 0:  |
+    |                             |                     |          | from patch_budget          |
+    | patch_budget                | >= 1                | 400      | patches aimed at (auto)    |
+    | refine_levels               | >= -1               | -1       | adaptive splits (0: none;  |
+    |                             |                     |          | -1 auto: 0 with the final  |
+    |                             |                     |          | gather, 1 without it)      |
+    | shadow_splits               | >= -1               | -1       | times patches across a     |
+    |                             |                     |          | lamp's hard shadow edge    |
+    |                             |                     |          | split before the solve (-1 |
+    |                             |                     |          | auto:                      |
+    |                             |                     |          | AUTO_SHADOW_SPLITS with the|
+    |                             |                     |          | final gather and a point,  |
+    |                             |                     |          | spot or sun lamp, else 0)  |
+    | refine_threshold            | > 0                 | 0.25     | relative corner difference |
+    |                             |                     |          | that splits a patch        |
+    | max_patches                 | >= 1                | 3000     | refinement stops here      |
+    |                             |                     |          | (auto lowers it where the  |
+    |                             |                     |          | hierarchy's bound would    |
+    |                             |                     |          | not fit the memory limit)  |
+    | tolerance                   | (0, 1)              | 1e-4     | solver stop (see solvers)  |
+    | dense_memory_limit          | >= 0                | 512 MiB  | bytes for the dense F      |
+    | samples_per_side            | >= 0                | 0        | n x n points per patch     |
+    |                             |                     |          | (ray-cast sources, hemicube|
+    |                             |                     |          | positions); 0 auto: 1 when |
+    |                             |                     |          | no reflectance exceeds     |
+    |                             |                     |          | AUTO_ONE_POINT_RHO, else 2 |
+    | visibility_samples_per_side | >= 1                | 2        | m x m ray targets per patch|
+    | hemicube_resolution         | even >= 2           | 32       | hemicube top-face pixels   |
+    | light_samples_per_side      | >= 1                | 3        | points per patch side for  |
+    |                             |                     |          | the lights' first shot     |
+    | area_light_samples_per_side | >= 1                | 4        | emitter grid for area-light|
+    |                             |                     |          | shadow rays                |
+    | smooth_angle                | [0, pi]             | 0.5236   | rad; corners average the   |
+    |                             |                     |          | patches within this angle  |
+    | link_epsilon                | > 0                 | 0.01     | hierarchical: a link's     |
+    |                             |                     |          | source splits while its    |
+    |                             |                     |          | factor exceeds this        |
+    | max_depth                   | >= 0                | 3        | hierarchical: source levels|
+    |                             |                     |          | above the patches (roots:  |
+    |                             |                     |          | 2^max_depth x patch size)  |
+    | max_shots                   | >= 0                | 0        | progressive: stop after    |
+    |                             |                     |          | this many shots, the       |
+    |                             |                     |          | ambient term covering the  |
+    |                             |                     |          | rest (0: until tolerance)  |
+    | final_gather                | bool                | True     | read the solution out with |
+    |                             |                     |          | exact direct light at each |
+    |                             |                     |          | receiver (final_gather.py) |
+    | gather_rays                 | >= 1                | 16       | final gather: shadow rays  |
+    |                             |                     |          | per receiver to emissive   |
+    |                             |                     |          | triangles                  |
+    | element_pairs               | >= 0                | 50000    | final gather: element-to-  |
+    |                             |                     |          | patch pairs the indirect   |
+    |                             |                     |          | light may be gathered over |
+    |                             |                     |          | (elements.py; 0: patches)  |
+    | world_rays                  | >= 0                | 64       | rays per patch that find   |
+    |                             |                     |          | its share of open sky, lit |
+    |                             |                     |          | by the world colour        |
+    |                             |                     |          | (world_light.py; 0: the    |
+    |                             |                     |          | world lights no surface)   |
+    | seed                        | int                 | 0        | RNG seed of the estimators |
+    | clusters                    | bool                | True     | auto may solve the patches |
+    |                             |                     |          | of finely tessellated      |
+    |                             |                     |          | meshes as groups           |
+    |                             |                     |          | (clusters.py)              |
+    | cluster_sources             | bool                | True     | hierarchical: far groups of|
+    |                             |                     |          | many small roots share     |
+    |                             |                     |          | their shadow rays          |
+    |                             |                     |          | (source_clusters.py)       |
+    """
+
+    method: Literal["raycast", "hemicube"] = "raycast"
+    solver: Literal["auto", "gauss_seidel", "progressive", "hierarchical", "clustered"] = "auto"
+    patch_size: float = 0.0
+    patch_budget: int = 400
+    refine_levels: int = -1
+    shadow_splits: int = -1
+    refine_threshold: float = 0.25
+    max_patches: int = 3000
+    tolerance: float = 1e-4
+    dense_memory_limit: int = 512 << 20
+    samples_per_side: int = 0
+    visibility_samples_per_side: int = 2
+    hemicube_resolution: int = 32
+    light_samples_per_side: int = 3
+    area_light_samples_per_side: int = 4
+    smooth_angle: float = math.radians(30.0)
+    link_epsilon: float = 0.01
+    max_depth: int = 3
+    max_shots: int = 0
+    final_gather: bool = True
+    gather_rays: int = 16
+    element_pairs: int = ELEMENT_PAIRS
+    world_rays: int = WORLD_RAYS
+    seed: int = 0
+    clusters: bool = True
+    cluster_sources: bool = True
+
+    def __post_init__(self) -> None:
+        if self.method not in ("raycast", "hemicube"):
+            raise ValueError(f"method must be 'raycast' or 'hemicube', got {self.method!r}")
+        if self.solver not in SOLVERS:
+            raise ValueError(f"solver must be one of {', '.join(SOLVERS)}, got {self.solver!r}")
+        if self.solver == "clustered" and self.method != "raycast":
+            raise ValueError("the clustered solver estimates its own ray-cast factors: "
+                             "use method 'raycast'")
+        if not self.link_epsilon > 0.0 or self.max_depth < 0:
+            raise ValueError("link_epsilon must be > 0 and max_depth >= 0")
+        if self.patch_size < 0.0 or self.patch_budget < 1 or self.max_patches < 1:
+            raise ValueError("patch_size must be >= 0, patch_budget and max_patches >= 1")
+        if self.refine_levels < -1 or not self.refine_threshold > 0.0:
+            raise ValueError("refine_levels must be >= -1 (auto) and refine_threshold > 0")
+        if self.shadow_splits < -1:
+            raise ValueError(f"shadow_splits must be >= -1 (auto), got {self.shadow_splits}")
+        if not 0.0 < self.tolerance < 1.0:
+            raise ValueError(f"tolerance must be in (0, 1), got {self.tolerance}")
+        if min(self.visibility_samples_per_side, self.light_samples_per_side,
+               self.area_light_samples_per_side) < 1 or self.samples_per_side < 0:
+            raise ValueError("sample counts must be >= 1 (samples_per_side >= 0, 0: auto)")
+        if self.gather_rays < 1:
+            raise ValueError(f"gather_rays must be >= 1, got {self.gather_rays}")
+        if self.world_rays < 0 or self.element_pairs < 0:
+            raise ValueError("world_rays and element_pairs must be >= 0")
+        if self.max_shots < 0:
+            raise ValueError(f"max_shots must be >= 0, got {self.max_shots}")
+        if self.hemicube_resolution < 2 or self.hemicube_resolution % 2:
+            raise ValueError("hemicube_resolution must be even and >= 2")

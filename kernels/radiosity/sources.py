@@ -1,0 +1,231 @@
+"""What the solver starts from, per patch: reflectance, emission, the lamps' and the shot emitters'
+first shot, the world's light, and the patches that take part in the exchange at all.
+
+E_i = pi L_e (emissive materials: radiance L_e, front face only) plus the lights' first shot
+rho_i H_i, with H_i the direct irradiance of point, spot, sun and area lights
+(`lights.direct_irradiance`) averaged over n x n points of the patch, each point's contribution
+multiplied by its visibility (`lamps.py`). Emissive triangles (up to the final gather's
+`max_emitters`) shoot first too (`first_shot`: exact point-to-polygon factor times the gather's
+visible share); the solver then carries B - E_shot only, and adds E_shot back, so their light is
+not counted twice.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from ..geometry.frames import RAY_OFFSET_REL
+from ..geometry.scene import Scene, triangle_emission
+from ..shading.direct_light import diffuse_at, diffuse_weight
+from ..shading.specular_layer import diffuse_factor
+from ..shading.world_light import extract_suns, world_irradiance, world_lit, world_source
+from . import final_gather
+from . import patches as patching
+from .final_gather import FinalGatherSettings
+from .form_factors.sampling import sample_patches
+from .lamps import hard_lamps, shadowed_irradiance
+from .settings import RadiositySettings
+
+
+def patch_reflectance(scene: Scene, patches: patching.Patches) -> np.ndarray:
+    """(N, 3) diffuse reflectance at each patch centre (`direct_light.diffuse_at`: base colour,
+    textures sampled there, times the diffuse weight; metals and glass reflect nothing diffusely).
+
+    The solver's reflectance leaves out the Principled specular layer (`specular_layer.py`):
+    what the layer takes from the base it reflects itself, and Cycles follows that light at the
+    last bounce before a light (its glossy lobe is lit directly even with no glossy bounces).
+    Measured: the Cornell box with every surface at Specular IOR Level 0.5, roughness 0.5,
+    against a 512-sample Cycles bake: relMSE 0.00218 without the layer anywhere (texels 3% too
+    bright), 0.00319 with it in the solve and the texels (3.5% too dark), 0.00179 with it in the
+    texels alone, as at level 0 (0.00184). Only the texels (`RadiosityResult.radiance_at`) show
+    the base under the layer.
+
+    Raises ValueError naming the material when any channel is >= 1 (no convergence)."""
+    for mat in scene.materials:
+        weight = diffuse_weight(mat, under_layer=False)
+        if mat.base_color_texture is None and np.any(weight * np.asarray(mat.base_color) >= 1.0):
+            raise ValueError(
+                f"material '{mat.name}' has a diffuse reflectance of "
+                f"{weight * np.max(mat.base_color):.3g} >= 1: radiosity needs reflectance < 1 in "
+                "every channel (a surface reflecting all light never lets a closed scene converge)")
+    rho = diffuse_at(scene, patches.parent, patches.bary.mean(axis=1), under_layer=False)
+    if np.any(rho >= 1.0):
+        bad = scene.materials[int(scene.material_ids[patches.parent[np.argmax(rho.max(1))]])]
+        raise ValueError(f"material '{bad.name}': its texture reaches reflectance >= 1; "
+                         "radiosity needs reflectance < 1 in every channel")
+    return rho.astype(np.float64)
+
+
+def layer_factors(scene: Scene) -> np.ndarray:
+    """(M,) per material: the share of its diffuse base the specular layer leaves a texel
+    (`specular_layer.diffuse_factor`, seen along the normal); 1 without a layer."""
+    return np.array([diffuse_factor(m) for m in scene.materials] or [1.0], np.float64)
+
+
+def exchanging_triangles(scene: Scene) -> np.ndarray:
+    """(T,) bool: triangles that take part in the exchange, reflecting diffusely (a diffuse
+    weight and a base colour above 0, or a texture) or emitting. The others (a chrome ball, a
+    glass, black paint) send nothing and their B is 0: they are solved without, one idle patch
+    per triangle, and stay occluders (all of them when none exchanges)."""
+    mats = scene.materials
+    emits = np.array([np.any(np.asarray(m.emission) > 0.0) for m in mats], bool)
+    coloured = [m.base_color_texture is not None or np.any(np.asarray(m.base_color) > 0.0)
+                for m in mats]
+    reflects = np.array([diffuse_weight(m) > 0.0 and c for m, c in zip(mats, coloured, strict=True)],
+                        bool)
+    out = (emits | reflects)[scene.material_ids] if mats else np.ones(scene.triangle_count, bool)
+    return out if out.any() else np.ones(scene.triangle_count, bool)
+
+
+def with_idle(scene: Scene, patches: patching.Patches, exchanging: np.ndarray,
+              *per_patch: np.ndarray) -> tuple[patching.Patches, list[np.ndarray]]:
+    """`patches` of the exchanging triangles joined by one idle patch per other triangle
+    (`exchanging_triangles`), and each (N, ...) array of `per_patch` with zero rows for the idle
+    ones, all in the joined order."""
+    idle = patching.make_patches(scene, np.inf, ~exchanging) if not exchanging.all() else None
+    if idle is None or len(idle) == 0:
+        return patches, list(per_patch)
+    joined, order = patching.merged(scene, patches, idle)
+    out = []
+    for values in per_patch:
+        padded = np.concatenate([values, np.zeros((len(idle),) + values.shape[1:], values.dtype)])
+        out.append(padded[order])
+    return joined, out
+
+
+def patch_emission(scene: Scene, patches: patching.Patches) -> np.ndarray:
+    """(N, 3) emitted radiosity pi L_e, W/m^2 (front face)."""
+    return np.pi * triangle_emission(scene)[patches.parent]
+
+
+def shot_emitters(scene: Scene, settings: RadiositySettings) -> final_gather.Emitters:
+    """The emissive triangles that shoot their light first, as lamps do (`first_shot`): the ones
+    the final gather reads per receiver (`final_gather.emitters_of`; none past its
+    `max_emitters`, whose light the solver then carries as emission)."""
+    return final_gather.emitters_of(scene, gather_settings(settings))
+
+
+def gather_settings(settings: RadiositySettings) -> FinalGatherSettings:
+    """The final gather's settings, and the shot emitters', from the radiosity settings."""
+    return FinalGatherSettings(emitter_rays=settings.gather_rays, seed=settings.seed,
+                               patch_samples=settings.samples_per_side,
+                               world_rays=settings.world_rays,
+                               element_pairs=settings.element_pairs)
+
+
+def shot_emission(scene: Scene, patches: patching.Patches,
+                  emitters: final_gather.Emitters) -> np.ndarray:
+    """(N, 3) the part of `patch_emission` that `emitters` shoot in the first shot, W/m^2: the
+    solver must not carry it a second time."""
+    return patch_emission(scene, patches) * emitters.covers(patches.parent)[:, None]
+
+
+def first_shot(scene: Scene, patches: patching.Patches, occluded, settings: RadiositySettings,
+               scale: float, emitters: final_gather.Emitters | None = None,
+               clear: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Direct irradiance of the scene's lights, and of `emitters` (`shot_emitters`: exact
+    point-to-polygon factors times the visible share, `final_gather.emitter_irradiance`), on
+    every patch, with shadows.
+
+    occluded: the BVH callback (origins, directions, t_min, t_max) -> (R,) bool, or None (no
+    shadows); clear (N, K) bool: the patches that see emitter k whole
+    (`final_gather.clear_shafts`), whose points cast no shadow rays to it. Returns H (N, 3) W/m^2,
+    the mean over n x n midpoint samples of each patch, and boundary (N,) bool: patches with
+    some samples lit and some shadowed by one light (or by the emitters together).
+    """
+    count = len(patches)
+    irradiance = np.zeros((count, 3))
+    boundary = np.zeros(count, bool)
+    shooting = emitters is not None and len(emitters.triangles) > 0
+    if not (scene.lights or shooting) or count == 0:
+        return irradiance, boundary
+    weights, flat, normals, origins = _light_samples(patches, settings, scale)
+    samples = weights.shape[1]
+    offset = RAY_OFFSET_REL * scale
+
+    def add(e: np.ndarray, vis: np.ndarray) -> None:
+        irradiance[:] += np.einsum("ns,nsc->nc", weights, e.reshape(count, samples, 3))
+        v = vis.reshape(count, samples)
+        reached = (e.max(axis=1) > 0.0).reshape(count, samples) | (v < 1.0)
+        some_lit = np.any(reached & (v > 0.0), axis=1)
+        some_dark = np.any(reached & (v < 1.0), axis=1)
+        boundary[:] |= some_lit & some_dark
+
+    for light in scene.lights:
+        add(*shadowed_irradiance(light, flat, normals, origins, occluded,
+                                 settings.area_light_samples_per_side))  # (N S, 3), (N S,)
+    if shooting:
+        share = np.ones(len(flat))
+        e = final_gather.emitter_irradiance(
+            emitters, flat, normals, occluded or _never_occluded, offset,
+            np.random.default_rng(settings.seed + 2), share_out=share,
+            clear=None if clear is None else np.repeat(clear, samples, axis=0))
+        add(e, share)
+    return irradiance, boundary
+
+
+def with_world_suns(scene: Scene) -> Scene:
+    """The scene as the solve lights it: a world map's suns (`world_light.extract_suns`: spots far
+    brighter than the sky, which cosine rays would find on a few patches only) as sun lamps,
+    which the first shot and the final gather light with shadow rays like any sun, and the map
+    without them for the sky rays. Scenes without such a map are returned as they are."""
+    if scene.world_texture is None:
+        return scene
+    suns, residual = extract_suns(scene.world_texture, scene.world_transform)
+    if not suns:
+        return scene
+    return replace(scene, lights=tuple(scene.lights) + suns, world_texture=residual)
+
+
+def world_shot(scene: Scene, patches: patching.Patches, bvh, settings: RadiositySettings,
+               scale: float) -> np.ndarray:
+    """(N, 3) W/m^2: the world's irradiance on every patch, pi L_w times its share of open sky
+    (`world_light.py`, `world_rays` rays each). The solver carries it as it carries the first
+    shot, but the final gather counts it as indirect light, so it stays out of `direct`. Zero
+    for a black world or `world_rays` 0. bvh: `kernels.geometry.bvh.BVH` over the scene's triangles."""
+    if not world_lit(scene):
+        return np.zeros((len(patches), 3))
+    return world_irradiance(world_source(scene), patches.corners, patches.normals,
+                            patches.parent, bvh.occluded, scale, settings.world_rays,
+                            np.random.default_rng(settings.seed + 3))
+
+
+def hard_shadow_edges(scene: Scene, patches: patching.Patches, occluded,
+                      settings: RadiositySettings, scale: float) -> np.ndarray:
+    """(N,) bool: patches across a hard shadow edge, some of their n x n midpoint samples
+    (`light_samples_per_side`) lit by a point, spot or sun lamp and some shadowed from it.
+
+    Such a lamp's shadow is a step, and one patch value cannot stand for both sides of it in
+    the light the patch sends on. Area lamps and emissive triangles are left out: their
+    penumbrae are ramps that the patches follow (on the Cornell box, splitting at its ceiling
+    light's shadow edges cost more seconds than the error it removed, at every patch count).
+    occluded: the BVH callback, or None (no shadows, no edges)."""
+    edges = np.zeros(len(patches), bool)
+    hard = hard_lamps(scene)
+    if occluded is None or not hard or len(patches) == 0:
+        return edges
+    weights, flat, normals, origins = _light_samples(patches, settings, scale)
+    count, samples = weights.shape
+    for light in hard:
+        e, vis = shadowed_irradiance(light, flat, normals, origins, occluded, 1)
+        v = vis.reshape(count, samples)
+        lit = (e.max(axis=1) > 0.0).reshape(count, samples)
+        edges |= np.any(lit, axis=1) & np.any(v < 1.0, axis=1)
+    return edges
+
+
+def _light_samples(patches: patching.Patches, settings: RadiositySettings, scale: float
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The lights' n x n midpoint samples of every patch (`light_samples_per_side`): weights
+    (N, S), points (N S, 3) world m, their normals (N S, 3) and the shadow rays' origins, lifted
+    RAY_OFFSET_REL x scale off the surface (N S, 3)."""
+    points, weights = sample_patches(patches.corners, settings.light_samples_per_side, "midpoint")
+    flat = points.reshape(-1, 3)
+    normals = np.repeat(patches.normals, points.shape[1], axis=0)
+    return weights, flat, normals, flat + RAY_OFFSET_REL * scale * normals
+
+
+def _never_occluded(origins, directions, t_min, t_max) -> np.ndarray:
+    return np.zeros(len(origins), bool)

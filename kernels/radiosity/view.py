@@ -1,0 +1,191 @@
+"""The scene camera's view of the solution (`render_steps`): B / pi at the surface each pixel sees,
+the back of surfaces seen from behind, and what the diffuse solution leaves out but Cycles draws
+at the camera's first hit: the rough glossy lobes lit directly by the lamps and the world."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..bake.camera_view import EDGE_SAMPLES, background_and_fragments, supersample_edges
+from ..geometry.bvh import BVH
+from ..geometry.frames import RAY_OFFSET_REL
+from ..geometry.scene import Scene, geometric_normals, interpolated_normals, triangle_emission
+from ..progress import Steps
+from ..shading import lights as light_units
+from ..shading.direct_light import albedo_at, metal_f0
+from ..shading.optics import reflect
+from ..shading.specular_layer import (
+    MIRROR_ROUGHNESS,
+    lamp_highlights,
+    layer_f0,
+    view_factors,
+    view_tables,
+)
+from ..shading.world_light import world_lit, world_radiance
+from .lamps import light_visibility, shadowed_irradiance
+from .result import RadiosityResult
+from .sources import with_world_suns
+
+
+def render_steps(scene: Scene, result: RadiosityResult, resolution=None,
+                 out: np.ndarray | None = None, edge_samples: int = EDGE_SAMPLES
+                 ) -> Steps[np.ndarray]:
+    """The scene camera's view of the solution: outgoing radiance B / pi at the surface each
+    pixel centre sees (rasterised), the world colour elsewhere; a surface seen from behind shows
+    its back (`RadiosityResult.back_radiance_at`). Edge pixels (silhouettes, folds, hard shadow
+    edges: `camera_view.edge_pixels`) are then the mean of edge_samples x edge_samples rays
+    through them (`camera_view.supersample_edges`), as Cycles' 1-px box filter averages a pixel
+    (0 or 1: the centres only). Yields progress, returns (H, W, 3)."""
+    image, f = background_and_fragments(scene, resolution, out)
+    yield 0.3
+    # As the solve lit it: a world map's suns are lamps there, and gone from its map.
+    lit = result.gather.scene if result.gather is not None else with_world_suns(scene)
+
+    def shade(f) -> np.ndarray:
+        values = np.empty((len(f), 3))
+        # Cycles shades a surface on the side it is seen from; the solution is the front's.
+        front, back = ~f.back, f.back
+        if front.any():
+            t, b = f.tri[front], f.bary[front]
+            frame = _front_frame(scene, result, t, b)
+            values[front] = _at_view(scene, t, b, f.dirs[front], result.radiance_at(t, b))
+            values[front] += _lamp_highlights(lit, result, t, b, f.points[front], f.dirs[front],
+                                              frame)
+            values[front] += _world_highlights(lit, t, b, f.points[front], f.dirs[front], frame)
+        if back.any():
+            values[back] = result.back_radiance_at(scene, f.tri[back], f.bary[back])
+        return values
+
+    if len(f):
+        image[f.rows, f.cols] = shade(f)
+    yield 0.6
+    if edge_samples > 1 and len(f):
+        bvh = result.gather.bvh if result.gather is not None else None
+        if bvh is None:
+            bvh = BVH.build(scene.triangles)
+        supersample_edges(scene, image, f, shade, bvh, edge_samples)
+    return image
+
+
+def _at_view(scene: Scene, tri: np.ndarray, bary: np.ndarray, dirs: np.ndarray,
+             radiance: np.ndarray) -> np.ndarray:
+    """(M, 3) radiance (M, 3) W/(m^2 sr) of surface points (triangles, barycentrics) as a
+    camera looking along dirs (M, 3) sees it: the reflected part, which the texels show under
+    the specular layer along the normal (`layer_factors`), rescaled to the layer at the view
+    angle (`specular_layer.view_factors`), as Cycles' diffuse lobe darkens towards grazing.
+    The layer's own highlights are not drawn."""
+    mids = scene.material_ids[tri]
+    tables = view_tables(scene.materials)
+    if not (tables < 1.0).any():  # no layer anywhere
+        return radiance
+    normals = interpolated_normals(scene, tri, bary)
+    ratio = view_factors(tables, mids, np.einsum("ij,ij->i", normals, dirs)) / tables[mids, -1]
+    emitted = triangle_emission(scene)[tri]
+    return emitted + (radiance - emitted) * ratio[:, None]
+
+
+def _front_frame(scene: Scene, result: RadiosityResult, tri: np.ndarray, bary: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, object, float]:
+    """What the view's highlights need of front-facing surface points (triangles, barycentrics):
+    their face normals (M, 3), interpolated shading normals turned to the face's side (M, 3),
+    the BVH for their rays (the gather's, else built) and the rays' offset off surfaces, m."""
+    geometric = geometric_normals(scene.triangles[tri])
+    normals = interpolated_normals(scene, tri, bary, geometric)
+    normals[np.einsum("ij,ij->i", normals, geometric) < 0.0] *= -1.0
+    if result.gather is not None:
+        return geometric, normals, result.gather.bvh, result.gather.offset
+    flat = scene.triangles.reshape(-1, 3).astype(np.float64)
+    offset = RAY_OFFSET_REL * float(np.linalg.norm(flat.max(axis=0) - flat.min(axis=0)))
+    return geometric, normals, BVH.build(scene.triangles), offset
+
+
+def _lamp_highlights(scene: Scene, result: RadiosityResult, tri: np.ndarray, bary: np.ndarray,
+                     points: np.ndarray, dirs: np.ndarray, frame: tuple) -> np.ndarray:
+    """(M, 3) radiance W/(m^2 sr) the lamps' light leaves toward a camera looking along dirs
+    (M, 3) by the rough glossy lobes (specular layers, metals) of surface points (triangles,
+    barycentrics, world points (M, 3)): each lamp's shadowed irradiance (an area lamp's grid
+    point by point, `_area_lamp_points`) times the GGX lobes
+    (`specular_layer.lamp_highlights`), as Cycles lights the glossy lobes directly at the
+    camera's first hit. Emissive meshes draw none. frame: `_front_frame` of the points."""
+    out = np.zeros((len(tri), 3))
+    shiny = [m.roughness >= MIRROR_ROUGHNESS and (m.metallic > 0.0 or (
+        layer_f0(m.ior, m.specular) > 0.0 and m.transmission < 1.0)) for m in scene.materials]
+    if not scene.lights or not any(shiny) or not len(tri):
+        return out
+    geometric, normals, bvh, offset = frame
+    samples = result.gather.area_samples_per_side if result.gather is not None else 4
+    base = metal_f0(scene, tri, albedo_at(scene, tri, bary))
+    mids = scene.material_ids[tri]
+    for light in scene.lights:
+        if light.kind == "AREA":  # its highlight spread over the emitter, point by point
+            for to_light, e in _area_lamp_points(light, points, normals,
+                                                 points + offset * geometric, bvh.occluded,
+                                                 samples):
+                out += lamp_highlights(scene.materials, mids, normals, -dirs, to_light, e, base)
+            continue
+        e, _ = shadowed_irradiance(light, points, normals, points + offset * geometric,
+                                   bvh.occluded, samples)
+        to_light, _ = light_units.light_vectors(light, points)
+        out += lamp_highlights(scene.materials, mids, normals, -dirs, to_light, e, base)
+    return out
+
+
+def _area_lamp_points(light, points: np.ndarray, normals: np.ndarray, origins: np.ndarray,
+                      occluded, samples: int):
+    """Yields (unit directions (M, 3) to one of the area lamp's n x n grid points, the shadowed
+    irradiance W/m^2 (M, 3) that point brings): the lamp's `direct_irradiance` split over its
+    grid points in proportion to cos_receiver cos_lamp / d^2, each times its own shadow ray's
+    visibility from `origins`. A glossy lobe lit this way draws the emitter's whole extent, not
+    a highlight aimed at its centre."""
+    targets = light_units.area_light_samples(light, samples)  # (K, 3)
+    total = light_units.direct_irradiance(light, points, normals)  # (M, 3)
+    delta = targets[:, None, :] - points[None, :, :]  # (K, M, 3)
+    dist = np.linalg.norm(delta, axis=2)
+    to = delta / np.maximum(dist, 1e-300)[..., None]
+    cos_r = np.clip(np.einsum("mj,kmj->km", normals, to), 0.0, None)
+    cos_l = np.clip(-to @ np.asarray(light.direction, np.float64), 0.0, None)
+    weight = cos_r * cos_l / np.maximum(dist, 1e-300) ** 2  # (K, M)
+    share = np.divide(weight, weight.sum(axis=0), out=np.zeros_like(weight),
+                      where=weight.sum(axis=0) > 0.0)
+    visible = np.ones_like(share)
+    if occluded is not None and light.cast_shadow and len(points):
+        visible = light_visibility(light, origins, occluded, samples, per_target=True)
+    for k in range(len(targets)):
+        yield to[k], total * (share[k] * visible[k])[:, None]
+
+
+def _world_highlights(scene: Scene, tri: np.ndarray, bary: np.ndarray, points: np.ndarray,
+                      dirs: np.ndarray, frame: tuple) -> np.ndarray:
+    """(M, 3) radiance W/(m^2 sr) the world leaves toward a camera looking along dirs (M, 3) by
+    the rough glossy lobes of surface points (triangles, barycentrics, world points (M, 3)), as
+    Cycles lights them directly from the world at the camera's first hit (the sky is a light; no
+    glossy bounce is needed): one ray along each point's mirror direction stands for the lobe,
+    the world's radiance there if it escapes, times the lobe's reflectance at the view: the
+    specular layer's directional albedo E(mu) (weight (1 - metallic)(1 - transmission)) and a
+    metal's base colour (weight metallic; its Fresnel rise at grazing views left out). Smooth
+    lobes (roughness below MIRROR_ROUGHNESS) reflect the world only along a glossy bounce, which
+    this model does not follow, as `_lamp_highlights` leaves them out. frame: `_front_frame`."""
+    out = np.zeros((len(tri), 3))
+    mats = scene.materials
+    layer_w = np.array([(1.0 - m.metallic) * (1.0 - m.transmission)
+                        if m.roughness >= MIRROR_ROUGHNESS and layer_f0(m.ior, m.specular) > 0.0
+                        else 0.0 for m in mats])
+    metal_w = np.array([m.metallic if m.roughness >= MIRROR_ROUGHNESS else 0.0 for m in mats])
+    mids = scene.material_ids[tri]
+    rows = np.flatnonzero((layer_w[mids] > 0.0) | (metal_w[mids] > 0.0))
+    if not world_lit(scene) or rows.size == 0:
+        return out
+    t, b, d, m = tri[rows], bary[rows], dirs[rows], mids[rows]
+    geometric, normals, bvh, offset = frame
+    geometric, normals = geometric[rows], normals[rows]
+    r = reflect(d, normals)
+    up = np.einsum("ij,ij->i", r, geometric) > 0.0  # a mirror direction into the surface: none
+    sky = np.zeros(len(rows), bool)
+    sky[up] = ~bvh.occluded(points[rows][up] + offset * geometric[up], r[up])
+    if not sky.any():
+        return out
+    albedo = 1.0 - view_factors(view_tables(mats), m, np.einsum("ij,ij->i", normals, d))
+    weight = (layer_w[m] * albedo)[:, None] + metal_w[m][:, None] * metal_f0(
+        scene, t, albedo_at(scene, t, b))
+    out[rows[sky]] = weight[sky] * world_radiance(scene, r[sky])
+    return out
