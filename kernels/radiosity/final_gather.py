@@ -13,7 +13,7 @@ floor, the floor inside a closed block. Most of that detail is DIRECT light. The
   its kernel-weighted visible share:
       H_j(x) = pi L_j F(x -> j) V_j(x),   V_j(x) = sum_s k_s v_s / sum_s k_s,
       k_s = cos(theta_x) cos(theta_s) / d_s^2   at stratified points s of triangle j
-  (`stratified_triangle_points`: equal areas),
+  (`emitters.stratified_triangle_points`: equal areas),
   v_s one shadow ray each (the ratio estimator of `visibility.visible_fraction_steps`: exact
   when nothing blocks, and its noise stays in penumbrae). Cosines at x are to its shading normal
   (`shading_normals`: a smooth mesh's interpolated corner normals, as Cycles shades it); the rays
@@ -57,11 +57,10 @@ from ..geometry.scene import (
     Scene,
     geometric_normals,
     interpolated_normals,
-    triangle_areas,
     triangle_emission,
 )
-from ..measure.metrics import REC709_LUMINANCE
 from ..shading.bump import scene_normals
+from ..shading.direct_light import diffuse_at
 from ..shading.world_light import (
     RAYS_PER_CALL,
     cosine_directions,
@@ -71,15 +70,20 @@ from ..shading.world_light import (
 )
 from . import elements
 from . import patches as patching
-from .form_factors.point_polygon import point_to_polygon
+from .emitters import (
+    AWAY,
+    CLEAR,
+    HIDDEN,
+    UNKNOWN,
+    Emitters,
+    clear_shafts,
+    emitter_irradiance,
+    thinned_side,
+)
 from .form_factors.sampling import sample_patches
-from .form_factors.visibility import pair_kernel
 from .lamps import lamp_irradiance
+from .settings import FinalGatherSettings
 
-# Shadow rays to points ON an emitter stop this fraction short of it; the target itself is lifted
-# off the emitter by the ray offset along its normal (the BVH's float32 hit distances differ from
-# the float64 length by up to ~4e-6 relative, so ending the ray at the surface would hit it).
-SHADOW_END_REL = 1e-6
 # A patch this little open (fraction of its sample points outside every solid) is not rescaled
 # further: its indirect irradiance rests on too few points to be stretched over the rest.
 MIN_OPEN_FRACTION = 0.25
@@ -92,90 +96,6 @@ GATHER_CHUNK = 1 << 14
 RECEIVER_INSET = 1e-4
 # Probe rays at 45 degrees (after the normal ray): their tangent-frame directions.
 _PROBE_TILTS = ((1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0))
-LUMINANCE = np.array(REC709_LUMINANCE)
-# What a receiver's rays found about one emitter triangle (`Visibility.emitters`): nothing known
-# (or a penumbra), all of it hidden, all of it seen, or it lies behind the receiver's plane.
-UNKNOWN, HIDDEN, CLEAR, AWAY = -1, 0, 1, 2
-
-
-@dataclass(frozen=True)
-class FinalGatherSettings:
-    """| field            | range    | default | meaning                                          |
-    |------------------|----------|---------|--------------------------------------------------|
-    | emitter_rays     | >= 1     | 16      | shadow rays per receiver over all emissive       |
-    |                  |          |         | triangles (split by their power, >= 1 each)      |
-    | max_emitters     | >= 0     | 32      | emissive triangles gathered per receiver; beyond |
-    |                  |          |         | this the patch solution carries emitted light    |
-    |                  |          |         | (each costs every receiver an exact factor and   |
-    |                  |          |         | at least one ray: an emissive sphere of 500      |
-    |                  |          |         | triangles would cost 500 rays a texel)           |
-    | enclosure_probes | bool     | True    | receivers inside closed solids get no light      |
-    | patch_samples    | >= 1     | 2       | n x n enclosure probes per patch (midpoints)     |
-    | seed             | int      | 0       | RNG seed of the stratified emitter points        |
-    | world_rays       | >= 0     | 0       | rays per receiver seen from behind: the world    |
-    |                  |          |         | where they escape, the patch solution where they |
-    |                  |          |         | meet a surface (`back_exitance`; 0: direct light |
-    |                  |          |         | only there)                                      |
-    | element_pairs    | >= 0     | 50000   | element-to-patch pairs the indirect light may be |
-    |                  |          |         | gathered over (`elements.py`: patches split into |
-    |                  |          |         | 4^k elements while within it; 0: never)          |
-    """
-
-    emitter_rays: int = 16
-    max_emitters: int = 32
-    enclosure_probes: bool = True
-    patch_samples: int = 2
-    seed: int = 0
-    world_rays: int = 0
-    element_pairs: int = elements.ELEMENT_PAIRS
-
-    def __post_init__(self) -> None:
-        if self.emitter_rays < 1 or self.patch_samples < 1 or self.max_emitters < 0:
-            raise ValueError("emitter_rays and patch_samples must be >= 1, max_emitters >= 0")
-        if self.world_rays < 0 or self.element_pairs < 0:
-            raise ValueError("world_rays and element_pairs must be >= 0")
-
-
-@dataclass(frozen=True, eq=False)
-class Emitters:
-    """The emissive triangles gathered per receiver."""
-
-    index: np.ndarray  # (K,) int64 scene triangle indices
-    triangles: np.ndarray  # (K, 3, 3) float64 world m
-    normals: np.ndarray  # (K, 3) float64 unit front normals
-    radiance: np.ndarray  # (K, 3) float64 emitted radiance L_e, W/(m^2 sr)
-    per_side: np.ndarray  # (K,) int64 n: n x n stratified visibility points each
-
-    def covers(self, triangles: np.ndarray) -> np.ndarray:
-        """(M,) bool: which of scene `triangles` (M,) are these emitters (their light reaches
-        receivers through `emitter_irradiance`, not through the patches)."""
-        return np.isin(triangles, self.index)
-
-    def thinned(self, k: int) -> Emitters:
-        """These emitters with ceil(n / k) points per side each: for receivers averaged k x k
-        to one value (a lightmap texel's sub-texel points, `bake_targets.box_filter`), whose
-        mean then rests on about the n x n rays one receiver casts."""
-        return replace(self, per_side=thinned_side(self.per_side, k))
-
-
-def thinned_side(n, k: int):
-    """ceil(n / k): the points per side of n x n shared among k x k receivers averaged to one."""
-    return -(-n // max(k, 1))
-
-
-def emitters_of(scene: Scene, settings: FinalGatherSettings) -> Emitters:
-    """Emissive triangles with their share of `emitter_rays` (by power: area x luminance of L_e);
-    none when there are more than `max_emitters`."""
-    radiance = triangle_emission(scene)
-    tris = scene.triangles.astype(np.float64)
-    normals = geometric_normals(scene.triangles)
-    power = triangle_areas(scene.triangles) * (radiance @ LUMINANCE)
-    keep = np.flatnonzero((power > 0.0) & (np.linalg.norm(normals, axis=1) > 0.0))
-    if len(keep) > settings.max_emitters:
-        keep = keep[:0]
-    share = power[keep] / max(float(power[keep].sum()), 1e-300)
-    per_side = np.maximum(1, np.rint(np.sqrt(settings.emitter_rays * share))).astype(np.int64)
-    return Emitters(keep, tris[keep], normals[keep], radiance[keep], per_side)
 
 
 @dataclass(frozen=True, eq=False)
@@ -224,158 +144,6 @@ class Visibility:
         inside = self.inside[np.maximum(sources, 0)]  # (R, S)
         agree = (inside == inside[:, :1]).all(axis=1) & ~missing
         return Visibility(emitters, np.where(agree, inside[:, 0], -1).astype(np.int8))
-
-
-def stratified_triangle_points(poly: np.ndarray, m: int, n: int, rng: np.random.Generator
-                               ) -> np.ndarray:
-    """(m, n^2, 3) points on triangle `poly` (3, 3): m independent sets, one uniform point in each
-    cell of an n x n grid on the unit square, mapped by the area-preserving
-    (u, v) -> (1 - sqrt u) p0 + sqrt u (1 - v) p1 + sqrt u v p2 (Shirley; every cell maps to an
-    equal area, so the points weigh the same and stay stratified)."""
-    cell = np.arange(n * n)
-    u = (cell // n + rng.random((m, n * n))) / n
-    v = (cell % n + rng.random((m, n * n))) / n
-    root = np.sqrt(u)[..., None]
-    return (1.0 - root) * poly[0] + root * (1.0 - v[..., None]) * poly[1] + root * v[..., None] * poly[2]
-
-
-def _kernel_sums(jobs: list, occluded, offset: float, rng: np.random.Generator
-                 ) -> list[tuple[np.ndarray, np.ndarray]]:
-    """For each job (points (m, 3), normals (m, 3), lift (m, 3), triangle `poly` (3, 3), its
-    normal nj, n), rays leaving `offset` m along `lift` (the geometric normals; `normals` may be
-    shading normals):
-    (seen, total) (m,), the sums of the point-to-point kernel k_s over n x n stratified points s
-    of the triangle, over the visible ones and over all, for each receiver. Every job's shadow
-    rays go to the BVH in one call (a call costs ~2 ms besides its rays)."""
-    starts, ends, lengths, found = [], [], [], []
-    for points, normals, lift, poly, nj, n in jobs:
-        y = stratified_triangle_points(poly, len(points), n, rng)
-        kernel = pair_kernel(y - points[:, None, :], normals[:, None, :], nj)  # (m, S)
-        rays = kernel > 0.0
-        origins = points + offset * lift
-        seg = ((y + offset * nj) - origins[:, None, :])[rays]  # (R, 3)
-        starts.append(np.broadcast_to(origins[:, None, :], y.shape)[rays])
-        ends.append(seg)
-        lengths.append(np.sqrt(np.einsum("rc,rc->r", seg, seg)))
-        found.append((kernel, rays))
-    length = np.concatenate(lengths) if jobs else np.zeros(0)
-    blocked = np.zeros(len(length), bool)
-    if length.size:
-        dirs = np.concatenate(ends) / np.maximum(length, 1e-300)[:, None]
-        blocked = np.asarray(occluded(np.ascontiguousarray(np.concatenate(starts)),
-                                      np.ascontiguousarray(dirs), 0.0,
-                                      length * (1.0 - SHADOW_END_REL)), bool)
-    out, at = [], 0
-    for kernel, rays in found:
-        seen = kernel.copy()
-        count = int(rays.sum())
-        seen[rays] = np.where(blocked[at:at + count], 0.0, kernel[rays])
-        at += count
-        out.append((seen.sum(axis=1), kernel.sum(axis=1)))
-    return out
-
-
-def _pilot_side(n: int) -> int:
-    """The pilot's points per side for a triangle of n x n (`emitter_irradiance`): (n - 1)^2
-    from n = 3 on; below that the full set at once, since a pilot of one ray finds every receiver
-    wholly lit or wholly hidden and would never send a penumbra on to its n x n."""
-    return n - 1 if n >= 3 else n
-
-
-def emitter_irradiance(emitters: Emitters, points: np.ndarray, normals: np.ndarray, occluded,
-                       offset: float, rng: np.random.Generator,
-                       share_out: np.ndarray | None = None,
-                       clear: np.ndarray | None = None, known: np.ndarray | None = None,
-                       states_out: np.ndarray | None = None, lift: np.ndarray | None = None
-                       ) -> np.ndarray:
-    """(M, 3) irradiance W/m^2 at points (M, 3) m with unit normals (M, 3) from the emitters,
-    shadowed: pi L_j F(x -> j) V_j(x) summed over j (module docstring). share_out (M,), when
-    given, receives the visible share of the unshadowed irradiance (luminance; 1 where none
-    arrives), from which the first shot finds the patches across an emitter's shadow edge.
-
-    occluded(origins, directions, t_min, t_max) -> (R,) bool is the BVH's shadow-ray query;
-    `offset` m lifts ray ends off both surfaces. Adaptive: a pilot of (n - 1)^2 rays per triangle
-    first; only receivers that find the triangle partly hidden (a penumbra) get the n x n rays
-    as well, so fully lit and fully shadowed receivers cost about half the rays. The pilot can
-    miss an occluder thinner than its point spacing seen from the receiver: it takes the light
-    as unblocked there.
-
-    clear (M, K) bool, when given: receivers known to see emitter triangle k whole (their patch's
-    shaft to it is empty, `clear_shafts`), which take share 1 without rays. known (M, K) int8
-    (`Visibility.emitters`) likewise: CLEAR takes share 1, HIDDEN share 0, without rays.
-    states_out (M, K) int8, when given, receives what was found (CLEAR, HIDDEN, AWAY, UNKNOWN for
-    a penumbra). lift (M, 3), when given: the unit directions the rays leave the points along
-    (the faces' geometric normals where `normals` are shading normals); `normals` otherwise.
-    """
-    lift = normals if lift is None else lift
-    out = np.zeros((len(points), 3))
-    unshadowed = np.zeros(len(points)) if share_out is not None else None
-    states = np.full((len(points), len(emitters.triangles)), UNKNOWN, np.int8)
-    if known is not None:
-        states[...] = known
-    if clear is not None:
-        states[clear] = CLEAR
-    factors, todo = [], []  # per emitter triangle: its exact factors, the receivers to trace
-    for j in range(len(emitters.triangles)):
-        poly, nj = emitters.triangles[j], emitters.normals[j]
-        factor = point_to_polygon(points, normals, poly[None], nj[None])  # (M,) exact, unoccluded
-        factors.append(factor)
-        live = np.flatnonzero(factor > 0.0)
-        if unshadowed is not None:
-            unshadowed[live] += np.pi * factor[live] * (emitters.radiance[j] @ LUMINANCE)
-        state = states[live, j]
-        seen_whole = live[state == CLEAR]
-        out[seen_whole] += np.pi * factor[seen_whole, None] * emitters.radiance[j]
-        states[factor <= 0.0, j] = AWAY
-        live = live[(state != CLEAR) & (state != HIDDEN)]
-        if live.size:
-            todo.append((j, live))
-    # The pilot of every triangle in one BVH call, then the penumbrae's full sets in another.
-    pilots = [(points[live], normals[live], lift[live], emitters.triangles[j], emitters.normals[j],
-               _pilot_side(int(emitters.per_side[j]))) for j, live in todo]
-    sums = _kernel_sums(pilots, occluded, offset, rng)
-    more, mixed_of = [], []
-    for (j, live), (seen, total) in zip(todo, sums, strict=True):
-        n = int(emitters.per_side[j])
-        mixed = np.flatnonzero((seen > 0.0) & (seen < total)) if _pilot_side(n) < n else \
-            np.zeros(0, np.int64)
-        mixed_of.append(mixed)
-        if mixed.size:
-            more.append((points[live[mixed]], normals[live[mixed]], lift[live[mixed]],
-                         emitters.triangles[j], emitters.normals[j], n))
-    extra = iter(_kernel_sums(more, occluded, offset, rng))
-    for (j, live), (seen, total), mixed in zip(todo, sums, mixed_of, strict=True):
-        if mixed.size:
-            more_seen, more_total = next(extra)
-            seen[mixed] += more_seen
-            total[mixed] += more_total
-        share = np.divide(seen, total, out=np.zeros_like(total), where=total > 0.0)
-        out[live] += (np.pi * factors[j][live] * share)[:, None] * emitters.radiance[j]
-        states[live, j] = np.where(total <= 0.0, UNKNOWN, np.where(
-            seen >= total, CLEAR, np.where(seen <= 0.0, HIDDEN, UNKNOWN)))
-    if states_out is not None:
-        states_out[...] = states
-    if share_out is not None:
-        np.divide(out @ LUMINANCE, unshadowed, out=share_out, where=unshadowed > 0.0)
-        share_out[unshadowed <= 0.0] = 1.0
-    return out
-
-
-def clear_shafts(patches: patching.Patches, emitters: Emitters, bvh, offset: float,
-                 min_area: float = 0.0) -> np.ndarray:
-    """(N, K) bool: patch i sees emitter triangle k whole, nothing in the shaft between them
-    (`shafts.clear_pairs`; slack: the rays' `offset` m). Patches under `min_area` m^2 are not
-    tested (False): a shaft costs about as much as the rays of the few receivers such a patch
-    holds (a mesh of 16k tiny triangles: 4.8 s of shafts)."""
-    n, k = len(patches), len(emitters.triangles)
-    out = np.zeros((n, k), bool)
-    tested = np.flatnonzero(patches.areas >= min_area)
-    if tested.size == 0 or k == 0:
-        return out
-    a = np.repeat(patches.corners[tested], k, axis=0)
-    b = np.tile(emitters.triangles, (tested.size, 1, 1))
-    out[tested] = shafts.clear_pairs(a, b, bvh, offset).reshape(tested.size, k)
-    return out
 
 
 def enclosed(points: np.ndarray, normals: np.ndarray, intersect, triangle_normals: np.ndarray,
@@ -551,8 +319,6 @@ def exitance(gather: FinalGather, tri: np.ndarray, bary: np.ndarray,
     of its own; visibility_out (M receivers) receives what this call found, for later neighbours.
     The lamps' shadow rays are cast every time. A receiver that reflects nothing diffusely
     (`direct_light.diffuse_at`: black, metal, glass) casts no ray and stays UNKNOWN."""
-    from ..shading.direct_light import diffuse_at
-
     scene = gather.scene
     tri = np.asarray(tri, np.int64)
     bary = np.asarray(bary, np.float64)
@@ -591,8 +357,6 @@ def back_exitance(gather: FinalGather, tri: np.ndarray, bary: np.ndarray, reflec
     The emission counts on both sides (Cycles' emission shader glows on either face). The
     patches are one-sided, so this is the one place where light reflected onto a back is known:
     one bounce from the front sides' solution (an inside-out mesh, a plane lit from below)."""
-    from ..shading.direct_light import diffuse_at
-
     scene = gather.scene
     tri = np.asarray(tri, np.int64)
     bary = np.asarray(bary, np.float64)

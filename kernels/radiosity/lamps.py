@@ -58,7 +58,7 @@ def lamp_irradiance(scene: Scene, points: np.ndarray, normals: np.ndarray, occlu
                     area_samples_per_side: int, lift: np.ndarray | None = None) -> np.ndarray:
     """(M, 3) irradiance W/m^2 of the scene's lamps (point, spot, sun, area) with shadow rays, as
     the radiosity first shot computes it for patch points; rays leave along `lift` (M, 3) when
-    given (`emitter_irradiance`)."""
+    given (`emitters.emitter_irradiance`)."""
     out = np.zeros((len(points), 3))
     origins = points + offset * (normals if lift is None else lift)
     for light in scene.lights:

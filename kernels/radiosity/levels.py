@@ -13,9 +13,9 @@ import numpy as np
 from ..geometry.frames import RAY_OFFSET_REL
 from ..geometry.scene import Scene
 from ..progress import Steps
-from . import final_gather
 from . import patches as patching
 from .clusters import CLUSTER_AREA_SHARE
+from .emitters import Emitters, clear_shafts
 from .settings import RadiositySettings
 from .sources import first_shot, patch_emission, patch_reflectance, shot_emission, world_shot
 
@@ -29,7 +29,7 @@ class SolveContext:
     bvh: object  # kernels.geometry.bvh.BVH over scene.triangles
     size: float  # m, the patch size asked for
     scale: float  # m, the scene's bounding-box diagonal
-    emitters: final_gather.Emitters  # the emissive triangles that shoot first (`shot_emitters`)
+    emitters: Emitters  # the emissive triangles that shoot first (`shot_emitters`)
 
     def occluded(self, origins, directions, t_min, t_max) -> np.ndarray:
         """The BVH's shadow-ray query: (R,) bool."""
@@ -43,7 +43,7 @@ class LevelLight:
     reflectance (N, 3)  rho
     emitted     (N, 3)  pi L_e
     shot        (N, 3)  the part of `emitted` the shot emitters send in the first shot
-    clear       (N, K)  bool: patch i sees shot emitter k whole (`final_gather.clear_shafts`)
+    clear       (N, K)  bool: patch i sees shot emitter k whole (`emitters.clear_shafts`)
     direct      (N, 3)  the first shot's irradiance H (lamps and shot emitters)
     boundary    (N,)    bool: patches across a light's shadow boundary
     world       (N, 3)  the world's irradiance (`sources.world_shot`)
@@ -70,8 +70,8 @@ def level_light(ctx: SolveContext, patches: patching.Patches) -> LevelLight:
     rho = patch_reflectance(scene, patches)
     emitted = patch_emission(scene, patches)
     shot = shot_emission(scene, patches, ctx.emitters)
-    clear = final_gather.clear_shafts(patches, ctx.emitters, ctx.bvh, RAY_OFFSET_REL * ctx.scale,
-                                      CLUSTER_AREA_SHARE * ctx.size * ctx.size)
+    clear = clear_shafts(patches, ctx.emitters, ctx.bvh, RAY_OFFSET_REL * ctx.scale,
+                         CLUSTER_AREA_SHARE * ctx.size * ctx.size)
     direct, boundary = first_shot(scene, patches, ctx.occluded, settings, ctx.scale, ctx.emitters,
                                   clear)
     world = world_shot(scene, patches, ctx.bvh, settings, ctx.scale)

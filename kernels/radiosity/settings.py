@@ -1,4 +1,5 @@
-"""The settings of a radiosity solve: `RadiositySettings` and the solvers it may name."""
+"""The settings of a radiosity solve (`RadiositySettings`, the solvers it may name) and of its final
+gather (`FinalGatherSettings`, `gather_settings`)."""
 
 from __future__ import annotations
 
@@ -154,3 +155,49 @@ class RadiositySettings:
             raise ValueError(f"max_shots must be >= 0, got {self.max_shots}")
         if self.hemicube_resolution < 2 or self.hemicube_resolution % 2:
             raise ValueError("hemicube_resolution must be even and >= 2")
+
+
+@dataclass(frozen=True)
+class FinalGatherSettings:
+    """| field            | range    | default | meaning                                          |
+    |------------------|----------|---------|--------------------------------------------------|
+    | emitter_rays     | >= 1     | 16      | shadow rays per receiver over all emissive       |
+    |                  |          |         | triangles (split by their power, >= 1 each)      |
+    | max_emitters     | >= 0     | 32      | emissive triangles gathered per receiver; beyond |
+    |                  |          |         | this the patch solution carries emitted light    |
+    |                  |          |         | (each costs every receiver an exact factor and   |
+    |                  |          |         | at least one ray: an emissive sphere of 500      |
+    |                  |          |         | triangles would cost 500 rays a texel)           |
+    | enclosure_probes | bool     | True    | receivers inside closed solids get no light      |
+    | patch_samples    | >= 1     | 2       | n x n enclosure probes per patch (midpoints)     |
+    | seed             | int      | 0       | RNG seed of the stratified emitter points        |
+    | world_rays       | >= 0     | 0       | rays per receiver seen from behind: the world    |
+    |                  |          |         | where they escape, the patch solution where they |
+    |                  |          |         | meet a surface (`back_exitance`; 0: direct light |
+    |                  |          |         | only there)                                      |
+    | element_pairs    | >= 0     | 50000   | element-to-patch pairs the indirect light may be |
+    |                  |          |         | gathered over (`elements.py`: patches split into |
+    |                  |          |         | 4^k elements while within it; 0: never)          |
+    """
+
+    emitter_rays: int = 16
+    max_emitters: int = 32
+    enclosure_probes: bool = True
+    patch_samples: int = 2
+    seed: int = 0
+    world_rays: int = 0
+    element_pairs: int = ELEMENT_PAIRS
+
+    def __post_init__(self) -> None:
+        if self.emitter_rays < 1 or self.patch_samples < 1 or self.max_emitters < 0:
+            raise ValueError("emitter_rays and patch_samples must be >= 1, max_emitters >= 0")
+        if self.world_rays < 0 or self.element_pairs < 0:
+            raise ValueError("world_rays and element_pairs must be >= 0")
+
+
+def gather_settings(settings: RadiositySettings) -> FinalGatherSettings:
+    """The final gather's settings, and the shot emitters', from the radiosity settings."""
+    return FinalGatherSettings(emitter_rays=settings.gather_rays, seed=settings.seed,
+                               patch_samples=settings.samples_per_side,
+                               world_rays=settings.world_rays,
+                               element_pairs=settings.element_pairs)

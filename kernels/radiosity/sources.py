@@ -21,12 +21,11 @@ from ..geometry.scene import Scene, triangle_emission
 from ..shading.direct_light import diffuse_at, diffuse_weight
 from ..shading.specular_layer import diffuse_factor
 from ..shading.world_light import extract_suns, world_irradiance, world_lit, world_source
-from . import final_gather
 from . import patches as patching
-from .final_gather import FinalGatherSettings
+from .emitters import Emitters, emitter_irradiance, emitters_of
 from .form_factors.sampling import sample_patches
 from .lamps import hard_lamps, shadowed_irradiance
-from .settings import RadiositySettings
+from .settings import RadiositySettings, gather_settings
 
 
 def patch_reflectance(scene: Scene, patches: patching.Patches) -> np.ndarray:
@@ -100,38 +99,30 @@ def patch_emission(scene: Scene, patches: patching.Patches) -> np.ndarray:
     return np.pi * triangle_emission(scene)[patches.parent]
 
 
-def shot_emitters(scene: Scene, settings: RadiositySettings) -> final_gather.Emitters:
+def shot_emitters(scene: Scene, settings: RadiositySettings) -> Emitters:
     """The emissive triangles that shoot their light first, as lamps do (`first_shot`): the ones
-    the final gather reads per receiver (`final_gather.emitters_of`; none past its
+    the final gather reads per receiver (`emitters.emitters_of`; none past its
     `max_emitters`, whose light the solver then carries as emission)."""
-    return final_gather.emitters_of(scene, gather_settings(settings))
-
-
-def gather_settings(settings: RadiositySettings) -> FinalGatherSettings:
-    """The final gather's settings, and the shot emitters', from the radiosity settings."""
-    return FinalGatherSettings(emitter_rays=settings.gather_rays, seed=settings.seed,
-                               patch_samples=settings.samples_per_side,
-                               world_rays=settings.world_rays,
-                               element_pairs=settings.element_pairs)
+    return emitters_of(scene, gather_settings(settings))
 
 
 def shot_emission(scene: Scene, patches: patching.Patches,
-                  emitters: final_gather.Emitters) -> np.ndarray:
+                  emitters: Emitters) -> np.ndarray:
     """(N, 3) the part of `patch_emission` that `emitters` shoot in the first shot, W/m^2: the
     solver must not carry it a second time."""
     return patch_emission(scene, patches) * emitters.covers(patches.parent)[:, None]
 
 
 def first_shot(scene: Scene, patches: patching.Patches, occluded, settings: RadiositySettings,
-               scale: float, emitters: final_gather.Emitters | None = None,
+               scale: float, emitters: Emitters | None = None,
                clear: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Direct irradiance of the scene's lights, and of `emitters` (`shot_emitters`: exact
-    point-to-polygon factors times the visible share, `final_gather.emitter_irradiance`), on
+    point-to-polygon factors times the visible share, `emitters.emitter_irradiance`), on
     every patch, with shadows.
 
     occluded: the BVH callback (origins, directions, t_min, t_max) -> (R,) bool, or None (no
     shadows); clear (N, K) bool: the patches that see emitter k whole
-    (`final_gather.clear_shafts`), whose points cast no shadow rays to it. Returns H (N, 3) W/m^2,
+    (`emitters.clear_shafts`), whose points cast no shadow rays to it. Returns H (N, 3) W/m^2,
     the mean over n x n midpoint samples of each patch, and boundary (N,) bool: patches with
     some samples lit and some shadowed by one light (or by the emitters together).
     """
@@ -158,7 +149,7 @@ def first_shot(scene: Scene, patches: patching.Patches, occluded, settings: Radi
                                  settings.area_light_samples_per_side))  # (N S, 3), (N S,)
     if shooting:
         share = np.ones(len(flat))
-        e = final_gather.emitter_irradiance(
+        e = emitter_irradiance(
             emitters, flat, normals, occluded or _never_occluded, offset,
             np.random.default_rng(settings.seed + 2), share_out=share,
             clear=None if clear is None else np.repeat(clear, samples, axis=0))

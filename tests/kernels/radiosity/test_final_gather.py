@@ -9,8 +9,9 @@ from scene_builder import build, quad
 
 from classic_bake.kernels.geometry.bvh import BVH
 from classic_bake.kernels.geometry.scene import Material, geometric_normals
+from classic_bake.kernels.radiosity import emitters as em
 from classic_bake.kernels.radiosity import final_gather as fg
-from classic_bake.kernels.radiosity.settings import RadiositySettings
+from classic_bake.kernels.radiosity.settings import FinalGatherSettings, RadiositySettings
 from classic_bake.kernels.radiosity.solve import solve_radiosity
 
 
@@ -37,7 +38,7 @@ def corner_factor(a, b, c):
 
 def gather_inputs(scene, rays=16):
     bvh = BVH.build(scene.triangles)
-    emitters = fg.emitters_of(scene, fg.FinalGatherSettings(emitter_rays=rays))
+    emitters = em.emitters_of(scene, FinalGatherSettings(emitter_rays=rays))
 
     def occluded(o, d, t0, t1):
         return bvh.occluded(o, d, t0, t1)
@@ -54,7 +55,7 @@ def test_an_unhidden_emitter_gives_the_exact_factor():
     assert len(emitters.triangles) == 2
     points = np.array([[0.0, 0.0, 0.0], [0.5, 0.5, 0.0], [1.5, 0.0, 0.0]])
     normals = np.tile([0.0, 0.0, 1.0], (3, 1))
-    h = fg.emitter_irradiance(emitters, points, normals, occluded, 1e-6, np.random.default_rng(0))
+    h = em.emitter_irradiance(emitters, points, normals, occluded, 1e-6, np.random.default_rng(0))
     centre = 4 * corner_factor(0.5, 0.5, 0.5)
     below_corner = corner_factor(1.0, 1.0, 0.5)
     assert h[0] == pytest.approx(np.full(3, np.pi * 2.0 * centre), rel=1e-9)
@@ -75,12 +76,12 @@ def test_a_half_hidden_emitter_in_the_penumbra():
     _, emitters, occluded = gather_inputs(scene, rays=32)
     points = np.stack([np.zeros(20), np.linspace(-0.1, 0.1, 20), np.zeros(20)], axis=1)
     normals = np.tile([0.0, 0.0, 1.0], (20, 1))
-    h = fg.emitter_irradiance(emitters, points, normals, occluded, 1e-6, np.random.default_rng(1))
+    h = em.emitter_irradiance(emitters, points, normals, occluded, 1e-6, np.random.default_rng(1))
     # Unhidden value from the same estimator (factor only) on a scene without the blocker.
     open_scene = build([(square(0.5, 0.25, up=False), grey(0.0, emission=1.0, name="lamp")),
                         (square(0.0, 2.0, up=True), grey(0.5))])
     _, open_emitters, open_occluded = gather_inputs(open_scene, rays=32)
-    full = fg.emitter_irradiance(open_emitters, points, normals, open_occluded, 1e-6,
+    full = em.emitter_irradiance(open_emitters, points, normals, open_occluded, 1e-6,
                                  np.random.default_rng(1))
     share = h[:, 0] / full[:, 0]
     assert np.all(np.abs(share - 0.5) < 0.08)
@@ -101,8 +102,8 @@ def test_few_points_per_side_still_see_a_penumbra(rays):
     count = 400
     points = np.stack([np.zeros(count), np.linspace(-0.1, 0.1, count), np.zeros(count)], axis=1)
     normals = np.tile([0.0, 0.0, 1.0], (count, 1))
-    h = fg.emitter_irradiance(emitters, points, normals, occluded, 1e-6, np.random.default_rng(2))
-    full = fg.emitter_irradiance(emitters, points, normals, lambda o, d, t0, t1:
+    h = em.emitter_irradiance(emitters, points, normals, occluded, 1e-6, np.random.default_rng(2))
+    full = em.emitter_irradiance(emitters, points, normals, lambda o, d, t0, t1:
                                  np.zeros(len(o), bool), 1e-6, np.random.default_rng(2))
     share = h[:, 0] / full[:, 0]
     assert abs(share.mean() - 0.5) < 0.05
@@ -191,7 +192,7 @@ def test_clear_shafts_skip_the_rays_and_change_nothing():
     bvh, emitters, occluded = gather_inputs(scene)
     patches = make_patches(scene, 0.25)
     floor = np.flatnonzero(patches.object_ids == 2)
-    clear = fg.clear_shafts(patches, emitters, bvh, 1e-5)
+    clear = em.clear_shafts(patches, emitters, bvh, 1e-5)
     assert clear[floor].any() and not clear[floor].all()
     rng = np.random.default_rng(5)
     uv = rng.random((4000, 2))
@@ -207,10 +208,10 @@ def test_clear_shafts_skip_the_rays_and_change_nothing():
         rays.append(len(o))
         return occluded(o, d, t0, t1)
 
-    plain = fg.emitter_irradiance(emitters, points, normals, counting, 1e-5,
+    plain = em.emitter_irradiance(emitters, points, normals, counting, 1e-5,
                                   np.random.default_rng(0))
     plain_rays, rays[:] = sum(rays), []
-    culled = fg.emitter_irradiance(emitters, points, normals, counting, 1e-5,
+    culled = em.emitter_irradiance(emitters, points, normals, counting, 1e-5,
                                    np.random.default_rng(0), clear=clear[patch])
     seen_whole = clear[patch].all(axis=1)
     assert seen_whole.mean() > 0.3
@@ -261,7 +262,7 @@ def test_emitter_points_are_uniform_and_stratified_over_the_triangle():
     the four midpoint sub-triangles (a quarter of the area) gets a quarter of the points, and
     every point set keeps one point per cell (no two sets of the same cell differ in count)."""
     tri = np.array([[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
-    y = fg.stratified_triangle_points(tri, 4000, 4, np.random.default_rng(3))  # (4000, 16, 3)
+    y = em.stratified_triangle_points(tri, 4000, 4, np.random.default_rng(3))  # (4000, 16, 3)
     b1, b2 = y[..., 0] / 2.0, y[..., 1]
     b0 = 1.0 - b1 - b2
     assert np.all((b0 >= -1e-12) & (b1 >= -1e-12) & (b2 >= -1e-12))
@@ -289,23 +290,23 @@ def test_visibility_states_record_lit_umbra_penumbra_and_behind():
     points = np.array([[0.9, 0.0, 0.0], [-0.9, 0.0, 0.0], [0.0, 0.0, 0.0], [0.9, 0.0, 0.0]])
     normals = np.array([[0.0, 0.0, 1.0]] * 3 + [[0.0, 0.0, -1.0]])
     states = np.zeros((4, len(emitters.triangles)), np.int8)
-    h = fg.emitter_irradiance(emitters, points, normals, occluded, 1e-6,
+    h = em.emitter_irradiance(emitters, points, normals, occluded, 1e-6,
                               np.random.default_rng(4), states_out=states)
-    assert np.all(states[0] == fg.CLEAR) and np.all(states[1] == fg.HIDDEN)
-    assert np.any(states[2] == fg.UNKNOWN) and np.all(states[3] == fg.AWAY)
+    assert np.all(states[0] == em.CLEAR) and np.all(states[1] == em.HIDDEN)
+    assert np.any(states[2] == em.UNKNOWN) and np.all(states[3] == em.AWAY)
     assert h[1] == pytest.approx(np.zeros(3)) and h[3] == pytest.approx(np.zeros(3))
 
     def never_called(*_):
         raise AssertionError("a known state must not cast rays")
 
     known = states[[0, 1, 3]]
-    again = fg.emitter_irradiance(emitters, points[[0, 1, 3]], normals[[0, 1, 3]], never_called,
+    again = em.emitter_irradiance(emitters, points[[0, 1, 3]], normals[[0, 1, 3]], never_called,
                                   1e-6, np.random.default_rng(5), known=known)
     np.testing.assert_array_equal(again, h[[0, 1, 3]])
     # CLEAR taken as given even where a blocker stands: the caller vouches for it.
-    hidden_told_clear = fg.emitter_irradiance(
+    hidden_told_clear = em.emitter_irradiance(
         emitters, points[1:2], normals[1:2], never_called, 1e-6, np.random.default_rng(6),
-        known=np.full((1, len(emitters.triangles)), fg.CLEAR, np.int8))
+        known=np.full((1, len(emitters.triangles)), em.CLEAR, np.int8))
     assert hidden_told_clear[0, 0] > 0.0
 
 
@@ -313,7 +314,7 @@ def test_agreed_visibility_needs_every_source_to_agree():
     """A receiver among sources takes CLEAR or HIDDEN only when all of them say so (AWAY
     abstains); a disagreement, a penumbra, a missing source or nothing but AWAY leaves it
     UNKNOWN. The enclosure is agreed the same way."""
-    c, h, u, a = fg.CLEAR, fg.HIDDEN, fg.UNKNOWN, fg.AWAY
+    c, h, u, a = em.CLEAR, em.HIDDEN, em.UNKNOWN, em.AWAY
     seen = fg.Visibility(np.array([[c], [c], [h], [h], [u], [a], [a]], np.int8),
                          np.array([0, 0, 1, 1, 0, 0, 0], np.int8))
     sources = np.array([[0, 1], [0, 5], [2, 3], [2, 6], [0, 2], [0, 4], [5, 6], [0, -1]])
