@@ -183,21 +183,21 @@ def radiosity_bake_job(context, settings, uv_name: str, uv_settings, attribute: 
     the camera's view of the solution. `wire` makes materials show the attribute (Emission).
     Yields progress, then a summary {"images", "attributes", "render", "skipped", "lightmaps",
     "result", "scene"}."""
-    from ..kernels.radiosity import radiosity
+    from ..kernels.progress import scaled
+    from ..kernels.radiosity.lightmap import bake_steps
+    from ..kernels.radiosity.solve import radiosity_steps
+    from ..kernels.radiosity.view import render_steps
 
     with _lightmap_uvs(context, uv_name, uv_settings) as plan:
         scene = bridge.snapshot(context, bridge.SnapshotRequest(lightmap_uv=uv_name, textures=True),
                                 resolution=resolution)
-        result = yield from forward(radiosity.radiosity_steps(scene, settings), 0.0, 0.85,
-                                      lambda step: isinstance(step, radiosity.RadiosityResult))
+        result = yield from scaled(radiosity_steps(scene, settings), 0.0, 0.85)
         targets, sizes = _bake_targets(scene, plan, uv_settings)
-        bakes = yield from forward(
-            radiosity.bake_steps(scene, result, targets, sizes, uv_settings.padding), 0.85, 0.1,
-            lambda step: isinstance(step, dict))
+        bakes = yield from scaled(
+            bake_steps(scene, result, targets, sizes, uv_settings.padding), 0.85, 0.1)
         image = None
         if render and scene.camera is not None:
-            image = yield from forward(radiosity.render_steps(scene, result, resolution), 0.95,
-                                         0.05, lambda step: isinstance(step, np.ndarray))
+            image = yield from scaled(render_steps(scene, result, resolution), 0.95, 0.05)
     # --- write back: everything computed ---------------------------------------------------------
     summary = _write_back(scene, bakes, attribute, image_prefix, image, "Classic Bake Radiosity",
                           wire=wire)

@@ -39,7 +39,7 @@ def direct_light_settings(props):
 
 def radiosity_settings(props):
     """`scene.classic_bake` -> RadiositySettings."""
-    from ..kernels.radiosity.radiosity import RadiositySettings
+    from ..kernels.radiosity.settings import RadiositySettings
 
     return RadiositySettings(method=props.radiosity_method, solver=props.radiosity_solver,
                              patch_budget=props.radiosity_patches,

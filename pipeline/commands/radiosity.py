@@ -12,7 +12,7 @@ DEFAULTS = {"method": "raycast", "solver": "auto", "patches": 400, "patch_size":
             "refine": -1, "shadow_splits": -1, "final_gather": True, "gather_rays": 16, "world_rays": 64,
             "lightmap_size": 128,
             "padding": 2, "uv_name": "Lightmap", "wire": False}
-# kernels.radiosity.radiosity.SOLVERS, written out: the kernels load only when a command runs.
+# kernels.radiosity.settings.SOLVERS, written out: the kernels load only when a command runs.
 SOLVERS = ("auto", "gauss_seidel", "progressive", "hierarchical", "clustered")
 
 
@@ -59,7 +59,7 @@ def add_arguments(parser) -> None:
 
 def settings_from(args):
     from ...kernels.bake.lightmap_uv import LightmapUVSettings
-    from ...kernels.radiosity.radiosity import RadiositySettings
+    from ...kernels.radiosity.settings import RadiositySettings
 
     value = {k: getattr(args, k, v) for k, v in DEFAULTS.items()}
     try:
