@@ -40,6 +40,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..geometry.bvh import BVH
+from ..geometry.scene import Scene
 from ..progress import Steps, drain, scaled
 from ..shading.world_light import WORLD_SUN_NAME, world_lit
 from . import final_gather
@@ -76,7 +77,7 @@ class Solved:
 
 
 
-def radiosity_steps(scene, settings: RadiositySettings = RadiositySettings(),  # noqa: B008
+def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySettings(),  # noqa: B008
                     bvh=None) -> Steps[RadiosityResult]:
     """Solve the scene's radiosity; yields progress in [0, 1], returns a `RadiosityResult`.
 
@@ -199,7 +200,7 @@ def _prepare_gather(ctx: SolveContext, solution: PatchSolution, stats: dict
     return gather
 
 
-def solve_radiosity(scene, settings: RadiositySettings = RadiositySettings(),  # noqa: B008
+def solve_radiosity(scene: Scene, settings: RadiositySettings = RadiositySettings(),  # noqa: B008
                     bvh=None) -> RadiosityResult:
     """`radiosity_steps` run to the end."""
     return drain(radiosity_steps(scene, settings, bvh))
