@@ -70,7 +70,7 @@ THREAD_LINKS = 2048
 # Pairs still above the bound at the leaves (they meet at an edge or nearly) integrate over this
 # many times more points per side: their integrand varies within the patch. 2 (4x the points)
 # gives the Cornell lightmaps the same error as 3 (relMSE 0.00148 and 0.00150 at 1184 patches)
-# now that the points are sub-triangle centroids (`form_factors.sampling.triangle_midpoints`).
+# with the points at sub-triangle centroids (`form_factors.sampling.triangle_midpoints`).
 NEAR_FIELD_SIDE = 2
 # Rays per shadow-ray call (the BVH reaches its full rate from about 50k).
 RAYS_PER_CALL = 1 << 18

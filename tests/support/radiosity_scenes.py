@@ -2,7 +2,7 @@
 
 Not for production: `BruteForceTracer` tests every ray against every triangle (O(R T)); it exists
 so that form factor tests need no BVH. The scenes are the analytic configurations of
-shared/reference/form_factors.json and the Cornell box of shared/reference/cornell_box.json.
+tests/data/form_factors.json and the Cornell box of tests/data/cornell_box.json.
 """
 
 from __future__ import annotations
@@ -137,7 +137,7 @@ CORNELL_WALLS = ("floor", "ceiling", "back_wall", "left_wall", "right_wall")
 
 
 def cornell_box_patches(data: dict, wall_divisions: int, light_drop: float = 1e-3) -> dict:
-    """The Cornell box of shared/reference/cornell_box.json as radiosity patches.
+    """The Cornell box of tests/data/cornell_box.json as radiosity patches.
 
     `data`: the parsed JSON. Geometry is mapped to Blender's frame by the rotation
     (x, y, z) -> (-x, z, y) and from mm to m; the five walls are split into
