@@ -151,6 +151,7 @@ def shadow_bake_job(context, settings, uv_name: str, uv_settings, attribute: str
     """Bake the shadow-map mask of every mesh into a lightmap image and a corner colour attribute,
     and (render=True) the camera's view of direct light with shadows. Yields progress, then a
     summary {"images": {...}, "attributes": [...], "render": image or None, "skipped": [...]}."""
+    from ..kernels.progress import scaled
     from ..kernels.shading import direct_light
 
     with _lightmap_uvs(context, uv_name, uv_settings) as plan:
@@ -161,13 +162,12 @@ def shadow_bake_job(context, settings, uv_name: str, uv_settings, attribute: str
         if not scene.lights:
             raise ValueError("the scene has no lights: nothing casts a shadow")
         targets, sizes = _bake_targets(scene, plan, uv_settings)
-        results = yield from forward(
+        results = yield from scaled(
             direct_light.shadow_bake_steps(scene, targets, sizes, uv_settings.padding, settings),
-            0.0, 0.8, lambda step: isinstance(step, dict))
+            0.0, 0.8)
         image = None
         if render and scene.camera is not None:
-            image = yield from forward(direct_light.render_steps(scene, settings, resolution),
-                                         0.8, 0.2, lambda step: isinstance(step, np.ndarray))
+            image = yield from scaled(direct_light.render_steps(scene, settings, resolution), 0.8, 0.2)
     # --- write back: everything computed ---------------------------------------------------------
     summary = _write_back(scene, results, attribute, image_prefix, image, "Classic Bake Shadows")
     summary["per_light"] = {scene.objects[k].source_name: bake.per_light_lightmaps
@@ -215,6 +215,7 @@ def texture_bake_job(context, settings, uv_name: str, uv_settings, attribute: st
     Yields progress, then a summary {"images", "attributes", "render", "skipped", "lightmaps",
     "scene", "stats"}."""
     from ..kernels.bake import texture_bake
+    from ..kernels.progress import scaled
 
     with _lightmap_uvs(context, uv_name, uv_settings) as plan:
         # Albedo sees no light: a world shader is not worth rendering (`world_render`).
@@ -222,14 +223,13 @@ def texture_bake_job(context, settings, uv_name: str, uv_settings, attribute: st
                                                                 world_render=False),
                                 resolution=resolution)
         targets, sizes = _bake_targets(scene, plan, uv_settings)
-        bakes = yield from forward(
+        bakes = yield from scaled(
             texture_bake.texture_bake_steps(scene, targets, sizes, uv_settings.padding, settings),
-            0.0, 0.6, lambda step: isinstance(step, dict))
+            0.0, 0.6)
         image = None
         if render and scene.camera is not None:
-            image = yield from forward(
-                texture_bake.render_steps(scene, resolution, **(render_overrides or {})), 0.6, 0.4,
-                lambda step: isinstance(step, np.ndarray))
+            image = yield from scaled(
+                texture_bake.render_steps(scene, resolution, **(render_overrides or {})), 0.6, 0.4)
     # --- write back: everything computed ---------------------------------------------------------
     summary = _write_back(scene, bakes, attribute, image_prefix, image, "Classic Bake Texture")
     summary.update(stats=texture_bake.stats(bakes), lightmap_sizes=plan)

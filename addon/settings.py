@@ -1,7 +1,7 @@
 """Kernel settings dataclasses made from Blender properties: one function per kernel, one place."""
 
 from ..kernels.bake.lightmap_uv import LightmapUVSettings
-from ..kernels.trace.tracer import TracerSettings, auto_settings
+from ..kernels.trace.settings import TracerSettings, auto_settings
 
 
 def lightmap_uv_settings(props) -> LightmapUVSettings:

@@ -32,6 +32,7 @@ def _metric_settings():
 def compare_job(context, technique: str, samples: int, report):
     """Render the kernel view (yielding progress), then Cycles, then write images and figures."""
     from ..kernels.measure.metrics import compare_with_images
+    from ..kernels.progress import scaled
     from ..kernels.shading import direct_light
     from ..kernels.trace import tracer
 
@@ -63,12 +64,8 @@ def compare_job(context, technique: str, samples: int, report):
     else:
         model = cycles_reference.direct()
         steps = direct_light.render_steps(scene, direct_light_settings(props))
-    image = None
-    for step in steps:
-        if isinstance(step, float):
-            yield 0.7 * step
-        else:
-            image = step if not hasattr(step, "image") else step.image
+    result = yield from scaled(steps, 0.0, 0.7)
+    image = result if not hasattr(result, "image") else result.image
     kernel_seconds = time.perf_counter() - start
     yield 0.7
     reference, cycles_seconds = cycles_reference.render_camera(context.scene, model, samples)

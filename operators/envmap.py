@@ -13,14 +13,9 @@ CUBE_PREFIX = "Classic Bake Cube "  # + object name: the six faces side by side
 def envmap_job(scene, settings, tracer, report):
     """Capture the maps and render the view (yielding progress), then write the images: a cancel
     before the end changes nothing."""
-    from ..kernels.envmap.envmap import EnvMapResult, render_steps, strip_image
+    from ..kernels.envmap.envmap import render_steps, strip_image
 
-    result = None
-    for step in render_steps(scene, settings, tracer):
-        if isinstance(step, EnvMapResult):
-            result = step
-        else:
-            yield step
+    result = yield from render_steps(scene, settings, tracer)
     image = bridge.write_image(IMAGE_NAME, result.image, image=bpy.data.images.get(IMAGE_NAME))
     for env in result.maps:
         name = CUBE_PREFIX + scene.objects[env.object_index].source_name

@@ -12,14 +12,9 @@ IMAGE_NAME = "Classic Bake Trace"
 def traced_image(scene, settings, name: str):
     """Trace the camera's view (yielding progress), then write it into the float image `name`;
     returns (image, TraceResult). A cancel before the end changes nothing."""
-    from ..kernels.trace.tracer import TraceResult, trace_steps
+    from ..kernels.trace.tracer import trace_steps
 
-    result = None
-    for step in trace_steps(scene, settings):
-        if isinstance(step, TraceResult):
-            result = step
-        else:
-            yield step
+    result = yield from trace_steps(scene, settings)
     return bridge.write_image(name, result.image, image=bpy.data.images.get(name)), result
 
 

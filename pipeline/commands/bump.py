@@ -29,7 +29,8 @@ def run(ctx: RunContext) -> None:
     from ...kernels.geometry.bvh import BVH
     from ...kernels.measure.exr import write_exr
     from ...kernels.shading.bump import SHADING_MODES, has_bump
-    from ...kernels.trace.tracer import auto_settings, trace
+    from ...kernels.trace.settings import auto_settings
+    from ...kernels.trace.tracer import trace
     from ..images import write_preview_png
 
     with ctx.phase("snapshot"):

@@ -26,7 +26,7 @@ def add_arguments(parser) -> None:
 
 def settings_from(scene, args):
     from ...kernels.envmap.envmap import EnvMapSettings
-    from ...kernels.trace.tracer import auto_settings
+    from ...kernels.trace.settings import auto_settings
 
     try:
         steps = {} if args.parallax_steps is None else {"parallax_steps": args.parallax_steps}
@@ -41,9 +41,10 @@ def run(ctx: RunContext) -> None:
     from dataclasses import asdict
 
     from ...addon.bridge import SnapshotRequest, snapshot
-    from ...kernels.envmap.envmap import EnvMapResult, render_steps, strip_image
+    from ...kernels.envmap.envmap import render_steps, strip_image
     from ...kernels.geometry.bvh import BVH
     from ...kernels.measure.exr import write_exr
+    from ...kernels.progress import drain
     from ..images import write_preview_png
     from ..outputs import safe_name
 
@@ -55,11 +56,8 @@ def run(ctx: RunContext) -> None:
     with ctx.phase("bvh"):
         bvh = BVH.build(scene.triangles)
     with ctx.phase("envmap"):
-        result = None
         try:
-            for step in render_steps(scene, settings, tracer, bvh=bvh, resolution=ctx.resolution):
-                if isinstance(step, EnvMapResult):
-                    result = step
+            result = drain(render_steps(scene, settings, tracer, bvh=bvh, resolution=ctx.resolution))
         except ValueError as exc:
             raise UsageError(str(exc)) from exc
     ctx.write_render(result.image)

@@ -23,7 +23,7 @@ def add_arguments(parser) -> None:
 
 
 def tracer_settings(scene, args):
-    from ...kernels.trace.tracer import auto_settings
+    from ...kernels.trace.settings import auto_settings
 
     overrides = {"supersample": args.supersample, "adaptive": args.adaptive}
     if args.min_weight is not None:
@@ -43,7 +43,8 @@ def run(ctx: RunContext) -> None:
 
     from ...addon.bridge import SnapshotRequest, snapshot
     from ...kernels.geometry.bvh import BVH
-    from ...kernels.trace.tracer import TraceResult, trace_steps
+    from ...kernels.progress import drain
+    from ...kernels.trace.tracer import trace_steps
     from ..images import write_preview_png
     from ..quality import apply_target
 
@@ -56,10 +57,7 @@ def run(ctx: RunContext) -> None:
     with ctx.phase("bvh"):
         bvh = BVH.build(scene.triangles)
     with ctx.phase("trace"):
-        result = None
-        for step in trace_steps(scene, settings, bvh=bvh, resolution=ctx.resolution):
-            if isinstance(step, TraceResult):
-                result = step
+        result = drain(trace_steps(scene, settings, bvh=bvh, resolution=ctx.resolution))
     ctx.write_render(result.image)
     write_preview_png(ctx.output("render.png"), result.image)
     width, height = result.image.shape[1], result.image.shape[0]
