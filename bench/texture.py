@@ -52,7 +52,7 @@ def bake_case(name: str, size: int, args) -> dict:
     import bpy
 
     from classic_bake.addon import bridge
-    from classic_bake.addon import cycles_reference as cr
+    from classic_bake.addon import cycles as cr
     from classic_bake.addon.jobs import create_lightmap_uvs, lightmap_plan, mesh_objects
     from classic_bake.kernels.bake.lightmap_uv import LightmapUVSettings
     from classic_bake.kernels.bake.texture_bake import (
@@ -129,7 +129,7 @@ def view_case(name: str, args) -> dict:
     import bpy
 
     from classic_bake.addon import bridge
-    from classic_bake.addon import cycles_reference as cr
+    from classic_bake.addon import cycles as cr
     from classic_bake.kernels.bake.texture_bake import render_steps
     from classic_bake.kernels.measure.metrics import rel_mse
 

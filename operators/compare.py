@@ -4,7 +4,7 @@ import time
 
 import bpy
 
-from ..addon import bridge, cycles_reference
+from ..addon import bridge, cycles
 from ..addon.settings import (
     direct_light_settings,
     envmap_settings,
@@ -43,32 +43,32 @@ def compare_job(context, technique: str, samples: int, report):
     start = time.perf_counter()
     if technique == "TRACE":
         settings = tracer_settings(props, scene)
-        model = cycles_reference.whitted(settings.max_depth)
+        model = cycles.whitted(settings.max_depth)
         steps = tracer.trace_steps(scene, settings)
     elif technique == "TEXTURE":
         from ..kernels.bake import texture_bake
 
-        model = cycles_reference.albedo()
+        model = cycles.albedo()
         steps = texture_bake.render_steps(scene)
     elif technique == "BUMP":
         settings = shading_settings(props, scene)
-        model = cycles_reference.whitted(settings.max_depth)
+        model = cycles.whitted(settings.max_depth)
         steps = tracer.trace_steps(scene, settings)
     elif technique == "ENVMAP":
         from ..kernels.envmap import envmap
 
         settings = tracer_settings(props, scene)
-        model = cycles_reference.whitted(settings.max_depth)
+        model = cycles.whitted(settings.max_depth)
         steps = envmap.render_steps(scene, envmap_settings(props, [
             o.name for o in context.selected_objects if o.type == "MESH"]), settings)
     else:
-        model = cycles_reference.direct()
+        model = cycles.direct()
         steps = direct_light.render_steps(scene, direct_light_settings(props))
     result = yield from scaled(steps, 0.0, 0.7)
     image = result if not hasattr(result, "image") else result.image
     kernel_seconds = time.perf_counter() - start
     yield 0.7
-    reference, cycles_seconds = cycles_reference.render_camera(context.scene, model, samples)
+    reference, cycles_seconds = cycles.render_camera(context.scene, model, samples)
     metrics, errors = compare_with_images(image, reference, settings=_metric_settings())
     # --- write back: images and figures ----------------------------------------------------------
     for name, pixels in ((KERNEL_IMAGE, image), (CYCLES_IMAGE, reference),

@@ -41,7 +41,7 @@ def add_arguments(parser) -> None:
 
 
 def cycles_model(technique: str, settings: dict):
-    from ...addon import cycles_reference as cr
+    from ...addon import cycles as cr
 
     if technique == "trace":
         return cr.whitted(int(settings.get("max_depth", 8)))
@@ -62,7 +62,7 @@ def run(ctx: RunContext) -> None:
 
     import bpy
 
-    from ...addon import cycles_reference as cr
+    from ...addon import cycles as cr
     from ...kernels.measure.exr import read_exr
     from ...kernels.measure.metrics import compare, error_images
     from ..charts import speed_accuracy_chart
