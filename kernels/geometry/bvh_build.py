@@ -17,14 +17,10 @@ against every ray without a tree.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .intersect import PreparedTriangles
-
-if TYPE_CHECKING:
-    from .bvh import BVHSettings
 
 # Child reference of an empty node slot, and the "pop the stack next" marker of a ray.
 NONE = -1
@@ -56,7 +52,7 @@ class _BinaryTree:
     order: np.ndarray  # (T,) int64, triangle numbers (into the valid list) grouped by leaf
 
 
-def _build_binary(lo: np.ndarray, hi: np.ndarray, settings: BVHSettings) -> _BinaryTree:
+def _build_binary(lo: np.ndarray, hi: np.ndarray, settings) -> _BinaryTree:
     """Binned-SAH binary tree over boxes lo, hi (3, T) float32. T >= 1.
 
     Level by level: the triangles of all open nodes sit in one set of arrays, grouped by node
@@ -229,7 +225,7 @@ def _collapse(tree: _BinaryTree, width: int) -> tuple[np.ndarray, np.ndarray, np
 
 
 def build_tables(
-    prepared: PreparedTriangles, valid_ids: np.ndarray, settings: BVHSettings
+    prepared: PreparedTriangles, valid_ids: np.ndarray, settings
 ) -> WideTree:
     """The node and leaf tables of the triangles `valid_ids` (all with non-zero area)."""
     width = settings.width

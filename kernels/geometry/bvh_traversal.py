@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Callable, Iterator
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -33,9 +32,6 @@ from .intersect import (
     ray_frame_corners,
     slab,
 )
-
-if TYPE_CHECKING:
-    from .bvh import BVH
 
 # Rays per block of the gather-and-transpose of node and leaf records: a block's records
 # (512 rows of at most 80 float32) stay in the core's L1/L2 cache while they are transposed.
@@ -176,7 +172,7 @@ class BruteForce:
     Same answers as the pool (the same leaf test), without stacks or lockstep steps.
     """
 
-    def __init__(self, bvh: BVH, any_hit: bool):
+    def __init__(self, bvh, any_hit: bool):
         self.bvh = bvh
         self.any_hit = any_hit
 
@@ -274,7 +270,7 @@ class Pool:
     steps stay full until the queue runs dry.
     """
 
-    def __init__(self, bvh: BVH, size: int, any_hit: bool):
+    def __init__(self, bvh, size: int, any_hit: bool):
         self.bvh = bvh
         self.tree = bvh._tree
         self.size = size
