@@ -1,7 +1,10 @@
-"""The "Classic Bake" tab of the 3D viewport's sidebar. Operators are named by their bl_idname
-string, so this module never imports `operators` (dependency direction: operators -> addon)."""
+"""The "Classic Bake" tab of the 3D viewport's sidebar: a section per technique record, drawn from
+its options, with its button. Operators are named by their bl_idname string, so this module never
+imports `operators` (dependency direction: operators -> addon)."""
 
 import bpy
+
+from ..jobs.techniques import TECHNIQUES
 
 
 class _SidebarPanel:
@@ -29,82 +32,22 @@ class CLASSICBAKE_PT_main(_SidebarPanel, bpy.types.Panel):
         layout.label(text=f"{meshes} meshes, {lights} lights", icon="SCENE_DATA")
 
 
-class CLASSICBAKE_PT_lightmap_uv(_TechniquePanel, bpy.types.Panel):
-    bl_label = "Lightmap UVs"
+def technique_panel(technique) -> type:
+    """The sidebar section of one technique: its own options, then its button. The shared
+    lightmap options are drawn once, in the Lightmap UVs section."""
+    names = [o.prop_name(technique.prefix) for o in
+             (technique.all_options() if technique.name == "lightmap-uv" else technique.options)]
 
     def draw(self, context):
         layout = self.layout
         props = context.scene.classic_bake
         layout.use_property_split = True
-        layout.prop(props, "lightmap_uv_name")
-        layout.prop(props, "lightmap_resolution")
-        layout.prop(props, "lightmap_padding")
-        layout.operator("classic_bake.lightmap_uv", icon="UV")
+        for name in names:
+            layout.prop(props, name)
+        layout.operator(technique.operator.idname, icon=technique.operator.icon)
 
-
-class CLASSICBAKE_PT_texture(_TechniquePanel, bpy.types.Panel):
-    bl_label = "Texture Mapping"
-
-    def draw(self, context):
-        layout = self.layout
-        props = context.scene.classic_bake
-        layout.use_property_split = True
-        layout.prop(props, "texture_samples")
-        layout.operator("classic_bake.texture", icon="TEXTURE")
-
-
-class CLASSICBAKE_PT_trace(_TechniquePanel, bpy.types.Panel):
-    bl_label = "Ray Tracing"
-
-    def draw(self, context):
-        layout = self.layout
-        props = context.scene.classic_bake
-        layout.use_property_split = True
-        layout.prop(props, "trace_depth")
-        layout.prop(props, "trace_supersample")
-        layout.prop(props, "trace_adaptive")
-        layout.operator("classic_bake.trace", icon="RENDER_STILL")
-
-
-class CLASSICBAKE_PT_envmap(_TechniquePanel, bpy.types.Panel):
-    bl_label = "Environment Mapping"
-
-    def draw(self, context):
-        layout = self.layout
-        props = context.scene.classic_bake
-        layout.use_property_split = True
-        layout.prop(props, "envmap_face_size")
-        layout.prop(props, "envmap_face_samples")
-        layout.prop(props, "envmap_parallax_steps")
-        layout.prop(props, "envmap_selected_only")
-        layout.operator("classic_bake.envmap", icon="MAT_SPHERE_SKY")
-
-
-class CLASSICBAKE_PT_bump(_TechniquePanel, bpy.types.Panel):
-    bl_label = "Bump Mapping"
-
-    def draw(self, context):
-        layout = self.layout
-        props = context.scene.classic_bake
-        layout.use_property_split = True
-        layout.prop(props, "bump_shading")
-        layout.operator("classic_bake.shading", icon="MOD_NORMALEDIT")
-
-
-class CLASSICBAKE_PT_shadowmap(_TechniquePanel, bpy.types.Panel):
-    bl_label = "Shadow Mapping"
-
-    def draw(self, context):
-        layout = self.layout
-        props = context.scene.classic_bake
-        layout.use_property_split = True
-        layout.prop(props, "shadow_map_size")
-        layout.prop(props, "shadow_eps_auto")
-        row = layout.row()
-        row.enabled = not props.shadow_eps_auto
-        row.prop(props, "shadow_eps")
-        layout.prop(props, "shadow_pcf")
-        layout.operator("classic_bake.shadowmap", icon="LIGHT_SUN")
+    return type(f"CLASSICBAKE_PT_{technique.prefix}", (_TechniquePanel, bpy.types.Panel),
+                {"bl_label": technique.label, "draw": draw})
 
 
 class CLASSICBAKE_PT_compare(_TechniquePanel, bpy.types.Panel):
@@ -128,31 +71,7 @@ class CLASSICBAKE_PT_compare(_TechniquePanel, bpy.types.Panel):
             box.label(text="Error image: 'Classic Bake Error'", icon="IMAGE_DATA")
 
 
-class CLASSICBAKE_PT_radiosity(_TechniquePanel, bpy.types.Panel):
-    bl_label = "Radiosity"
-
-    def draw(self, context):
-        layout = self.layout
-        props = context.scene.classic_bake
-        layout.use_property_split = True
-        layout.prop(props, "radiosity_method")
-        layout.prop(props, "radiosity_solver")
-        layout.prop(props, "radiosity_patches")
-        layout.prop(props, "radiosity_refine")
-        layout.prop(props, "radiosity_shadow_splits")
-        layout.prop(props, "radiosity_final_gather")
-        row = layout.row()
-        row.enabled = props.radiosity_final_gather
-        row.prop(props, "radiosity_gather_rays")
-        layout.prop(props, "radiosity_world_rays")
-        layout.prop(props, "radiosity_wire")
-        layout.operator("classic_bake.radiosity", icon="LIGHT_AREA")
-
-
-CLASSES = (CLASSICBAKE_PT_main, CLASSICBAKE_PT_lightmap_uv, CLASSICBAKE_PT_texture,
-           CLASSICBAKE_PT_trace,
-           CLASSICBAKE_PT_envmap, CLASSICBAKE_PT_bump, CLASSICBAKE_PT_shadowmap,
-           CLASSICBAKE_PT_radiosity, CLASSICBAKE_PT_compare)
+CLASSES = (CLASSICBAKE_PT_main, *(technique_panel(t) for t in TECHNIQUES), CLASSICBAKE_PT_compare)
 
 
 # Registered in order, unregistered in reverse.

@@ -76,7 +76,7 @@ def cornell(args) -> tuple[dict, dict, list]:
 
     from classic_bake.addon import bridge
     from classic_bake.addon import cycles as cr
-    from classic_bake.addon.jobs import create_lightmap_uvs, lightmap_plan
+    from classic_bake.jobs.lightmaps import create_lightmap_uvs, lightmap_plan
     from classic_bake.kernels.bake.lightmap_uv import LightmapUVSettings
     from classic_bake.kernels.geometry.bvh import BVH
     from classic_bake.kernels.measure.metrics import rel_mse

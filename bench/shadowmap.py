@@ -99,7 +99,7 @@ def main() -> int:
 
     from classic_bake.addon import bridge
     from classic_bake.addon import cycles as cr
-    from classic_bake.addon.jobs import create_lightmap_uvs, lightmap_plan
+    from classic_bake.jobs.lightmaps import create_lightmap_uvs, lightmap_plan
     from classic_bake.kernels.bake.bake_targets import lightmap_targets
     from classic_bake.kernels.bake.lightmap_uv import LightmapUVSettings
     from classic_bake.kernels.geometry.scene import triangle_areas

@@ -5,7 +5,7 @@
 Scenes: sample_blends/raytrace.blend (a checker plane) and env_room.blend (an image-textured
 floor), each baked at two lightmap sizes: 256 texels (texture magnified: several texels a checker
 square) and 16 (minified: a texel spans squares or image texels, where a centre look-up aliases).
-Cycles bakes the same texels with its colour-only DIFFUSE bake (`cycles_reference`, bake type
+Cycles bakes the same texels with its colour-only DIFFUSE bake (`addon/cycles`, bake type
 ALBEDO) at a ladder of samples, against its own bake at the reference's samples; the kernel bakes
 them with one centre look-up per texel (the lecture's mapping alone), then with its footprint
 filter (auto), then finer. The camera's view (the tracer's albedo output) runs against Cycles'
@@ -53,7 +53,7 @@ def bake_case(name: str, size: int, args) -> dict:
 
     from classic_bake.addon import bridge
     from classic_bake.addon import cycles as cr
-    from classic_bake.addon.jobs import create_lightmap_uvs, lightmap_plan, mesh_objects
+    from classic_bake.jobs.lightmaps import create_lightmap_uvs, lightmap_plan, mesh_objects
     from classic_bake.kernels.bake.lightmap_uv import LightmapUVSettings
     from classic_bake.kernels.bake.texture_bake import (
         TextureBakeSettings,

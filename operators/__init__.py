@@ -1,8 +1,8 @@
-"""Thin operators: read settings, snapshot the scene, call kernels, write back."""
+"""Thin operators: one per technique record (bake.py), and the comparison with Cycles."""
 
-from . import bump, compare, envmap, lightmap_uv, radiosity, shadowmap, texture, trace
+from . import bake, compare
 
-_MODULES = (lightmap_uv, texture, trace, envmap, bump, shadowmap, radiosity, compare)
+_MODULES = (bake, compare)
 
 
 def register() -> None:

@@ -1,10 +1,11 @@
 """Two paths for every bake operator: `execute()` blocks (scripts, headless), `invoke()` runs modal.
 
-A subclass implements `start(context)`, returning a generator that does the work on the main thread
-and yields progress in [0, 1]. The generator must change Blender data only after its last yield
-(compute first, write at the end), so that Esc — which simply stops the generator — leaves the scene
-exactly as it was. The modal path runs the generator for a time budget per timer tick (preferences:
-"Work per UI Tick"), shows progress in the status bar and the window's progress cursor.
+A subclass implements `start(context)`, returning a step (kernels/progress.py: a generator that
+yields progress in [0, 1] and returns a `JobSummary`). The step must change Blender data only
+after its last yield (compute first, write at the end), so that Esc — which simply closes the
+generator — leaves the scene exactly as it was. The modal path advances the step for a time budget
+per timer tick (preferences: "Work per UI Tick"), shows progress in the status bar and the
+window's progress cursor, and reports the summary's one line with the time it took.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from __future__ import annotations
 import time
 
 from ..addon import preferences
+from ..kernels.progress import advance, drain
 
 TIMER_INTERVAL_S = 0.02  # how often the modal path wakes up to do another slice of work
 DEFAULT_TICK_BUDGET_MS = 50.0  # used when the add-on's preferences are not available
@@ -25,20 +27,27 @@ class JobOperator:
     def start(self, context):  # pragma: no cover - abstract
         raise NotImplementedError
 
+    def finished(self, context, summary, seconds: float) -> None:
+        """Report the finished job's one line (and its time)."""
+        if summary is not None and summary.message:
+            self.report({"INFO"}, f"{self.job_label}: {summary.message} ({seconds:.2f} s)")
+
     # --- blocking path ----------------------------------------------------------------------------
 
     def execute(self, context):
+        began = time.perf_counter()
         try:
-            for _ in self.start(context):
-                pass
+            summary = drain(self.start(context))
         except ValueError as exc:
             self.report({"ERROR"}, str(exc))
             return {"CANCELLED"}
+        self.finished(context, summary, time.perf_counter() - began)
         return {"FINISHED"}
 
     # --- modal path -------------------------------------------------------------------------------
 
     def invoke(self, context, event):
+        self._began = time.perf_counter()
         try:
             self._job = self.start(context)
         except ValueError as exc:
@@ -59,17 +68,22 @@ class JobOperator:
             return {"CANCELLED"}
         if event.type != "TIMER":
             return {"PASS_THROUGH"}
+        return self.step(context)
+
+    def step(self, context) -> set[str]:
+        """One timer tick's work: advance the job until the tick's budget is spent."""
         prefs = preferences.get(context)
         budget = (prefs.tick_budget_ms if prefs else DEFAULT_TICK_BUDGET_MS) / 1000.0
         deadline = time.perf_counter() + budget
         try:
             while time.perf_counter() < deadline:
-                progress = next(self._job)
-                context.window_manager.progress_update(int(100 * progress))
-                self._status(context, progress)
-        except StopIteration:
-            self._finish(context)
-            return {"FINISHED"}
+                tick = advance(self._job)
+                if tick.done:
+                    self._finish(context)
+                    self.finished(context, tick.result, time.perf_counter() - self._began)
+                    return {"FINISHED"}
+                context.window_manager.progress_update(int(100 * tick.progress))
+                self._status(context, tick.progress)
         except ValueError as exc:
             self._finish(context)
             self.report({"ERROR"}, str(exc))

@@ -39,7 +39,7 @@ def load() -> list[dict]:
         return []
 
 
-def record(technique: str, scene: str, features: dict, rows: list[dict]) -> Path:
+def record_ladder(technique: str, scene: str, features: dict, rows: list[dict]) -> Path:
     """Store (replace) the ladder measured for `technique` on `scene`; written atomically."""
     records = [r for r in load() if not (r["technique"] == technique and r["scene"] == scene)]
     records.append({"technique": technique, "scene": scene, "features": features,
@@ -53,24 +53,26 @@ def record(technique: str, scene: str, features: dict, rows: list[dict]) -> Path
     return path
 
 
-def apply_target(ctx, technique: str, scene) -> None:
-    """If `--target-error` was given, replace the quality options by the picked rung's."""
+def apply_target(ctx, technique) -> None:
+    """With `--target-error`, replace the technique's options by the rung `pick` chose for the most
+    similar scene measured (kernels/measure/auto_quality.py)."""
+    from ..addon.bridge.request import SnapshotRequest
+    from ..addon.bridge.snapshot import snapshot
     from ..kernels.measure.auto_quality import pick
-    from .cli import COMMANDS, command_args
+    from .arguments import technique_values
     from .outputs import UsageError
 
-    target = getattr(ctx.args, "target_error", None)
-    if target is None:
-        return
+    target = ctx.args.target_error
+    # The features read geometry, lights and materials: no world shader is rendered for them.
+    scene = snapshot(request=SnapshotRequest(textures=False, uv=False, world_render=False),
+                     resolution=ctx.resolution)
     try:
-        chosen = pick(load(), technique, scene_features(scene, ctx.resolution), target)
+        chosen = pick(load(), technique.name, scene_features(scene, ctx.resolution), target)
     except ValueError as exc:
         raise UsageError(str(exc)) from exc
-    picked = command_args(COMMANDS[technique], ctx.args.scene, ctx.args.out, ctx.resolution,
-                          chosen.setting)
-    for key in vars(picked):
-        if key not in ("scene", "out", "save_blend", "resolution", "target_error"):
-            setattr(ctx.args, key, getattr(picked, key))
+    for key, value in technique_values(technique, chosen.setting).items():
+        if key != "target_error":
+            setattr(ctx.args, key, value)
     ctx.record.extra["auto_quality"] = {"target_rel_mse": target, "picked": chosen.setting,
                                         "expected_rel_mse": chosen.expected_rel_mse,
                                         "expected_seconds": chosen.expected_seconds,

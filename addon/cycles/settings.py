@@ -57,6 +57,16 @@ FIXED_SETTINGS: tuple[tuple[str, str, Any], ...] = (
     ("render", "use_motion_blur", False),  # the kernels have no shutter
 )
 
+# scene.cycles property <- CyclesModel field, set per model.
+MODEL_SETTINGS: tuple[tuple[str, str], ...] = (
+    ("max_bounces", "max_bounces"), ("diffuse_bounces", "diffuse_bounces"),
+    ("glossy_bounces", "glossy_bounces"), ("transmission_bounces", "transmission_bounces"),
+    ("transparent_max_bounces", "transparent_bounces"), ("volume_bounces", "volume_bounces"),
+    ("caustics_reflective", "caustics_reflective"), ("caustics_refractive", "caustics_refractive"),
+    ("blur_glossy", "blur_glossy"), ("pixel_filter_type", "pixel_filter"),
+    ("filter_width", "filter_width"), ("seed", "seed"),
+)
+
 
 class SettingsLog:
     """An undo log of RNA property changes: `set` remembers the old value, `restore` puts every
@@ -113,18 +123,8 @@ def configure(scene, model: CyclesModel, log: SettingsLog | None = None) -> Sett
         if hasattr(owner, prop):  # a few properties exist in one Blender version only
             log.set(owner, prop, value)
     cycles = scene.cycles
-    log.set(cycles, "max_bounces", model.max_bounces)
-    log.set(cycles, "diffuse_bounces", model.diffuse_bounces)
-    log.set(cycles, "glossy_bounces", model.glossy_bounces)
-    log.set(cycles, "transmission_bounces", model.transmission_bounces)
-    log.set(cycles, "transparent_max_bounces", model.transparent_bounces)
-    log.set(cycles, "volume_bounces", model.volume_bounces)
-    log.set(cycles, "caustics_reflective", model.caustics_reflective)
-    log.set(cycles, "caustics_refractive", model.caustics_refractive)
-    log.set(cycles, "blur_glossy", model.blur_glossy)
-    log.set(cycles, "pixel_filter_type", model.pixel_filter)
-    log.set(cycles, "filter_width", model.filter_width)
-    log.set(cycles, "seed", model.seed)
+    for prop, field in MODEL_SETTINGS:
+        log.set(cycles, prop, getattr(model, field))
     for light, obj in _scene_lights(scene):
         if model.point_radius_zero and light.type in ("POINT", "SPOT"):
             log.set(light, "shadow_soft_size", 0.0)

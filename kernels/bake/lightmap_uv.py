@@ -21,13 +21,13 @@ MAX_FIT_ATTEMPTS = 12
 class LightmapUVSettings:
     """| field        | range     | default | unit / meaning                                          |
     |--------------|-----------|---------|---------------------------------------------------------|
-    | resolution   | 16..16384 | 512     | texels along each side of the square lightmap           |
+    | resolution   | 16..16384 | 256     | texels along each side of the square lightmap           |
     | padding      | 0..64     | 2       | texels kept free between charts (and from the border)   |
     | max_chart_area | >= 0    | 0       | xatlas chart area limit, 0 = unlimited                  |
     | seed_bilinear| bool      | True    | xatlas `bilinear`: pad for bilinear filtering           |
     """
 
-    resolution: int = 512
+    resolution: int = 256
     padding: int = 2
     max_chart_area: float = 0.0
     seed_bilinear: bool = True

@@ -12,7 +12,7 @@ looked at (energy conservation: what the layer reflects the base never receives)
 with D the GGX (Trowbridge-Reitz) distribution of alpha = roughness^2, G2 Smith's
 height-correlated masking-shadowing 1 / (1 + Lambda(i) + Lambda(o)), F the exact dielectric
 Fresnel reflectance (`optics.fresnel_dielectric`) and mu = cos(theta_i). A bake looks at every
-texel along its normal (mu = 1: `addon/cycles_reference.py`, "albedo()"). "Specular IOR Level"
+texel along its normal (mu = 1: `addon/cycles/models.py`, "albedo()"). "Specular IOR Level"
 s scales the layer's normal-incidence reflectance F0 = ((ior - 1) / (ior + 1))^2 by 2 s (0.5:
 none, 0: no layer, exactly Lambertian), through the IOR that has that F0.
 

@@ -1,15 +1,11 @@
-"""Every CLI command, one module each; importing this package registers them all."""
+"""Every CLI command: one per technique record (technique.py), and info, compare, demo, report."""
 
-from . import (  # noqa: F401
-    bump,
-    compare,
-    demo,
-    envmap,
-    info,
-    lightmap_uv,
-    radiosity,
-    report,
-    shadowmap,
-    texture,
-    trace,
-)
+from __future__ import annotations
+
+from ...jobs.techniques import TECHNIQUES
+from . import compare, demo, info, report
+from .technique import technique_command
+
+COMMANDS = {cmd.name: cmd for cmd in (
+    info.COMMAND, *(technique_command(t) for t in TECHNIQUES), compare.COMMAND, demo.COMMAND,
+    report.COMMAND)}

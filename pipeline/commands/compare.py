@@ -2,7 +2,7 @@
 
 Every technique writes `render.exr`, the camera's view of its result; this command runs the
 technique's own command at each rung of its ladder and Cycles with the matching model
-(`addon/cycles_reference.py`) at increasing samples, alternately, against a converged Cycles
+(`addon/cycles/`) at increasing samples, alternately, against a converged Cycles
 reference (cached in out/cache). It writes per-rung metrics (relative MSE, RMSE, PSNR, HDR-FLIP),
 error images of the best rung, and the speed-accuracy chart, all listed in metrics.json's
 `comparison` section, which the HTML report shows.
@@ -12,49 +12,22 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..cli import COMMANDS, Command, RunContext, command, command_args, run_command
+from ...jobs.techniques import BY_NAME
+from ..command import Command, RunContext
 from ..outputs import UsageError
+from ..run import command_args, run_command
+from .technique import technique_command
 
-# Each technique's ladder: command-line arguments of its rungs, cheapest first.
-LADDERS = {
-    # A centre look-up per texel and pixel (the lecture's mapping alone), then the filters.
-    "texture": [["--cells", "1", "--texture-filter", "1", "--adaptive", "0"],
-                ["--texture-filter", "1"], [], ["--texture-filter", "6"]],
-    "trace": [["--adaptive", "0"], ["--adaptive", "2"], ["--adaptive", "4"],
-              ["--supersample", "2", "--adaptive", "4"]],
-    "shadowmap": [["--map-size", "512"], ["--map-size", "0"], ["--map-size", "2048"],
-                  ["--pcf", "3"]],
-    "radiosity": [[]],
-    "bump": [["--shading", "flat"], ["--shading", "gouraud"], ["--shading", "phong"],
-             ["--shading", "bump", "--adaptive", "0"], ["--shading", "bump"]],
-    "envmap": [["--parallax-steps", "0"], ["--face-size", "32"], ["--face-size", "0"],
-               ["--face-size", "128"]],
-}
+# The techniques with a camera view, a matched Cycles model and a quality ladder.
+COMPARABLE = sorted(n for n, t in BY_NAME.items() if t.renders and t.cycles_model and t.ladder)
 CYCLES_SAMPLES = [1, 2, 4, 8, 16, 32, 64]
 
 
 def add_arguments(parser) -> None:
-    parser.add_argument("--technique", required=True, choices=sorted(LADDERS),
+    parser.add_argument("--technique", required=True, choices=COMPARABLE,
                         help="which technique to compare")
     parser.add_argument("--max-samples", type=int, default=64,
                         help="top of Cycles' sample ladder (default 64)")
-
-
-def cycles_model(technique: str, settings: dict):
-    from ...addon import cycles as cr
-
-    if technique == "trace":
-        return cr.whitted(int(settings.get("max_depth", 8)))
-    if technique == "bump":
-        return cr.whitted(int(settings.get("max_depth", 8)))
-    if technique == "envmap":  # true reflections: what the maps approximate
-        return cr.whitted(int(settings["tracer"].get("max_depth", 8)))
-    if technique == "shadowmap":
-        return cr.direct()
-    if technique == "texture":  # Cycles' Diffuse Color pass
-        return cr.albedo()
-    # The world lights the solve unless its rays are off (kernels/world_light.py).
-    return cr.radiosity(world_lighting=int(settings.get("world_rays", 0)) > 0)
 
 
 def run(ctx: RunContext) -> None:
@@ -62,42 +35,42 @@ def run(ctx: RunContext) -> None:
 
     import bpy
 
-    from ...addon import cycles as cr
+    from ...addon.cycles import cache, runner
     from ...kernels.measure.exr import read_exr
     from ...kernels.measure.metrics import compare, error_images
     from ..charts import speed_accuracy_chart
     from ..images import write_error_png, write_preview_png
 
     technique = ctx.args.technique
-    if technique not in COMMANDS:
-        raise UsageError(f"technique {technique!r} is not available in this build")
+    if technique not in COMPARABLE:
+        raise UsageError(f"technique {technique!r} cannot be compared with Cycles")
+    record, sub = BY_NAME[technique], technique_command(BY_NAME[technique])
     scene_path = Path(ctx.args.scene).resolve()
     rungs_dir = ctx.staging.path / "rungs"
     kernel_rows, cycles_rows, images = [], [], {}
     counts = [n for n in CYCLES_SAMPLES if n <= ctx.args.max_samples]
-    ladder = LADDERS[technique]
+    ladder = [list(rung) for rung in record.ladder]
     model = reference = None
     for step in range(max(len(ladder), len(counts))):  # the two ladders alternate
         if step < len(ladder):
             out = rungs_dir / f"rung{step}"
-            sub = COMMANDS[technique]
             args = command_args(sub, scene_path, out, ctx.resolution, ladder[step])
             with ctx.phase("kernel"):
                 run_command(sub, args)
-            record = json.loads((out / "metrics.json").read_text())
-            seconds = record["seconds"]["total"] - record["seconds"].get("open", 0.0)
+            metrics = json.loads((out / "metrics.json").read_text())
+            seconds = metrics["seconds"]["total"] - metrics["seconds"].get("open", 0.0)
             images[step] = read_exr(out / "render.exr")
             kernel_rows.append({"setting": " ".join(ladder[step]) or "default",
                                 "argv": list(ladder[step]), "seconds": seconds})
             if model is None:
-                model = cycles_model(technique, record["settings"])
+                model = record.cycles_model(metrics["settings"])
         if model is not None and reference is None:
             with ctx.phase("cycles_reference"):
-                reference = cr.reference(scene_path, model, "render", resolution=ctx.resolution)
+                reference = cache.reference(scene_path, model, "render", resolution=ctx.resolution)
             bpy.ops.wm.open_mainfile(filepath=str(scene_path), load_ui=False, use_scripts=False)
         if step < len(counts):
             with ctx.phase("cycles"):
-                image, seconds = cr.render_camera(bpy.context.scene, model, counts[step],
+                image, seconds = runner.render_camera(bpy.context.scene, model, counts[step],
                                                   resolution=ctx.resolution)
             m = compare(image, reference.image).to_dict()
             cycles_rows.append({"samples": counts[step], "seconds": seconds, **m})
@@ -105,13 +78,13 @@ def run(ctx: RunContext) -> None:
         row.update(compare(images[step], reference.image).to_dict())
     best = min(range(len(kernel_rows)), key=lambda k: kernel_rows[k]["rel_mse"])
     from ...addon.bridge import SnapshotRequest, snapshot
-    from ..quality import record, scene_features
+    from ..quality import record_ladder, scene_features
 
     bpy.ops.wm.open_mainfile(filepath=str(scene_path), load_ui=False, use_scripts=False)
     # The features read geometry, lights and materials: no world shader is rendered for them.
     features = scene_features(snapshot(request=SnapshotRequest(world_render=False),
                                        resolution=ctx.resolution), ctx.resolution)
-    db = record(technique, scene_path.name, features, kernel_rows)
+    db = record_ladder(technique, scene_path.name, features, kernel_rows)
     errors = error_images(images[best], reference.image)
     write_preview_png(ctx.output("render.png"), images[best])
     write_preview_png(ctx.output("cycles_reference.png"), reference.image)
@@ -142,5 +115,5 @@ def run(ctx: RunContext) -> None:
                         for r in cycles_rows))
 
 
-command(Command(name="compare", help="a technique's quality ladder against Cycles' sample ladder",
-                run=run, add_arguments=add_arguments))
+COMMAND = Command(name="compare", help="a technique's quality ladder against Cycles' sample ladder",
+                run=run, add_arguments=add_arguments)

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..cli import COMMANDS, Command, RunContext, command, command_args, run_command
+from ...jobs.techniques import TECHNIQUES
+from ..command import Command, RunContext
 from ..outputs import UsageError, safe_name
+from ..run import command_args, run_command
 
-# The commands the demo runs on each scene, in order. Techniques join this list as they land.
-DEMO_COMMANDS = ("info", "texture", "trace", "envmap", "bump", "shadowmap", "radiosity")
 # Radiosity makes at least one patch per triangle and solves all of them: the demo bakes it only on
 # scenes this small (the Cornell box), to stay a few minutes long. `radiosity SCENE` runs any scene.
 DEMO_MAX_TRIANGLES = {"radiosity": 500}
@@ -34,19 +34,21 @@ def _triangles(info_dir: Path) -> int | None:
 
 def run(ctx: RunContext) -> None:
     from ..report import build_report
+    from .info import COMMAND as INFO
+    from .technique import technique_command
 
+    # info first (the demo reads its triangle count), then every technique that renders.
+    commands = [INFO, *(technique_command(t) for t in TECHNIQUES if t.renders)]
     folder: Path = ctx.args.folder
     scenes = sorted(folder.glob("*.blend"))
     if not scenes:
         raise UsageError(f"no .blend files in {folder}")
     skipped = []
     for scene in scenes:
-        for name in DEMO_COMMANDS:
-            if name not in COMMANDS:
-                continue
+        for cmd in commands:
+            name = cmd.name
             # One folder per run: the report reads OUT/*/metrics.json.
             out = ctx.args.out / f"{safe_name(scene.stem)}-{name}"
-            cmd = COMMANDS[name]
             limit = DEMO_MAX_TRIANGLES.get(name)
             triangles = _triangles(ctx.args.out / f"{safe_name(scene.stem)}-info")
             if limit is not None and triangles is not None and triangles > limit:
@@ -65,5 +67,5 @@ def run(ctx: RunContext) -> None:
         ctx.say(f"{len(skipped)} runs skipped (see above)")
 
 
-command(Command(name="demo", help="run every command on every sample scene and write the report",
-                run=run, add_arguments=add_arguments, needs_scene=False))
+COMMAND = Command(name="demo", help="run every command on every sample scene and write the report",
+                run=run, add_arguments=add_arguments, needs_scene=False)

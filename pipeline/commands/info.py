@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..cli import Command, RunContext, command
+from ..command import Command, RunContext
 
 
 def describe(scene) -> dict:
@@ -151,5 +151,5 @@ def run(ctx: RunContext) -> None:
     _print(ctx, summary)
 
 
-command(Command(name="info", help="print what the scene snapshot extracts, and what it ignores",
-                run=run))
+COMMAND = Command(name="info", help="print what the scene snapshot extracts, and what it ignores",
+                run=run)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..cli import Command, RunContext, command
+from ..command import Command, RunContext
 from ..outputs import UsageError
 
 
@@ -24,5 +24,5 @@ def run(ctx: RunContext) -> None:
     ctx.say(f"report: {build_report(folder, title=ctx.args.title)}")
 
 
-command(Command(name="report", help="write an HTML report of every run under a folder", run=run,
-                add_arguments=add_arguments, needs_scene=False))
+COMMAND = Command(name="report", help="write an HTML report of every run under a folder", run=run,
+                add_arguments=add_arguments, needs_scene=False)

@@ -21,10 +21,10 @@ def test_operator_renders_each_shading_mode(addon, open_sample):
     scene = bpy.context.scene
     scene.render.resolution_x, scene.render.resolution_y = 40, 30
     props = scene.classic_bake
-    props.trace_adaptive = 0
+    props.bump_adaptive = 0
     views = {}
     for mode in ("FLAT", "GOURAUD", "PHONG", "BUMP"):
-        props.bump_shading = mode
+        props.bump_shading = mode.lower()
         assert bpy.ops.classic_bake.shading() == {"FINISHED"}
         views[mode] = bridge.image_pixels(bpy.data.images["Classic Bake Shading"])[..., :3].copy()
         assert views[mode].shape == (30, 40, 3) and np.all(np.isfinite(views[mode]))
@@ -32,12 +32,12 @@ def test_operator_renders_each_shading_mode(addon, open_sample):
 
 
 def test_cancelled_shading_writes_nothing(addon, open_sample):
+    from classic_bake.jobs.bump import IMAGE_NAME, shading_job
     from classic_bake.kernels.trace.settings import auto_settings
-    from classic_bake.operators.bump import IMAGE_NAME, shading_job
 
     open_sample("bump")
     snap = bridge.snapshot(resolution=(20, 15))
-    job = shading_job(snap, auto_settings(snap, adaptive=0), print)
+    job = shading_job(snap, auto_settings(snap, adaptive=0), resolution=(20, 15))
     next(job)
     job.close()
     assert IMAGE_NAME not in bpy.data.images

@@ -43,13 +43,14 @@ def test_selected_only_without_a_selection_is_a_clear_error(addon, open_sample):
 
 
 def test_cancelled_envmap_writes_nothing(addon, open_sample):
+    from classic_bake.jobs.envmap import IMAGE_NAME, envmap_job
     from classic_bake.kernels.envmap.envmap import EnvMapSettings
     from classic_bake.kernels.trace.settings import auto_settings
-    from classic_bake.operators.envmap import IMAGE_NAME, envmap_job
 
     open_sample("env_room")
     snap = bridge.snapshot(resolution=(20, 15))
-    job = envmap_job(snap, EnvMapSettings(face_size=16), auto_settings(snap, adaptive=0), print)
+    job = envmap_job(snap, EnvMapSettings(face_size=16), auto_settings(snap, adaptive=0),
+                     resolution=(20, 15))
     next(job)
     job.close()
     assert IMAGE_NAME not in bpy.data.images

@@ -42,11 +42,11 @@ def test_existing_layers_are_never_overwritten(addon):
 
 
 def test_cancelled_job_leaves_the_scene_as_it_was(addon):
+    from classic_bake.jobs.lightmap_uv import unwrap_job
     from classic_bake.kernels.bake.lightmap_uv import LightmapUVSettings
-    from classic_bake.operators.lightmap_uv import unwrap_job
 
     targets = [cube("A"), cube("B")]
-    job = unwrap_job(targets, "Lightmap", LightmapUVSettings(resolution=64), report=print)
+    job = unwrap_job(targets, "Lightmap", LightmapUVSettings(resolution=64))
     assert 0.0 < next(job) < 1.0  # one mesh unwrapped, nothing written yet
     job.close()  # what Esc does
     assert all("Lightmap" not in o.data.uv_layers for o in bpy.data.objects)

@@ -12,9 +12,10 @@ import pytest
 
 from classic_bake.addon import bridge
 from classic_bake.addon import cycles as cr
-from classic_bake.addon.jobs import radiosity_bake_job
+from classic_bake.jobs.radiosity import radiosity_bake_job
 from classic_bake.kernels.bake.lightmap_uv import LightmapUVSettings
 from classic_bake.kernels.measure.exr import read_exr
+from classic_bake.kernels.progress import drain
 from classic_bake.kernels.radiosity.settings import RadiositySettings
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -94,12 +95,10 @@ def test_lightmaps_agree_with_cycles_diffuse_bake(open_sample):
     (the default): 6.0%, objects 0.973-0.999 (interpolated patches: 9.1%; Cycles' own 128-sample
     noise is part of either)."""
     open_sample("cornell_box")
-    summary = None
     settings = RadiositySettings(patch_budget=300, refine_levels=1)
-    for step in radiosity_bake_job(bpy.context, settings, "Lightmap", UV, render=False):
-        summary = step
-    sizes = summary["lightmap_sizes"]
-    names = [n for n in summary["lightmaps"] if n != "Light"]
+    summary = drain(radiosity_bake_job(bpy.context, settings, "Lightmap", UV, render=False))
+    sizes = summary.extra["lightmap_sizes"]
+    names = [n for n in summary.lightmaps if n != "Light"]
     total_err = total_ref = 0.0
     for size in sorted({sizes[n] for n in names}):
         group = [n for n in names if sizes[n] == size]
@@ -107,7 +106,7 @@ def test_lightmaps_agree_with_cycles_diffuse_bake(open_sample):
             bpy.context.scene, cr.radiosity(), 128, group, "Lightmap", size,
             "DIFFUSE")
         for name in group:
-            ours, baked = summary["lightmaps"][name]
+            ours, baked = summary.lightmaps[name]
             valid = baked & masks[name]
             a, b = ours[valid], images[name][valid]
             total_err += np.abs(a - b).sum()

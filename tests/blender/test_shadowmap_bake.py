@@ -11,9 +11,10 @@ import pytest
 
 from classic_bake.addon import bridge
 from classic_bake.addon import cycles as cr
-from classic_bake.addon.jobs import shadow_bake_job
+from classic_bake.jobs.shadowmap import shadow_bake_job
 from classic_bake.kernels.bake.lightmap_uv import LightmapUVSettings
 from classic_bake.kernels.measure.exr import read_exr
+from classic_bake.kernels.progress import drain
 from classic_bake.kernels.shading.direct_light import DirectLightSettings
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -69,11 +70,9 @@ def test_each_light_agrees_with_cycles_shadow_bake(open_sample):
     """Per light, the kernel's visibility and Cycles' SHADOW bake (max_bounces 0, lights as points)
     disagree on under 0.5% of the ground's 64 x 64 texels (the issue's target; measured 0.00-0.08%)."""
     open_sample("shadows")
-    summary = None
-    for step in shadow_bake_job(bpy.context, DirectLightSettings(), "Lightmap", UV, render=False):
-        summary = step
-    ours = summary["per_light"]["Ground"]  # (L, 64, 64)
-    names = [light.name for light in summary["scene"].lights]
+    summary = drain(shadow_bake_job(bpy.context, DirectLightSettings(), "Lightmap", UV, render=False))
+    ours = summary.extra["per_light"]["Ground"]  # (L, 64, 64)
+    names = [light.name for light in summary.scene.lights]
     lights = [o for o in bpy.context.scene.objects if o.type == "LIGHT"]
     for k, name in enumerate(names):
         for obj in lights:
@@ -81,7 +80,7 @@ def test_each_light_agrees_with_cycles_shadow_bake(open_sample):
         images, _, masks = cr.bake_lightmaps(
             bpy.context.scene, cr.direct(), 1, ["Ground"], "Lightmap", 64, "SHADOW")
         theirs = images["Ground"][..., 0] > 0.5
-        valid = masks["Ground"] & summary["lightmaps"]["Ground"][1]
+        valid = masks["Ground"] & summary.lightmaps["Ground"][1]
         disagree = np.count_nonzero(((ours[k] > 0.5) != theirs) & valid) / valid.sum()
         print(f"{name}: {disagree:.4%} of {valid.sum()} texels disagree")
         assert disagree < 0.005, (name, disagree)

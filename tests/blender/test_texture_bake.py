@@ -12,11 +12,12 @@ import pytest
 
 from classic_bake.addon import bridge
 from classic_bake.addon import cycles as cr
-from classic_bake.addon.jobs import texture_bake_job
+from classic_bake.jobs.texture import texture_bake_job
 from classic_bake.kernels.bake.lightmap_uv import LightmapUVSettings
 from classic_bake.kernels.bake.texture_bake import TextureBakeSettings
 from classic_bake.kernels.measure.exr import read_exr
 from classic_bake.kernels.measure.metrics import rel_mse
+from classic_bake.kernels.progress import drain
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENE = ROOT / "sample_blends" / "raytrace.blend"
@@ -24,11 +25,9 @@ PLANE = "CheckerPlane"
 
 
 def _bake(size: int, cells: int = 0, render: bool = False):
-    summary = None
-    for step in texture_bake_job(bpy.context, TextureBakeSettings(samples_per_side=cells),
-                                 "Lightmap", LightmapUVSettings(resolution=size, padding=2),
-                                 render=render, resolution=(48, 36)):
-        summary = step
+    summary = drain(texture_bake_job(bpy.context, TextureBakeSettings(samples_per_side=cells),
+                             "Lightmap", LightmapUVSettings(resolution=size, padding=2),
+                             render=render, resolution=(48, 36)))
     return summary
 
 
@@ -69,9 +68,9 @@ def test_a_text_object_is_reported_not_written(open_sample):
     bpy.ops.object.text_add(location=(0.0, 0.0, 0.5))
     bpy.context.object.data.extrude = 0.05
     summary = _bake(32)
-    assert "Text: a font object has no mesh to hold a colour attribute" in summary["skipped"]
-    assert "Text" not in summary["attributes"]
-    assert PLANE in summary["attributes"]
+    assert "Text: a font object has no mesh to hold a colour attribute" in summary.skipped
+    assert "Text" not in summary.attributes
+    assert PLANE in summary.attributes
 
 
 @pytest.mark.slow
@@ -107,9 +106,9 @@ def test_a_minified_checker_matches_cycles_converged_colour_bake(open_sample):
     images, _, masks = cr.bake_lightmaps(
         bpy.context.scene, cr.albedo(), 256, [PLANE], "Lightmap", 16, "ALBEDO")
     ref, mask = images[PLANE], masks[PLANE]
-    ours = filtered["lightmaps"][PLANE][0]
+    ours = filtered.lightmaps[PLANE][0]
     err = rel_mse(ours[mask][:, None], ref[mask][:, None])
-    err_centre = rel_mse(centre["lightmaps"][PLANE][0][mask][:, None], ref[mask][:, None])
+    err_centre = rel_mse(centre.lightmaps[PLANE][0][mask][:, None], ref[mask][:, None])
     assert err < 0.01 and err_centre > 20 * err
     one, _, _ = cr.bake_lightmaps(
         bpy.context.scene, cr.albedo(), 4, [PLANE], "Lightmap", 16, "ALBEDO")
@@ -125,8 +124,8 @@ def test_the_view_matches_cycles_diffuse_color_pass(open_sample):
     summary = _bake(16, render=True)
     image, _ = cr.render_camera(bpy.context.scene, cr.albedo(), 256,
                                 resolution=(48, 36))
-    assert rel_mse(summary["render"], image) < 0.01
-    assert np.abs(summary["render"][0]).max() == 0.0  # the top row sees the sky: 0, as Cycles
+    assert rel_mse(summary.render, image) < 0.01
+    assert np.abs(summary.render[0]).max() == 0.0  # the top row sees the sky: 0, as Cycles
 
 
 def test_a_checker_on_generated_coordinates_matches_cycles():
@@ -151,10 +150,10 @@ def test_a_checker_on_generated_coordinates_matches_cycles():
     summary = _bake(32, render=True)  # the view at 48 x 36
     image, _ = cr.render_camera(scene, cr.albedo(), 64,
                                 resolution=(48, 36))
-    assert rel_mse(summary["render"], image) < 0.02
+    assert rel_mse(summary.render, image) < 0.02
     if bpy.app.version < (5, 0, 0):
         return  # Cycles 4.5 filters baked texels otherwise (the minified checker's test above)
-    ours = summary["lightmaps"][cube.name][0]
+    ours = summary.lightmaps[cube.name][0]
     images, _, masks = cr.bake_lightmaps(
         scene, cr.albedo(), 64, [cube.name], "Lightmap", len(ours), "ALBEDO")
     ref, mask = images[cube.name], masks[cube.name]

@@ -29,12 +29,12 @@ def test_operator_traces_into_a_float_image(addon, open_sample):
 
 
 def test_cancelled_trace_writes_nothing(addon, open_sample):
-    from classic_bake.addon.settings import tracer_settings
-    from classic_bake.operators.trace import IMAGE_NAME, trace_job
+    from classic_bake.jobs.trace import IMAGE_NAME, RECORD, trace_job, tracer_settings
 
     open_sample("raytrace")
     snap = bridge.snapshot(resolution=(20, 15))
-    job = trace_job(snap, tracer_settings(bpy.context.scene.classic_bake, snap), print)
+    values = RECORD.values_from_props(bpy.context.scene.classic_bake)
+    job = trace_job(snap, tracer_settings(values, snap), resolution=(20, 15))
     next(job)
     job.close()
     assert IMAGE_NAME not in bpy.data.images

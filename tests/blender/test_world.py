@@ -11,9 +11,10 @@ from blender_parts import colour_world, hdri_world, node_world
 
 from classic_bake.addon import bridge
 from classic_bake.addon import cycles as cr
-from classic_bake.addon.jobs import radiosity_bake_job
+from classic_bake.jobs.radiosity import radiosity_bake_job
 from classic_bake.kernels.bake.lightmap_uv import LightmapUVSettings
 from classic_bake.kernels.measure.metrics import rel_mse
+from classic_bake.kernels.progress import drain
 from classic_bake.kernels.radiosity.settings import RadiositySettings
 from classic_bake.kernels.trace.settings import TracerSettings
 from classic_bake.kernels.trace.tracer import trace
@@ -77,17 +78,15 @@ def _floor_and_box_against_cycles(scene, lift=0.25, floor=None) -> tuple[list[fl
     bpy.ops.mesh.primitive_cube_add(size=1.0, location=(0.3, 0.0, 0.5 + lift))
     bpy.context.active_object.data.materials.append(grey)
     uv = LightmapUVSettings(resolution=32, padding=2)
-    summary = None
-    for step in radiosity_bake_job(bpy.context, RadiositySettings(patch_budget=150), "Lightmap",
-                                   uv, render=False):
-        summary = step
-    sizes = summary["lightmap_sizes"]
+    summary = drain(radiosity_bake_job(bpy.context, RadiositySettings(patch_budget=150), "Lightmap",
+                               uv, render=False))
+    sizes = summary.extra["lightmap_sizes"]
     ratios, ours, theirs = [], [], []
     for name in ("Plane", "Cube"):
         images, _, masks = cr.bake_lightmaps(
             scene, cr.radiosity(world_lighting=True), 128, [name], "Lightmap",
             sizes[name], "DIFFUSE")
-        texels, baked = summary["lightmaps"][name]
+        texels, baked = summary.lightmaps[name]
         valid = baked & masks[name]
         ours.append(texels[valid][:, :3])
         theirs.append(images[name][valid][:, :3])
@@ -355,8 +354,10 @@ def test_bakes_that_see_no_light_render_no_world():
     cost ~2 s and light nothing), nor for a shadow-mask bake without its camera view."""
     from blender_parts import principled
 
-    from classic_bake.addon.jobs import run_to_end, shadow_bake_job, texture_bake_job
+    from classic_bake.jobs.shadowmap import shadow_bake_job
+    from classic_bake.jobs.texture import texture_bake_job
     from classic_bake.kernels.bake.texture_bake import TextureBakeSettings
+    from classic_bake.kernels.progress import drain
     from classic_bake.kernels.shading.direct_light import DirectLightSettings
 
     _sky_world()
@@ -366,8 +367,8 @@ def test_bakes_that_see_no_light_render_no_world():
     sun = bpy.data.lights.new("Sun", "SUN")
     bpy.context.scene.collection.objects.link(bpy.data.objects.new("Sun", sun))
     uv = LightmapUVSettings(resolution=16, padding=2)
-    albedo = run_to_end(texture_bake_job(bpy.context, TextureBakeSettings(), "Lightmap", uv,
+    albedo = drain(texture_bake_job(bpy.context, TextureBakeSettings(), "Lightmap", uv,
                                          render=False))
-    shadows = run_to_end(shadow_bake_job(bpy.context, DirectLightSettings(), "Lightmap", uv,
+    shadows = drain(shadow_bake_job(bpy.context, DirectLightSettings(), "Lightmap", uv,
                                          render=False))
-    assert albedo["scene"].world_texture is None and shadows["scene"].world_texture is None
+    assert albedo.scene.world_texture is None and shadows.scene.world_texture is None

@@ -26,7 +26,7 @@ def test_a_smooth_layer_reflects_its_fresnel_reflectance():
 
 def test_albedo_matches_cycles_measured_darkening():
     """Cycles 5.2.3 darkens the base by 4.0% at roughness 0, 3.7% at 0.5 and 1.4% at 1 (ALBEDO
-    bakes, IOR 1.5, level 0.5: addon/cycles_reference.py, "albedo()"); tests/blender re-measures
+    bakes, IOR 1.5, level 0.5: addon/cycles/models.py, "albedo()"); tests/blender re-measures
     it through the bridge."""
     got = [directional_albedo(1.0, r, F0_GLASS) for r in (0.0, 0.5, 1.0)]
     np.testing.assert_allclose(got[:2], [0.040, 0.037], atol=5e-4)

@@ -1,0 +1,77 @@
+"""A command per technique record: `python -m classic_bake NAME SCENE.blend [options]` runs the
+record's job on the scene and writes render.exr (+ render.png), the job's files and metrics.json."""
+
+from __future__ import annotations
+
+from pathlib import PurePosixPath
+
+from ..arguments import add_technique_arguments
+from ..command import Command, RunContext
+from ..outputs import UsageError, safe_name
+
+
+def output_name(name: str) -> str:
+    """A job's file name ("cube/Mirror Ball.exr") made safe for the disk, part by part."""
+    path = PurePosixPath(name)
+    return str(path.parent / (safe_name(path.stem) + path.suffix)) if path.parent.parts else (
+        safe_name(path.stem) + path.suffix)
+
+
+def write_files(ctx: RunContext, summary) -> None:
+    """render.exr/png when the job rendered the camera, then every file the job named (by
+    extension: .exr linear, .png a tone-mapped preview, .json data); with --save-blend the
+    job's images are packed into the saved file."""
+    from ...addon.bridge import write_back
+    from ...kernels.measure.exr import write_exr
+    from ..images import write_preview_png
+
+    if summary.render is not None:
+        ctx.write_render(summary.render)
+        write_preview_png(ctx.output("render.png"), summary.render)
+    for name, data in summary.files.items():
+        safe = output_name(name)
+        if safe.endswith(".json"):
+            ctx.staging.write_json(safe, data)
+        elif safe.endswith(".png"):
+            write_preview_png(ctx.output(safe), data)
+        else:
+            write_exr(ctx.output(safe), data)
+    if getattr(ctx.args, "save_blend", False):
+        for image in summary.images.values():
+            write_back.pack_image(image)
+
+
+def technique_command(technique) -> Command:
+    """The CLI command of a technique record."""
+
+    def run(ctx: RunContext) -> None:
+        import bpy
+
+        from ..quality import apply_target
+
+        if getattr(ctx.args, "target_error", None) is not None:
+            apply_target(ctx, technique)
+        values = {**vars(ctx.args), **technique.values_from_args(ctx.args)}
+        with ctx.phase(technique.prefix):
+            try:
+                from ...kernels.progress import drain
+
+                summary = drain(technique.start(bpy.context, values, resolution=ctx.resolution))
+            except ValueError as exc:
+                raise UsageError(f"{technique.name}: {exc}") from exc
+        if technique.renders and summary.render is None:
+            raise UsageError(f"{technique.name}: the scene has no camera, so there is no render.exr")
+        with ctx.phase("write"):
+            write_files(ctx, summary)
+        ctx.record.settings = summary.settings
+        ctx.record.sizes = summary.sizes
+        ctx.record.extra.update(summary.extra)
+        if summary.skipped:
+            ctx.record.extra["skipped"] = summary.skipped
+        ctx.say(summary.message)
+        for why in summary.skipped:
+            ctx.say(f"  skipped: {why}")
+
+    return Command(name=technique.name, help=technique.help, run=run,
+                   add_arguments=lambda parser: add_technique_arguments(parser, technique),
+                   is_technique=technique.renders)
