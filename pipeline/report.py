@@ -252,6 +252,10 @@ def _run_section(results_dir: Path, run: _Run) -> str:
     ]
     if others:
         parts += ["<h3>Other images in the folder</h3>", _figures(results_dir, run, others)]
+    ignored = [str(why) for why in run.get_list("ignored")]
+    if ignored:  # what the snapshot did not model, and what it used instead
+        items = "".join(f"<li>{escape(why)}</li>" for why in ignored)
+        parts += ["<h3>Not modelled</h3>", f"<ul class=\"ignored\">{items}</ul>"]
     for title, key in (("Sizes", "sizes"), ("Versions", "versions")):
         mapping = run.get_mapping(key)
         if mapping:

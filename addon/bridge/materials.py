@@ -1,6 +1,8 @@
 """Blender materials reduced to kernel `Material`s: the node-tree reader (Principled, Diffuse,
 Glossy, Glass and Emission shaders, Mix and Add Shaders of them, image and checker textures,
 normal maps and bumps) and a record of everything it does not model (`Material.ignored`).
+What drives a socket is read through `socket_values.py` (node chains between a texture and the
+socket); base colour, emission, metallic and roughness may come from textures.
 
 Textures keep their encoding: an sRGB byte image is decoded per look-up after interpolation, as
 Cycles does (`Texture.encoding`).
@@ -17,6 +19,7 @@ from ...kernels.geometry.scene import Material, Texture
 from .images import image_pixels, stored_srgb
 from .nodes import active_output, follow, node_tree
 from .request import SnapshotRequest
+from .socket_values import SocketReader, Value
 
 DEFAULT_MATERIAL_NAME = "(default surface)"
 # What Cycles shades faces without a material with (measured: a plane under a sun renders to the
@@ -50,9 +53,15 @@ def mix_materials(name: str, parts: list, ignored: list) -> Material:
     diffuse, metal, glass = float(d_w.sum()), float(m_w.sum()), float(t_w.sum())
     total = diffuse + metal + glass
     emission = sum((w * m.emission.astype(np.float64) for w, m in parts), np.zeros(3))
+    emission_texture = _mixed_emission_texture(parts, emission, ignored)
+    if emission_texture is not None:
+        emission = np.zeros(3)
+    if any(m.metallic_texture is not None or m.roughness_texture is not None for _, m in parts):
+        ignored.append("a mix of shaders with metallic or roughness textures: their defaults used")
     if total <= 0.0:
         return Material(name=name, base_color=np.zeros(3, np.float32), specular=0.0,
-                        emission=emission.astype(np.float32), ignored=tuple(ignored))
+                        emission=emission.astype(np.float32), emission_texture=emission_texture,
+                        ignored=tuple(ignored))
 
     def mean(values: list, *by: np.ndarray):  # one value per part, weighted by the first of `by`
         w = next(x for x in by if x.sum() > 0.0)  # with a positive sum
@@ -95,11 +104,26 @@ def mix_materials(name: str, parts: list, ignored: list) -> Material:
         transmission=glass / (glass + diffuse) if glass + diffuse > 0.0 else 0.0,
         specular=float(mean([m.specular for _, m in parts], d_w, weights)),
         emission=emission.astype(np.float32),
+        emission_texture=emission_texture,
         normal_texture=None if normal is None else normal.normal_texture,
         height_texture=None if normal is None else normal.height_texture,
         bump_strength=1.0 if normal is None else normal.bump_strength,
         bump_distance=1.0 if normal is None else normal.bump_distance,
         ignored=tuple(ignored))
+
+
+def _mixed_emission_texture(parts: list, constant: np.ndarray, ignored: list) -> Texture | None:
+    """The emission texture of a mix of shaders: the one textured part's, times its weight, plus
+    the other parts' constant emission (`constant`, their weighted sum); None without one."""
+    textured = [(w, m) for w, m in parts if m.emission_texture is not None]
+    if not textured:
+        return None
+    if len(textured) > 1:
+        ignored.append("a mix of shaders with several emission textures: the first one's used")
+    weight, part = textured[0]
+    texture = part.emission_texture
+    return replace(texture, gain=(texture.gain * weight).astype(np.float32),
+                   offset=(texture.offset * weight + constant).astype(np.float32))
 
 
 def _scaled_texture(texture: Texture, factor: float, ignored: list) -> Texture:
@@ -117,6 +141,14 @@ def _scaled_texture(texture: Texture, factor: float, ignored: list) -> Texture:
     pixels = texture.pixels.copy()
     pixels[..., :3] *= factor
     return replace(texture, pixels=pixels)
+
+
+def scaled_texture(texture: Texture | None, factor: float) -> Texture | None:
+    """`texture`'s look-ups times `factor` (an emission strength), through its node chain."""
+    if texture is None or factor == 1.0:
+        return texture
+    return replace(texture, gain=(texture.gain * factor).astype(np.float32),
+                   offset=(texture.offset * factor).astype(np.float32))
 
 
 class MaterialReader:
@@ -167,10 +199,12 @@ class MaterialReader:
             return Material(name=name, base_color=color, base_color_texture=tex, specular=0.0,
                             ignored=tuple(ignored))
         if kind == "EMISSION":
-            color, _ = self._color(node.inputs["Color"], ignored, textures=False)
+            color, tex = self._color(node.inputs["Color"], ignored)
             strength = self._value(node.inputs["Strength"], ignored)
             return Material(name=name, base_color=np.zeros(3, np.float32), specular=0.0,
-                            emission=(color * strength).astype(np.float32), ignored=tuple(ignored))
+                            emission=(color * strength * (tex is None)).astype(np.float32),
+                            emission_texture=scaled_texture(tex, strength),
+                            ignored=tuple(ignored))
         if kind == "BSDF_GLASS":
             color, _ = self._color(node.inputs["Color"], ignored, textures=False)
             return Material(name=name, base_color=color, transmission=1.0,
@@ -206,8 +240,11 @@ class MaterialReader:
     def _principled(self, name, node, ignored) -> Material:
         inputs = node.inputs
         color, tex = self._color(inputs["Base Color"], ignored)
-        emission, _ = self._color(inputs["Emission Color"], ignored, textures=False)
+        emission, emission_tex = self._color(inputs["Emission Color"], ignored)
         strength = self._value(inputs["Emission Strength"], ignored)
+        emission_tex = scaled_texture(emission_tex, strength)  # radiance: texture x strength
+        metallic, metallic_tex = self._number(inputs["Metallic"], ignored)
+        roughness, roughness_tex = self._number(inputs["Roughness"], ignored)
         for unmodelled in ("Subsurface Weight", "Coat Weight", "Sheen Weight"):
             if unmodelled in inputs and (
                 inputs[unmodelled].is_linked or inputs[unmodelled].default_value > 0
@@ -220,12 +257,15 @@ class MaterialReader:
             name=name,
             base_color=color,
             base_color_texture=tex,
-            metallic=self._value(inputs["Metallic"], ignored),
-            roughness=self._value(inputs["Roughness"], ignored),
+            metallic=metallic,
+            roughness=roughness,
             ior=self._value(inputs["IOR"], ignored),
             transmission=self._value(inputs["Transmission Weight"], ignored),
             specular=self._value(inputs["Specular IOR Level"], ignored),
-            emission=(emission * strength).astype(np.float32),
+            emission=(emission * strength * (emission_tex is None)).astype(np.float32),
+            emission_texture=emission_tex,
+            metallic_texture=metallic_tex,
+            roughness_texture=roughness_tex,
             normal_texture=normal_tex,
             height_texture=height_tex,
             bump_strength=strength_b,
@@ -233,29 +273,50 @@ class MaterialReader:
             ignored=tuple(ignored),
         )
 
+    def _read(self, socket, ignored) -> Value | None:
+        """What `socket` reads (socket_values.py): a constant or a texture with its node chain.
+        A bake that reads no textures follows chains of constants only (a texture: its default)."""
+        if self.request.textures:
+            def texture_of(node, what):
+                return self._texture(node, ignored, what)
+        else:
+            def texture_of(node, what):
+                return None
+        return SocketReader(texture_of, ignored).read(socket, socket.name)
+
     def _value(self, socket, ignored) -> float:
-        node, _ = follow(socket)
-        if node is not None:
-            if node.type == "VALUE":
-                return float(node.outputs[0].default_value)
-            ignored.append(f"'{socket.name}' driven by a '{node.bl_idname}' node: its default used")
-        return float(socket.default_value)
+        """A number: the socket's chain of constants, or its default where a texture drives it
+        (noted) or the chain is not modelled (noted by the reader)."""
+        value = self._read(socket, ignored)
+        if value is None:
+            return float(socket.default_value)
+        if value.texture is not None:
+            ignored.append(f"'{socket.name}' driven by a texture is not modelled: its default used")
+            return float(socket.default_value)
+        return float(value.const[0])
+
+    def _number(self, socket, ignored) -> tuple[float, Texture | None]:
+        """A number that may come from a texture: (constant, None) or (default, texture)."""
+        value = self._read(socket, ignored)
+        if value is None:
+            return float(socket.default_value), None
+        if value.texture is None:
+            return float(value.const[0]), None
+        return float(socket.default_value), value.texture
 
     def _color(self, socket, ignored, textures=True) -> tuple[np.ndarray, Texture | None]:
+        """A colour that may come from a texture: (constant, None) or (default, texture); with
+        `textures` False a texture is noted and its default used."""
         default = np.array(socket.default_value[:3], np.float32)
-        node, _ = follow(socket)
-        if node is None:
+        value = self._read(socket, ignored)
+        if value is None:
             return default, None
-        if node.type == "RGB":
-            return np.array(node.outputs[0].default_value[:3], np.float32), None
-        if textures and self.request.textures:
-            tex = self._texture(node, ignored, what=socket.name)
-            if tex is not None:
-                return default, tex
-        elif node.type in ("TEX_IMAGE", "TEX_CHECKER"):
-            return default, None  # not requested: this bake does not read textures
-        ignored.append(f"'{socket.name}' driven by a '{node.bl_idname}' node: its default used")
-        return default, None
+        if value.texture is None:
+            return value.const.astype(np.float32), None
+        if not textures:
+            ignored.append(f"'{socket.name}' driven by a texture is not modelled: its default used")
+            return default, None
+        return default, value.texture
 
     def _uv_layer(self, node, ignored, what, generated: bool
                   ) -> tuple[bool, str | None, str]:

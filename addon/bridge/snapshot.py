@@ -9,6 +9,7 @@ import bpy
 import numpy as np
 
 from ...kernels.geometry.scene import Light, Material, ObjectInfo, Scene
+from ...kernels.shading.material_maps import resolve_material_maps
 from .camera import read_camera
 from .lights import read_light
 from .materials import DEFAULT_MATERIAL, MaterialReader
@@ -97,9 +98,12 @@ def snapshot(context=None, request: SnapshotRequest = DEFAULT_REQUEST,
     texture = read_world_texture(scene, render=request.world_render)
     world, why = read_world(scene, texture)
     ignored.extend(why)
-    return replace(_assemble(chunks, materials, lights, camera, world, request, ignored),
-                   world_texture=texture,
-                   world_transform=None if texture is None else world_env_mapping(scene))
+    # Emission, metallic and roughness textures are resolved per triangle once, here, so that
+    # every kernel reads them as constants (kernels/shading/material_maps.py).
+    return resolve_material_maps(replace(
+        _assemble(chunks, materials, lights, camera, world, request, ignored),
+        world_texture=texture,
+        world_transform=None if texture is None else world_env_mapping(scene)))
 
 
 def _assemble(chunks, materials, lights, camera, world, request, ignored) -> Scene:

@@ -13,6 +13,7 @@ black world; E = sun strength x cos(incidence) is the irradiance on the plane:
 | COMBINED  | all                               | rho E / pi   (+ emission, glossy, transmission) |
 | SHADOW    | none, with max_bounces 0          | 1 lit, 0 shadowed       |
 | ALBEDO    | COLOR (Blender bake type DIFFUSE) | rho = base x (1 - metallic) x (1 - transmission), no light |
+| EMIT      | none                              | the emission closure's radiance (colour x strength) |
 
 ALBEDO, measured on a plane of base colour (0.2, 0.5, 0.8) with Specular IOR Level 0 under a sun
 or a point light and a world of (0.3, 0.6, 0.9): metallic 0.5 bakes (0.1, 0.25, 0.4), metallic
@@ -45,7 +46,7 @@ from ..bridge.write_back import read_color_attribute
 from .models import CyclesModel
 from .settings import TEMP_PREFIX, SettingsLog, matched_scene
 
-BakeType = Literal["DIFFUSE", "COMBINED", "SHADOW", "ALBEDO"]
+BakeType = Literal["DIFFUSE", "COMBINED", "SHADOW", "ALBEDO", "EMIT"]
 
 
 # Pass filters of `bpy.ops.object.bake` per bake type (the operator's enum-flag names).
@@ -54,6 +55,7 @@ PASS_FILTERS: dict[str, frozenset[str]] = {
     "COMBINED": frozenset({"EMIT", "DIRECT", "INDIRECT", "DIFFUSE", "GLOSSY", "TRANSMISSION"}),
     "SHADOW": frozenset(),
     "ALBEDO": frozenset({"COLOR"}),  # the diffuse colour alone: no light at all
+    "EMIT": frozenset(),  # the emitted radiance alone (colour x strength)
 }
 # Blender's bake type for each of ours that Blender names differently (the rest are the same):
 # ALBEDO is Cycles' DIFFUSE bake with the colour pass alone.

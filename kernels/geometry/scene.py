@@ -1,6 +1,6 @@
 """The kernel-side scene: everything a bake reads, as plain NumPy arrays.
 
-`addon/bridge.py` is the only producer (a snapshot of Blender's evaluated depsgraph); every kernel
+`addon/bridge/` is the only producer (a snapshot of Blender's evaluated depsgraph); every kernel
 is a consumer. Nothing here knows Blender: a test can build a `Scene` by hand.
 
 Conventions, shared by every kernel
@@ -58,6 +58,24 @@ class Texture:
     # sRGB images so and decodes each look-up after filtering; decoding the texels first gives
     # brighter transitions (env_room's tiled floor baked: 2.5% bright, relMSE 1.4e-2 -> 7e-5).
     encoding: Literal["linear", "sRGB"] = "linear"
+    # What a node chain makes of the decoded colour (the bridge folds Separate Color, Math, Mix and
+    # Invert nodes of constants into these): `weights` (4,) turn (R, G, B, A) into one value for
+    # all three outputs (a channel: (0, 0, 1, 0); a colour read as a number: its luminance; None:
+    # the colour itself), then value * gain + offset per output, then a clamp to [0, 1] where a
+    # node clamps its result.
+    weights: np.ndarray | None = None
+    gain: np.ndarray = field(default_factory=lambda: np.ones(3, np.float32))  # (3,)
+    offset: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))  # (3,)
+    clamp: bool = False
+    # (2, 3) affine [A | t] applied to (u, v) before the look-up (a Mapping node of type Point
+    # turning, scaling and moving the UVs, e.g. glTF's KHR_texture_transform); None: none
+    uv_transform: np.ndarray | None = None
+
+    @property
+    def transformed(self) -> bool:
+        """True when the look-up's colour is not the texture's own (a channel, gain or clamp)."""
+        return (self.weights is not None or self.clamp or not np.all(self.gain == 1.0)
+                or np.any(self.offset != 0.0))
 
 
 @dataclass(frozen=True, eq=False)
@@ -81,6 +99,15 @@ class Material:
     | metal_color        | [0, 1]^3  | None    | the metal part's tint where it is not the base |
     |                    |           |         | colour (a Glossy BSDF mixed over a Diffuse     |
     |                    |           |         | one); None: the base colour                    |
+    | emission_texture   | Texture   | None    | emitted radiance W/(m^2 sr) per texel (colour  |
+    |                    |           |         | x strength folded into its gain); replaces     |
+    |                    |           |         | `emission`                                     |
+    | metallic_texture   | Texture   | None    | metallic per texel (its first channel)         |
+    | roughness_texture  | Texture   | None    | roughness per texel (its first channel)        |
+
+    The per-texel textures other than the base colour's are resolved per triangle by
+    `shading/material_maps.py` before a kernel runs (a snapshot does it): metallic and roughness
+    into material variants of constant values, emission into `Scene.triangle_radiance`.
     """
 
     name: str
@@ -97,12 +124,15 @@ class Material:
     bump_strength: float = 1.0
     bump_distance: float = 1.0
     metal_color: np.ndarray | None = None
+    emission_texture: Texture | None = None
+    metallic_texture: Texture | None = None
+    roughness_texture: Texture | None = None
     # What the bridge could not model on this material, one reason per entry.
     ignored: tuple[str, ...] = ()
 
     @property
     def is_emissive(self) -> bool:
-        return bool(np.any(self.emission > 0.0))
+        return self.emission_texture is not None or bool(np.any(self.emission > 0.0))
 
 
 @dataclass(frozen=True, eq=False)
@@ -228,6 +258,9 @@ class Scene:
     # Mapping node turning it); None: along d
     world_transform: np.ndarray | None = None
     generated: np.ndarray | None = None
+    # (T, 3) float64 emitted radiance W/(m^2 sr) per triangle where a material's emission comes
+    # from a texture (its mean over the triangle, `shading/material_maps.py`); None: per material
+    triangle_radiance: np.ndarray | None = None
 
     @cached_property
     def texture_coords(self) -> np.ndarray:
@@ -254,7 +287,10 @@ class Scene:
 
 
 def triangle_emission(scene: Scene) -> np.ndarray:
-    """(T, 3) float64 emitted radiance L_e of each triangle's material, W/(m^2 sr)."""
+    """(T, 3) float64 emitted radiance L_e of each triangle, W/(m^2 sr): its material's, or the
+    mean of its emission texture over the triangle (`Scene.triangle_radiance`)."""
+    if scene.triangle_radiance is not None:
+        return scene.triangle_radiance
     table = np.array([np.asarray(m.emission, np.float64) for m in scene.materials]).reshape(-1, 3)
     return table[scene.material_ids]
 

@@ -69,12 +69,12 @@ def exchanging_triangles(scene: Scene) -> np.ndarray:
     glass, black paint) send nothing and their B is 0: they are solved without, one idle patch
     per triangle, and stay occluders (all of them when none exchanges)."""
     mats = scene.materials
-    emits = np.array([np.any(np.asarray(m.emission) > 0.0) for m in mats], bool)
+    emits = np.any(triangle_emission(scene) > 0.0, axis=1)  # (T,): a texture's black parts do not
     coloured = [m.base_color_texture is not None or np.any(np.asarray(m.base_color) > 0.0)
                 for m in mats]
     reflects = np.array([diffuse_weight(m) > 0.0 and c for m, c in zip(mats, coloured, strict=True)],
                         bool)
-    out = (emits | reflects)[scene.material_ids] if mats else np.ones(scene.triangle_count, bool)
+    out = emits | reflects[scene.material_ids] if mats else np.ones(scene.triangle_count, bool)
     return out if out.any() else np.ones(scene.triangle_count, bool)
 
 

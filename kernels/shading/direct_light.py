@@ -30,6 +30,7 @@ from ..shadow.shadowmap import Receivers, ShadowMap, ShadowMapSettings
 from ..shadow.views import fit_sun, plan_shadow_map, potential_casters
 from . import lights as light_units
 from .bump import scene_normals
+from .material_maps import emission_at
 from .specular_layer import diffuse_factor, lamp_highlights, view_factors, view_tables
 from .textures import sample_texture
 
@@ -286,7 +287,7 @@ def _shade(scene: Scene, maps: list, f) -> np.ndarray:
     base = albedo_at(scene, tri, bary)
     albedo = base * weight[:, None]
     f0 = metal_f0(scene, tri, base)
-    emission = np.array([m.emission for m in scene.materials], np.float64)[scene.material_ids[tri]]
+    emission = emission_at(scene, tri, bary)
     # The rough lobes' highlights (a layer's, a metal's), as Cycles' direct-light render draws
     # them (lights as points).
     shine = np.zeros_like(points)

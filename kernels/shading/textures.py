@@ -128,8 +128,9 @@ def checker_box(lo: np.ndarray, hi: np.ndarray, color1: np.ndarray, color2: np.n
 def sample_texture_box(texture: Texture, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     """RGB (N, 3) of a texture averaged over boxes [lo, hi] (N, 2 or 3): exact for the checker;
     images are sampled (bilinear) at the box centre, which suits boxes up to about a texel."""
-    if texture.kind == "CHECKER":
-        return checker_box(lo, hi, texture.color1, texture.color2, texture.scale)
+    if texture.kind == "CHECKER" and texture.uv_transform is None:
+        mean = checker_box(lo, hi, texture.color1, texture.color2, texture.scale)
+        return node_chain(texture, mean).astype(np.float64) if texture.transformed else mean
     return sample_texture(texture, 0.5 * (np.asarray(lo) + np.asarray(hi))).astype(np.float64)
 
 
@@ -142,9 +143,35 @@ def srgb_to_linear(c: np.ndarray) -> np.ndarray:
 def sample_texture(texture: Texture, uv: np.ndarray) -> np.ndarray:
     """RGB (N, 3) float32 linear of a kernel `Texture` at coordinates (N, 2) or (N, 3) (an image
     reads the first two): an sRGB-encoded image is interpolated as stored and decoded
-    afterwards, as Cycles does."""
+    afterwards, as Cycles does; then the texture's node chain (`Texture.weights`, `gain`,
+    `offset`, `clamp`) applies."""
+    uv = np.asarray(uv)
+    if texture.uv_transform is not None:
+        a = np.asarray(texture.uv_transform, np.float64)
+        moved = uv.astype(np.float64, copy=True)
+        moved[:, :2] = uv[:, :2] @ a[:, :2].T + a[:, 2]
+        uv = moved
     if texture.kind == "CHECKER":
-        return checker(uv, texture.color1, texture.color2, texture.scale)
-    uv = np.asarray(uv)[:, :2]
-    rgb = sample_image(texture.pixels, uv, texture.extension, texture.interpolation)[:, :3]
-    return srgb_to_linear(rgb).astype(np.float32) if texture.encoding == "sRGB" else rgb
+        rgba = checker(uv, texture.color1, texture.color2, texture.scale)
+    else:
+        rgba = sample_image(texture.pixels, uv[:, :2], texture.extension, texture.interpolation)
+        if texture.encoding == "sRGB":
+            rgba[:, :3] = srgb_to_linear(rgba[:, :3])
+    if not texture.transformed:
+        return np.ascontiguousarray(rgba[:, :3])
+    return node_chain(texture, rgba)
+
+
+def node_chain(texture: Texture, rgba: np.ndarray) -> np.ndarray:
+    """What the texture's node chain makes of looked-up colours (N, 3 or 4) (alpha 1 where
+    absent): its weights, gain, offset and clamp (`Texture`). Returns (N, 3) float32."""
+    if texture.weights is None:
+        value = rgba[:, :3]
+    else:
+        w = np.asarray(texture.weights, np.float64)
+        one = rgba[:, :3] @ w[:3] + (rgba[:, 3] * w[3] if rgba.shape[1] > 3 else w[3])
+        value = np.repeat(one[:, None], 3, axis=1)
+    value = value * texture.gain + texture.offset
+    if texture.clamp:
+        value = np.clip(value, 0.0, 1.0)
+    return value.astype(np.float32)

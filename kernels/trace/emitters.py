@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..bake.camera_view import stratified_offsets
-from ..geometry.scene import Light, Scene, geometric_normals
+from ..geometry.scene import Light, Scene, geometric_normals, triangle_emission
 from ..shading import lights as light_units
 
 if TYPE_CHECKING:
@@ -48,7 +48,7 @@ def mesh_light_samples(scene: Scene, tri_ids: np.ndarray, n: int
     tris = scene.triangles[tri_ids].astype(np.float64)
     ng = geometric_normals(tris)
     area = 0.5 * np.linalg.norm(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]), axis=1)
-    radiance = np.stack([scene.materials[m].emission for m in scene.material_ids[tri_ids]])
+    radiance = triangle_emission(scene)[tri_ids]
     if len(tri_ids) <= MESH_LIGHT_TRIANGLES:
         st = stratified_offsets(n)
         fold = st[:, 0] + st[:, 1] > 1.0
@@ -90,9 +90,9 @@ def scene_emitters(scene: Scene, settings: TracerSettings) -> Emitters:
         two_sided.append(np.zeros(len(samples), bool))
         local.append(np.arange(len(samples)))
         count.append(np.full(len(samples), len(samples)))
-    emissive = [k for k, m in enumerate(scene.materials) if m.is_emissive]
-    if emissive:
-        tri_ids = np.nonzero(np.isin(scene.material_ids, emissive))[0]
+    # Emissive triangles (an emission texture's black parts are not lights).
+    tri_ids = np.flatnonzero(np.any(triangle_emission(scene) > 0.0, axis=1))
+    if len(tri_ids):
         for obj in np.unique(scene.object_ids[tri_ids]):
             own = tri_ids[scene.object_ids[tri_ids] == obj]
             pts, ng, radiance_da, index, per_emitter = mesh_light_samples(scene, own, n)

@@ -10,6 +10,7 @@ import numpy as np
 from ..geometry.camera import Camera, camera_ray_lines
 from ..geometry.scene import Scene
 from ..shading.bump import scene_normals, valid_reflection
+from ..shading.material_maps import emission_at
 from ..shading.textures import sample_texture, sample_texture_box
 
 # Shading normals are renormalised; below this length (degenerate corner normals) the geometric
@@ -30,6 +31,7 @@ class SurfaceHits:
     front: np.ndarray  # (N,) bool: the ray hit the triangle's front face
     material: np.ndarray  # (N,) int32
     albedo: np.ndarray  # (N, 3) base colour (textured)
+    emission: np.ndarray  # (N, 3) emitted radiance W/(m^2 sr) (textured: `material_maps`)
     # (N, 3) the shading normal before the relief (facing the incoming ray), for the bump
     # shadowing term (`bump.bump_shadowing`); None when no relief is shaded
     smooth: np.ndarray | None = None
@@ -168,4 +170,5 @@ def surface_at(scene: Scene, tri_normals, origins, dirs, hits, shading: str = "b
             cuv = scene.texture_coords[tri]
             uv = w * cuv[:, 0] + u * cuv[:, 1] + v * cuv[:, 2]
         albedo[rows] = sample_texture(mat.base_color_texture, uv[rows])
-    return SurfaceHits(p, ng, ns, front, material, albedo, smooth)
+    emission = emission_at(scene, tri, np.concatenate([w, u, v], axis=1))
+    return SurfaceHits(p, ng, ns, front, material, albedo, emission, smooth)

@@ -108,7 +108,6 @@ class Tracer:
         self.specular = np.array([m.specular for m in mats])
         self.layer_tables = view_tables(mats)
         self.metal_tables = metal_tables(mats)
-        self.emission = np.array([m.emission for m in mats], np.float64).reshape(-1, 3)
         self.textured = np.array([m.base_color_texture is not None for m in mats], bool)
         self.black = np.array([m.base_color_texture is None and not np.any(m.base_color > 0)
                                for m in mats], bool)
@@ -195,7 +194,7 @@ class Tracer:
             n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), MIN_NORMAL_LENGTH)
             wo = eye - p
             wo /= np.maximum(np.linalg.norm(wo, axis=1, keepdims=True), 1e-12)
-            corner = SurfaceHits(p, h.ng, n, h.front, h.material, h.albedo)
+            corner = SurfaceHits(p, h.ng, n, h.front, h.material, h.albedo, h.emission)
             lit_k, lambert_k = self.direct(corner, wo, diffuse_w, lobes, rough, strata)
             lit += w[:, None] * lit_k
             lambert += w[:, None] * lambert_k
@@ -436,7 +435,7 @@ class Tracer:
                                                    hit_strata)
             else:
                 lit, lambert = self.direct(h, wo, lit_w, lobes, rough, hit_strata)
-            own = self.emission[m] + lit
+            own = h.emission + lit
             smooth = rough < s.mirror_roughness
             # Mirror and refraction directions about the (smooth) shading normal, falling back to
             # the geometric normal where that would send the ray to the wrong side of the surface.

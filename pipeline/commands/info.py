@@ -44,6 +44,10 @@ def describe(scene) -> dict:
             # What a bake shows of the base under the specular layer (1 without one).
             "diffuse_under_layer": diffuse_factor(mat),
             "emission_radiance": mat.emission,
+            # Sockets read from textures (through their node chains), by texture name.
+            "textures": {socket: f"{t.kind}:{t.name}" for socket, t in (
+                ("emission", mat.emission_texture), ("metallic", mat.metallic_texture),
+                ("roughness", mat.roughness_texture)) if t is not None},
             "normal_map": None if mat.normal_texture is None else mat.normal_texture.name,
             "bump_height": None if mat.height_texture is None else mat.height_texture.name,
         })
@@ -147,6 +151,7 @@ def run(ctx: RunContext) -> None:
         scene = snapshot(resolution=ctx.resolution)
     summary = describe(scene)
     ctx.record.sizes = dict(summary["counts"])
+    ctx.record.extra["ignored"] = summary["ignored"]  # as every technique's run lists it
     ctx.staging.write_json("info.json", summary)
     _print(ctx, summary)
 

@@ -19,11 +19,12 @@ def output_name(name: str) -> str:
 
 def write_files(ctx: RunContext, summary) -> None:
     """render.exr/png when the job rendered the camera, then every file the job named (by
-    extension: .exr linear, .png a tone-mapped preview, .json data); with --save-blend the
+    extension: .exr linear, .png a tone-mapped preview, or the bytes as they are when the job
+    hands uint8 data, e.g. a normal map, .json data); with --save-blend the
     job's images are packed into the saved file."""
     from ...addon.bridge import write_back
     from ...kernels.measure.exr import write_exr
-    from ..images import write_preview_png
+    from ..images import write_png, write_preview_png
 
     if summary.render is not None:
         ctx.write_render(summary.render)
@@ -32,6 +33,8 @@ def write_files(ctx: RunContext, summary) -> None:
         safe = output_name(name)
         if safe.endswith(".json"):
             ctx.staging.write_json(safe, data)
+        elif safe.endswith(".png") and getattr(data, "dtype", None) == "uint8":
+            write_png(ctx.output(safe), data)
         elif safe.endswith(".png"):
             write_preview_png(ctx.output(safe), data)
         else:
@@ -68,6 +71,10 @@ def technique_command(technique) -> Command:
         ctx.record.extra.update(summary.extra)
         if summary.skipped:
             ctx.record.extra["skipped"] = summary.skipped
+        if summary.scene is not None:
+            # What the snapshot did not model (per material: each socket read from a default
+            # and why), in every run's metrics.json as in `info`.
+            ctx.record.extra["ignored"] = list(summary.scene.ignored)
         ctx.say(summary.message)
         for why in summary.skipped:
             ctx.say(f"  skipped: {why}")

@@ -181,6 +181,8 @@ def make_results(root: Path) -> dict:
             "charts": [f"charts/{chart.png.name}", f"charts/{chart.svg.name}"],
         },
         "outputs": ["bake.png", "bake.exr", "missing_output.png", "../../etc/passwd"],
+        "ignored": ["material 'Leaf': 'Emission Color' driven by a 'ShaderNodeVertexColor' node: "
+                    "colour attributes are not modelled; its default used"],
     }
     (full / "metrics.json").write_text(json.dumps(metrics), encoding="utf-8")
     minimal = root / "radiosity-box"
@@ -226,6 +228,8 @@ def test_report_lists_runs_numbers_and_existing_files_only(tmp_path):
     assert "missing_output.png (missing)" in page
     assert "outside the results folder" in page
     assert "broken-run/metrics.json: cannot be read" in page
+    # What the snapshot did not model, as metrics.json lists it.
+    assert "Not modelled" in page and "colour attributes are not modelled; its default used" in page
     # The summary links to both run sections.
     assert 'href="#run-1"' in page and 'href="#run-2"' in page
 

@@ -1,0 +1,160 @@
+"""Material maps beyond the base colour: emission, metallic and roughness read from textures.
+
+Real assets (glTF, FBX, texture libraries) drive a Principled BSDF's Emission Color, Metallic and
+Roughness with image textures (glTF packs metallic in the blue and roughness in the green channel
+of one image). The kernels model the base colour per texel everywhere; these three are resolved
+here once per snapshot, so that every kernel reads them as it reads a constant material:
+
+* emission: per hit where a camera view sees the surface (`emission_at`, texel-exact), and per
+  triangle as a light (`Scene.triangle_radiance`: the texture's mean over the triangle, what the
+  tracer's mesh lights and radiosity's sources emit); triangles whose mean is black emit nothing
+  and cost no shadow rays;
+* metallic and roughness: per triangle, the texture's mean over the triangle rounded to
+  `METALLIC_STEP` / `ROUGHNESS_STEP`, each distinct pair a variant of the material with those
+  constants (`resolve_material_maps`). Within one triangle they do not vary: a mesh whose metal
+  mask changes inside large triangles is shaded with the mask's mean there (each material's
+  variant count is listed in `Scene.ignored`).
+
+Coordinates are the texture's own: the active UVs, or Generated (`Texture.coordinates`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from ..geometry.scene import Material, Scene, Texture
+from .textures import sample_texture
+
+# Metallic and roughness per triangle are rounded to these steps before triangles are grouped
+# into material variants: finer than a glTF texture's 8-bit steps would make a variant per
+# triangle; 1/16 in roughness moves a GGX highlight's width by under 7% at roughness 0.5.
+METALLIC_STEP = 1.0 / 8.0
+ROUGHNESS_STEP = 1.0 / 16.0
+# Sub-triangles per side when a triangle's mean is taken: enough to average a texture over a
+# triangle that spans up to about MAX_SIDE^2 / 2 texels; a smaller one gets fewer.
+MAX_SIDE = 12
+
+
+def corner_coords(scene: Scene, tri: np.ndarray, texture: Texture) -> np.ndarray:
+    """(N, 3, 3) float64 per-corner coordinates of triangles `tri` that `texture` reads: (u, v, 0)
+    on the active UVs, or Generated."""
+    if texture.coordinates == "GENERATED" and scene.generated is not None:
+        return scene.generated[tri].astype(np.float64)
+    out = np.zeros((len(tri), 3, 3))
+    out[..., :2] = scene.uv[tri]
+    return out
+
+
+def lattice_points(n: int) -> np.ndarray:
+    """(n^2, 3) barycentric centroids of the n^2 equal sub-triangles of a triangle."""
+    points = []
+    for i in range(n):
+        for j in range(n - i):
+            points.append((i + 1.0 / 3.0, j + 1.0 / 3.0))  # an upright sub-triangle
+            if i + j < n - 1:
+                points.append((i + 2.0 / 3.0, j + 2.0 / 3.0))  # the inverted one beside it
+    st = np.array(points) / n
+    return np.column_stack([1.0 - st.sum(axis=1), st])
+
+
+def texels_covered(texture: Texture, coords: np.ndarray) -> np.ndarray:
+    """(N,) about how many texels (checker squares) a triangle's coordinates (N, 3, 3) cover."""
+    e1, e2 = coords[:, 1, :2] - coords[:, 0, :2], coords[:, 2, :2] - coords[:, 0, :2]
+    area = 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+    if texture.kind == "CHECKER":
+        return area * texture.scale ** 2
+    height, width = texture.pixels.shape[:2]
+    return area * width * height
+
+
+def triangle_means(scene: Scene, tri: np.ndarray, texture: Texture) -> np.ndarray:
+    """(N, 3) float64 mean of `texture` over each triangle of `tri`: the value at the centroids of
+    n^2 sub-triangles, n from the texels the triangle covers (1 to MAX_SIDE)."""
+    coords = corner_coords(scene, tri, texture)
+    side = np.clip(np.ceil(np.sqrt(2.0 * texels_covered(texture, coords))), 1, MAX_SIDE).astype(int)
+    out = np.empty((len(tri), 3))
+    for n in np.unique(side):
+        rows = np.flatnonzero(side == n)
+        bary = lattice_points(int(n))  # (K, 3)
+        points = np.einsum("kc,ncj->nkj", bary, coords[rows]).reshape(-1, 3)
+        values = sample_texture(texture, points).reshape(len(rows), len(bary), 3)
+        out[rows] = values.mean(axis=1)
+    return out
+
+
+def emission_at(scene: Scene, tri: np.ndarray, bary: np.ndarray) -> np.ndarray:
+    """(N, 3) float64 emitted radiance W/(m^2 sr) at barycentric points (N, 3) of triangles
+    `tri`: the material's constant, or its emission texture looked up there."""
+    mids = scene.material_ids[tri]
+    out = np.zeros((len(tri), 3))
+    for m in np.unique(mids):
+        rows = mids == m
+        mat = scene.materials[m]
+        if mat.emission_texture is None:
+            out[rows] = mat.emission
+            continue
+        coords = corner_coords(scene, tri[rows], mat.emission_texture)
+        out[rows] = sample_texture(mat.emission_texture,
+                                   np.einsum("nc,ncj->nj", bary[rows], coords))
+    return out
+
+
+def _quantised(values: np.ndarray, step: float) -> np.ndarray:
+    return np.clip(np.round(values / step) * step, 0.0, 1.0)
+
+
+def resolve_material_maps(scene: Scene) -> Scene:
+    """The scene with its materials' emission, metallic and roughness textures resolved per
+    triangle (module docstring); the same scene when no material has one."""
+    textured = [k for k, m in enumerate(scene.materials)
+                if m.emission_texture is not None or m.metallic_texture is not None
+                or m.roughness_texture is not None]
+    if not textured or scene.triangle_count == 0:
+        return scene
+    materials = list(scene.materials)
+    material_ids = scene.material_ids.copy()
+    radiance = None
+    notes = list(scene.ignored)
+    for k in textured:
+        mat = scene.materials[k]
+        tri = np.flatnonzero(scene.material_ids == k)
+        if mat.emission_texture is not None:
+            if radiance is None:
+                radiance = np.array([np.asarray(m.emission, np.float64) for m in materials]
+                                    ).reshape(-1, 3)[scene.material_ids]
+            radiance[tri] = np.maximum(triangle_means(scene, tri, mat.emission_texture), 0.0)
+        if mat.metallic_texture is None and mat.roughness_texture is None:
+            continue
+        metal = np.full(len(tri), mat.metallic)
+        rough = np.full(len(tri), mat.roughness)
+        if mat.metallic_texture is not None:
+            metal = _quantised(triangle_means(scene, tri, mat.metallic_texture)[:, 0],
+                               METALLIC_STEP)
+        if mat.roughness_texture is not None:
+            rough = _quantised(triangle_means(scene, tri, mat.roughness_texture)[:, 0],
+                               ROUGHNESS_STEP)
+        pairs, which = np.unique(np.column_stack([metal, rough]), axis=0, return_inverse=True)
+        which = which.reshape(-1)
+        ids = []
+        for j, (m_value, r_value) in enumerate(pairs):
+            variant = replace(mat, metallic=float(m_value), roughness=float(r_value),
+                              metallic_texture=None, roughness_texture=None)
+            if j == 0:
+                materials[k] = variant
+                ids.append(k)
+            else:
+                materials.append(replace(variant, name=f"{mat.name} ({j})"))
+                ids.append(len(materials) - 1)
+        material_ids[tri] = np.asarray(ids, np.int32)[which]
+        notes.append(f"material '{mat.name}': metallic / roughness textures resolved per triangle "
+                     f"into {len(pairs)} variants (steps {METALLIC_STEP:g} / {ROUGHNESS_STEP:g})")
+    return replace(scene, materials=tuple(materials), material_ids=material_ids,
+                   triangle_radiance=radiance, ignored=tuple(notes))
+
+
+def material_with_maps(material: Material) -> bool:
+    """True when `material` has a texture that `resolve_material_maps` resolves."""
+    return (material.emission_texture is not None or material.metallic_texture is not None
+            or material.roughness_texture is not None)
