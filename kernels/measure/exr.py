@@ -18,10 +18,13 @@ import numpy as np
 CHANNEL_NAMES = {1: ("Y",), 3: ("R", "G", "B"), 4: ("R", "G", "B", "A")}
 
 
-def write_exr(path: str | os.PathLike, pixels: np.ndarray, *, half: bool = False) -> None:
+def write_exr(path: str | os.PathLike, pixels: np.ndarray, *, half: bool = False,
+              header: dict | None = None) -> None:
     """Write (H, W), (H, W, 1), (H, W, 3) or (H, W, 4) pixels to `path` (ZIP compression).
 
     `half` stores 16-bit floats (smaller files, lossy); the default float32 round-trips bit-exactly.
+    `header` adds (or overrides) header attributes as the `OpenEXR` package spells them, e.g.
+    {"envmap": OpenEXR.ENVMAP_CUBE}; None writes the default header alone.
     """
     import OpenEXR
 
@@ -33,8 +36,9 @@ def write_exr(path: str | os.PathLike, pixels: np.ndarray, *, half: bool = False
     dtype = np.float16 if half else np.float32
     names = CHANNEL_NAMES[pixels.shape[2]]
     channels = {n: np.ascontiguousarray(pixels[:, :, k], dtype=dtype) for k, n in enumerate(names)}
-    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
-    with OpenEXR.File(header, channels) as f:
+    attributes = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    attributes.update(header or {})
+    with OpenEXR.File(attributes, channels) as f:
         f.write(os.fspath(path))
 
 
