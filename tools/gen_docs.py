@@ -49,9 +49,10 @@ TECHNIQUES: dict[str, dict[str, tuple[str, ...]]] = {
                   "benches": ("shadowmap",)},
     "trace": {"settings": ("TracerSettings",), "benches": ("trace", "rays")},
     "radiosity": {"settings": ("RadiositySettings",), "benches": ("radiosity",)},
+    "normalmap": {"settings": ("NormalMapSettings",), "benches": ("normalmap",)},
 }
 # Every bench, in the order bench/README.md describes them (the Makefile's BENCHES).
-BENCHES = ("rays", "trace", "texture", "envmap", "bump", "shadowmap", "radiosity")
+BENCHES = ("rays", "trace", "texture", "envmap", "bump", "shadowmap", "radiosity", "normalmap")
 
 BLOCK = re.compile(r"<!-- BEGIN (?P<kind>[a-z]+)(?: (?P<arg>[a-z0-9_-]+))? -->\n"
                    r"(?P<body>.*?)"

@@ -26,6 +26,8 @@ preallocated typed arrays. The conventions that differ between Blender and the k
 | world      | the world shader: uniform colour, radiance map (read, or rendered by Cycles) |
 | snapshot   | `snapshot`: the kernel `Scene` of the evaluated depsgraph                   |
 | write_back | images and colour attributes written back, materials wired to show them     |
+| normal_maps| normal-map images (Non-Color), UV charts of evaluated meshes, the Normal   |
+|            | Map wiring of materials and its undo                                        |
 
 This facade re-exports the public names for callers that use `bridge.<name>`; `bridge.snapshot`
 is therefore the function (`from .bridge.snapshot import ...` reaches the module). No module of

@@ -60,6 +60,8 @@ from typing import Any
 COMBINED_PASS = "Combined"
 RENDER_PASSES: dict[str, tuple[str, tuple[str, ...]]] = {
     "DiffCol": ("use_pass_diffuse_color", ("DiffCol", "Diffuse Color")),
+    # The shading normal (world space, after Bump and Normal Map nodes): normal maps' checks.
+    "Normal": ("use_pass_normal", ("Normal",)),
 }
 
 
@@ -91,7 +93,8 @@ class CyclesModel:
     | filter_width         | 0.01..10 px  | its width; BOX 1.0 = the average over the pixel        |
     | seed                 | >= 0         | Cycles' seed (convergence chunks use seed, seed+1, ...) |
     | render_pass          | "Combined" / | what `render_camera` returns: the combined image, or   |
-    |                      | RENDER_PASSES| that render pass (e.g. "DiffCol", the diffuse colour)  |
+    |                      | RENDER_PASSES| that render pass (e.g. "DiffCol", the diffuse colour;  |
+    |                      |              | "Normal", the world-space shading normal)              |
     """
 
     name: str

@@ -16,7 +16,7 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[2]
 TOOL = REPO / "tools" / "gen_docs.py"
-TECHNIQUE_PAGES = ("texture", "envmap", "bump", "shadowmap", "trace", "radiosity")
+TECHNIQUE_PAGES = ("texture", "envmap", "bump", "shadowmap", "trace", "radiosity", "normalmap")
 MACHINE_PATH = re.compile(r"(?<![\w.])/(?:work|tmp|home|root|Users)/")
 
 
