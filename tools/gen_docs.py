@@ -43,16 +43,18 @@ BENCH_OUT = REPO / "out" / "bench"
 # classes are looked up in classic_bake.kernels) and which benches measure it (out/bench/NAME.json).
 TECHNIQUES: dict[str, dict[str, tuple[str, ...]]] = {
     "texture": {"settings": ("TextureBakeSettings", "LightmapUVSettings"), "benches": ("texture",)},
-    "envmap": {"settings": ("EnvMapSettings",), "benches": ("envmap",)},
+    "envmap": {"settings": ("EnvMapSettings", "PrefilterSettings"), "benches": ("envmap",)},
     "bump": {"settings": ("TracerSettings",), "benches": ("bump",)},
     "shadowmap": {"settings": ("ShadowMapSettings", "DirectLightSettings"),
                   "benches": ("shadowmap",)},
     "trace": {"settings": ("TracerSettings",), "benches": ("trace", "rays")},
     "radiosity": {"settings": ("RadiositySettings",), "benches": ("radiosity",)},
+    "hybrid": {"settings": ("HybridSettings",), "benches": ("hybrid",)},
     "normalmap": {"settings": ("NormalMapSettings",), "benches": ("normalmap",)},
 }
 # Every bench, in the order bench/README.md describes them (the Makefile's BENCHES).
-BENCHES = ("rays", "trace", "texture", "envmap", "bump", "shadowmap", "radiosity", "normalmap")
+BENCHES = ("rays", "trace", "texture", "envmap", "bump", "shadowmap", "radiosity", "hybrid",
+           "normalmap")
 
 BLOCK = re.compile(r"<!-- BEGIN (?P<kind>[a-z]+)(?: (?P<arg>[a-z0-9_-]+))? -->\n"
                    r"(?P<body>.*?)"

@@ -4,7 +4,8 @@ Every Classic Bake technique is measured against Cycles computing the SAME quant
 
 | module      | what it holds                                                              |
 |-------------|----------------------------------------------------------------------------|
-| models      | `CyclesModel` and the four models (`whitted`, `radiosity`, `direct`, `albedo`) |
+| models      | `CyclesModel` and the models (`whitted`, `radiosity`, `direct`, `albedo`, and  |
+|             | `global_illumination`)                                                     |
 | settings    | `configure`, `matched_scene`, `SettingsLog`: a scene set up for a model and put back |
 | runner      | camera renders (`render_camera`, `warm_up`) read back through float32 OpenEXR |
 | world_map   | the world shader rendered alone into an equirectangular map (`render_world_map`) |
@@ -31,7 +32,17 @@ from .bakes import (
 from .cache import CACHE_FORMAT, Reference, cache_key, file_sha256, reference
 from .convergence import MAX_SAMPLES, START_SAMPLES, TARGET_REL_MSE, converged_run
 from .ladder import doubling_counts, ladder_step, sample_ladder
-from .models import COMBINED_PASS, MODELS, RENDER_PASSES, CyclesModel, albedo, direct, radiosity, whitted
+from .models import (
+    COMBINED_PASS,
+    MODELS,
+    RENDER_PASSES,
+    CyclesModel,
+    albedo,
+    direct,
+    global_illumination,
+    radiosity,
+    whitted,
+)
 from .runner import EXR_OUTPUT, MULTILAYER_EXR_OUTPUT, render_camera, warm_up
 from .runs import BakeSpec, CyclesRun, ReferenceKind, run_cycles
 from .settings import AREA_POINT_SIZE, FIXED_SETTINGS, TEMP_PREFIX, SettingsLog, configure, matched_scene
@@ -44,6 +55,7 @@ __all__ = [
     "WORLD_MAP_SIZE", "BakeSpec", "BakeType", "CyclesModel", "CyclesRun", "Reference",
     "ReferenceKind", "SettingsLog", "albedo", "bake_color_attributes", "bake_lightmaps",
     "cache_key", "configure", "converged_run", "direct", "doubling_counts", "file_sha256",
-    "ladder_step", "matched_scene", "radiosity", "reference", "render_camera", "render_world_map",
+    "global_illumination", "ladder_step", "matched_scene", "radiosity", "reference",
+    "render_camera", "render_world_map",
     "run_cycles", "sample_ladder", "warm_up", "whitted",
 ]

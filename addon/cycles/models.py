@@ -150,6 +150,17 @@ def radiosity(diffuse_bounces: int = 32, *, world_lighting: bool = False,
                        world_lighting=world_lighting, seed=seed)
 
 
+def global_illumination(depth: int = 16, *, caustics: bool = False, world_lighting: bool = False,
+                        seed: int = 0) -> CyclesModel:
+    """Full global illumination: diffuse, glossy and transmission bounces to `depth`, the
+    two-pass renderer's reference (kernels/hybrid/). `caustics` on adds the paths neither pass
+    carries (lamp -> mirror or glass -> diffuse), to measure their share."""
+    return CyclesModel(name="global_illumination", max_bounces=depth, diffuse_bounces=depth,
+                       glossy_bounces=depth, transmission_bounces=depth,
+                       caustics_reflective=caustics, caustics_refractive=caustics,
+                       world_lighting=world_lighting, seed=seed)
+
+
 def direct(*, area_lights_as_points: bool = True, world_lighting: bool = False,
            seed: int = 0) -> CyclesModel:
     """Direct light only (kernels/shading/direct_light.py: shadow maps): no bounce at all, area lights
@@ -169,4 +180,5 @@ def albedo(seed: int = 0) -> CyclesModel:
 
 MODELS: dict[str, Callable[..., CyclesModel]] = {
     "whitted": whitted, "radiosity": radiosity, "direct": direct, "albedo": albedo,
+    "global_illumination": global_illumination,
 }

@@ -51,12 +51,18 @@ from .surface import MIN_NORMAL_LENGTH, Footprint, SurfaceHits, filtered_albedo,
 # Emitter samples handled together in area lighting: B x hits arrays stay a few MB per block for
 # a typical wavefront of ~100k hits.
 EMITTER_BLOCK = 8
+# Below this base colour a hit's white-base diffuse share (edge detection only) is not divided out.
+ALBEDO_FLOOR = 1e-3
 # Edge sub-samples traced per wavefront: large enough to amortise per-call work, small enough that
 # a wavefront's hit records (~1 KB per ray over its depths) stay a few hundred MB at most.
 EDGE_WAVEFRONT = 1 << 18
 # An environment map read for reflected rays: (N, 3) world points, (N, 3) unit directions ->
 # (N, 3) radiance W/(m^2 sr) arriving at the points along the directions.
 EnvironmentLookup = Callable[[np.ndarray, np.ndarray], np.ndarray]
+# Diffuse light from elsewhere (the two-pass renderer's radiosity solution): (N,) triangles,
+# (N, 3) barycentrics, (N, 3) unit ray directions towards the points, (N,) bool front side ->
+# (N, 3) radiance W/(m^2 sr) the points reflect diffusely toward the ray, shadows included.
+DiffuseLookup = Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], np.ndarray]
 # Rays that are sub-samples of pixels: (stratum of each ray (N,) int, number of strata m).
 Strata = tuple[np.ndarray, int]
 
@@ -75,7 +81,7 @@ class Tracer:
 
     def __init__(self, scene: Scene, bvh: BVH, settings: TracerSettings,
                  environment: Mapping[int, EnvironmentLookup] | None = None,
-                 shadow_bvh: BVH | None = None):
+                 shadow_bvh: BVH | None = None, diffuse: DiffuseLookup | None = None):
         self.scene = scene
         self.bvh = bvh
         # Shadow rays may test other geometry than the rays that see: a cube map's faces see
@@ -85,6 +91,10 @@ class Tracer:
         # Environment mapping: object index -> lookup(points, directions) -> radiance, each (N, 3).
         # Mirror reflections off those objects read the lookup instead of spawning rays.
         self.environment = dict(environment or {})
+        # Two-pass rendering: the diffuse reflection at every hit read from `diffuse` (a
+        # radiosity solution, kernels/hybrid/) instead of lit by shadow rays; the glossy lobes'
+        # highlights and the mirror and glass rays stay the tracer's.
+        self.diffuse = diffuse
         self.offset = settings.offset_scale * _scene_scale(scene)
         self.tri_normals = geometric_normals(scene.triangles)
         self.emitters = scene_emitters(scene, settings)
@@ -430,11 +440,20 @@ class Tracer:
             if untextured is not None and depth == 0:
                 dark &= self.black[m]
             lit_w = np.where(dark, 0.0, diffuse_w)
+            if self.diffuse is not None:
+                lit_w = np.zeros_like(lit_w)  # the solution's diffuse light replaces it below
             if s.shading == "gouraud":
                 lit, lambert = self.gouraud_direct(h, hits, origins, lit_w, lobes, rough,
                                                    hit_strata)
             else:
                 lit, lambert = self.direct(h, wo, lit_w, lobes, rough, hit_strata)
+            if self.diffuse is not None:
+                u, v = hits.u.astype(np.float64), hits.v.astype(np.float64)
+                bary = np.stack([1.0 - u - v, u, v], axis=1)
+                reflected = self.diffuse(hits.tri, bary, dirs, h.front)
+                lit = lit + reflected
+                # A white base's share, for edge detection (the `untextured` image).
+                lambert = reflected / np.maximum(h.albedo, ALBEDO_FLOOR)
             own = h.emission + lit
             smooth = rough < s.mirror_roughness
             # Mirror and refraction directions about the (smooth) shading normal, falling back to
@@ -507,19 +526,20 @@ class Tracer:
 
 def trace_steps(scene: Scene, settings: TracerSettings, bvh: BVH | None = None,
                 resolution: tuple[int, int] | None = None, out: np.ndarray | None = None,
-                environment: Mapping[int, EnvironmentLookup] | None = None
-                ) -> Steps[TraceResult]:
+                environment: Mapping[int, EnvironmentLookup] | None = None,
+                diffuse: DiffuseLookup | None = None) -> Steps[TraceResult]:
     """Trace the scene camera's view; yields progress in [0, 1), returns the `TraceResult`.
 
     resolution: (W, H) pixels, default the camera's. out: optional (H, W, 3) float32 buffer.
     environment: object index -> radiance lookup(points, directions), each (N, 3); those
-    objects' mirror reflections read it instead of tracing rays (`envmap.py`).
+    objects' mirror reflections read it instead of tracing rays (`envmap.py`). diffuse: the
+    diffuse light at every hit read from elsewhere (`DiffuseLookup`; kernels/hybrid/).
     """
     if scene.camera is None:
         raise ValueError("the scene has no camera to trace from")
     width, height = resolution or scene.camera.resolution
     bvh = bvh or BVH.build(scene.triangles)
-    tracer = Tracer(scene, bvh, settings, environment)
+    tracer = Tracer(scene, bvh, settings, environment, diffuse=diffuse)
     image = out if out is not None else np.empty((height, width, 3), np.float32)
     n = settings.supersample
     passes = n * n

@@ -16,7 +16,8 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[2]
 TOOL = REPO / "tools" / "gen_docs.py"
-TECHNIQUE_PAGES = ("texture", "envmap", "bump", "shadowmap", "trace", "radiosity", "normalmap")
+TECHNIQUE_PAGES = ("texture", "envmap", "bump", "shadowmap", "trace", "radiosity", "hybrid",
+                   "normalmap")
 MACHINE_PATH = re.compile(r"(?<![\w.])/(?:work|tmp|home|root|Users)/")
 
 

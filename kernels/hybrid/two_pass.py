@@ -1,0 +1,106 @@
+"""The two-pass renderer: "radiosity and ray tracing are complementary to each other".
+
+Pass 1 (view-independent) solves the scene's radiosity: diffuse interreflection, colour bleeding,
+the lamps' direct light at every patch, read out per point by the final gather
+(`kernels/radiosity/`). Pass 2 (per view) is the Whitted tracer from the eye (`kernels/trace/`):
+mirror and refraction rays, the glossy lobes' highlights, emission; at every diffuse hit, at the
+camera's first hit and behind mirrors and glass alike, the diffuse reflection is the pass-1
+solution at that point (`RadiosityResult.radiance_at`, rescaled to the view angle under the
+specular layer as Cycles' diffuse lobe darkens towards grazing) instead of the tracer's shadow
+rays. What the mirror ball and the glass show therefore carries the global illumination, and the
+walls carry their interreflection.
+
+What neither pass carries: light that leaves a lamp, meets a mirror or glass and then a diffuse
+surface (caustics: a mirror lighting a floor, light focused through glass). Radiosity treats
+mirrors and glass by their diffuse weight only (a chrome ball reflects nothing diffusely, so it
+is an occluder in pass 1), and the tracer's diffuse hits read pass 1. bench/hybrid.py measures
+that share against Cycles with caustics on and off.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..geometry.bvh import BVH
+from ..geometry.scene import Scene, interpolated_normals, triangle_emission
+from ..progress import Steps, scaled
+from ..radiosity.result import RadiosityResult
+from ..radiosity.settings import RadiositySettings
+from ..radiosity.solve import radiosity_steps
+from ..shading.specular_layer import view_factors, view_tables
+from ..trace.settings import TracerSettings, TraceStats
+from ..trace.tracer import trace_steps
+
+
+@dataclass(frozen=True)
+class HybridSettings:
+    """| field     | range             | default                | meaning                          |
+    |-----------|-------------------|------------------------|----------------------------------|
+    | radiosity | RadiositySettings | RadiositySettings()    | pass 1: the solve (patches, the  |
+    |           |                   |                        | final gather that reads it out)  |
+    | tracer    | TracerSettings    | TracerSettings()       | pass 2: depth, samples, edges    |
+    """
+
+    radiosity: RadiositySettings = field(default_factory=RadiositySettings)
+    tracer: TracerSettings = field(default_factory=TracerSettings)
+
+
+@dataclass(frozen=True, eq=False)
+class HybridResult:
+    """image (H, W, 3) float32 radiance; the pass-1 solution; pass 2's ray counts; seconds per
+    pass ({"radiosity": s, "trace": s})."""
+
+    image: np.ndarray
+    radiosity: RadiosityResult
+    trace_stats: TraceStats
+    seconds: dict
+
+
+def diffuse_lookup(scene: Scene, result: RadiosityResult):
+    """The tracer's `DiffuseLookup` reading the solution: the reflected part of B / pi at each
+    point, on the side the ray meets, rescaled from the view along the normal (what the texels
+    hold under the specular layer) to the ray's view angle."""
+    tables = view_tables(scene.materials)
+    layered = bool((tables < 1.0).any())
+    emission = triangle_emission(scene)
+
+    def lookup(tri: np.ndarray, bary: np.ndarray, dirs: np.ndarray, front: np.ndarray
+               ) -> np.ndarray:
+        tri = np.asarray(tri, np.int64)
+        out = np.zeros((len(tri), 3))
+        if front.any():
+            t, b = tri[front], bary[front]
+            reflected = result.radiance_at(t, b, reflected_only=True)
+            if layered:
+                mids = scene.material_ids[t]
+                normals = interpolated_normals(scene, t, b)
+                cos = np.abs(np.einsum("ij,ij->i", normals, dirs[front]))
+                reflected = reflected * (view_factors(tables, mids, cos) / tables[mids, -1])[:, None]
+            out[front] = reflected
+        back = ~front
+        if back.any():  # the tracer adds the emission of either side itself
+            out[back] = np.maximum(result.back_radiance_at(scene, tri[back], bary[back])
+                                   - emission[tri[back]], 0.0)
+        return out
+
+    return lookup
+
+
+def hybrid_steps(scene: Scene, settings: HybridSettings = HybridSettings(),  # noqa: B008
+                 resolution: tuple[int, int] | None = None) -> Steps[HybridResult]:
+    """Pass 1 then pass 2 (module docstring); yields progress in [0, 1], returns a `HybridResult`.
+    resolution: (W, H) pixels, default the camera's."""
+    if scene.camera is None:
+        raise ValueError("the scene has no camera to render from")
+    t0 = time.perf_counter()
+    bvh = BVH.build(scene.triangles)
+    solution = yield from scaled(radiosity_steps(scene, settings.radiosity, bvh), 0.0, 0.5)
+    t1 = time.perf_counter()
+    traced = yield from scaled(trace_steps(scene, settings.tracer, bvh, resolution,
+                                           diffuse=diffuse_lookup(scene, solution)), 0.5, 0.5)
+    t2 = time.perf_counter()
+    return HybridResult(image=traced.image, radiosity=solution, trace_stats=traced.stats,
+                        seconds={"radiosity": t1 - t0, "trace": t2 - t1})
