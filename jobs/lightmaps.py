@@ -14,6 +14,7 @@ from ..addon.bridge import mesh as bridge_mesh
 from ..addon.bridge import write_back
 from ..kernels.bake.lightmap_uv import LightmapUVSettings, lightmap_sizes
 from ..kernels.geometry.scene import triangle_areas
+from .file_names import unique_stems
 from .record import JobSummary, Option
 
 
@@ -108,9 +109,16 @@ def lightmap_uvs(context, uv_name: str, uv_settings):
     """Every renderable mesh's lightmap size at one texel density ({name: texels}), with lightmap
     UV layers `uv_name` created for the meshes that lack one; those layers are removed again if
     the block stops early (an error, or the job closed by Esc), so the scene is left as it was."""
-    objects = mesh_objects(context)
+    objects, unusable = [], []
+    for obj in mesh_objects(context):
+        why = bridge_mesh.object_problem(obj)
+        if why is None:
+            objects.append(obj)
+        else:  # the snapshot leaves it out too, and says so
+            unusable.append(f"'{obj.name}' {why}")
     if not objects:
-        raise ValueError("the scene has no mesh objects to bake")
+        raise ValueError("the scene has no mesh objects to bake" + (
+            f": {'; '.join(unusable)}" if unusable else ""))
     plan = lightmap_plan(objects, uv_settings)
     created = create_lightmap_uvs(objects, uv_name, uv_settings, plan)
     try:
@@ -159,10 +167,17 @@ def write_bakes(scene, bakes: dict, attribute: str, image_prefix: str, render_im
 
 
 def lightmap_files(summary: JobSummary, suffix: str, previews: bool = False) -> dict:
-    """The CLI's lightmap outputs: lightmaps/OBJECT_SUFFIX.exr (and .png with `previews`)."""
-    files = {}
+    """The CLI's lightmap outputs: lightmaps/OBJECT_SUFFIX.exr (and .png with `previews`), each
+    object's name made a safe file name unique among them (`unique_stems`: a hash suffix where
+    cleaning changed the name), the extension never cut; metrics.json maps object -> file
+    (`lightmap_files`)."""
+    tail = f"_{suffix}.exr"
+    stems = unique_stems(list(summary.lightmaps), reserve=len(tail))
+    files, where = {}, {}
     for name, (lightmap, _mask) in summary.lightmaps.items():
-        files[f"lightmaps/{name}_{suffix}.exr"] = lightmap
+        files[f"lightmaps/{stems[name]}{tail}"] = lightmap
+        where[name] = f"lightmaps/{stems[name]}{tail}"
         if previews:
-            files[f"lightmaps/{name}_{suffix}.png"] = lightmap
+            files[f"lightmaps/{stems[name]}_{suffix}.png"] = lightmap
+    summary.extra["lightmap_files"] = where
     return files

@@ -15,6 +15,14 @@ import numpy as np
 
 from .transforms import matrix_array
 
+# An object whose triangles together cover no more than this is skipped as having no area (scale
+# 0, or every face collapsed): it covers no texel, and xatlas charts nothing of it. 1 um^2.
+ZERO_AREA_M2 = 1e-12
+# Farther out than this from the origin a vertex is taken as broken: Blender stores an inf
+# coordinate as FLT_MAX (3.4e38), float32 keeps ~100 m of precision at 1e9 m, and xatlas loops for
+# minutes on such input. A million kilometres.
+MAX_COORDINATE_M = 1e9
+
 
 @dataclass
 class MeshChunk:
@@ -82,6 +90,46 @@ def mesh_uv(mesh, name: str | None) -> np.ndarray | None:
     uv = np.empty(len(mesh.loops) * 2, np.float32)
     layer.uv.foreach_get("vector", uv)
     return uv.reshape(-1, 2)
+
+
+def coordinates_problem(points: np.ndarray) -> str | None:
+    """Why world-space points (..., 3), m, are unusable (nan, inf, or beyond MAX_COORDINATE_M),
+    or None."""
+    if not np.isfinite(points).all():
+        return "has non-finite vertex coordinates (nan or inf)"
+    largest = float(np.abs(points).max()) if points.size else 0.0
+    if largest > MAX_COORDINATE_M:
+        return (f"has vertex coordinates out of range ({largest:.3g} m from the origin, beyond "
+                f"{MAX_COORDINATE_M:.0e} m: an infinite coordinate in the file?)")
+    return None
+
+
+def triangles_problem(corners: np.ndarray) -> str | None:
+    """Why triangles (T, 3, 3) world space, m, cannot be baked or traced, or None: no faces,
+    a nan or inf coordinate (xatlas would loop for minutes; the BVH would be meaningless),
+    coordinates too large to square, or no area at all."""
+    if corners.shape[0] == 0:
+        return "has no faces"
+    why = coordinates_problem(corners)
+    if why is not None:
+        return why
+    c = corners.astype(np.float64)
+    with np.errstate(over="ignore", invalid="ignore"):
+        area = 0.5 * np.linalg.norm(np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]), axis=1).sum()
+    if area <= ZERO_AREA_M2:
+        return f"has no surface area ({area:.3g} m^2: scale 0 or every face collapsed)"
+    return None
+
+
+def object_problem(obj) -> str | None:
+    """Why mesh object `obj` (its own mesh in world space, modifiers not applied) cannot be given
+    lightmap UVs or baked, or None (`triangles_problem`)."""
+    verts, _, _, _ = mesh_triangles(obj.data)
+    matrix = matrix_array(obj.matrix_world)
+    with np.errstate(over="ignore", invalid="ignore"):
+        world = (mesh_positions(obj.data).astype(np.float64) @ matrix[:3, :3].T
+                 + matrix[:3, 3]).astype(np.float32)
+    return triangles_problem(world[verts])
 
 
 def generated_coordinates(positions: np.ndarray, texspace) -> np.ndarray:
@@ -192,7 +240,11 @@ def lightmap_loop_uv(obj, settings) -> tuple[np.ndarray, dict]:
     mesh = obj.data
     corner_verts, corner_loops, polys, _ = mesh_triangles(mesh)
     matrix = matrix_array(obj.matrix_world)
-    world = mesh_positions(mesh).astype(np.float64) @ matrix[:3, :3].T
+    with np.errstate(over="ignore", invalid="ignore"):
+        world = mesh_positions(mesh).astype(np.float64) @ matrix[:3, :3].T
+    why = coordinates_problem(world)
+    if why is not None:  # never handed to xatlas, which loops on them
+        raise ValueError(f"object '{obj.name}' {why}")
     result = unwrap(world, corner_verts, settings, polys)
     loop_uv = np.zeros((len(mesh.loops), 2), np.float32)
     flat_loops = corner_loops.ravel()

@@ -13,7 +13,7 @@ from ...kernels.shading.material_maps import resolve_material_maps
 from .camera import read_camera
 from .lights import read_light
 from .materials import DEFAULT_MATERIAL, MaterialReader
-from .mesh import MeshChunk, mesh_chunk
+from .mesh import MeshChunk, mesh_chunk, triangles_problem
 from .request import SnapshotRequest
 from .transforms import matrix_array
 from .world import read_world, read_world_texture, world_env_mapping
@@ -65,9 +65,15 @@ def snapshot(context=None, request: SnapshotRequest = DEFAULT_REQUEST,
             continue
         slot_materials = [slot.material for slot in obj.material_slots]
         original_mesh = source.data if source.type == "MESH" and not is_instance else None
-        chunks.append(mesh_chunk(name, source.name, is_instance, obj.data, matrix, request,
-                                  original_mesh, slot_materials,
-                                  source.data if source.type == "MESH" else None))
+        with np.errstate(over="ignore", invalid="ignore"):  # judged just below
+            chunk = mesh_chunk(name, source.name, is_instance, obj.data, matrix, request,
+                               original_mesh, slot_materials,
+                               source.data if source.type == "MESH" else None)
+        why = triangles_problem(chunk.triangles)
+        if why is not None:  # a partly usable scene: the object is left out, by name
+            ignored.append(f"object '{name}' {why}; skipped")
+            continue
+        chunks.append(chunk)
 
     # Materials: one table for the whole scene, in first-seen order; index 0 is the default surface.
     reader = MaterialReader(request)
@@ -88,6 +94,8 @@ def snapshot(context=None, request: SnapshotRequest = DEFAULT_REQUEST,
         chunk.slot_ids = np.where(in_range, table[np.minimum(chunk.slot_ids, table.size - 1)], 0)
     for mat in materials:
         ignored.extend(f"material '{mat.name}': {why}" for why in mat.ignored)
+    materials = [_checked_emission(mat, ignored) for mat in materials]
+    lights = [light for light in (_checked_light(light, ignored) for light in lights) if light]
 
     camera = None
     if request.camera:
@@ -104,6 +112,46 @@ def snapshot(context=None, request: SnapshotRequest = DEFAULT_REQUEST,
         _assemble(chunks, materials, lights, camera, world, request, ignored),
         world_texture=texture,
         world_transform=None if texture is None else world_env_mapping(scene)))
+
+
+# Radiometric values above this are taken as broken: Blender stores an inf strength as FLT_MAX
+# (3.4e38), whose products overflow float32 to inf in every buffer it reaches. 1e15 is eight
+# orders above the sun's radiance (~1.5e7 W/(m^2 sr)) and leaves float32 sums room.
+MAX_RADIOMETRIC = 1e15
+# The radiometric value of each kind of light (exactly one is set).
+_LIGHT_VALUES = ("intensity", "irradiance", "radiance")
+
+
+def _checked_light(light: Light, ignored: list) -> Light | None:
+    """`light` as the kernels can use it: left out (None) when its place or its value is not
+    finite, negative channels clamped to 0; each change noted in `ignored` (metrics.json)."""
+    for name in _LIGHT_VALUES:
+        value = getattr(light, name)
+        if value is None:
+            continue
+        if not (np.isfinite(value).all() and np.all(np.abs(value) <= MAX_RADIOMETRIC)
+                and np.isfinite(light.position).all() and np.isfinite(light.direction).all()):
+            ignored.append(f"light '{light.name}': its power or placement is not finite (or "
+                           f"above {MAX_RADIOMETRIC:.0e}); left out")
+            return None
+        if np.any(np.asarray(value) < 0.0):
+            ignored.append(f"light '{light.name}': negative power clamped to 0 (a light cannot "
+                           "take light away)")
+            light = replace(light, **{name: np.maximum(value, 0.0)})
+    return light
+
+
+def _checked_emission(mat: Material, ignored: list) -> Material:
+    """`mat` with emission channels that are negative, not finite or above MAX_RADIOMETRIC
+    (an inf strength in the file) taken as 0, noted in `ignored`."""
+    emission = np.asarray(mat.emission)
+    good = np.isfinite(emission) & (emission >= 0.0) & (emission <= MAX_RADIOMETRIC)
+    if good.all():
+        return mat
+    ignored.append(f"material '{mat.name}': emission {[float(f'{e:.3g}') for e in emission]} is "
+                   f"not a radiance in [0, {MAX_RADIOMETRIC:.0e}]; those channels are taken as 0")
+    fixed = np.where(good, emission, 0.0)
+    return replace(mat, emission=fixed.astype(emission.dtype))
 
 
 def _assemble(chunks, materials, lights, camera, world, request, ignored) -> Scene:

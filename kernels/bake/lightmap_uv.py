@@ -63,7 +63,8 @@ def unwrap(
 
     positions (V, 3) float, object or world space, m (only ratios matter); triangles (T, 3) vertex ids.
     Zero-area triangles get no chart (chart id -1) and UV (0, 0) (with `polygons`: zero area on
-    the edge they share with their polygon); they cover no texel.
+    the edge they share with their polygon); they cover no texel; a mesh with no area at all gets
+    no chart. Raises ValueError for nan or inf positions (never handed to xatlas).
 
     polygons (T,) int, when given: the polygon each triangle was cut from. A mesh stores one UV per
     polygon corner, so a polygon must lie in one chart; xatlas charts triangles and may cut a
@@ -74,10 +75,22 @@ def unwrap(
     """
     import xatlas
 
-    positions = np.ascontiguousarray(positions, np.float32)
+    positions = np.asarray(positions, np.float64)
     triangles = np.ascontiguousarray(triangles, np.uint32)
-    if triangles.shape[0] == 0:
-        return LightmapUV(np.zeros((0, 3, 2), np.float32), np.zeros(0, np.int32), 0, 0.0)
+    if not np.isfinite(positions).all():  # xatlas loops for minutes on nan or inf
+        raise ValueError("lightmap UVs: vertex coordinates are not finite (nan or inf)")
+    count = triangles.shape[0]
+    no_charts = LightmapUV(np.zeros((count, 3, 2), np.float32), np.full(count, -1, np.int32), 0,
+                           0.0)
+    if count == 0:
+        return no_charts
+    # Only ratios matter: at unit size xatlas' own area and length epsilons neither drop a tiny
+    # object's faces (scale 1e-9) nor lose precision on a huge one.
+    low = positions.min(axis=0)
+    extent = float((positions.max(axis=0) - low).max())
+    if extent <= 0.0:
+        return no_charts
+    positions = np.ascontiguousarray((positions - low) / extent, np.float32)
 
     def generate(add, texels_per_unit: float):
         atlas = xatlas.Atlas()
@@ -98,6 +111,8 @@ def unwrap(
         # resolution. Fixing the density makes it pack into atlases of exactly `resolution`;
         # shrink it until everything fits in one, so padding is in texels of the real lightmap.
         atlas = generate(add, 0.0)
+        if atlas.chart_count == 0 or max(atlas.width, atlas.height) == 0:
+            return None  # every triangle has zero area: nothing to chart
         density = atlas.texels_per_unit * FIT_MARGIN * settings.resolution / max(atlas.width,
                                                                                  atlas.height)
         for _ in range(MAX_FIT_ATTEMPTS):
@@ -111,6 +126,8 @@ def unwrap(
         )
 
     atlas = fitted(lambda a: a.add_mesh(positions, triangles))
+    if atlas is None:
+        return no_charts
     corner_uv, chart_ids = _corners(atlas)
     polygons = None if polygons is None else np.asarray(polygons, np.int64)
     if polygons is not None and _moved(positions, triangles, polygons, chart_ids)[0].any():
@@ -126,6 +143,8 @@ def unwrap(
         island_uv[shared] = whole.reshape(-1, 2)
         island_tris = np.ascontiguousarray(shared.reshape(-1, 3), np.uint32)
         atlas = fitted(lambda a: a.add_uv_mesh(island_uv, island_tris))
+        if atlas is None:
+            return no_charts
         degenerate = chart_ids < 0
         corner_uv, chart_ids = _corners(atlas)
         # xatlas packs a zero-area UV triangle's lone corner anywhere: unfolded again onto the

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..command import Command, RunContext
+from ..outputs import UsageError
 
 
 def describe(scene) -> dict:
@@ -148,7 +149,10 @@ def run(ctx: RunContext) -> None:
     from ...addon.bridge import snapshot
 
     with ctx.phase("snapshot"):
-        scene = snapshot(resolution=ctx.resolution)
+        try:
+            scene = snapshot(resolution=ctx.resolution)
+        except ValueError as exc:  # e.g. a panoramic camera: one line, as the techniques say it
+            raise UsageError(f"info: {exc}") from exc
     summary = describe(scene)
     ctx.record.sizes = dict(summary["counts"])
     ctx.record.extra["ignored"] = summary["ignored"]  # as every technique's run lists it
