@@ -1,14 +1,38 @@
 """Environment mapping: the eye at the centre of each mirror (the object hidden), six cube faces
-rendered, then the camera's view with each mirror reading its map along the reflected ray."""
+rendered, then the camera's view with each mirror reading its map along the reflected ray.
+
+Beside the camera view the job writes, per mapped object, what other tools read
+(kernels/envmap/cube_files.py, docs/techniques/envmap.md): the OpenEXR standard cube
+(`cube/OBJECT.exr`), the lat-long map Blender's Environment Texture reads
+(`cube/OBJECT_latlong.exr`), a labelled cross preview (`cube/OBJECT_cross.png`), the GGX mip
+chain (`cube/OBJECT_mip{k}.exr`) and the probe's record (`cube/OBJECT_probe.json`: position, room
+box, face order, mip levels, SH9 irradiance), every one with the area lamps the centre sees
+(kernels/envmap/probe_lamps.py); with Show in Materials (`wire`) each object gets a material
+that reads the lat-long map along the reflection vector (addon/bridge/envmap_material.py).
+"""
 
 from __future__ import annotations
 
-from dataclasses import asdict
+from dataclasses import asdict, dataclass, replace
 
 import bpy
+import numpy as np
 
-from ..addon.bridge import write_back
-from ..kernels.envmap.envmap import EnvMapSettings, render_steps, strip_image
+from ..addon.bridge import envmap_material, write_back
+from ..kernels.envmap.cube_files import (
+    OPENEXR_Y_UP,
+    cross_preview,
+    equirect_steps,
+    probe_json,
+    stored_face_order,
+    write_equirect_exr,
+    write_openexr_cube,
+)
+from ..kernels.envmap.envmap import EnvironmentMap, EnvMapSettings, render_steps, strip_image
+from ..kernels.envmap.prefilter import PrefilterSettings, prefilter_steps
+from ..kernels.envmap.probe_lamps import lamp_faces
+from ..kernels.envmap.sh_irradiance import sh_coefficients
+from ..kernels.geometry.scene import Scene
 from ..kernels.progress import Steps, scaled
 from ..kernels.trace.settings import TracerSettings, auto_settings
 from .record import JobSummary, OperatorSpec, Option, Technique
@@ -16,35 +40,171 @@ from .trace import camera_snapshot
 
 IMAGE_NAME = "Classic Bake Environment"
 CUBE_PREFIX = "Classic Bake Cube "  # + object name: the six faces side by side
+LATLONG_PREFIX = "Classic Bake Env "  # + object name: the lat-long map the wired material reads
+# The OpenEXR cube files are written in OpenEXR's y-up frame, (x, y, z)_file = (y, z, x)_world:
+# with it the cube and the lat-long file are the same environment to OpenEXR's tools
+# (cube_files.py); the probe's `face_order` says which world direction each stored face holds.
+CUBE_AXES = OPENEXR_Y_UP
+# Lat-long height per face texel: a 4N x 2N map has the face centre's texel angle (pi / 2N) per
+# pixel, and 2 x 2 look-ups per pixel (a box filter: near the poles a pixel spans many texels).
+LATLONG_PER_FACE = 2
+LATLONG_SUPERSAMPLE = 2
+# Share of the progress bar for the outputs (lat-long, mips, SH) after the capture and the view.
+OUTPUT_SHARE = 0.15
 
 
-def envmap_job(scene, settings: EnvMapSettings, tracer: TracerSettings, resolution=None
+@dataclass(frozen=True)
+class EnvMapOutputs:
+    """What the job makes of each map besides the files.
+
+    | field          | range | default | meaning                                                  |
+    |----------------|-------|---------|----------------------------------------------------------|
+    | wire           | bool  | True    | give each mapped object a material showing its map       |
+    |                |       |         | (Emission of the lat-long map along the reflection       |
+    |                |       |         | vector; the original material kept with a fake user)     |
+    | box_projection | bool  | True    | the wired material corrects the look-up for parallax     |
+    |                |       |         | with the room's box (the scene's bounds around the       |
+    |                |       |         | object); off, or without a box: the look-up along r alone|
+    """
+
+    wire: bool = True
+    box_projection: bool = True
+
+
+@dataclass
+class ProbeOutputs:
+    """One mapped object's outputs, computed before anything is written."""
+
+    name: str
+    env: EnvironmentMap  # the captured map with the area lamps its centre sees
+    latlong: np.ndarray  # (2N, 4N, 3) float32, Blender's equirectangular mapping
+    mips: tuple[np.ndarray, ...]  # (6, M_k, M_k, 3) float32, GGX-prefiltered, OpenGL face table
+    sh: np.ndarray  # (9, 3) float64 radiance SH coefficients
+    box: tuple[np.ndarray, np.ndarray] | None  # (3,) min, (3,) max world m: the room around it
+    record: dict  # the probe's JSON
+
+
+def room_box(scene: Scene, index: int, centre: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray] | None:
+    """The enclosing box of every object but `index` (world m), or None when there are none or
+    the probe's centre is not strictly inside it (no room around the probe)."""
+    keep = scene.object_ids != index
+    if not keep.any():
+        return None
+    points = scene.triangles[keep].reshape(-1, 3).astype(np.float64)
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    if not (np.all(centre > lo) and np.all(centre < hi)):
+        return None
+    return lo, hi
+
+
+def probe_steps(scene: Scene, env: EnvironmentMap, mips: int) -> Steps[ProbeOutputs]:
+    """The map as it leaves the kernels (the area lamps the centre sees added to its faces,
+    `probe_lamps.py`: the kernels' own look-up adds them exactly instead), its lat-long map, the
+    GGX mip chain (mips levels; 0: none), the SH9 coefficients (of the surfaces alone) and the
+    probe record. Yields progress, returns ProbeOutputs."""
+    name = scene.objects[env.object_index].source_name
+    # Diffuse light from the surfaces alone: the scene's lamps light directly where the probe is
+    # used, and nine coefficients cannot hold a small bright source (on env_room the ceiling lamp
+    # puts E off by 5% of its peak, by 70% on normals facing away from it).
+    sh = sh_coefficients(env.face_images())
+    env = replace(env, faces=env.faces + lamp_faces(env, scene.lights))
+    faces = env.face_images()
+    latlong = yield from scaled(equirect_steps(env.faces, LATLONG_PER_FACE * env.size,
+                                               LATLONG_SUPERSAMPLE, env.border), 0.0, 0.4)
+    chain = ()
+    if mips > 0:
+        chain = (yield from scaled(prefilter_steps(faces, PrefilterSettings(levels=mips)),
+                                   0.4, 0.6)).levels
+    box = room_box(scene, env.object_index, env.centre)
+    record = probe_json(env.centre, None if box is None else box[0],
+                        None if box is None else box[1], env.size,
+                        stored_face_order(CUBE_AXES), levels=max(mips, 1), sh=sh)
+    record["object"] = name
+    record["lamps"] = ("area lamps the centre sees are in the cube, lat-long and mips; the SH "
+                       "holds the surfaces' light alone (the lamps light directly)")
+    record["file_axes"] = "OpenEXR y-up: (x, y, z) of the file = (y, z, x) of the world"
+    # Suffixes, not names: the command line makes object names safe for the disk, the same way
+    # for the JSON's own name ("OBJECT_probe.json") and for the files beside it.
+    record["file_suffixes"] = {"cube": ".exr", "latlong": "_latlong.exr", "cross": "_cross.png",
+                               "mips": [f"_mip{k}.exr" for k in range(len(chain))]}
+    return ProbeOutputs(name, env, latlong, tuple(chain), sh, box, record)
+
+
+def _cube_writer(faces: np.ndarray):
+    """A writer of `faces` as an OpenEXR standard cube (pipeline/commands/technique.py calls it
+    with the path)."""
+    return lambda path: write_openexr_cube(path, faces, world_to_file=CUBE_AXES)
+
+
+def _latlong_writer(image: np.ndarray):
+    return lambda path: write_equirect_exr(path, image)
+
+
+def probe_files(probe: ProbeOutputs) -> dict:
+    """The files of one probe by relative path: writers (OpenEXR with the envmap attribute),
+    a uint8 PNG and a JSON record."""
+    name = probe.name
+    files = {f"cube/{name}.exr": _cube_writer(probe.env.face_images()),
+             f"cube/{name}_latlong.exr": _latlong_writer(probe.latlong),
+             f"cube/{name}_cross.png": cross_preview(probe.env.face_images()),
+             f"cube/{name}_probe.json": probe.record}
+    for k, level in enumerate(probe.mips):
+        files[f"cube/{name}_mip{k}.exr"] = _cube_writer(level)
+    return files
+
+
+def envmap_job(scene, settings: EnvMapSettings, tracer: TracerSettings, resolution=None,
+               mips: int = PrefilterSettings().levels, outputs: EnvMapOutputs | None = None
                ) -> Steps[JobSummary]:
-    """Capture the maps and render the view, then write the images (the view and a strip of six
-    faces per object): closed before its end, it has changed nothing."""
-    result = yield from scaled(render_steps(scene, settings, tracer, resolution=resolution))
+    """Capture the maps and render the view, then compute each map's files (lat-long, mips,
+    SH9), then write the images (the view, a strip of six faces and the lat-long map per object)
+    and, with outputs.wire, the materials: closed before its end, it has changed nothing."""
+    outputs = outputs or EnvMapOutputs()
+    result = yield from scaled(render_steps(scene, settings, tracer, resolution=resolution),
+                               0.0, 1.0 - OUTPUT_SHARE)
+    probes = []
+    share = OUTPUT_SHARE / max(len(result.maps), 1)
+    for number, env in enumerate(result.maps):
+        probes.append((yield from scaled(probe_steps(scene, env, mips),
+                                         1.0 - OUTPUT_SHARE + number * share, share)))
+    # --- write back: everything computed ---------------------------------------------------------
     image = write_back.write_image(IMAGE_NAME, result.image, image=bpy.data.images.get(IMAGE_NAME))
-    images, files, maps = {IMAGE_NAME: image}, {}, {}
-    for env in result.maps:
-        name = scene.objects[env.object_index].source_name
-        strip = strip_image(env)
-        images[name] = write_back.write_image(CUBE_PREFIX + name, strip,
+    images, files, maps, wired = {IMAGE_NAME: image}, {}, {}, []
+    for probe in probes:
+        name, env = probe.name, probe.env
+        images[name] = write_back.write_image(CUBE_PREFIX + name, strip_image(env),
                                               image=bpy.data.images.get(CUBE_PREFIX + name))
-        files[f"cube/{name}.exr"] = strip
-        files[f"cube/{name}.png"] = strip
-        maps[name] = {"face_size": env.size, "centre": [float(c) for c in env.centre]}
+        latlong = write_back.write_image(LATLONG_PREFIX + name, probe.latlong,
+                                         image=bpy.data.images.get(LATLONG_PREFIX + name))
+        images[LATLONG_PREFIX + name] = latlong
+        files.update(probe_files(probe))
+        maps[name] = {"face_size": env.size, "centre": [float(c) for c in env.centre],
+                      "latlong": list(probe.latlong.shape[1::-1]),
+                      "mip_sizes": [int(level.shape[1]) for level in probe.mips],
+                      "box": probe.record["box"]}
+        obj = bpy.data.objects.get(name)
+        if outputs.wire and obj is not None and obj.type == "MESH":
+            box = probe.box if outputs.box_projection else None
+            materials = envmap_material.wire_environment_material(
+                obj, latlong, centre=env.centre, box=box,
+                tints=envmap_material.mirror_tints(scene, env.object_index))
+            wired += [m.name for m in materials]
     height, width = result.image.shape[:2]
     listed = ", ".join(f"{n} ({m['face_size']} texels per face)" for n, m in maps.items())
     return JobSummary(
         message=f"cube maps of {listed}: {result.face_rays} face rays in "
                 f"{result.seconds['capture']:.2f} s; camera view {width}x{height} in "
-                f"{result.seconds['render']:.2f} s",
+                f"{result.seconds['render']:.2f} s"
+                + (f"; materials {', '.join(wired)}" if wired else ""),
         scene=scene, render=result.image, images=images, files=files, result=result,
-        settings={**asdict(settings), "tracer": asdict(tracer)},
+        settings={**asdict(settings), "tracer": asdict(tracer), "mips": int(mips),
+                  **asdict(outputs)},
         sizes={"width": width, "height": height, "triangles": scene.triangle_count, "maps": maps,
                "face_rays": result.face_rays},
         # Not "seconds": metrics.json keeps that key for the phases and the total.
-        extra={"stage_seconds": result.seconds, "stats": result.trace.stats.as_dict()})
+        extra={"stage_seconds": result.seconds, "stats": result.trace.stats.as_dict(),
+               "wired_materials": wired})
 
 
 OPTIONS = (
@@ -59,6 +219,17 @@ OPTIONS = (
            "from the scene)", minimum=-1, maximum=64),
     Option("adaptive", TracerSettings, "Edge Samples", "N x N camera samples again in pixels at "
            "edges (0: off)", minimum=0, maximum=16),
+    Option("mips", PrefilterSettings, "Rough Mips", "GGX-prefiltered mip levels written beside "
+           "each cube (level k: roughness k / (levels - 1); 0: none)", field="levels",
+           minimum=0, maximum=16),
+    # On in the panel; the command line wires only when asked (`--wire`, `cli_extra`): a
+    # command's run must leave the scene's materials to the Cycles renders that may follow it
+    # in the same process (`compare`).
+    Option("wire", EnvMapOutputs, "Show in Materials", "Give each mapped object a material that "
+           "reads its map along the reflection vector (the original kept, with a fake user)",
+           cli=False),
+    Option("box_projection", EnvMapOutputs, "Box Projection", "The material corrects its look-up "
+           "for parallax with the room's box (the scene's bounds around the object)"),
     Option("selected_only", EnvMapSettings, "Selected Only", "Map the selected objects; off: "
            "every mirror (smooth metal)", field="objects", auto=False, cli=False),
 )
@@ -72,9 +243,23 @@ def settings(values: dict, scene=None) -> EnvMapSettings:
                           parallax_steps=int(values["parallax_steps"]))
 
 
+def output_settings(values: dict) -> tuple[int, EnvMapOutputs]:
+    """(mip levels, EnvMapOutputs) from option values; checked like the kernel settings."""
+    mips = int(values.get("mips", PrefilterSettings().levels))
+    if mips:
+        PrefilterSettings(levels=mips)  # raises ValueError outside 1..16
+    wire = values["wire_cli"] if "wire_cli" in values else values.get("wire", EnvMapOutputs.wire)
+    return mips, EnvMapOutputs(wire=bool(wire),
+                               box_projection=bool(values.get("box_projection",
+                                                              EnvMapOutputs.box_projection)))
+
+
 def cli_extra(parser) -> None:
     parser.add_argument("--objects", nargs="+", default=[], metavar="NAME",
                         help="objects to map (default: every mirror, i.e. smooth metal)")
+    parser.add_argument("--wire", dest="wire_cli", action="store_true",
+                        help="give each mapped object a material that reads its map along the "
+                             "reflection vector, saved with --save-blend (the panel's default)")
 
 
 def start(context, values: dict, resolution=None) -> Steps[JobSummary]:
@@ -83,9 +268,13 @@ def start(context, values: dict, resolution=None) -> Steps[JobSummary]:
         if not selected:
             raise ValueError("Select the objects to environment-map (or turn off Selected Only)")
         values = {**values, "objects": selected}
-    scene = camera_snapshot(context, resolution)
+    mips, outputs = output_settings(values)
+    # A material wired by an earlier run is read as the original it replaced (the snapshot sees
+    # the mirror, not an emitter); the slots are put back before the first yield.
+    with envmap_material.originals_shown(context.scene):
+        scene = camera_snapshot(context, resolution)
     tracer = auto_settings(scene, adaptive=int(values["adaptive"]))
-    return (yield from envmap_job(scene, settings(values), tracer, resolution))
+    return (yield from envmap_job(scene, settings(values), tracer, resolution, mips, outputs))
 
 
 def cycles_model(recorded: dict):
@@ -100,5 +289,5 @@ RECORD = Technique(
     ladder=(("--parallax-steps", "0"), ("--face-size", "32"), ("--face-size", "0"),
             ("--face-size", "128")),
     operator=OperatorSpec("classic_bake.envmap", "Environment Map Mirrors", "MAT_SPHERE_SKY",
-                          needs=("camera", "mesh"), undo=False),
+                          needs=("camera", "mesh"), undo=True),
 )

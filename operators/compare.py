@@ -35,7 +35,9 @@ def compare_job(context, technique, samples: int):
 
     props = context.scene.classic_bake
     start = time.perf_counter()
-    summary = yield from scaled(technique.start(context, technique.values_from_props(props)), 0.0, 0.7)
+    # Never "Show in Materials" here: Cycles must render the scene's own materials afterwards.
+    values = {**technique.values_from_props(props), "wire": False}
+    summary = yield from scaled(technique.start(context, values), 0.0, 0.7)
     if summary.render is None:
         raise ValueError("The scene needs a camera")
     kernel_seconds = time.perf_counter() - start
@@ -61,7 +63,7 @@ class CLASSICBAKE_OT_compare(ScenePoll, JobOperator, bpy.types.Operator):
 
     bl_idname = "classic_bake.compare"
     bl_label = "Compare with Cycles"
-    bl_options = {"REGISTER"}
+    bl_options = {"REGISTER", "UNDO"}  # writes three images and the figures
     job_label = "Comparing with Cycles"
     needs = ("camera",)
 

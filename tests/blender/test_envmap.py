@@ -63,8 +63,8 @@ def test_cli_envmap_writes_view_faces_and_sizes(tmp_path):
                            "--face-size", "24"], capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     assert read_exr(tmp_path / "render.exr").shape == (24, 32, 3)
-    faces = read_exr(tmp_path / "cube" / "MirrorSphere.exr")
-    assert faces.shape == (24, 6 * 24, 3) and np.all(np.isfinite(faces))
+    faces = read_exr(tmp_path / "cube" / "MirrorSphere.exr")  # OpenEXR's cube: N x 6N, stacked
+    assert faces.shape == (6 * 24, 24, 3) and np.all(np.isfinite(faces))
     metrics = json.loads((tmp_path / "metrics.json").read_text())
     assert metrics["sizes"]["maps"]["MirrorSphere"]["face_size"] == 24
     assert metrics["sizes"]["face_rays"] == 6 * 26 * 26  # the faces and their one-texel borders
