@@ -1,7 +1,7 @@
 """Add-on preferences, keyed by the extension's package name."""
 
 import bpy
-from bpy.props import FloatProperty, StringProperty
+from bpy.props import BoolProperty, FloatProperty, StringProperty
 
 # "classic_bake" when run from a checkout, "bl_ext.<repo>.classic_bake" when installed.
 ADDON_PACKAGE = __package__.rpartition(".")[0]
@@ -14,14 +14,21 @@ class CLASSICBAKE_AP_preferences(bpy.types.AddonPreferences):
         name="Work per UI Tick", description="Milliseconds of baking between interface updates "
         "while a bake runs interactively (smaller: smoother interface, slower bake)",
         default=50.0, min=5.0, max=1000.0, subtype="NONE")
+    save_images: BoolProperty(
+        name="Save Images", description="After each bake, also write its images as OpenEXR files "
+        "into the output folder (otherwise they live in the .blend until saved)", default=False)
     output_dir: StringProperty(
-        name="Output Folder", description="Where baked images are saved ('//' is the .blend's folder)",
-        default="//classic_bake", subtype="DIR_PATH")
+        name="Output Folder", description="Where baked images are saved ('//' is the .blend's "
+        "folder; an unsaved file uses Blender's temporary folder)",
+        default="//classic_bake", subtype="DIR_PATH", options={"PATH_SUPPORTS_BLEND_RELATIVE"})
 
     def draw(self, context):
         layout = self.layout
         layout.prop(self, "tick_budget_ms")
-        layout.prop(self, "output_dir")
+        layout.prop(self, "save_images")
+        row = layout.row()
+        row.active = self.save_images
+        row.prop(self, "output_dir")
 
 
 def get(context=None):

@@ -1,7 +1,14 @@
 """One operator per technique record (jobs/techniques.py): it reads the technique's options from
-`scene.classic_bake`, runs the record's job on both paths (operators/job.py) and reports its line."""
+`scene.classic_bake`, runs the record's job on both paths (operators/job.py) and reports its line.
+
+Every technique's job writes Blender data (at least an image), so every operator is undoable: one
+finished bake is one undo step. An operator that wrote data without UNDO would leave that data out
+of the undo history, and the next Ctrl+Z would take it away together with the step before.
+"""
 
 from __future__ import annotations
+
+import importlib
 
 import bpy
 from bpy.props import BoolProperty
@@ -9,6 +16,11 @@ from bpy.props import BoolProperty
 from ..jobs.record import Technique
 from ..jobs.techniques import TECHNIQUES
 from .job import JobOperator, ScenePoll
+
+
+def written_attribute(technique: Technique) -> str:
+    """The colour attribute a technique's job writes (its job module's `ATTRIBUTE`), or ""."""
+    return getattr(importlib.import_module(technique.start.__module__), "ATTRIBUTE", "")
 
 
 def operator_class(technique: Technique) -> type:
@@ -24,8 +36,9 @@ def operator_class(technique: Technique) -> type:
     namespace = {
         "__doc__": technique.help[0].upper() + technique.help[1:],
         "bl_idname": spec.idname, "bl_label": spec.label,
-        "bl_options": {"REGISTER", "UNDO"} if spec.undo else {"REGISTER"},
+        "bl_options": {"REGISTER", "UNDO"},
         "job_label": technique.label, "needs": spec.needs, "start": start,
+        "attribute": written_attribute(technique),
     }
     if technique.name == "lightmap-uv":
         namespace["__annotations__"] = {"all_objects": BoolProperty(

@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 from ...jobs.techniques import TECHNIQUES
-from . import compare, demo, info, report
+from . import batch, compare, demo, info, report
 from .technique import technique_command
 
 COMMANDS = {cmd.name: cmd for cmd in (
     info.COMMAND, *(technique_command(t) for t in TECHNIQUES), compare.COMMAND, demo.COMMAND,
-    report.COMMAND)}
+    report.COMMAND, batch.COMMAND)}
