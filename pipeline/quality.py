@@ -53,6 +53,32 @@ def record_ladder(technique: str, scene: str, features: dict, rows: list[dict]) 
     return path
 
 
+def check_target(ctx, technique, summary) -> None:
+    """After a `--target-error` run: the error the view reached against a cached Cycles reference
+    of this scene under the technique's model (made by `compare`; none is rendered here), and
+    whether the target was met, in metrics.json's `auto_quality` and one line."""
+    from pathlib import Path
+
+    from ..addon.cycles.cache import cached_render
+    from ..kernels.measure.metrics import rel_mse
+
+    found = ctx.record.extra.setdefault("auto_quality", {})
+    reference = None
+    if technique.cycles_model is not None and summary.render is not None:
+        reference = cached_render(Path(ctx.args.scene).resolve(),
+                                  technique.cycles_model(summary.settings), ctx.resolution)
+    if reference is None or reference.image.shape != summary.render.shape:
+        found.update(measured_rel_mse=None, target_met=None,
+                     measured="no cached Cycles reference at this size: run `compare` first")
+        ctx.say("auto quality: not measured (no cached Cycles reference; `compare` makes one)")
+        return
+    error = rel_mse(summary.render, reference.image)
+    met = error <= ctx.args.target_error
+    found.update(measured_rel_mse=error, target_met=met, reference_samples=reference.samples)
+    ctx.say(f"auto quality: measured relMSE {error:.3g} against Cycles ({reference.samples} "
+            f"samples): target {ctx.args.target_error:.3g} {'met' if met else 'NOT met'}")
+
+
 def apply_target(ctx, technique) -> None:
     """With `--target-error`, replace the technique's options by the rung `pick` chose for the most
     similar scene measured (kernels/measure/auto_quality.py)."""

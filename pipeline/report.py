@@ -63,7 +63,14 @@ figcaption { font-size: 0.85em; color: #555; word-break: break-all; }
 .missing { color: #a33; } .note { color: #555; font-size: 0.9em; }
 .problems { background: #fff4f4; border: 1px solid #e3b4b4; padding: 0.5em 1em; }
 code { font-size: 0.92em; }
+.gallery-wrap { overflow-x: auto; } table.gallery td { padding: 0.3em; } .cell { display: flex; gap: 2px; }
+.cell img { width: 96px; height: auto; border: 1px solid #ddd; image-rendering: pixelated; }
+.cell-note { font-size: 0.8em; color: #444; }
+details { margin: 0.6em 0; } summary { cursor: pointer; font-weight: 600; }
 """
+# The pictures a compared run leaves in its folder (pipeline/commands/compare.py), in gallery order.
+GALLERY_IMAGES = (("render.png", "ours"), ("cycles_reference.png", "Cycles"),
+                  ("error_rel_se.png", "error"))
 
 
 def format_number(value: Any) -> str:
@@ -264,6 +271,70 @@ def _run_section(results_dir: Path, run: _Run) -> str:
     return "\n".join(parts)
 
 
+def _technique_of(run: _Run) -> str:
+    """A compared run's technique (its settings name it), else the run's own."""
+    if run.get_mapping("comparison"):
+        return str(run.get_mapping("settings").get("technique", run.data.get("technique", "?")))
+    return str(run.data.get("technique", run.folder.name))
+
+
+def _gallery(results_dir: Path, runs: list[_Run]) -> str:
+    """A row per scene, a column per technique: ours | Cycles | error thumbnails (what exists),
+    with relMSE and seconds under them; each cell links to the run's details."""
+    shown = [r for r in runs if (r.folder / "render.png").is_file()]
+    if not shown:
+        return ""
+    scenes = sorted({str(r.data.get("scene", "?")) for r in shown})
+    techniques = list(dict.fromkeys(_technique_of(r) for r in shown))
+    cells = {(str(r.data.get("scene", "?")), _technique_of(r)): r for r in shown}
+    head = "<tr><th>scene</th>" + "".join(f"<th>{escape(t)}</th>" for t in techniques) + "</tr>"
+    rows = []
+    for scene in scenes:
+        row = [f"<th>{escape(scene)}</th>"]
+        for technique in techniques:
+            run = cells.get((scene, technique))
+            if run is None:
+                row.append("<td></td>")
+                continue
+            thumbs = "".join(
+                f'<img src="{_href(results_dir, run.folder / name)}" alt="{escape(label)}" '
+                f'title="{escape(label)}">'
+                for name, label in GALLERY_IMAGES if (run.folder / name).is_file())
+            metrics = run.get_mapping("comparison", "metrics")
+            note = []
+            if metrics.get("rel_mse") is not None:
+                note.append(f"relMSE {format_number(metrics['rel_mse'])}")
+            seconds = metrics.get("seconds", run.get_mapping("seconds").get("total"))
+            if seconds is not None:
+                note.append(f"{format_number(seconds)} s")
+            row.append(f'<td><a href="#{run.anchor}"><div class="cell">{thumbs}</div></a>'
+                       f'<div class="cell-note">{escape(", ".join(note))}</div></td>')
+        rows.append("<tr>" + "".join(row) + "</tr>")
+    return (f'<h2>Gallery</h2><p class="note">Each cell: ours | Cycles\' converged reference | '
+            f'the relative squared error (where the run was compared).</p>'
+            f'<div class="gallery-wrap"><table class="gallery">{head}{"".join(rows)}</table></div>')
+
+
+def _charts(results_dir: Path, runs: list[_Run]) -> str:
+    """Every compared run's speed-accuracy chart, by technique."""
+    figures = []
+    for run in sorted(runs, key=_technique_of):
+        for chart in run.get_list("comparison", "charts"):
+            path = run.folder / str(chart)
+            if path.is_file() and path.suffix == ".png":
+                caption = f"{_technique_of(run)} — {run.data.get('scene', '?')}"
+                figures.append(f'<figure><img src="{_href(results_dir, path)}" alt="'
+                               f'{escape(caption)}"><figcaption>{escape(caption)}'
+                               f"</figcaption></figure>")
+    if not figures:
+        return ""
+    return '<h2>Speed against accuracy</h2><div class="figures">' + "".join(figures) + "</div>"
+
+
+def _href(results_dir: Path, path: Path) -> str:
+    return quote(path.relative_to(results_dir).as_posix())
+
+
 def _summary(runs: list[_Run]) -> str:
     head = "<tr><th>run</th><th>technique</th><th>scene</th><th>total (s)</th>" + "".join(
         f"<th>{escape(title)}</th>" for _, title in SUMMARY_METRICS
@@ -271,7 +342,7 @@ def _summary(runs: list[_Run]) -> str:
     rows = []
     for run in runs:
         metrics = run.get_mapping("comparison", "metrics")
-        technique = str(run.data.get("technique", run.folder.name))
+        technique = _technique_of(run)
         rows.append(
             f'<tr><td><a href="#{run.anchor}">{escape(run.folder.name)}</a></td>'
             f"<td>{escape(technique)}</td><td>{escape(str(run.data.get('scene', '?')))}</td>"
@@ -297,7 +368,8 @@ def build_report(results_dir: str | Path, title: str = "Classic Bake against Cyc
     runs, problems = _load_runs(results_dir)
     body = [f"<h1>{escape(title)}</h1>"]
     if runs:
-        body += ["<h2>Summary</h2>", _summary(runs), f'<p class="note">{escape(_LEGEND)}</p>']
+        body += [_gallery(results_dir, runs), _charts(results_dir, runs),
+                 "<h2>Summary</h2>", _summary(runs), f'<p class="note">{escape(_LEGEND)}</p>']
     else:
         body.append(f'<p class="note">No {METRICS_NAME} found under this folder.</p>')
     if problems:
@@ -306,7 +378,10 @@ def build_report(results_dir: str | Path, title: str = "Classic Bake against Cyc
             + "".join(f"<li>{escape(p)}</li>" for p in problems)
             + "</ul></div>"
         )
-    body += [_run_section(results_dir, run) for run in runs]
+    if runs:  # the details, folded away
+        body.append("<h2>Runs</h2>")
+    body += [f"<details><summary>{escape(run.folder.name)}</summary>\n"
+             f"{_run_section(results_dir, run)}\n</details>" for run in runs]
     page = (
         "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
         "<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n"

@@ -134,6 +134,32 @@ def _read_cached(folder: Path) -> tuple[CyclesRun, dict[str, Any]]:
     return run, meta
 
 
+def cached_render(scene_path: str | os.PathLike, model: CyclesModel,
+                  resolution: tuple[int, int] | None,
+                  cache_dir: str | os.PathLike = Path("out/cache")) -> Reference | None:
+    """The most converged cached camera render of this .blend (same bytes) under `model` at
+    `resolution`, whatever sample count made it; None when there is none. Never renders."""
+    blend = file_sha256(Path(scene_path))
+    wanted = {"blend_sha256": blend, "blender": bpy.app.version_string, "model": model.fields(),
+              "kind": "render", "resolution": list(resolution) if resolution else None}
+    best = None
+    for meta_path in Path(cache_dir).glob("*/meta.json"):
+        try:
+            meta = json.loads(meta_path.read_text())
+            settings = meta["settings"]
+        except (OSError, ValueError, KeyError):
+            continue
+        if any(settings.get(k) != v for k, v in wanted.items()):
+            continue
+        if best is None or int(meta["samples"]) > int(best[1]["samples"]):
+            best = (meta_path.parent, meta)
+    if best is None:
+        return None
+    run, meta = _read_cached(best[0])
+    return Reference(run, True, meta.get("noise_rel_mse"), meta.get("key"), best[0],
+                     meta["settings"])
+
+
 def reference(scene_path: str | os.PathLike, model: CyclesModel, kind: ReferenceKind = "render",
               samples: int | None = None, cache_dir: str | os.PathLike = Path("out/cache"), *,
               resolution: tuple[int, int] | None = None, bake: BakeSpec | None = None,

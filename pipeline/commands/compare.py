@@ -21,6 +21,17 @@ from .technique import technique_command
 # The techniques with a camera view, a matched Cycles model and a quality ladder.
 COMPARABLE = sorted(n for n, t in BY_NAME.items() if t.renders and t.cycles_model and t.ladder)
 CYCLES_SAMPLES = [1, 2, 4, 8, 16, 32, 64]
+# `--sweep PARAM`: the values swept by default (the failure modes the lecture names: acne and
+# peter-panning in eps, the depth limit, the patch count, the parallax search, the face size) and
+# the options a sweep needs beside them. A sweep replaces the technique's ladder.
+SWEEPS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
+    "eps": (("0", "1e-3", "1e-2", "0.03", "0.1", "0.3", "1", "3"), ("--eps-mode", "fixed")),
+    "depth": (("0", "1", "2", "4", "8"), ()),
+    "patches": (("25", "50", "100", "200", "400", "800"), ()),
+    "parallax_steps": (("0", "1", "2", "4", "8"), ()),
+    "face_size": (("8", "16", "32", "64", "128"), ()),
+    "map_size": (("64", "128", "256", "512", "1024"), ()),
+}
 
 
 def add_arguments(parser) -> None:
@@ -28,6 +39,20 @@ def add_arguments(parser) -> None:
                         help="which technique to compare")
     parser.add_argument("--max-samples", type=int, default=64,
                         help="top of Cycles' sample ladder (default 64)")
+    parser.add_argument("--rungs", type=int, default=0,
+                        help="run only the cheapest N rungs of the technique's ladder (0: all)")
+    parser.add_argument("--defaults-only", action="store_true",
+                        help="one rung: the technique at its default settings (instead of the "
+                             "ladder)")
+    parser.add_argument("--sweep", metavar="PARAM", default=None,
+                        help="instead of the ladder, run the technique at each value of one of its "
+                             f"options and chart the error against it ({', '.join(SWEEPS)}, or any "
+                             "option with --sweep-values)")
+    parser.add_argument("--sweep-values", nargs="+", default=None, metavar="V",
+                        help="the values --sweep runs (default: the table in compare.py)")
+    parser.add_argument("--reference-samples", type=int, default=0,
+                        help="cap of the converged Cycles reference's samples (0: the default "
+                             "cap); its measured noise is recorded beside the metrics")
 
 
 def run(ctx: RunContext) -> None:
@@ -38,7 +63,7 @@ def run(ctx: RunContext) -> None:
     from ...addon.cycles import cache, runner
     from ...kernels.measure.exr import read_exr
     from ...kernels.measure.metrics import compare, error_images
-    from ..charts import speed_accuracy_chart
+    from ..charts import speed_accuracy_chart, sweep_chart
     from ..images import write_error_png, write_preview_png
 
     technique = ctx.args.technique
@@ -49,7 +74,17 @@ def run(ctx: RunContext) -> None:
     rungs_dir = ctx.staging.path / "rungs"
     kernel_rows, cycles_rows, images = [], [], {}
     counts = [n for n in CYCLES_SAMPLES if n <= ctx.args.max_samples]
+    if not counts:
+        raise UsageError(f"--max-samples {ctx.args.max_samples}: Cycles' ladder starts at "
+                         f"{CYCLES_SAMPLES[0]} sample")
     ladder = [list(rung) for rung in record.ladder]
+    sweep = ctx.args.sweep
+    if sweep is not None:
+        ladder = _sweep_rungs(record, sweep, ctx.args.sweep_values)
+    if ctx.args.defaults_only:
+        ladder = [[]]
+    if ctx.args.rungs > 0:
+        ladder = ladder[:ctx.args.rungs]
     model = reference = None
     for step in range(max(len(ladder), len(counts))):  # the two ladders alternate
         if step < len(ladder):
@@ -66,7 +101,10 @@ def run(ctx: RunContext) -> None:
                 model = record.cycles_model(metrics["settings"])
         if model is not None and reference is None:
             with ctx.phase("cycles_reference"):
-                reference = cache.reference(scene_path, model, "render", resolution=ctx.resolution)
+                cap = {"max_samples": ctx.args.reference_samples} if ctx.args.reference_samples \
+                    else {}
+                reference = cache.reference(scene_path, model, "render", resolution=ctx.resolution,
+                                            **cap)
             bpy.ops.wm.open_mainfile(filepath=str(scene_path), load_ui=False, use_scripts=False)
         if step < len(counts):
             with ctx.phase("cycles"):
@@ -97,6 +135,17 @@ def run(ctx: RunContext) -> None:
                                  kernel_label=f"{technique} (quality ladder)",
                                  cycles_label="Cycles (samples per pixel)")
     charts = [Path(p).name for p in chart.paths]
+    if sweep is not None:
+        values = [float(rung[1]) for rung in ladder]
+        swept = sweep_chart(values, [
+            {"label": "relative MSE against Cycles", "values": [r["rel_mse"] for r in kernel_rows],
+             "axis_label": "relative MSE (dimensionless)", "log": True},
+            {"label": "seconds", "values": [r["seconds"] for r in kernel_rows],
+             "axis_label": "seconds"}],
+            ctx.staging.path / f"sweep_{sweep}", x_label=sweep,
+            x_log=min(values) > 0 and max(values) / min(values) >= 20,
+            title=f"{technique}: error against {sweep} ({scene_path.name})")
+        charts = [Path(p).name for p in swept.paths] + charts
     for name in charts:
         ctx.output(name)  # stage the chart files for publishing
     ctx.record.settings = {"technique": technique, "ladder": [r["setting"] for r in kernel_rows],
@@ -113,6 +162,24 @@ def run(ctx: RunContext) -> None:
             f"{kernel_rows[best]['rel_mse']:.3g} in {kernel_rows[best]['seconds']:.2f} s; Cycles "
             + ", ".join(f"{r['samples']} spp {r['rel_mse']:.3g} in {r['seconds']:.2f} s"
                         for r in cycles_rows))
+
+
+def _sweep_rungs(record, param: str, values) -> list[list[str]]:
+    """One rung per value of option `param` of the technique (its CLI flag, the value, and the
+    options the sweep needs beside it)."""
+    option = next((o for o in record.all_options() if o.name == param and o.cli), None)
+    if option is None:
+        names = ", ".join(o.name for o in record.all_options() if o.cli)
+        raise UsageError(f"--sweep {param}: {record.name} has no such option ({names})")
+    default_values, extra = SWEEPS.get(param, ((), ()))
+    values = values or default_values
+    if not values:
+        raise UsageError(f"--sweep {param}: give the values with --sweep-values")
+    try:
+        [float(v) for v in values]
+    except ValueError as exc:
+        raise UsageError(f"--sweep {param}: values must be numbers ({exc})") from exc
+    return [[option.cli_flag(), str(v), *extra] for v in values]
 
 
 COMMAND = Command(name="compare", help="a technique's quality ladder against Cycles' sample ladder",

@@ -46,6 +46,18 @@ def test_compare_writes_both_ladders_errors_and_chart_and_feeds_auto_quality(tmp
     auto = json.loads((tmp_path / "auto" / "metrics.json").read_text())["auto_quality"]
     met = [r for r in kernel if r["rel_mse"] <= target]
     assert auto["met_target"] and auto["expected_seconds"] == min(r["seconds"] for r in met)
+    # ... and it checks itself against the reference `compare` cached: the error it reached.
+    chosen = next(r for r in kernel if r["argv"] == auto["picked"])
+    assert auto["measured_rel_mse"] == pytest.approx(chosen["rel_mse"], rel=0.05)
+    assert auto["target_met"] == (auto["measured_rel_mse"] <= target)
+    assert "auto quality: measured relMSE" in picked.stdout
+    # An unreachable target: the best measured rung runs, and the run says the target is missed.
+    unreachable = run_cli("shadowmap", scene, "--resolution", "40", "30", "--target-error",
+                          "1e-9", "--lightmap-size", "64", "--out", tmp_path / "never", env=db)
+    assert unreachable.returncode == 0, unreachable.stderr[-2000:]
+    never = json.loads((tmp_path / "never" / "metrics.json").read_text())["auto_quality"]
+    assert not never["met_target"] and never["target_met"] is False
+    assert "NOT met" in unreachable.stdout
 
 
 @pytest.mark.slow
@@ -94,3 +106,29 @@ def test_compare_runs_the_ladders_of_the_mapping_techniques(tmp_path, technique,
     kernel = comparison["ladder"]["kernel"]
     assert len(kernel) == rungs and all(r["seconds"] > 0 and r["rel_mse"] >= 0 for r in kernel)
     assert (tmp_path / "speed_accuracy.png").stat().st_size > 0
+
+
+@pytest.mark.slow
+def test_compare_sweeps_eps_and_the_report_shows_its_chart(tmp_path):
+    """`--sweep eps` on the shadow sample: the lecture's tolerance from 0 (acne) to large
+    (peter-panning) at a fixed tolerance mode, its chart in the comparison and in the report.
+    Measured relMSE at 40 x 30: eps 0 4.7e-3, 0.1 4.6e-4, 3 2.1e-2."""
+    from classic_bake.pipeline.report import build_report
+
+    scene = ROOT / "sample_blends" / "shadows.blend"
+    out = tmp_path / "shadows-eps"
+    done = run_cli("compare", scene, "--technique", "shadowmap", "--sweep", "eps",
+                   "--sweep-values", "0", "0.1", "3", "--resolution", "40", "30",
+                   "--max-samples", "2", "--out", out,
+                   env={"CLASSIC_BAKE_QUALITY_DB": str(tmp_path / "ladders.json")})
+    assert done.returncode == 0, done.stderr[-2000:]
+    comparison = json.loads((out / "metrics.json").read_text())["comparison"]
+    rows = comparison["ladder"]["kernel"]
+    assert [r["argv"][:2] for r in rows] == [["--eps", "0"], ["--eps", "0.1"], ["--eps", "3"]]
+    assert rows[0]["rel_mse"] > rows[1]["rel_mse"] < rows[2]["rel_mse"]  # acne, fine, peter-pan
+    assert "sweep_eps.png" in comparison["charts"] and (out / "sweep_eps.png").stat().st_size > 0
+    page = build_report(tmp_path).read_text()
+    assert "shadows-eps/sweep_eps.png" in page
+    bad = run_cli("compare", scene, "--technique", "shadowmap", "--sweep", "nonsense",
+                  "--out", tmp_path / "bad")
+    assert bad.returncode == 2 and "no such option" in bad.stderr

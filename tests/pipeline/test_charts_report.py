@@ -245,3 +245,30 @@ def test_report_of_empty_folder_and_format_number():
     assert report.format_number({"b": 1, "a": [2]}) == '{"a": [2], "b": 1}'
     with pytest.raises(FileNotFoundError):
         report.build_report("/nonexistent/results/folder")
+
+
+def test_report_leads_with_a_gallery_of_ours_cycles_and_error(tmp_path):
+    """A compared run's three pictures, its relMSE and seconds under them, in its scene's row and
+    its technique's column (the technique named by the compare run's settings)."""
+    run = tmp_path / "cornell-trace"
+    run.mkdir()
+    for name in ("render.png", "cycles_reference.png", "error_rel_se.png"):
+        images.write_preview_png(run / name, np.full((4, 4, 3), 0.5, np.float32))
+    (run / "metrics.json").write_text(json.dumps({
+        "technique": "compare", "scene": "cornell.blend", "settings": {"technique": "trace"},
+        "comparison": {"metrics": {"rel_mse": 0.00123, "seconds": 1.5}, "charts": []}}),
+        encoding="utf-8")
+    plain = tmp_path / "cornell-bump"
+    plain.mkdir()
+    images.write_preview_png(plain / "render.png", np.full((4, 4, 3), 0.2, np.float32))
+    (plain / "metrics.json").write_text(json.dumps({
+        "technique": "bump", "scene": "cornell.blend", "seconds": {"total": 0.25}}),
+        encoding="utf-8")
+    page = report.build_report(tmp_path).read_text(encoding="utf-8")
+    gallery = page[page.index("<h2>Gallery</h2>"):page.index("<h2>Summary</h2>")]
+    assert "<th>trace</th>" in gallery and "<th>bump</th>" in gallery
+    for name in ("cornell-trace/render.png", "cornell-trace/cycles_reference.png",
+                 "cornell-trace/error_rel_se.png", "cornell-bump/render.png"):
+        assert f'src="{name}"' in gallery
+    assert "relMSE 0.00123" in gallery and "1.5 s" in gallery and "0.25 s" in gallery
+    assert page.index("Gallery") < page.index("<details>")  # the details come folded, after
