@@ -297,7 +297,9 @@ def prepare(scene: Scene, solution: PatchSolution, emitters: Emitters, bvh, smoo
                                                indirect, smooth_angle, scale)
     if clear is None:
         clear = clear_shafts(patches, emitters, bvh, offset)
-    stats = {"emitter_triangles": int(len(emitters.triangles)),
+    stats = {"emitter_triangles": int(len(np.unique(emitters.index))),
+             # back sides that face open space emit too (`emitters.open_backs`)
+             "emitter_back_sides": int(len(emitters.index) - len(np.unique(emitters.index))),
              "elements": count * 4 ** levels, "element_levels": levels,
              "clear_shafts": int(clear.sum()),
              "unroofed_patches": int(unroofed.sum()),

@@ -40,6 +40,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..geometry.bvh import BVH
+from ..geometry.frames import RAY_OFFSET_REL
 from ..geometry.scene import Scene
 from ..progress import Steps, drain, scaled
 from ..shading.world_light import WORLD_SUN_NAME, world_lit
@@ -100,7 +101,8 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
     levels: Levels
     if plan is not None:
         settings = plan.settings
-        ctx = SolveContext(scene, settings, bvh, size, scale, shot_emitters(scene, settings))
+        ctx = SolveContext(scene, settings, bvh, size, scale,
+                           shot_emitters(scene, settings, bvh, RAY_OFFSET_REL * scale))
         levels = TreeLevels(scene, plan.roots, plan.depth, ctx.occluded, settings, scale,
                             plan.memory)
     else:
@@ -111,7 +113,8 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
             # factors (shadows.blend at a 50-patch budget: 200 s of Gauss-Seidel against 0.7 s
             # clustered).
             settings = replace(settings, solver="clustered")
-        ctx = SolveContext(scene, settings, bvh, size, scale, shot_emitters(scene, settings))
+        ctx = SolveContext(scene, settings, bvh, size, scale,
+                           shot_emitters(scene, settings, bvh, RAY_OFFSET_REL * scale))
         levels = PatchLevels(ctx, patches, groups)
     yield 0.02
     solved = yield from _level_steps(ctx, levels)

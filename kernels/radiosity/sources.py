@@ -22,7 +22,7 @@ from ..shading.direct_light import diffuse_at, diffuse_weight
 from ..shading.specular_layer import diffuse_factor
 from ..shading.world_light import extract_suns, world_irradiance, world_lit, world_source
 from . import patches as patching
-from .emitters import Emitters, emitter_irradiance, emitters_of
+from .emitters import Emitters, emitter_irradiance, emitters_of, open_backs
 from .form_factors.sampling import sample_patches
 from .lamps import hard_lamps, shadowed_irradiance
 from .settings import RadiositySettings, gather_settings
@@ -99,11 +99,14 @@ def patch_emission(scene: Scene, patches: patching.Patches) -> np.ndarray:
     return np.pi * triangle_emission(scene)[patches.parent]
 
 
-def shot_emitters(scene: Scene, settings: RadiositySettings) -> Emitters:
+def shot_emitters(scene: Scene, settings: RadiositySettings, bvh=None,
+                  offset: float = 0.0) -> Emitters:
     """The emissive triangles that shoot their light first, as lamps do (`first_shot`): the ones
     the final gather reads per receiver (`emitters.emitters_of`; none past its
-    `max_emitters`, whose light the solver then carries as emission)."""
-    return emitters_of(scene, gather_settings(settings))
+    `max_emitters`, whose light the solver then carries as emission), with the back sides that
+    face open space (`emitters.open_backs`, given the scene's `bvh`)."""
+    open_back = None if bvh is None else open_backs(scene, bvh, offset)
+    return emitters_of(scene, gather_settings(settings), open_back)
 
 
 def shot_emission(scene: Scene, patches: patching.Patches,
