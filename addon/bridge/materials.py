@@ -151,6 +151,34 @@ def scaled_texture(texture: Texture | None, factor: float) -> Texture | None:
                    offset=(texture.offset * factor).astype(np.float32))
 
 
+def mapping_transform(node) -> np.ndarray | None:
+    """(2, 3) affine [A | t] that a Mapping node of constants applies to (u, v): Point
+    p' = R(S p) + L, Texture p' = S^-1 R^-1 (p - L) (Blender's mapping node), R a turn about z.
+    None where an input is linked, the rotation leaves the UV plane or the type is another."""
+    inputs = node.inputs
+    if node.vector_type not in ("POINT", "TEXTURE") or any(
+            inputs[name].is_linked for name in ("Location", "Rotation", "Scale")):
+        return None
+    location = np.array(inputs["Location"].default_value[:2], np.float64)
+    rx, ry, rz = inputs["Rotation"].default_value
+    if abs(rx) > MAPPING_PLANAR_EPS or abs(ry) > MAPPING_PLANAR_EPS:
+        return None
+    scale = np.array(inputs["Scale"].default_value[:2], np.float64)
+    turn = np.array([[np.cos(rz), -np.sin(rz)], [np.sin(rz), np.cos(rz)]])
+    if node.vector_type == "POINT":
+        a, t = turn @ np.diag(scale), location
+    else:
+        if np.any(scale == 0.0):
+            return None
+        a = np.diag(1.0 / scale) @ turn.T
+        t = -a @ location
+    return np.column_stack([a, t])
+
+
+# A Mapping node's rotation about x or y below this (radians) keeps the UV plane in itself.
+MAPPING_PLANAR_EPS = 1e-9
+
+
 class MaterialReader:
     """Reduces Blender materials to kernel `Material`s, recording what it could not model."""
 
@@ -319,29 +347,40 @@ class MaterialReader:
         return default, value.texture
 
     def _uv_layer(self, node, ignored, what, generated: bool
-                  ) -> tuple[bool, str | None, str]:
-        """(ok, uv layer name or None for the active render layer, "UV" or "GENERATED") of a
-        texture node's Vector: unlinked, an Image Texture reads UVs and a Checker the Generated
-        coordinates. `generated`: whether this use can read Generated coordinates (base colours
-        can; bump and normal maps, whose tangent frames follow the UVs, read UVs instead)."""
+                  ) -> tuple[bool, str | None, str, np.ndarray | None]:
+        """(ok, uv layer name or None for the active render layer, "UV" or "GENERATED", a (2, 3)
+        UV transform or None) of a texture node's Vector: unlinked, an Image Texture reads UVs
+        and a Checker the Generated coordinates; a Mapping node of constants on UVs (glTF's
+        KHR_texture_transform) becomes the transform. `generated`: whether this use can read
+        Generated coordinates (base colours can; bump and normal maps, whose tangent frames
+        follow the UVs, read UVs instead)."""
         vec_node, vec_socket = follow(node.inputs["Vector"])
+        if vec_node is not None and vec_node.type == "MAPPING":
+            transform = mapping_transform(vec_node)
+            inner = follow(vec_node.inputs["Vector"])[0]
+            if transform is None or inner is None:
+                ignored.append(f"{what}: a Mapping node with linked, 3D or unlinked inputs is "
+                               f"not modelled")
+                return False, None, "UV", None
+            ok, layer, coordinates, _ = self._uv_layer(vec_node, ignored, what, False)
+            return ok, layer, coordinates, transform
         if vec_node is None and node.type != "TEX_CHECKER":
-            return True, None, "UV"
+            return True, None, "UV", None
         if vec_node is None or (vec_node.type == "TEX_COORD" and vec_socket.name == "Generated"):
             if generated:
-                return True, None, "GENERATED"
+                return True, None, "GENERATED", None
             ignored.append(f"{what}: a texture on Generated coordinates is read on UVs")
-            return True, None, "UV"
+            return True, None, "UV", None
         if vec_node.type == "UVMAP":
-            return True, (vec_node.uv_map or None), "UV"
+            return True, (vec_node.uv_map or None), "UV", None
         if vec_node.type == "TEX_COORD" and vec_socket.name == "UV":
-            return True, None, "UV"
+            return True, None, "UV", None
         ignored.append(f"{what}: texture coordinates from '{vec_node.bl_idname}' are not modelled")
-        return False, None, "UV"
+        return False, None, "UV", None
 
     def _texture(self, node, ignored, what, generated: bool = True) -> Texture | None:
         if node.type == "TEX_IMAGE":
-            ok, uv_layer, coordinates = self._uv_layer(node, ignored, what, generated)
+            ok, uv_layer, coordinates, uv_transform = self._uv_layer(node, ignored, what, generated)
             image = node.image
             if image is None or not ok:
                 return None
@@ -360,9 +399,10 @@ class MaterialReader:
                 uv_layer=uv_layer,
                 coordinates=coordinates,
                 encoding="sRGB" if stored_srgb(image) else "linear",
+                uv_transform=uv_transform,
             )
         if node.type == "TEX_CHECKER":
-            ok, uv_layer, coordinates = self._uv_layer(node, ignored, what, generated)
+            ok, uv_layer, coordinates, uv_transform = self._uv_layer(node, ignored, what, generated)
             linked = [s.name for s in node.inputs if s.name != "Vector" and s.is_linked]
             if not ok or linked:
                 if linked:
@@ -376,6 +416,7 @@ class MaterialReader:
                 scale=float(node.inputs["Scale"].default_value),
                 uv_layer=uv_layer,
                 coordinates=coordinates,
+                uv_transform=uv_transform,
             )
         return None
 

@@ -30,9 +30,8 @@ from ..shadow.shadowmap import Receivers, ShadowMap, ShadowMapSettings
 from ..shadow.views import fit_sun, plan_shadow_map, potential_casters
 from . import lights as light_units
 from .bump import scene_normals
-from .material_maps import emission_at
+from .material_maps import emission_at, material_values
 from .specular_layer import diffuse_factor, lamp_highlights, view_factors, view_tables
-from .textures import sample_texture
 
 MIN_MAP = 256  # below this a map cannot place even a coarse shadow edge
 MAX_MAP = 8192  # 256 MiB of float32 depth per face: the memory bound of one map
@@ -187,18 +186,9 @@ def shadow_mask(irradiance: np.ndarray, visibility: np.ndarray) -> np.ndarray:
 
 def albedo_at(scene: Scene, tri: np.ndarray, bary: np.ndarray) -> np.ndarray:
     """Base colour (N, 3) at barycentric points of triangles, textures sampled through their
-    coordinates (`Scene.texture_coords`: UVs or Generated)."""
-    mids = scene.material_ids[tri]
-    out = np.empty((len(tri), 3))
-    for m in np.unique(mids):
-        rows = mids == m
-        mat = scene.materials[m]
-        if mat.base_color_texture is None:
-            out[rows] = mat.base_color
-        else:
-            uv = np.einsum("nc,ncj->nj", bary[rows], scene.texture_coords[tri[rows]])
-            out[rows] = sample_texture(mat.base_color_texture, uv)
-    return out
+    coordinates (UVs or Generated)."""
+    return material_values(scene, tri, bary, lambda m: m.base_color_texture,
+                           lambda m: m.base_color)
 
 
 def metal_f0(scene: Scene, tri: np.ndarray, base: np.ndarray) -> np.ndarray:

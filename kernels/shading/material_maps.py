@@ -20,6 +20,7 @@ Coordinates are the texture's own: the active UVs, or Generated (`Texture.coordi
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
@@ -84,21 +85,29 @@ def triangle_means(scene: Scene, tri: np.ndarray, texture: Texture) -> np.ndarra
     return out
 
 
-def emission_at(scene: Scene, tri: np.ndarray, bary: np.ndarray) -> np.ndarray:
-    """(N, 3) float64 emitted radiance W/(m^2 sr) at barycentric points (N, 3) of triangles
-    `tri`: the material's constant, or its emission texture looked up there."""
+def material_values(scene: Scene, tri: np.ndarray, bary: np.ndarray,
+                    texture_of: Callable[[Material], Texture | None],
+                    constant_of: Callable[[Material], np.ndarray]) -> np.ndarray:
+    """(N, 3) float64 one material socket at barycentric points (N, 3) of triangles `tri`: each
+    material's texture (`texture_of`) looked up through its own coordinates, else its constant."""
     mids = scene.material_ids[tri]
     out = np.zeros((len(tri), 3))
     for m in np.unique(mids):
         rows = mids == m
         mat = scene.materials[m]
-        if mat.emission_texture is None:
-            out[rows] = mat.emission
+        texture = texture_of(mat)
+        if texture is None:
+            out[rows] = constant_of(mat)
             continue
-        coords = corner_coords(scene, tri[rows], mat.emission_texture)
-        out[rows] = sample_texture(mat.emission_texture,
-                                   np.einsum("nc,ncj->nj", bary[rows], coords))
+        coords = corner_coords(scene, tri[rows], texture)
+        out[rows] = sample_texture(texture, np.einsum("nc,ncj->nj", bary[rows], coords))
     return out
+
+
+def emission_at(scene: Scene, tri: np.ndarray, bary: np.ndarray) -> np.ndarray:
+    """(N, 3) float64 emitted radiance W/(m^2 sr) at barycentric points (N, 3) of triangles
+    `tri`: the material's constant, or its emission texture looked up there."""
+    return material_values(scene, tri, bary, lambda m: m.emission_texture, lambda m: m.emission)
 
 
 def _quantised(values: np.ndarray, step: float) -> np.ndarray:

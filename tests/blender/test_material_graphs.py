@@ -288,3 +288,24 @@ def test_every_run_lists_the_unread_sockets_in_metrics_json(tmp_path):
         listed = metrics["ignored"]
         assert any("Emission Color" in why and "colour attributes" in why for why in listed), (
             command, listed)
+
+
+def test_a_mapping_node_on_uvs_moves_the_look_up():
+    """glTF's KHR_texture_transform arrives as a Mapping node (Point) between the UVs and the
+    image: scale 2, a quarter turn and a shift of a quarter, against Cycles' EMIT bake."""
+    import math
+
+    tree, bsdf = _plane_with_emission()
+    img = _image_node(tree)
+    coords = tree.nodes.new("ShaderNodeTexCoord")
+    mapping = tree.nodes.new("ShaderNodeMapping")
+    mapping.inputs["Scale"].default_value = (2.0, 2.0, 1.0)
+    mapping.inputs["Rotation"].default_value = (0.0, 0.0, math.pi / 2)
+    mapping.inputs["Location"].default_value = (0.25, 0.0, 0.0)
+    tree.links.new(coords.outputs["UV"], mapping.inputs["Vector"])
+    tree.links.new(mapping.outputs["Vector"], img.inputs["Vector"])
+    tree.links.new(img.outputs["Color"], bsdf.inputs["Emission Color"])
+    ours, theirs, mask, scene = _baked_and_ours()
+    assert not scene.ignored or all("Mapping" not in why for why in scene.ignored)
+    err = np.abs(ours - theirs).max(axis=2)[mask]
+    assert theirs.max() > 0.1 and np.mean(err > 1e-3) <= 0.02, (err.max(), np.mean(err > 1e-3))
