@@ -56,7 +56,7 @@ extension: $(VENV)/.stamp
 	$(PY) tools/build_extension.py --out dist
 
 # Every benchmark (bench/_report.py and bench/meshes.py are their shared helpers).
-BENCHES := rays trace texture envmap bump shadowmap radiosity hybrid normalmap
+BENCHES := rays trace texture envmap bump shadowmap radiosity hybrid normalmap generated batch
 
 bench: $(VENV)/.stamp
 	for b in $(BENCHES); do $(PY) bench/$$b.py || exit 1; done

@@ -3,25 +3,23 @@ record's job on the scene and writes render.exr (+ render.png), the job's files 
 
 from __future__ import annotations
 
-from pathlib import PurePosixPath
-
 from ..arguments import add_technique_arguments
 from ..command import Command, RunContext
-from ..outputs import UsageError, safe_name
+from ..outputs import UsageError
 
 
 def output_name(name: str) -> str:
-    """A job's file name ("cube/Mirror Ball.exr") made safe for the disk, part by part."""
-    path = PurePosixPath(name)
-    return str(path.parent / (safe_name(path.stem) + path.suffix)) if path.parent.parts else (
-        safe_name(path.stem) + path.suffix)
+    """A job's file name ("cube/Mirror Ball.exr") as given: `Staging.file` makes it safe and
+    unique (two names that clean alike never share a file) and keeps its extension."""
+    return name
 
 
 def write_files(ctx: RunContext, summary) -> None:
     """render.exr/png when the job rendered the camera, then every file the job named (by
     extension: .exr linear, .png a tone-mapped preview, or the bytes as they are when the job
-    hands uint8 data, e.g. a normal map, .json data); with --save-blend the
-    job's images are packed into the saved file."""
+    hands uint8 data, e.g. a normal map, .json data; a callable is a writer the job made for a
+    format its kernels write themselves, e.g. an OpenEXR cube map with its envmap attribute,
+    called with the path); with --save-blend the job's images are packed into the saved file."""
     from ...addon.bridge import write_back
     from ...kernels.measure.exr import write_exr
     from ..images import write_png, write_preview_png
@@ -31,7 +29,9 @@ def write_files(ctx: RunContext, summary) -> None:
         write_preview_png(ctx.output("render.png"), summary.render)
     for name, data in summary.files.items():
         safe = output_name(name)
-        if safe.endswith(".json"):
+        if callable(data):
+            data(ctx.output(safe))
+        elif safe.endswith(".json"):
             ctx.staging.write_json(safe, data)
         elif safe.endswith(".png") and getattr(data, "dtype", None) == "uint8":
             write_png(ctx.output(safe), data)
@@ -59,7 +59,7 @@ def technique_command(technique) -> Command:
             try:
                 from ...kernels.progress import drain
 
-                summary = drain(technique.start(bpy.context, values, resolution=ctx.resolution))
+                summary = drain(technique.start(bpy.context, values, ctx.resolution), ctx.progress())
             except ValueError as exc:
                 raise UsageError(f"{technique.name}: {exc}") from exc
         if technique.renders and summary.render is None:
@@ -76,6 +76,10 @@ def technique_command(technique) -> Command:
             # and why), in every run's metrics.json as in `info`.
             ctx.record.extra["ignored"] = list(summary.scene.ignored)
         ctx.say(summary.message)
+        if getattr(ctx.args, "target_error", None) is not None:
+            from ..quality import check_target
+
+            check_target(ctx, technique, summary)
         for why in summary.skipped:
             ctx.say(f"  skipped: {why}")
 
