@@ -11,7 +11,7 @@ OUT    ?= out
 # Keep the test suite inside the 2-core machine: one process, hypothesis profile "ci".
 PYTEST_FLAGS ?= -q -p no:cacheprovider
 
-.PHONY: all demo test test-quick test-kernels test-blender test-blender45 lint samples extension bench \
+.PHONY: all demo test test-quick test-kernels test-farm test-blender test-blender45 lint samples extension bench \
 	docs clean chromium
 
 all: test
@@ -25,7 +25,12 @@ $(VENV45)/.stamp: requirements/blender45.txt tools/make_venv.sh
 demo: $(VENV)/.stamp
 	$(PY) -m classic_bake demo sample_blends --out $(OUT)/demo
 
-test: lint test-kernels test-blender test-blender45
+test: lint test-kernels test-farm test-blender test-blender45
+
+# The Flamenco job type's compiler (farm/), with Node's own test runner; one line and a skip
+# where Node is missing.
+test-farm:
+	@if command -v node >/dev/null; then node --test farm/; else echo "test-farm: node not found, skipped"; fi
 
 lint: $(VENV)/.stamp
 	$(VENV)/bin/ruff check .

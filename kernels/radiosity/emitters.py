@@ -109,13 +109,17 @@ def emitters_of(scene: Scene, settings: FinalGatherSettings,
     keep = np.flatnonzero((power > 0.0) & (np.linalg.norm(normals, axis=1) > 0.0))
     if len(keep) > settings.max_emitters:
         keep = keep[:0]
-    backs = keep[open_back[keep]] if open_back is not None else keep[:0]
-    index = np.concatenate([keep, backs])
-    sides = np.concatenate([tris[keep], tris[backs][:, ::-1]])
-    share = power[index] / max(float(power[index].sum()), 1e-300)
+    share = power[keep] / max(float(power[keep].sum()), 1e-300)
     per_side = np.maximum(1, np.rint(np.sqrt(settings.emitter_rays * share))).astype(np.int64)
-    return Emitters(index, sides, np.concatenate([normals[keep], -normals[backs]]),
-                    radiance[index], per_side)
+    # A back side takes its front's rays: a receiver sees one side of a flat emitter, so the
+    # budget per receiver stays `emitter_rays`.
+    back = open_back[keep] if open_back is not None else np.zeros(len(keep), bool)
+    backs = keep[back]
+    return Emitters(np.concatenate([keep, backs]),
+                    np.concatenate([tris[keep], tris[backs][:, ::-1]]),
+                    np.concatenate([normals[keep], -normals[backs]]),
+                    radiance[np.concatenate([keep, backs])],
+                    np.concatenate([per_side, per_side[back]]))
 
 
 def stratified_triangle_points(poly: np.ndarray, m: int, n: int, rng: np.random.Generator
