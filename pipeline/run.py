@@ -307,7 +307,10 @@ def check_estimates(cmd: Command, args) -> None:
     if not cmd.is_technique:
         return
     budget, source = memory_budget(args)
-    parts = estimate_memory(cmd, args)
+    try:
+        parts = estimate_memory(cmd, args)
+    except ValueError as exc:  # settings the kernel refuses (--patches 0): the same one line
+        raise UsageError(f"{cmd.name}: {exc}") from exc
     total = sum(need for need, _, _ in parts)
     if total > budget:
         _, what, flag = max(parts)  # the largest part, and the flag that lowers it
