@@ -18,6 +18,7 @@ from dataclasses import replace
 import bpy
 import numpy as np
 
+from . import write_back
 from .images import flip_rows
 from .materials import MaterialReader
 from .mesh import mesh_positions, mesh_triangles, mesh_uv
@@ -105,25 +106,6 @@ def material_before_wiring(mat, material):
                    bump_distance=-distance if bump.invert else distance)
 
 
-def _materials_to_wire(obj) -> list:
-    """`obj`'s materials, a new one where a slot is empty or there is none, and a copy in this
-    object's slot where a material is shared with other objects (the map is this object's)."""
-    if len(obj.material_slots) == 0:
-        obj.data.materials.append(bpy.data.materials.new(f"{obj.name} (normal map)"))
-    materials = []
-    for slot in obj.material_slots:
-        mat = slot.material
-        if mat is None:
-            mat = slot.material = bpy.data.materials.new(f"{obj.name} (normal map)")
-        elif mat.users > 1:
-            mat = slot.material = mat.copy()
-        if bpy.app.version < (5, 0, 0):
-            mat.use_nodes = True  # creates a Principled BSDF and an output in 4.5
-        if mat not in materials:
-            materials.append(mat)
-    return materials
-
-
 def unwire_normal_map(mat) -> None:
     """Remove what `wire_normal_map` added to `mat` and link the recorded sources back into the
     BSDFs' Normal inputs."""
@@ -154,7 +136,7 @@ def wire_normal_map(obj, image, uv_map: str, keep_bump: bool = False) -> tuple[l
     otherwise it is disconnected (a map made from that Bump's height replaces it). Returns
     (materials wired, one reason per material not wired)."""
     wired, skipped = [], []
-    for mat in _materials_to_wire(obj):
+    for mat in write_back.materials_to_wire(obj, single_user=True, suffix="normal map"):
         unwire_normal_map(mat)  # wiring again replaces the previous wiring, losing nothing
         tree = mat.node_tree
         bsdfs = [n for n in tree.nodes if n.type == "BSDF_PRINCIPLED"]

@@ -111,24 +111,26 @@ WIRING_TAG = "classic_bake"  # custom property on every node the wiring adds
 _ORIGINAL_OUTPUT = "classic_bake_original_output"  # material property: the output to restore
 
 
-def _material_slots_for_display(obj, single_user: bool):
-    """The materials of `obj` to wire, creating one where a slot is empty or there are none.
+def materials_to_wire(obj, single_user: bool, suffix: str = "baked") -> list:
+    """The materials of `obj` to wire (each once), creating one ("OBJECT (suffix)") where a slot
+    is empty or there are none.
 
-    With `single_user` (a per-object lightmap image) a material shared with other objects is
-    replaced in this object's slot by a copy, so the other objects keep showing their own bake.
+    With `single_user` (a per-object image: a lightmap, a normal map) a material shared with
+    other objects is replaced in this object's slot by a copy, so the other objects keep their own.
     """
     if len(obj.material_slots) == 0:
-        obj.data.materials.append(bpy.data.materials.new(f"{obj.name} (baked)"))
+        obj.data.materials.append(bpy.data.materials.new(f"{obj.name} ({suffix})"))
     materials = []
     for slot in obj.material_slots:
         mat = slot.material
         if mat is None:
-            mat = slot.material = bpy.data.materials.new(f"{obj.name} (baked)")
+            mat = slot.material = bpy.data.materials.new(f"{obj.name} ({suffix})")
         elif single_user and mat.users > 1:
             mat = slot.material = mat.copy()
         if bpy.app.version < (5, 0, 0):
-            mat.use_nodes = True
-        materials.append(mat)
+            mat.use_nodes = True  # creates a Principled BSDF and an output in 4.5
+        if mat not in materials:
+            materials.append(mat)
     return materials
 
 
@@ -157,7 +159,7 @@ def wire_baked_display(obj, *, attribute: str | None = None, image=None,
     """
     if (attribute is None) == (image is None):
         raise ValueError("wire_baked_display: give exactly one of attribute= and image=")
-    materials = _material_slots_for_display(obj, single_user=image is not None)
+    materials = materials_to_wire(obj, single_user=image is not None)
     for mat in materials:
         unwire_baked_display(mat)
         tree = mat.node_tree
