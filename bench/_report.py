@@ -105,6 +105,15 @@ def seconds_to_reach(error: float, ladder: list[dict], metric: str = "rel_mse") 
     return None
 
 
+def add_cycles_ratios(rows: list[dict], cycles: list[dict]) -> None:
+    """For each kernel rung: Cycles' seconds to its error on Cycles' ladder
+    (`cycles_seconds_to_same_error`) and that over the rung's seconds (`ratio`; None: never)."""
+    for row in rows:
+        reach = seconds_to_reach(row["rel_mse"], cycles)
+        row["cycles_seconds_to_same_error"] = reach
+        row["ratio"] = None if reach is None else reach / row["seconds"]
+
+
 def whitted_reference(scene: Path, quick: bool, max_samples: int) -> tuple:
     """Open `scene`, and fetch (or render and cache) its converged Cycles render under the
     Whitted tracer's model at the scene's own resolution and the tracer's automatic depth.

@@ -19,9 +19,9 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _report import (  # noqa: E402
     OUT_DIR,
+    add_cycles_ratios,
     image_row,
     reference_arguments,
-    seconds_to_reach,
     versions,
     whitted_reference,
     write_report,
@@ -74,10 +74,7 @@ def main() -> int:
                                               resolution=resolution)
             cycles_rows.append({"samples": cycles_counts[step], "seconds": seconds,
                                 "rel_mse": rel_mse(image, reference)})
-    for row in kernel_rows:
-        reach = seconds_to_reach(row["rel_mse"], cycles_rows)
-        row["cycles_seconds_to_same_error"] = reach
-        row["ratio"] = None if reach is None else reach / row["seconds"]
+    add_cycles_ratios(kernel_rows, cycles_rows)
     # Stability: the Bump nodes' Distance scaled from a quarter to 64x, Cycles re-rendered at each
     # (64 samples, the scene's half resolution): does the kernel follow Cycles into steep relief?
     sweep = {"scale": [], "bump": [], "phong": []}

@@ -22,7 +22,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _report import OUT_DIR, seconds_to_reach, versions, write_report  # noqa: E402
+from _report import OUT_DIR, add_cycles_ratios, versions, write_report  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 BASE_SCENE = ROOT / "sample_blends" / "cornell_box.blend"
@@ -137,10 +137,9 @@ def main() -> int:
                                               resolution=resolution)
             cycles_rows.append({"samples": cycles_counts[step], "seconds": seconds,
                                 "rel_mse": rel_mse(image, reference)})
+    add_cycles_ratios(kernel_rows, cycles_rows)
     for row in kernel_rows:
-        reach = seconds_to_reach(row["rel_mse"], cycles_rows)
-        row["cycles_seconds_to_same_error"] = reach
-        row["ratio"] = None if reach is None else reach / row["seconds"]
+        reach = row["cycles_seconds_to_same_error"]
         row["ratio_amortised"] = None if reach is None else reach / row["trace_seconds"]
     write_preview_png(OUT_DIR / "hybrid_reference.png", reference)
     write_preview_png(OUT_DIR / "hybrid_whitted.png", whitted)

@@ -12,6 +12,7 @@ from reference_data import reference
 from classic_bake.kernels.envmap import cube_files as cf
 from classic_bake.kernels.envmap.cubemap import FACE_NAMES, direction_to_face, texel_directions
 from classic_bake.kernels.envmap.prefilter import level_size
+from classic_bake.kernels.progress import drain
 
 SPEC = reference("openexr_cubemap.json")
 AXIS = {"x": 0, "y": 1, "z": 2}
@@ -256,12 +257,7 @@ def test_equirect_in_row_blocks_with_progress(monkeypatch):
     monkeypatch.setattr(cf, "EQUIRECT_BLOCK", 2 * 48 * 4)  # two rows of 48 pixels x 4 samples
     steps = cf.equirect_steps(cube, 24, supersample=2)
     seen = []
-    while True:
-        try:
-            seen.append(next(steps))
-        except StopIteration as stop:
-            blocks = stop.value
-            break
+    blocks = drain(steps, seen.append)
     assert len(seen) == 12 and seen == sorted(seen) and seen[-1] == 1.0
     assert np.array_equal(blocks, whole)
 

@@ -86,12 +86,7 @@ def test_progress_is_monotone_and_ends_at_one():
     faces = _environment(texel_directions(16))
     steps = pf.prefilter_steps(faces, pf.PrefilterSettings(levels=4))
     seen = []
-    while True:
-        try:
-            seen.append(next(steps))
-        except StopIteration as stop:
-            result = stop.value
-            break
+    result = drain(steps, seen.append)
     assert all(0.0 <= p <= 1.0 for p in seen) and seen == sorted(seen) and seen[-1] == 1.0
     assert isinstance(result, pf.PrefilteredCube) and len(result.levels) == 4
 

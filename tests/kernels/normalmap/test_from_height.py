@@ -21,6 +21,7 @@ from classic_bake.kernels.normalmap.heights import (
     ProceduralHeight,
     height_source,
 )
+from classic_bake.kernels.progress import drain
 
 
 def unit_and_finite(n):
@@ -151,12 +152,7 @@ def test_unknown_names_and_settings_are_refused():
 def test_progress_is_monotone_and_ends_at_one():
     steps = normal_map_steps(ProceduralHeight("ramp"), NormalMapSettings(size=600))
     seen = []
-    while True:
-        try:
-            seen.append(next(steps))
-        except StopIteration as stop:
-            result = stop.value
-            break
+    result = drain(steps, seen.append)
     assert len(seen) >= 3 and seen == sorted(seen) and seen[-1] == 1.0
     assert all(0.0 <= p <= 1.0 for p in seen)
     assert result.rgb.shape == (600, 600, 3)
