@@ -104,6 +104,9 @@ class Material:
     |                    |           |         | `emission`                                     |
     | metallic_texture   | Texture   | None    | metallic per texel (its first channel)         |
     | roughness_texture  | Texture   | None    | roughness per texel (its first channel)        |
+    | alpha              | [0, 1]    | 1       | coverage: 0 a hole every ray passes, 1 opaque  |
+    | alpha_texture      | Texture   | None    | coverage per texel (its first channel),        |
+    |                    |           |         | replaces `alpha` (leaves, fences, decals)      |
 
     The per-texel textures other than the base colour's are resolved per triangle by
     `shading/material_maps.py` before a kernel runs (a snapshot does it): metallic and roughness
@@ -127,8 +130,17 @@ class Material:
     emission_texture: Texture | None = None
     metallic_texture: Texture | None = None
     roughness_texture: Texture | None = None
+    # Coverage (Principled Alpha): what a ray meets of this surface; shadow and visibility rays
+    # pass with weight 1 - alpha (`shading/alpha.py`, `geometry/alpha_occlusion.py`).
+    alpha: float = 1.0
+    alpha_texture: Texture | None = None
     # What the bridge could not model on this material, one reason per entry.
     ignored: tuple[str, ...] = ()
+
+    @property
+    def has_alpha(self) -> bool:
+        """True when some ray may pass through this surface (alpha < 1 or an alpha texture)."""
+        return self.alpha_texture is not None or self.alpha < 1.0
 
     @property
     def is_emissive(self) -> bool:

@@ -24,11 +24,13 @@ from ..geometry.scene import Scene, interpolated_normals
 from ..geometry.vec import bounds, row_norms
 from ..measure.metrics import REC709_LUMINANCE
 from ..progress import Steps, drain, scaled
+from ..shadow.cutouts import Cutout
 from ..shadow.depth_maps import render_shadow_map_steps
 from ..shadow.depth_test import receivers_visibility
 from ..shadow.shadowmap import Receivers, ShadowMap, ShadowMapSettings
 from ..shadow.views import fit_sun, plan_shadow_map, potential_casters
 from . import lights as light_units
+from .alpha import alpha_materials, has_alpha, surface_alpha
 from .bump import scene_normals
 from .material_maps import emission_at, material_values
 from .specular_layer import diffuse_factor, lamp_highlights, view_factors, view_tables
@@ -144,16 +146,26 @@ def shadow_maps_steps(scene: Scene, points, geo_normals, spacing: float,
             maps.append(None)
             continue
         shadow = settings.shadow
-        casters = scene.triangles[potential_casters(scene.triangles, light, box)]
+        caster_ids = np.arange(scene.triangle_count)[potential_casters(scene.triangles, light, box)]
+        casters = scene.triangles[caster_ids]
         fit = fit_sun(casters, light, receivers) if light.kind == "SUN" else None
         if settings.auto_resolution:
             shadow = replace(shadow, resolution=map_resolution(
                 light, points, spacing, fit.span if fit is not None else None))
         shadow_map = plan_shadow_map(casters, light, shadow, box, fit)  # casters: culled above
-        drain(render_shadow_map_steps(shadow_map, casters))
+        drain(render_shadow_map_steps(shadow_map, casters, _cutout(scene, caster_ids)))
         maps.append(shadow_map)
         yield (k + 1) / max(len(lights), 1)
     return maps
+
+
+def _cutout(scene: Scene, caster_ids: np.ndarray) -> Cutout | None:
+    """The alpha test of casters scene.triangles[caster_ids] (`shadow/cutouts.py`), or None when
+    no caster has alpha."""
+    if not has_alpha(scene):
+        return None
+    cut = alpha_materials(scene)[scene.material_ids[caster_ids]]
+    return Cutout(cut, lambda tri, bary: surface_alpha(scene, caster_ids[tri], bary))
 
 
 def maps_visibility(maps: list, points, geo_normals, out: np.ndarray) -> np.ndarray:

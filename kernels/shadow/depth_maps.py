@@ -9,16 +9,27 @@ from ..geometry.raster import rasterize_steps, rasterize_views_steps
 from ..geometry.scene import Light
 from ..geometry.vec import min_of_three
 from ..progress import Steps, drain
+from .cutouts import Cutout, cutout_depth_steps
 from .shadowmap import ShadowMap, ShadowMapSettings, shared_depth
 from .views import plan_shadow_map, potential_casters
 
 
-def render_shadow_map_steps(shadow_map: ShadowMap, triangles: np.ndarray) -> Steps[ShadowMap]:
+def render_shadow_map_steps(shadow_map: ShadowMap, triangles: np.ndarray,
+                            cutout: Cutout | None = None) -> Steps[ShadowMap]:
     """Step 1 of the lecture: z-buffer (T, 3, 3) world triangles into every view; yields
     progress, returns the map.
 
     Draws into the planned buffers as they are (a fresh plan holds +inf): rendering more
-    triangles into the same map depth-tests them against what is there."""
+    triangles into the same map depth-tests them against what is there. `cutout`, when some of
+    the triangles have alpha: their fragments are alpha-tested (`cutouts.py`)."""
+    if cutout is not None and cutout.cut.any():
+        reach = (np.ones((1, len(triangles)), bool) if shadow_map.kind != "CUBE"
+                 else _reaches_faces(triangles, shadow_map.light_position))
+        for k, view in enumerate(shadow_map.views):
+            for progress in cutout_depth_steps(triangles[reach[k]], view.projection, view.depth,
+                                               cutout.subset(reach[k])):
+                yield (k + progress) / len(shadow_map.views)
+        return shadow_map
     # The planned buffers start at +inf: no second clearing pass over the map.
     if shadow_map.kind != "CUBE":
         yield from rasterize_steps(triangles, shadow_map.views[0].projection,

@@ -35,11 +35,13 @@ from dataclasses import replace
 import numpy as np
 
 from ..bake.camera_view import edge_pixels, stratified_offsets
+from ..geometry.alpha_occlusion import transmittance
 from ..geometry.bvh import BVH
 from ..geometry.camera import camera_rays, pixel_rays
 from ..geometry.scene import Scene, geometric_normals
 from ..progress import Steps, drain
 from ..shading import lights as light_units
+from ..shading.alpha import scene_alpha
 from ..shading.bump import bump_shadowing
 from ..shading.optics import fresnel_dielectric, reflect, refract
 from ..shading.specular_layer import ggx_highlight, metal_tables, view_factors, view_tables
@@ -96,6 +98,9 @@ class Tracer:
         # highlights and the mirror and glass rays stay the tracer's.
         self.diffuse = diffuse
         self.offset = settings.offset_scale * _scene_scale(scene)
+        # Surfaces with alpha (leaf cards): shadow rays pass them with weight 1 - alpha; None
+        # when every surface is opaque (shadow rays are then a plain any-hit test).
+        self.alpha = scene_alpha(scene)
         self.tri_normals = geometric_normals(scene.triangles)
         self.emitters = scene_emitters(scene, settings)
         self.area_lamps = [li for li in scene.lights if li.kind == "AREA"]
@@ -126,6 +131,9 @@ class Tracer:
 
     def _visible(self, origins, directions, t_max) -> np.ndarray:
         self.stats.shadow_rays += len(origins)
+        if self.alpha is not None:  # (N,) float transmittance
+            return transmittance(self.shadow_bvh, origins, directions, 0.0, t_max,
+                                 self.alpha, self.offset, self.alpha.opaque)
         return ~self.shadow_bvh.occluded(origins, directions, 0.0, t_max)
 
     def direct(self, h: SurfaceHits, wo: np.ndarray, diffuse_w: np.ndarray, lobes: list, rough,

@@ -1,0 +1,131 @@
+"""Any-hit occlusion through partly covered surfaces (alpha): transmittance of shadow rays.
+
+A surface of coverage alpha in [0, 1] (a leaf card's texture: 0 in the holes, 1 on the leaf)
+lets a ray through with weight 1 - alpha, as Cycles' transparent shadows do. Along a segment
+the transmittance is the product over every surface it meets:
+
+    T = prod_k (1 - alpha_k)        (0 as soon as it meets an opaque surface)
+
+Found with the BVH's own queries, its internals untouched: one any-hit test (`BVH.occluded`)
+settles the rays that meet nothing (T = 1, the common case, at the usual cost); the others walk
+their hits front to back with closest-hit queries (`BVH.intersect`), each restarting just
+beyond the last hit (`offset`), until they leave the segment, meet an opaque surface, or carry
+less than `AnyHitSettings.opaque_below`.
+
+`AlphaOccluder` puts this behind the BVH's `occluded` signature for kernels that take a
+yes / no visibility query (radiosity): a ray is blocked with probability 1 - T, an unbiased
+estimate of the transmittance in expectation.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from .bvh import BVH
+from .intersect import Hits
+
+# Coverage at hits: (tri (N,) int, u (N,), v (N,) barycentrics of corners 1 and 2) -> (N,) alpha
+# in [0, 1]; 1 where a triangle is opaque.
+Coverage = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
+# Which triangles are opaque whatever their texture says: (tri (N,)) -> (N,) bool.
+Opaque = Callable[[np.ndarray], np.ndarray]
+
+
+@dataclass(frozen=True)
+class AnyHitSettings:
+    """| field        | range   | default | meaning                                              |
+    |--------------|---------|---------|------------------------------------------------------|
+    | max_layers   | >= 1    | 64      | alpha surfaces one ray walks through before it stops |
+    |              |         |         | (the transmittance so far is kept): a bound on work  |
+    | opaque_below | [0, 1)  | 1e-4    | a ray carrying less transmittance counts as blocked  |
+    |              |         |         | (Cycles' shadow rays stop so at full absorption)     |
+    """
+
+    max_layers: int = 64
+    opaque_below: float = 1e-4
+
+
+def transmittance(bvh: BVH, origins: np.ndarray, directions: np.ndarray, t_min, t_max,
+                  coverage: Coverage, offset: float, opaque: Opaque | None = None,
+                  skip: np.ndarray | None = None,
+                  settings: AnyHitSettings = AnyHitSettings()) -> np.ndarray:  # noqa: B008
+    """(R,) float64 in [0, 1]: the fraction of each ray's light that passes [t_min, t_max].
+
+    | parameter  | shape / range       | unit / meaning                                         |
+    |------------|---------------------|--------------------------------------------------------|
+    | origins    | (R, 3)              | world, m                                               |
+    | directions | (R, 3), nonzero     | world; t is in units of |direction|                    |
+    | t_min/max  | scalar or (R,)      | the segment                                            |
+    | coverage   | Coverage            | alpha at hits (`shading/alpha.py`'s `SceneAlpha`)      |
+    | offset     | > 0                 | m: how far beyond a hit the next query starts (the     |
+    |            |                     | scene's ray offset, `frames.RAY_OFFSET_REL` x its size)|
+    | opaque     | Opaque or None      | triangles known opaque: no look-up there               |
+    | skip       | (R,) int or None    | a triangle each ray passes through (-1: none)          |
+    """
+    origins = np.ascontiguousarray(origins, np.float64)
+    directions = np.ascontiguousarray(directions, np.float64)
+    count = len(origins)
+    t_lo = np.broadcast_to(np.asarray(t_min, np.float64), (count,)).copy()
+    t_hi = np.broadcast_to(np.asarray(t_max, np.float64), (count,)).copy()
+    out = np.ones(count)
+    if count == 0:
+        return out
+    # The rays that meet nothing keep T = 1 after the cheap any-hit test.
+    rays = np.flatnonzero(bvh.occluded(origins, directions, t_lo, t_hi, skip=skip))
+    step = offset / np.maximum(np.linalg.norm(directions, axis=1), 1e-30)  # (R,) in t units
+    for _ in range(settings.max_layers):
+        if rays.size == 0:
+            break
+        hits: Hits = bvh.intersect(origins[rays], directions[rays], t_lo[rays], t_hi[rays])
+        met = hits.tri >= 0
+        rays, tri = rays[met], hits.tri[met].astype(np.int64)
+        u, v, t = hits.u[met], hits.v[met], hits.t[met].astype(np.float64)
+        alpha = np.ones(len(rays))
+        passed = np.zeros(len(rays), bool) if skip is None else tri == skip[rays]
+        look = ~passed if opaque is None else ~passed & ~opaque(tri)
+        if look.any():
+            alpha[look] = np.clip(coverage(tri[look], u[look], v[look]), 0.0, 1.0)
+        alpha[passed] = 0.0
+        out[rays] *= 1.0 - alpha
+        blocked = out[rays] < settings.opaque_below
+        out[rays[blocked]] = 0.0
+        t_lo[rays] = t + step[rays]
+        rays = rays[~blocked]
+    return out
+
+
+class AlphaOccluder:
+    """A BVH whose `occluded` sees through alpha: a ray is blocked with probability 1 - T
+    (`transmittance`), drawn from `rng`; the other queries are the BVH's own (closest hits see
+    every surface as opaque)."""
+
+    def __init__(self, bvh: BVH, coverage: Coverage, offset: float, opaque: Opaque | None = None,
+                 rng: np.random.Generator | None = None,
+                 settings: AnyHitSettings = AnyHitSettings()):  # noqa: B008
+        self.bvh = bvh
+        self.coverage = coverage
+        self.offset = offset
+        self.opaque = opaque
+        self.rng = rng if rng is not None else np.random.default_rng(0)
+        self.settings = settings
+
+    def transmittance(self, origins, directions, t_min=0.0, t_max=np.inf, skip=None) -> np.ndarray:
+        """(R,) float64: `transmittance` of these rays."""
+        return transmittance(self.bvh, origins, directions, t_min, t_max, self.coverage,
+                             self.offset, self.opaque, skip, self.settings)
+
+    def occluded(self, origins, directions, t_min=0.0, t_max=np.inf, out=None,
+                 skip=None) -> np.ndarray:
+        """(R,) bool: blocked with probability 1 - transmittance (`BVH.occluded`'s signature)."""
+        t = self.transmittance(origins, directions, t_min, t_max, skip)
+        blocked = self.rng.random(len(t)) >= t
+        if out is not None:
+            out[:] = blocked
+            return out
+        return blocked
+
+    def __getattr__(self, name):
+        return getattr(self.bvh, name)

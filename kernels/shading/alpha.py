@@ -1,0 +1,67 @@
+"""Surface coverage (alpha): how much of a surface a ray meets at a point.
+
+A material's alpha (Principled BSDF Alpha: a constant or a texture's channel, `Material.alpha`,
+`Material.alpha_texture`) makes the surface partly transparent to every ray, as in Cycles: a
+shadow or visibility ray meeting it passes with weight 1 - alpha (`geometry/alpha_occlusion.py`),
+a shadow map's depth pass keeps a fragment where alpha >= 0.5 (`shadow/cutouts.py`).
+Leaf cards, fences and decals are the cases: an image whose alpha is 0 in the holes, 1 elsewhere.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..geometry.scene import Scene
+from .material_maps import material_values
+
+
+def has_alpha(scene: Scene) -> bool:
+    """True when some triangle of `scene` may let rays through (only those scenes pay)."""
+    used = np.unique(scene.material_ids) if scene.triangle_count else ()
+    return any(scene.materials[m].has_alpha for m in used)
+
+
+def alpha_materials(scene: Scene) -> np.ndarray:
+    """(M,) bool per material: whether it has alpha (`Material.has_alpha`)."""
+    return np.array([m.has_alpha for m in scene.materials], bool)
+
+
+def surface_alpha(scene: Scene, tri: np.ndarray, bary: np.ndarray) -> np.ndarray:
+    """(N,) float64 coverage in [0, 1] at barycentric points (N, 3) of scene triangles `tri`
+    (N,): the material's alpha texture (its first channel) looked up through its coordinates,
+    else its constant alpha (1 for opaque materials)."""
+    tri = np.asarray(tri, np.int64)
+    out = np.ones(len(tri))
+    if not len(tri):
+        return out
+    rows = np.flatnonzero(alpha_materials(scene)[scene.material_ids[tri]])
+    if rows.size:
+        values = material_values(scene, tri[rows], np.asarray(bary, np.float64)[rows],
+                                 lambda m: m.alpha_texture,
+                                 lambda m: np.full(3, m.alpha))
+        out[rows] = np.clip(values[:, 0], 0.0, 1.0)
+    return out
+
+
+class SceneAlpha:
+    """The coverage look-up `geometry/alpha_occlusion.py` takes: alpha(tri (N,), u (N,), v (N,))
+    -> (N,) over `scene`'s triangles, with u, v the BVH's barycentrics of corners 1 and 2."""
+
+    def __init__(self, scene: Scene):
+        self.scene = scene
+        self.per_material = alpha_materials(scene)
+
+    def __call__(self, tri: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+        u = np.asarray(u, np.float64)
+        v = np.asarray(v, np.float64)
+        bary = np.stack([1.0 - u - v, u, v], axis=1)
+        return surface_alpha(self.scene, tri, bary)
+
+    def opaque(self, tri: np.ndarray) -> np.ndarray:
+        """(N,) bool: triangles whose material has no alpha (a ray meeting them stops)."""
+        return ~self.per_material[self.scene.material_ids[np.asarray(tri, np.int64)]]
+
+
+def scene_alpha(scene: Scene) -> SceneAlpha | None:
+    """The scene's coverage look-up, or None when every surface is opaque."""
+    return SceneAlpha(scene) if has_alpha(scene) else None
