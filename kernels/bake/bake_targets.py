@@ -157,23 +157,48 @@ def lightmap_targets(scene: Scene, object_index: int, resolution: int) -> BakeTa
     if scene.lightmap_uv is None:
         raise ValueError("the scene snapshot has no lightmap UVs (request them by name)")
     sl = scene.object_slice(object_index)
-    uv = scene.lightmap_uv[sl].astype(np.float64)  # (T, 3, 2)
+    texels = uv_texels(scene.lightmap_uv[sl], resolution, resolution)
+    return _targets(scene, sl.start + texels.triangles, texels.bary, mask=texels.mask,
+                    rows=texels.rows, cols=texels.cols)
+
+
+@dataclass(frozen=True, eq=False)
+class UVTexels:
+    """The texels of a (H, W) map that UV triangles cover, and where in them each is baked.
+
+    mask       (H, W) bool     covered texels
+    rows, cols (N,) int64      their indices, row 0 at the top
+    triangles  (N,) int64      the UV triangle (index into the input) each is baked on
+    bary       (N, 3) float64  barycentric weights of the texel's sample point in it
+    """
+
+    mask: np.ndarray
+    rows: np.ndarray
+    cols: np.ndarray
+    triangles: np.ndarray
+    bary: np.ndarray
+
+
+def uv_texels(uv_triangles: np.ndarray, width: int, height: int) -> UVTexels:
+    """Which UV triangle (T, 3, 2) each texel of a (height, width) map is baked on, sampled where
+    Blender's bake samples (`SAMPLE_SHIFT`), overlaps going to the last triangle as in Blender."""
+    uv = np.asarray(uv_triangles, np.float64)  # (T, 3, 2)
     # Sampled where Blender's bake samples: the triangles moved back by the shift, so the
     # rasteriser's texel centres meet them at centre + shift (and an edge through a centre,
     # common on grid meshes, gives the texel to the triangle Cycles bakes it from).
-    shift = np.array(SAMPLE_SHIFT) / resolution  # uv units
+    shift = np.array(SAMPLE_SHIFT) / np.array([width, height])  # uv units
     tris_uv = np.concatenate([uv - shift, -np.ones(uv.shape[:2] + (1,))], axis=2)  # depth 1
     projection = Projection.orthographic(np.eye(4), (0.0, 1.0, 0.0, 1.0), 0.5, 1.5)
     # Drawn in reverse: the rasteriser gives a tie to the lowest id, Blender's bake to the last
     # triangle it draws (each overwrites the texels it covers), so overlaps go where it puts them.
-    raster = rasterize(tris_uv[::-1].astype(np.float32), projection, resolution, resolution,
+    raster = rasterize(tris_uv[::-1].astype(np.float32), projection, width, height,
                        with_triangle_ids=True)
     mask = raster.triangle >= 0  # (H, W)
     rows, cols = np.nonzero(mask)
     tri_local = len(uv) - 1 - raster.triangle[rows, cols].astype(np.int64)
-    centre = np.stack([(cols + 0.5) / resolution, 1.0 - (rows + 0.5) / resolution], 1) + shift
+    centre = np.stack([(cols + 0.5) / width, 1.0 - (rows + 0.5) / height], 1) + shift
     bary = _barycentric_2d(uv[tri_local], centre)
-    return _targets(scene, sl.start + tri_local, bary, mask=mask, rows=rows, cols=cols)
+    return UVTexels(mask=mask, rows=rows, cols=cols, triangles=tri_local, bary=bary)
 
 
 def edge_texels(targets: BakeTargets, values: np.ndarray, threshold: float) -> np.ndarray:
