@@ -278,8 +278,7 @@ class MaterialReader:
                 inputs[unmodelled].is_linked or inputs[unmodelled].default_value > 0
             ):
                 ignored.append(f"{unmodelled} is not modelled")
-        if "Alpha" in inputs and (inputs["Alpha"].is_linked or inputs["Alpha"].default_value < 1):
-            ignored.append("alpha is not modelled: opaque")
+        alpha, alpha_tex = self._alpha(inputs["Alpha"], ignored) if "Alpha" in inputs else (1.0, None)
         normal_tex, height_tex, strength_b, distance_b = self._normal(inputs["Normal"], ignored)
         return Material(
             name=name,
@@ -294,6 +293,8 @@ class MaterialReader:
             emission_texture=emission_tex,
             metallic_texture=metallic_tex,
             roughness_texture=roughness_tex,
+            alpha=alpha,
+            alpha_texture=alpha_tex,
             normal_texture=normal_tex,
             height_texture=height_tex,
             bump_strength=strength_b,
@@ -331,6 +332,17 @@ class MaterialReader:
         if value.texture is None:
             return float(value.const[0]), None
         return float(socket.default_value), value.texture
+
+    def _alpha(self, socket, ignored) -> tuple[float, Texture | None]:
+        """The Principled Alpha: (constant, None) or (1, texture). Read with its texture even
+        when the bake reads no colours: coverage decides where shadows fall (a leaf card)."""
+        value = SocketReader(lambda node, what: self._texture(node, ignored, what),
+                             ignored).read(socket, socket.name)
+        if value is None:
+            return min(max(float(socket.default_value), 0.0), 1.0), None
+        if value.texture is None:
+            return min(max(float(value.const[0]), 0.0), 1.0), None
+        return 1.0, value.texture
 
     def _color(self, socket, ignored, textures=True) -> tuple[np.ndarray, Texture | None]:
         """A colour that may come from a texture: (constant, None) or (default, texture); with
