@@ -73,7 +73,14 @@ import numpy as np
 
 from ..measure.exr import read_exr, write_exr
 from ..progress import Steps, drain
-from .cubemap import FACE_FORWARD, FACE_NAMES, direction_to_face, sample_cubemap, texel_directions
+from .cubemap import (
+    FACE_FORWARD,
+    FACE_NAMES,
+    direction_to_face,
+    sample_bordered,
+    sample_cubemap,
+    texel_directions,
+)
 from .prefilter import level_roughness, level_size
 
 # ---------------------------------------------------------------------------------------------
@@ -280,13 +287,12 @@ def equirect_steps(faces: np.ndarray, height: int, supersample: int = 2, border:
 
     Each pixel averages n x n bilinear cube look-ups (n = supersample; a box filter, which matters
     near the poles where a pixel spans many texels). With `border` > 0 the faces carry that many
-    border texels (`envmap.EnvironmentMap.faces`) and look-ups blend across seams; with 0 they
-    clamp within a face (`cubemap.sample_cubemap`, at most half a texel off at the seams).
+    border texels (`envmap.EnvironmentMap.faces`) and look-ups blend across seams
+    (`cubemap.sample_bordered`); with 0 they clamp within a face (`cubemap.sample_cubemap`, at
+    most half a texel off at the seams).
     """
     faces = _as_faces(faces)
     if border > 0:
-        from .envmap import sample_bordered  # the tracer's module: imported only when used
-
         def look_up(dirs):
             return sample_bordered(faces, border, dirs)
     else:

@@ -37,6 +37,10 @@ import numpy as np
 
 from ..geometry.raster import Projection, look_at
 
+# Texels rendered beyond each face's edge: one is what a bilinear lookup can reach past the
+# outermost texel centre (half a texel), so the four texels it blends always exist.
+BORDER = 1
+
 FACE_NAMES = ("+X", "-X", "+Y", "-Y", "+Z", "-Z")
 
 # (6, 3) float64, world axes: major-axis direction F, the sc axis U and the tc axis V of each face.
@@ -143,6 +147,54 @@ def sample_cubemap(
     y1 = np.minimum(y0 + 1, size - 1)
     top = cube[face, y0, x0] * (1.0 - fx) + cube[face, y0, x1] * fx
     bottom = cube[face, y1, x0] * (1.0 - fx) + cube[face, y1, x1] * fx
+    value = top * (1.0 - fy) + bottom * fy
+    if out is None:
+        return value.astype(np.float32)
+    out[...] = value
+    return out
+
+
+def bordered_directions(size: int, border: int = BORDER, offset: tuple[float, float] = (0.5, 0.5)
+                        ) -> np.ndarray:
+    """(6, S + 2B, S + 2B, 3) float64 unit directions through every texel, borders included.
+
+    Texel (i, j), i and j counted from -B, at `offset` (x, y) within it ((0.5, 0.5): its centre)
+    has sc = 2 (j + x) / S - 1 and tc = 1 - 2 (i + y) / S: inside the face |sc|, |tc| < 1; the
+    border continues the same 90-degree camera's image plane.
+    """
+    k = np.arange(-border, size + border)
+    sc = 2.0 * (k + offset[0]) / size - 1.0
+    tc = 1.0 - 2.0 * (k + offset[1]) / size  # rows run downwards: t falls as i grows
+    dirs = (FACE_FORWARD[:, None, None, :]
+            + sc[None, None, :, None] * FACE_U[:, None, None, :]
+            + tc[None, :, None, None] * FACE_V[:, None, None, :])
+    return dirs / np.linalg.norm(dirs, axis=-1, keepdims=True)
+
+
+def sample_bordered(faces: np.ndarray, border: int, directions: np.ndarray,
+                    out: np.ndarray | None = None) -> np.ndarray:
+    """Bilinear lookup of bordered faces (6, S + 2B, S + 2B, C) along (N, 3) directions -> (N, C).
+
+    The face and (s, t) come from `cubemap.direction_to_face` (largest |r_i|); the continuous texel
+    coordinate x = s S - 1/2 + B lies in [B - 1/2, S + B - 1/2], so with B >= 1 all four texels of
+    the bilinear footprint exist: at an edge, the border holds the neighbouring face's directions.
+    """
+    faces = np.asarray(faces)
+    if faces.ndim != 4 or faces.shape[0] != 6 or faces.shape[1] != faces.shape[2]:
+        raise ValueError(f"bordered faces must be (6, S + 2B, S + 2B, C), got {faces.shape}")
+    if border < 1:
+        raise ValueError("sample_bordered needs a border of at least one texel")
+    side = faces.shape[1]
+    size = side - 2 * border
+    face, s, t = direction_to_face(directions)
+    x = s * size - 0.5 + border  # continuous column, texel centres at integers
+    y = (1.0 - t) * size - 0.5 + border  # continuous row, row 0 at the top
+    x0 = np.clip(np.floor(x).astype(np.int64), 0, side - 2)
+    y0 = np.clip(np.floor(y).astype(np.int64), 0, side - 2)
+    fx = (x - x0)[:, None]
+    fy = (y - y0)[:, None]
+    top = faces[face, y0, x0] * (1.0 - fx) + faces[face, y0, x0 + 1] * fx
+    bottom = faces[face, y0 + 1, x0] * (1.0 - fx) + faces[face, y0 + 1, x0 + 1] * fx
     value = top * (1.0 - fy) + bottom * fy
     if out is None:
         return value.astype(np.float32)

@@ -39,17 +39,20 @@ from ..geometry.scene import Scene, triangle_areas
 from ..progress import Steps, drain, scaled
 from ..trace.settings import TraceResult, TracerSettings
 from ..trace.tracer import Tracer, trace_steps
-from .cubemap import FACE_FORWARD, FACE_U, FACE_V, direction_to_face
+from .cubemap import BORDER, bordered_directions, sample_bordered  # noqa: F401 (re-exported)
+from .prefilter import PrefilterSettings, prefilter_steps
+from .probe_lookup import GlossyMips
+from .sh_irradiance import irradiance, sh_coefficients
 
-# Texels rendered beyond each face's edge: one is what a bilinear lookup can reach past the
-# outermost texel centre (half a texel), so the four texels it blends always exist.
-BORDER = 1
 # Face sizes the automatic choice stays within: 16 texels (5.6 degrees each) still shows a room's
 # walls and lights as shapes; 1024 is 6 x 1M texels, ~25 MB of float32 RGB per object.
 MIN_FACE_SIZE = 16
 MAX_FACE_SIZE = 1024
 # Rays traced per call while rendering faces: ~100 MB of wavefront records at most.
 FACE_WAVEFRONT = 1 << 17
+# Mip levels a rough mapped surface reads by default: the prefilter's default chain (roughness
+# 0, 0.2, ..., 1; trilinear between them).
+ROUGH_MIPS = PrefilterSettings().levels
 # Regula falsi steps of the parallax search by default (see `EnvironmentMap.reflected`).
 PARALLAX_STEPS = 4
 # Doublings of the search distance, from the map's farthest distance / 2^12 up to it: a surface
@@ -81,6 +84,15 @@ class EnvMapSettings:
     |                 |              |         | environment infinitely far); k: a search for     |
     |                 |              |         | where the reflected ray meets the mapped         |
     |                 |              |         | surfaces (each texel's distance), k refinements  |
+    | rough_mips      | 0, 2..16     | 6       | a mapped object's rough surfaces (roughness at   |
+    |                 |              |         | or above the tracer's mirror_roughness) read a   |
+    |                 |              |         | GGX mip chain of this many levels, trilinear by  |
+    |                 |              |         | roughness; 0: the sharp look-up along r at every |
+    |                 |              |         | roughness (mirrors read it either way)           |
+    | diffuse_sh      | bool         | False   | a mapped object's diffuse part also reflects the |
+    |                 |              |         | map's SH9 irradiance along its normal (albedo /  |
+    |                 |              |         | pi x E): light from the surroundings, which a    |
+    |                 |              |         | Whitted view (and Cycles' `whitted` model) lacks |
     """
 
     face_size: int = 0
@@ -88,6 +100,8 @@ class EnvMapSettings:
     objects: tuple[str, ...] = ()
     face_depth: int = -1
     parallax_steps: int = PARALLAX_STEPS
+    rough_mips: int = ROUGH_MIPS
+    diffuse_sh: bool = False
 
     def __post_init__(self):
         if self.face_size != 0 and not 8 <= self.face_size <= 4096:
@@ -98,6 +112,8 @@ class EnvMapSettings:
             raise ValueError(f"face_depth must be -1 (automatic) or in [0, 64], got {self.face_depth}")
         if not 0 <= self.parallax_steps <= 16:
             raise ValueError(f"parallax_steps must be in [0, 16], got {self.parallax_steps}")
+        if self.rough_mips != 0 and not 2 <= self.rough_mips <= 16:
+            raise ValueError(f"rough_mips must be 0 (off) or in [2, 16], got {self.rough_mips}")
 
 
 @dataclass
@@ -135,9 +151,15 @@ class EnvironmentMap:
         of regula falsi (Illinois) close in on it. No sign change: the ray leaves the scene, and
         r itself is the direction (the world).
         """
+        return self.lookup(self.corrected(points, directions, steps))
+
+    def corrected(self, points: np.ndarray, directions: np.ndarray, steps: int = PARALLAX_STEPS
+                  ) -> np.ndarray:
+        """(N, 3) float64 directions from the centre to read the map along for rays from world
+        `points` along unit `directions` (`reflected`'s search; steps = 0: the directions)."""
         r = np.asarray(directions, np.float64)
         if steps == 0 or self.inverse_distance is None:
-            return self.lookup(r)
+            return r
         o = np.asarray(points, np.float64) - self.centre
 
         def f(t: np.ndarray, rows: np.ndarray) -> np.ndarray:
@@ -177,7 +199,7 @@ class EnvironmentMap:
             side = np.where(left, 1.0, -1.0)
         t[rows] = b - fb * (b - a) / np.where(fb != fa, fb - fa, 1.0) if len(rows) else b
         x = o + t[:, None] * r
-        return self.lookup(np.where(found[:, None], x, r))
+        return np.where(found[:, None], x, r)
 
     def reach(self) -> float:
         """The farthest distance the map holds, m (1 when it holds only the world)."""
@@ -190,6 +212,47 @@ class EnvironmentMap:
         return self.faces[:, b:b + self.size, b:b + self.size]
 
 
+class MapLookup:
+    """What the camera view reads at one mapped object's hits (the tracer's `EnvironmentLookup`).
+
+    Called with (N, 3) world points, (N, 3) unit reflected directions and (N,) roughness: the
+    radiance (N, 3) arriving along the directions. Mirrors (roughness below `mirror_roughness`)
+    read the map itself, with the parallax search; with `mips`, rougher surfaces read the GGX
+    chain along the same corrected direction, trilinear by roughness. `irradiance` (None unless
+    the SH is given): (N, 3) points, (N, 3) unit normals -> (N, 3) irradiance W/m^2 from the
+    mapped surfaces, for the diffuse part.
+    """
+
+    def __init__(self, env: EnvironmentMap, steps: int, mirror_roughness: float,
+                 mips: GlossyMips | None = None, sh: np.ndarray | None = None):
+        self.env, self.steps, self.mirror_roughness = env, steps, mirror_roughness
+        self.mips, self.sh = mips, sh
+        self.irradiance = None if sh is None else self._irradiance
+
+    def __call__(self, points: np.ndarray, directions: np.ndarray,
+                 roughness: np.ndarray | None = None) -> np.ndarray:
+        if self.mips is None or roughness is None:
+            return self.env.reflected(points, directions, self.steps)
+        d = self.env.corrected(points, directions, self.steps)
+        out = np.empty((len(d), 3), np.float64)
+        rough = np.asarray(roughness) >= self.mirror_roughness
+        out[~rough] = self.env.lookup(d[~rough])
+        out[rough] = self.mips.lookup(d[rough], np.asarray(roughness)[rough])
+        return out
+
+    def _irradiance(self, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
+        return irradiance(self.sh, normals)
+
+
+def has_rough_reflections(scene: Scene, index: int, mirror_roughness: float) -> bool:
+    """Whether object `index` has a reflecting surface (metal or a specular layer) at or above
+    `mirror_roughness`: what the prefiltered mips are computed for."""
+    used = np.unique(scene.material_ids[scene.object_slice(index)])
+    return any(scene.materials[m].roughness >= mirror_roughness
+               and (scene.materials[m].metallic > 0.0 or scene.materials[m].specular > 0.0)
+               for m in used)
+
+
 @dataclass
 class EnvMapResult:
     image: np.ndarray  # (H, W, 3) float32 linear radiance, row 0 top
@@ -197,54 +260,6 @@ class EnvMapResult:
     trace: TraceResult  # the camera view's statistics and settings
     face_rays: int = 0  # rays traced for the faces (camera rays of the six renders)
     seconds: dict = field(default_factory=dict)
-
-
-def bordered_directions(size: int, border: int = BORDER, offset: tuple[float, float] = (0.5, 0.5)
-                        ) -> np.ndarray:
-    """(6, S + 2B, S + 2B, 3) float64 unit directions through every texel, borders included.
-
-    Texel (i, j), i and j counted from -B, at `offset` (x, y) within it ((0.5, 0.5): its centre)
-    has sc = 2 (j + x) / S - 1 and tc = 1 - 2 (i + y) / S: inside the face |sc|, |tc| < 1; the
-    border continues the same 90-degree camera's image plane.
-    """
-    k = np.arange(-border, size + border)
-    sc = 2.0 * (k + offset[0]) / size - 1.0
-    tc = 1.0 - 2.0 * (k + offset[1]) / size  # rows run downwards: t falls as i grows
-    dirs = (FACE_FORWARD[:, None, None, :]
-            + sc[None, None, :, None] * FACE_U[:, None, None, :]
-            + tc[None, :, None, None] * FACE_V[:, None, None, :])
-    return dirs / np.linalg.norm(dirs, axis=-1, keepdims=True)
-
-
-def sample_bordered(faces: np.ndarray, border: int, directions: np.ndarray,
-                    out: np.ndarray | None = None) -> np.ndarray:
-    """Bilinear lookup of bordered faces (6, S + 2B, S + 2B, C) along (N, 3) directions -> (N, C).
-
-    The face and (s, t) come from `cubemap.direction_to_face` (largest |r_i|); the continuous texel
-    coordinate x = s S - 1/2 + B lies in [B - 1/2, S + B - 1/2], so with B >= 1 all four texels of
-    the bilinear footprint exist: at an edge, the border holds the neighbouring face's directions.
-    """
-    faces = np.asarray(faces)
-    if faces.ndim != 4 or faces.shape[0] != 6 or faces.shape[1] != faces.shape[2]:
-        raise ValueError(f"bordered faces must be (6, S + 2B, S + 2B, C), got {faces.shape}")
-    if border < 1:
-        raise ValueError("sample_bordered needs a border of at least one texel")
-    side = faces.shape[1]
-    size = side - 2 * border
-    face, s, t = direction_to_face(directions)
-    x = s * size - 0.5 + border  # continuous column, texel centres at integers
-    y = (1.0 - t) * size - 0.5 + border  # continuous row, row 0 at the top
-    x0 = np.clip(np.floor(x).astype(np.int64), 0, side - 2)
-    y0 = np.clip(np.floor(y).astype(np.int64), 0, side - 2)
-    fx = (x - x0)[:, None]
-    fy = (y - y0)[:, None]
-    top = faces[face, y0, x0] * (1.0 - fx) + faces[face, y0, x0 + 1] * fx
-    bottom = faces[face, y0 + 1, x0] * (1.0 - fx) + faces[face, y0 + 1, x0 + 1] * fx
-    value = top * (1.0 - fy) + bottom * fy
-    if out is None:
-        return value.astype(np.float32)
-    out[...] = value
-    return out
 
 
 def mirror_objects(scene: Scene, mirror_roughness: float = 0.1) -> list[int]:
@@ -372,7 +387,9 @@ def render_steps(scene: Scene, settings: EnvMapSettings, tracer_settings: Tracer
                  bvh: BVH | None = None, resolution: tuple[int, int] | None = None,
                  out: np.ndarray | None = None) -> Steps[EnvMapResult]:
     """Capture a cube map for every mapped object, then trace the camera's view with those objects'
-    mirror reflections read from their maps. Yields progress in [0, 1], returns the `EnvMapResult`.
+    mirror reflections read from their maps (rough ones from the maps' GGX mips with
+    `settings.rough_mips`, diffuse light from their SH9 with `settings.diffuse_sh`: `MapLookup`).
+    Yields progress in [0, 1], returns the `EnvMapResult`.
 
     The faces are rendered with `tracer_settings` (depth from `settings.face_depth`), so other
     mirrors and glass appear in them; the camera view uses `tracer_settings` unchanged.
@@ -388,7 +405,7 @@ def render_steps(scene: Scene, settings: EnvMapSettings, tracer_settings: Tracer
     face_tracer = tracer_settings
     if settings.face_depth >= 0:
         face_tracer = replace(tracer_settings, max_depth=settings.face_depth)
-    seconds = {"capture": 0.0, "render": 0.0}
+    seconds = {"capture": 0.0, "probe": 0.0, "render": 0.0}
     start = time.perf_counter()
     bvh = bvh or BVH.build(scene.triangles)
     seconds["bvh"] = time.perf_counter() - start
@@ -403,9 +420,23 @@ def render_steps(scene: Scene, settings: EnvMapSettings, tracer_settings: Tracer
             share * number, share)))
         face_rays += maps[-1].faces[..., 0].size * settings.face_supersample ** 2
         seconds["capture"] += time.perf_counter() - start
+    # The probes' rough and diffuse look-ups, from the surfaces the faces hold (the lamps light
+    # directly: their highlights on rough surfaces and their light on diffuse ones are the
+    # tracer's).
     start = time.perf_counter()
-    steps = settings.parallax_steps
-    environment = {m.object_index: (lambda p, r, m=m: m.reflected(p, r, steps)) for m in maps}
+    environment = {}
+    for env in maps:
+        mips = None
+        if settings.rough_mips and has_rough_reflections(scene, env.object_index,
+                                                         tracer_settings.mirror_roughness):
+            chain = yield from scaled(prefilter_steps(
+                env.face_images(), PrefilterSettings(levels=settings.rough_mips)), 0.5, 0.0)
+            mips = GlossyMips.from_prefiltered(chain, level0=env.faces, border=env.border)
+        sh = sh_coefficients(env.face_images()) if settings.diffuse_sh else None
+        environment[env.object_index] = MapLookup(env, settings.parallax_steps,
+                                                  tracer_settings.mirror_roughness, mips, sh)
+    seconds["probe"] = time.perf_counter() - start
+    start = time.perf_counter()
     result = yield from scaled(trace_steps(scene, tracer_settings, bvh=bvh, resolution=resolution,
                                            out=out, environment=environment), 0.5, 0.5)
     seconds["render"] = time.perf_counter() - start

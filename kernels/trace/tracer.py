@@ -58,9 +58,12 @@ ALBEDO_FLOOR = 1e-3
 # Edge sub-samples traced per wavefront: large enough to amortise per-call work, small enough that
 # a wavefront's hit records (~1 KB per ray over its depths) stay a few hundred MB at most.
 EDGE_WAVEFRONT = 1 << 18
-# An environment map read for reflected rays: (N, 3) world points, (N, 3) unit directions ->
-# (N, 3) radiance W/(m^2 sr) arriving at the points along the directions.
-EnvironmentLookup = Callable[[np.ndarray, np.ndarray], np.ndarray]
+# An environment map read for reflected rays: (N, 3) world points, (N, 3) unit directions, (N,)
+# the surfaces' roughness -> (N, 3) radiance W/(m^2 sr) arriving at the points along the
+# directions (over a rough surface's lobe). A look-up with an `irradiance` attribute that is not
+# None (envmap.py's `MapLookup`) also lights the diffuse part: (N, 3) points, (N, 3) unit normals
+# -> (N, 3) irradiance W/m^2 from the mapped surroundings, reflected as albedo / pi times it.
+EnvironmentLookup = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
 # Diffuse light from elsewhere (the two-pass renderer's radiosity solution): (N,) triangles,
 # (N, 3) barycentrics, (N, 3) unit ray directions towards the points, (N,) bool front side ->
 # (N, 3) radiance W/(m^2 sr) the points reflect diffusely toward the ray, shadows included.
@@ -300,21 +303,31 @@ class Tracer:
         return np.isin(self.scene.object_ids[tri], list(self.environment))
 
     def _environment(self, tri: np.ndarray, p: np.ndarray, r_dir: np.ndarray,
-                     mirror_w: np.ndarray) -> np.ndarray:
+                     mirror_w: np.ndarray, normals: np.ndarray | None = None,
+                     diffuse_rgb: np.ndarray | None = None) -> np.ndarray:
         """(N, 3) radiance the mirror part reflects off environment-mapped objects (0 elsewhere):
-        the mirror weight times the object's map read for the reflected ray (hit point p, r),
-        plus the area lamps the ray meets unshadowed. The maps hold the scene's surfaces only: a
-        lamp, small and bright, smeared over a few texels and shifted by the look-up's parallax
-        shows as a misplaced blob (env_room's ceiling panel read from the map has about five times
-        the error of the panel added here); one occlusion ray per mirror point that meets a lamp
-        shows it exactly."""
+        the mirror weight times the object's map read for the reflected ray (hit point p, r, the
+        surface's roughness), plus, on mirrors, the area lamps the ray meets unshadowed (a rough
+        surface's lamps are its highlights, `direct`); and with a look-up's `irradiance`, the
+        diffuse reflectance `diffuse_rgb` (N, 3) / pi times the irradiance along `normals`.
+        The maps hold the scene's surfaces only: a lamp, small and bright, smeared over a few
+        texels and shifted by the look-up's parallax shows as a misplaced blob (env_room's ceiling
+        panel read from the map has about five times the error of the panel added here); one
+        occlusion ray per mirror point that meets a lamp shows it exactly."""
         out = np.zeros_like(mirror_w)
         objects = self.scene.object_ids[tri]
+        rough = self.roughness[self.scene.material_ids[tri]]
         for k, lookup in self.environment.items():
+            lit = getattr(lookup, "irradiance", None)
+            if lit is not None and normals is not None and diffuse_rgb is not None:
+                rows = np.nonzero((objects == k) & (diffuse_rgb.max(axis=1) > 0.0))[0]
+                if len(rows):
+                    out[rows] += diffuse_rgb[rows] * lit(p[rows], normals[rows]) / np.pi
             rows = np.nonzero((objects == k) & (mirror_w.max(axis=1) > 0.0))[0]
             if len(rows):
-                out[rows] = mirror_w[rows] * lookup(p[rows], r_dir[rows])
-                if self.area_lamps:
+                out[rows] += mirror_w[rows] * lookup(p[rows], r_dir[rows], rough[rows])
+                rows = rows[rough[rows] < self.settings.mirror_roughness]
+                if self.area_lamps and len(rows):
                     lamp, t = self._area_lamp_hits(p[rows], r_dir[rows], np.full(len(rows), np.inf))
                     meet = np.flatnonzero(np.isfinite(t))
                     if meet.size:
@@ -486,7 +499,8 @@ class Tracer:
             layer_w = np.where((dielectric > 0) & (spec_level > 0), dielectric - diffuse_w, 0.0)
             mirror_w = metal_w + layer_w[:, None]
             if self.environment:  # environment-mapped mirrors: a look-up, whatever the depth
-                own = own + self._environment(hits.tri, h.p, r_dir, mirror_w)
+                own = own + self._environment(hits.tri, h.p, r_dir, mirror_w, h.ns,
+                                              lit_w[:, None] * h.albedo)
             np.add.at(result, pixel, weight * own)
             if untextured is not None:  # white base colour at the camera hits only
                 flat_own = own + (1.0 - h.albedo) * lambert if depth == 0 else own
