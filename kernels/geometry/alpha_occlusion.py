@@ -65,6 +65,8 @@ def transmittance(bvh: BVH, origins: np.ndarray, directions: np.ndarray, t_min, 
     | opaque     | Opaque or None      | triangles known opaque: no look-up there               |
     | skip       | (R,) int or None    | a triangle each ray passes through (-1: none)          |
     """
+    if isinstance(bvh, AlphaOccluder):  # its own queries, not the stochastic one
+        bvh = bvh.bvh
     origins = np.ascontiguousarray(origins, np.float64)
     directions = np.ascontiguousarray(directions, np.float64)
     count = len(origins)
@@ -110,12 +112,12 @@ class AlphaOccluder:
         self.offset = offset
         self.opaque = opaque
         self.rng = rng if rng is not None else np.random.default_rng(0)
-        self.settings = settings
+        self.any_hit = settings  # not `settings`: that name is the BVH's own (read through)
 
     def transmittance(self, origins, directions, t_min=0.0, t_max=np.inf, skip=None) -> np.ndarray:
         """(R,) float64: `transmittance` of these rays."""
         return transmittance(self.bvh, origins, directions, t_min, t_max, self.coverage,
-                             self.offset, self.opaque, skip, self.settings)
+                             self.offset, self.opaque, skip, self.any_hit)
 
     def occluded(self, origins, directions, t_min=0.0, t_max=np.inf, out=None,
                  skip=None) -> np.ndarray:

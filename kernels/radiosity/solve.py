@@ -43,6 +43,7 @@ from ..geometry.bvh import BVH
 from ..geometry.frames import RAY_OFFSET_REL
 from ..geometry.scene import Scene
 from ..progress import Steps, drain, scaled
+from ..shading.alpha import alpha_aware
 from ..shading.world_light import WORLD_SUN_NAME, world_lit
 from . import final_gather
 from . import patches as patching
@@ -92,6 +93,8 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
     size = settings.patch_size or patching.auto_patch_size(scene, settings.patch_budget)
     if bvh is None:
         bvh = BVH.build(scene.triangles)
+    # Leaf cards and fences: visibility rays pass alpha surfaces with probability 1 - alpha.
+    bvh = alpha_aware(bvh, scene, RAY_OFFSET_REL * scale, settings.seed)
     exchanging = exchanging_triangles(scene)
     # The first patches: auto's test for clusters, the hierarchy's count, the other solvers' mesh.
     patches = patching.make_patches(scene, size, exchanging)

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..geometry.alpha_occlusion import AlphaOccluder
+from ..geometry.bvh import BVH
 from ..geometry.scene import Scene
 from .material_maps import material_values
 
@@ -65,3 +67,14 @@ class SceneAlpha:
 def scene_alpha(scene: Scene) -> SceneAlpha | None:
     """The scene's coverage look-up, or None when every surface is opaque."""
     return SceneAlpha(scene) if has_alpha(scene) else None
+
+
+def alpha_aware(bvh: BVH, scene: Scene, offset: float, seed: int = 0) -> BVH | AlphaOccluder:
+    """`bvh` whose `occluded` sees through the scene's alpha surfaces (a ray blocked with
+    probability 1 - transmittance, `AlphaOccluder`) for kernels that take a yes / no visibility
+    query (radiosity's form factors and shadow rays); `bvh` itself when every surface is opaque.
+    offset: m, how far past a hit the next query starts (the scene's ray offset)."""
+    alpha = scene_alpha(scene)
+    if alpha is None:
+        return bvh
+    return AlphaOccluder(bvh, alpha, offset, alpha.opaque, np.random.default_rng(seed))

@@ -1,7 +1,7 @@
 """Alpha-clipped casters against Cycles: a leaf card (a quad whose image's alpha is a disc with a
 square hole, linked to the Principled Alpha) over a ground plane under a sun. The ground's
 shadow from the shadow map and from the tracer's shadow rays has the texture's shape, as in
-Cycles' SHADOW bake (transparent shadows)."""
+Cycles' SHADOW bake (transparent shadows), and so has radiosity's lit ground."""
 
 from dataclasses import replace
 
@@ -12,10 +12,12 @@ from blender_parts import plane, principled
 from classic_bake.addon import cycles as cr
 from classic_bake.addon.bridge.request import SnapshotRequest
 from classic_bake.addon.bridge.snapshot import snapshot
+from classic_bake.jobs.radiosity import radiosity_bake_job
 from classic_bake.jobs.shadowmap import shadow_bake_job
 from classic_bake.kernels.bake.lightmap_uv import LightmapUVSettings
 from classic_bake.kernels.geometry.bvh import BVH
 from classic_bake.kernels.progress import drain
+from classic_bake.kernels.radiosity.settings import RadiositySettings
 from classic_bake.kernels.shading.direct_light import DirectLightSettings
 from classic_bake.kernels.trace.settings import TracerSettings
 from classic_bake.kernels.trace.tracer import Tracer
@@ -105,7 +107,8 @@ def test_reader_takes_the_alpha_texture():
 
 
 def test_leaf_card_shadow_has_the_texture_shape():
-    """Shadow map and tracer against Cycles' SHADOW bake of the ground, binarised at 0.5."""
+    """Shadow map, tracer and radiosity against Cycles' SHADOW bake of the ground, binarised
+    (visibility at 0.5; radiosity's radiance halfway between its lit and shadowed medians)."""
     scene = _scene()
     theirs, valid = _cycles_lit(scene)
     uv = LightmapUVSettings(resolution=SIZE, padding=2)
@@ -120,9 +123,16 @@ def test_leaf_card_shadow_has_the_texture_shape():
     points = _texel_points() + np.array([0.0, 0.0, tracer.offset])
     to_sun = np.tile(-np.asarray(sun.direction, np.float64), (len(points), 1))
     traced = tracer._visible(points, to_sun, np.inf).reshape(SIZE, SIZE) > 0.5
+    # Radiosity: the ground's radiance, lit where the sun reaches it.
+    solved = drain(radiosity_bake_job(bpy.context, RadiositySettings(), "Lightmap", uv,
+                                      render=False))
+    radiance = solved.lightmaps["Ground"][0][..., :3].mean(axis=2)
+    mask &= solved.lightmaps["Ground"][1]
+    middle = 0.5 * (np.median(radiance[mask & theirs]) + np.median(radiance[mask & ~theirs]))
     opaque_card = np.count_nonzero(~theirs & mask) / np.count_nonzero(mask)
     figures = {name: _disagree(ours, theirs, mask)
-               for name, ours in (("shadow map", shadow_map), ("tracer", traced))}
+               for name, ours in (("shadow map", shadow_map), ("tracer", traced),
+                                   ("radiosity", radiance > middle))}
     print(f"shadowed {opaque_card:.2%} of the ground; disagreeing texels: "
           + ", ".join(f"{k} {v:.3%}" for k, v in figures.items()))
     assert 0.05 < opaque_card < 0.3  # the disc's shadow, not the card's square (25%)

@@ -9,7 +9,7 @@ from classic_bake.kernels.geometry.bvh import BVH
 from classic_bake.kernels.geometry.raster import Projection, look_at
 from classic_bake.kernels.geometry.scene import Material, Texture
 from classic_bake.kernels.progress import drain
-from classic_bake.kernels.shading.alpha import scene_alpha
+from classic_bake.kernels.shading.alpha import alpha_aware, scene_alpha
 from classic_bake.kernels.shadow.cutouts import Cutout, cutout_depth_steps
 
 OFFSET = 1e-5
@@ -68,7 +68,18 @@ def test_occluder_blocks_in_proportion_to_alpha():
 
 
 def test_no_alpha_no_lookup():
-    assert scene_alpha(build([_card(1.0, Material("opaque"))])) is None
+    scene = build([_card(1.0, Material("opaque"))])
+    bvh = BVH.build(scene.triangles)
+    assert scene_alpha(scene) is None and alpha_aware(bvh, scene, OFFSET) is bvh
+
+
+def test_transmittance_reads_through_an_occluder():
+    """The tracer may be handed radiosity's wrapped BVH (two-pass): transmittance stays exact."""
+    scene = build([_card(1.0, Material("half", alpha=0.3))])
+    wrapped = alpha_aware(BVH.build(scene.triangles), scene, OFFSET)
+    origins, dirs = _rays(np.full((8, 2), 0.4))
+    t = transmittance(wrapped, origins, dirs, 0.0, np.inf, scene_alpha(scene), OFFSET)
+    np.testing.assert_allclose(t, 0.7)
 
 
 def test_shadow_map_alpha_test_keeps_the_texture_shape():
