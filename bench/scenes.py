@@ -147,3 +147,53 @@ def build_room(seed: int, path) -> dict:
     bpy.ops.wm.save_as_mainfile(filepath=str(path))
     return {"seed": seed, "size_m": [w, d, h], "lighting": lighting, "boxes": boxes,
             "sphere_radius_m": radius, "closed": lighting not in ("sun_window", "world_opening")}
+
+
+def build_spheres(path) -> dict:
+    """The tracer's second bench scene: a solid glass sphere and a polished metal sphere over a
+    checkered floor, lit by two point lamps (one warm, one cool), a dim blue world; about 12k
+    triangles at 192 x 144 pixels. Writes path (.blend) and returns its description."""
+    import sys
+    from pathlib import Path
+
+    import bpy
+
+    here = Path(__file__).resolve().parents[1] / "sample_blends"
+    if str(here) not in sys.path:
+        sys.path.insert(0, str(here))
+    from sample_datablocks import (
+        camera,
+        checker_texture,
+        light,
+        material,
+        mesh_object,
+        render_settings,
+        reset,
+        world,
+    )
+    from sample_geometry import grid, uv_sphere
+
+    scene = reset("Spheres")
+    glass = material("Glass", (1.0, 1.0, 1.0), roughness=0.0, specular=0.5, transmission=1.0,
+                     ior=1.45)
+    metal = material("Metal", (0.95, 0.64, 0.54), metallic=1.0, roughness=0.0)
+    floor = material("Floor")
+    checker_texture(floor, (0.85, 0.85, 0.8), (0.1, 0.1, 0.12), 12.0)
+    verts, faces, uvs = grid(6.0, 6.0, 8, 8)
+    mesh_object("Floor", verts, faces, uvs, [floor])
+    for name, mat, x in (("GlassSphere", glass, 0.65), ("MetalSphere", metal, -0.65)):
+        verts, faces, uvs = uv_sphere(0.55, 80, 40)
+        mesh_object(name, verts, faces, uvs, [mat], smooth=True, location=(x, 0.0, 0.55))
+    light("Warm", "POINT", 900.0, (2.5, -2.5, 4.0), color=(1.0, 0.85, 0.7))
+    light("Cool", "POINT", 400.0, (-3.0, -1.0, 2.5), color=(0.7, 0.8, 1.0))
+    camera((0.0, -4.2, 1.6), target=(0.0, 0.0, 0.45), lens=35.0)
+    world("DimBlue", (0.05, 0.07, 0.12))
+    render_settings(scene, resolution=(192, 144), max_bounces=16, diffuse=0, glossy=8,
+                    transmission=16)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    bpy.context.view_layer.update()
+    bpy.ops.wm.save_as_mainfile(filepath=str(path), check_existing=False)
+    triangles = sum(len(o.data.loop_triangles) if o.data.calc_loop_triangles() is None else 0
+                    for o in scene.objects if o.type == "MESH")
+    return {"name": "spheres", "triangles": triangles, "resolution": (192, 144)}

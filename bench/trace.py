@@ -1,6 +1,10 @@
-"""The Whitted tracer against Cycles computing the same model, on sample_blends/raytrace.blend.
+"""The Whitted tracer against Cycles computing the same model, on two scenes.
 
-    .venv/bin/python bench/trace.py [--scales 1 2] [--quick]
+    .venv/bin/python bench/trace.py [--scenes raytrace spheres] [--scales 1 2] [--quick]
+
+Scenes: sample_blends/raytrace.blend (a mirror sphere and a hollow glass sphere over a
+checkerboard, one point lamp) and "spheres", built here (`scenes.build_spheres`: a solid glass
+and a metal sphere of ~6k triangles each over a checkered floor, two point lamps, 192 x 144).
 
 Cycles runs the matched `whitted` model (addon/cycles/: lights as points, no diffuse
 bounces, the world not lighting diffuse surfaces, box filter). A converged Cycles render (cached
@@ -8,6 +12,9 @@ in out/cache) is the reference. The tracer's quality ladder (supersampling, adap
 and Cycles' sample ladder run alternately; for each tracer setting the time Cycles needs to reach
 the same relative MSE is interpolated on its ladder (log-log). At the scene's resolution and at
 2x2 = 4x its pixel count (--scales 1 2).
+The default setting's profile is kept in the JSON: seconds per phase (BVH traversal of the rays
+that see and of the shadow rays, surfaces, texture filtering, light sampling, bookkeeping), in
+all and per wavefront depth, and the rays per depth.
 Writes out/bench/trace.json and out/bench/trace_*.png/svg.
 """
 
@@ -20,6 +27,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _report import OUT_DIR, seconds_to_reach, versions, write_report  # noqa: E402
+from scenes import build_spheres  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "sample_blends" / "raytrace.blend"
@@ -28,8 +36,20 @@ LADDER = [(1, 0), (1, 2), (1, 4), (2, 4), (2, 8), (4, 8)]
 DEFAULT_SETTING = "1x1 + edges 4x4"  # TracerSettings() and the trace command's defaults
 
 
+def print_profile(row: dict) -> None:
+    """The default setting's seconds per phase, and per depth, as a short table."""
+    phases = row["profile"]["seconds"]
+    total = sum(phases.values())
+    print(f"profile of {row['setting']} ({total:.2f} s in phases):")
+    for phase, seconds in sorted(phases.items(), key=lambda kv: -kv[1]):
+        print(f"  {phase:18s} {seconds:7.3f} s {100 * seconds / max(total, 1e-9):5.1f} %")
+    print(f"  rays per depth: {row['rays_per_depth']}")
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scenes", nargs="+", choices=("raytrace", "spheres"),
+                        default=["raytrace", "spheres"], help="scenes to run (default: both)")
     parser.add_argument("--scales", type=int, nargs="+", default=[1, 2],
                         help="resolution multipliers per side (2: 4x the pixels)")
     parser.add_argument("--quick", action="store_true", help="short ladders (smoke run)")
@@ -48,97 +68,112 @@ def main() -> int:
     from classic_bake.pipeline.charts import speed_accuracy_chart, sweep_chart
     from classic_bake.pipeline.images import write_preview_png
 
-    bpy.ops.wm.open_mainfile(filepath=str(SCENE), load_ui=False, use_scripts=False)
-    base = bridge.render_resolution(bpy.context.scene)
     ladder = LADDER[:3] if args.quick else LADDER
     cycles_counts = [1, 2, 4, 8, 16] if args.quick else [1, 2, 4, 8, 16, 32, 64, 128]
-    figures, ratios = {"scales": {}}, {}
+    figures, ratios = {}, {}
     cr.warm_up()
-    for scale in args.scales:
-        resolution = (base[0] * scale, base[1] * scale)
-        snap = bridge.snapshot(resolution=resolution)
-        depth = auto_settings(snap).max_depth
-        model = cr.whitted(depth)
-        ref = cr.reference(SCENE, model, "render", resolution=resolution,
-                           samples=128 if args.quick else None, max_samples=args.max_ref_samples,
-                           target_rel_mse=1e-4)
-        reference = ref.image
-        bpy.ops.wm.open_mainfile(filepath=str(SCENE), load_ui=False, use_scripts=False)
-        snap = bridge.snapshot(resolution=resolution)
-        start = time.perf_counter()
-        bvh = BVH.build(snap.triangles)
-        build_s = time.perf_counter() - start
-        kernel_rows, cycles_rows = [], []
-        for step in range(max(len(ladder), len(cycles_counts))):  # alternate the two sides
-            if step < len(ladder):
-                n, a = ladder[step]
-                settings = auto_settings(snap, supersample=n, adaptive=a)
-                start = time.perf_counter()
-                result = trace(snap, settings, bvh=bvh, resolution=resolution)
-                seconds = time.perf_counter() - start + build_s
-                m = compare(result.image, reference)
-                kernel_rows.append({"setting": f"{n}x{n} + edges {a}x{a}", "seconds": seconds,
-                                    "rel_mse": m.rel_mse, "flip": m.flip,
-                                    "rays": result.stats.camera_rays + result.stats.secondary_rays
-                                    + result.stats.shadow_rays,
-                                    "pruned_branches": result.stats.pruned_branches})
-                if step == 2:
-                    write_preview_png(OUT_DIR / f"trace_x{scale}.png", result.image)
-            if step < len(cycles_counts):
-                image, seconds = cr.render_camera(bpy.context.scene, model, cycles_counts[step],
-                                                  resolution=resolution)
-                cycles_rows.append({"samples": cycles_counts[step], "seconds": seconds,
-                                    "rel_mse": rel_mse(image, reference)})
-        # Stability: the ray tree's depth limit, from camera rays only to deeper than needed.
-        sweep = {"depth": [], "rel_mse": [], "mean_radiance": [], "depth_limited": []}
-        for d in range(0, depth + 3):
-            result = trace(snap, auto_settings(snap, max_depth=d, adaptive=0), bvh=bvh,
-                           resolution=resolution)
-            sweep["depth"].append(d)
-            sweep["rel_mse"].append(rel_mse(result.image, reference))
-            sweep["mean_radiance"].append(float(result.image.mean()))
-            sweep["depth_limited"].append(result.stats.depth_limited)
-        sweep_chart(sweep["depth"], [
-            {"label": "relative MSE against Cycles", "values": sweep["rel_mse"],
-             "axis_label": "relative MSE (dimensionless)", "log": True},
-            {"label": "rays still alive at the depth limit", "values": sweep["depth_limited"],
-             "axis_label": "rays cut by the limit"}],
-            OUT_DIR / f"trace_depth_x{scale * scale}", x_label="maximum ray-tree depth",
-            title=f"Depth limit sweep (auto depth {depth})", marks={"auto": depth})
-        for row in kernel_rows:
-            reach = seconds_to_reach(row["rel_mse"], cycles_rows)
-            row["cycles_seconds_to_same_error"] = reach
-            row["ratio"] = None if reach is None else reach / row["seconds"]
-        best = max((r for r in kernel_rows if r["ratio"] is not None), key=lambda r: r["ratio"],
-                   default=None)
-        key = f"cycles_vs_tracer_seconds_to_same_rel_mse_x{scale * scale}_pixels"
-        ratios[key] = None if best is None else best["ratio"]
-        default = next(r for r in kernel_rows if r["setting"] == DEFAULT_SETTING)
-        ratios[f"{key}_default_settings"] = default["ratio"]
-        reached = [r["ratio"] for r in kernel_rows if r["ratio"] is not None]
-        ratios[f"{key}_worst_setting"] = min(reached) if reached else None
-        figures["scales"][f"x{scale * scale}"] = {
-            "resolution": resolution, "depth": depth, "bvh_build_s": build_s,
-            "reference": {"samples": ref.samples, "noise_rel_mse": ref.noise_rel_mse,
-                          "seconds": ref.seconds, "cache_hit": ref.cache_hit},
-            "kernel": kernel_rows, "cycles": cycles_rows, "depth_sweep": sweep}
-        OUT_DIR.mkdir(parents=True, exist_ok=True)
-        speed_accuracy_chart(kernel_rows, cycles_rows, OUT_DIR / f"trace_speed_x{scale * scale}",
-                             title=f"Whitted tracer vs Cycles (whitted model), {resolution[0]}x"
-                                   f"{resolution[1]}",
-                             kernel_label="tracer (n x n + edge samples)",
-                             cycles_label="Cycles (samples per pixel)")
-        noise = ref.noise_rel_mse if ref.noise_rel_mse is not None else float("nan")
-        print(f"\n{resolution[0]}x{resolution[1]} (depth {depth}); reference {ref.samples} samples, "
-              f"noise relMSE {noise:.2e}")
-        print(f"{'tracer setting':22s} {'s':>7s} {'relMSE':>9s} {'FLIP':>6s} {'Cycles s':>9s} {'ratio':>6s}")
-        for r in kernel_rows:
-            reach = r["cycles_seconds_to_same_error"]
-            print(f"{r['setting']:22s} {r['seconds']:7.2f} {r['rel_mse']:9.2e} {r['flip']:6.3f} "
-                  f"{(reach or float('nan')):9.2f} {(r['ratio'] or float('nan')):6.2f}")
-        print(f"{'Cycles samples':22s} {'s':>7s} {'relMSE':>9s}")
-        for r in cycles_rows:
-            print(f"{r['samples']:<22d} {r['seconds']:7.2f} {r['rel_mse']:9.2e}")
+    for name in args.scenes:
+        path = SCENE if name == "raytrace" else OUT_DIR / "trace_spheres.blend"
+        if name == "spheres":
+            build_spheres(path)
+        # The sample scene's ratios keep their plain names; another scene's carry its name.
+        suffix = "" if name == "raytrace" else f"_{name}"
+        figures[name] = {"scales": {}}
+        bpy.ops.wm.open_mainfile(filepath=str(path), load_ui=False, use_scripts=False)
+        base = bridge.render_resolution(bpy.context.scene)
+        for scale in args.scales:
+            resolution = (base[0] * scale, base[1] * scale)
+            snap = bridge.snapshot(resolution=resolution)
+            depth = auto_settings(snap).max_depth
+            model = cr.whitted(depth)
+            ref = cr.reference(path, model, "render", resolution=resolution,
+                               samples=128 if args.quick else None, max_samples=args.max_ref_samples,
+                               target_rel_mse=1e-4)
+            reference = ref.image
+            bpy.ops.wm.open_mainfile(filepath=str(path), load_ui=False, use_scripts=False)
+            snap = bridge.snapshot(resolution=resolution)
+            start = time.perf_counter()
+            bvh = BVH.build(snap.triangles)
+            build_s = time.perf_counter() - start
+            kernel_rows, cycles_rows = [], []
+            for step in range(max(len(ladder), len(cycles_counts))):  # alternate the two sides
+                if step < len(ladder):
+                    n, a = ladder[step]
+                    settings = auto_settings(snap, supersample=n, adaptive=a)
+                    start = time.perf_counter()
+                    result = trace(snap, settings, bvh=bvh, resolution=resolution)
+                    seconds = time.perf_counter() - start + build_s
+                    m = compare(result.image, reference)
+                    kernel_rows.append({"setting": f"{n}x{n} + edges {a}x{a}", "seconds": seconds,
+                                        "rel_mse": m.rel_mse, "flip": m.flip,
+                                        "rays": result.stats.camera_rays + result.stats.secondary_rays
+                                        + result.stats.shadow_rays,
+                                        "pruned_branches": result.stats.pruned_branches})
+                    if kernel_rows[-1]["setting"] == DEFAULT_SETTING:
+                        kernel_rows[-1]["profile"] = result.stats.phases
+                        kernel_rows[-1]["rays_per_depth"] = result.stats.rays_per_depth
+                    if step == 2:
+                        write_preview_png(OUT_DIR / f"trace{suffix}_x{scale}.png", result.image)
+                if step < len(cycles_counts):
+                    image, seconds = cr.render_camera(bpy.context.scene, model, cycles_counts[step],
+                                                      resolution=resolution)
+                    cycles_rows.append({"samples": cycles_counts[step], "seconds": seconds,
+                                        "rel_mse": rel_mse(image, reference)})
+            # Stability: the ray tree's depth limit, from camera rays only to deeper than needed.
+            sweep = {"depth": [], "rel_mse": [], "mean_radiance": [], "depth_limited": []}
+            for d in range(0, depth + 3):
+                result = trace(snap, auto_settings(snap, max_depth=d, adaptive=0), bvh=bvh,
+                               resolution=resolution)
+                sweep["depth"].append(d)
+                sweep["rel_mse"].append(rel_mse(result.image, reference))
+                sweep["mean_radiance"].append(float(result.image.mean()))
+                sweep["depth_limited"].append(result.stats.depth_limited)
+            sweep_chart(sweep["depth"], [
+                {"label": "relative MSE against Cycles", "values": sweep["rel_mse"],
+                 "axis_label": "relative MSE (dimensionless)", "log": True},
+                {"label": "rays still alive at the depth limit", "values": sweep["depth_limited"],
+                 "axis_label": "rays cut by the limit"}],
+                OUT_DIR / f"trace{suffix}_depth_x{scale * scale}", x_label="maximum ray-tree depth",
+                title=f"Depth limit sweep (auto depth {depth})", marks={"auto": depth})
+            for row in kernel_rows:
+                reach = seconds_to_reach(row["rel_mse"], cycles_rows)
+                row["cycles_seconds_to_same_error"] = reach
+                row["ratio"] = None if reach is None else reach / row["seconds"]
+            best = max((r for r in kernel_rows if r["ratio"] is not None), key=lambda r: r["ratio"],
+                       default=None)
+            key = f"cycles_vs_tracer_seconds_to_same_rel_mse_x{scale * scale}_pixels{suffix}"
+            ratios[key] = None if best is None else best["ratio"]
+            default = next(r for r in kernel_rows if r["setting"] == DEFAULT_SETTING)
+            ratios[f"{key}_default_settings"] = default["ratio"]
+            reached = [r["ratio"] for r in kernel_rows if r["ratio"] is not None]
+            ratios[f"{key}_worst_setting"] = min(reached) if reached else None
+            # The issue's floor leaves out the most expensive rung (the ladder's last).
+            below_top = [r["ratio"] for r in kernel_rows[:-1] if r["ratio"] is not None]
+            ratios[f"{key}_worst_setting_below_top"] = min(below_top) if below_top else None
+            figures[name]["scales"][f"x{scale * scale}"] = {
+                "resolution": resolution, "depth": depth, "bvh_build_s": build_s,
+                "reference": {"samples": ref.samples, "noise_rel_mse": ref.noise_rel_mse,
+                              "seconds": ref.seconds, "cache_hit": ref.cache_hit},
+                "kernel": kernel_rows, "cycles": cycles_rows, "depth_sweep": sweep}
+            OUT_DIR.mkdir(parents=True, exist_ok=True)
+            speed_accuracy_chart(kernel_rows, cycles_rows, OUT_DIR / f"trace{suffix}_speed_x{scale * scale}",
+                                 title=f"Whitted tracer vs Cycles (whitted model), {resolution[0]}x"
+                                       f"{resolution[1]}",
+                                 kernel_label="tracer (n x n + edge samples)",
+                                 cycles_label="Cycles (samples per pixel)")
+            noise = ref.noise_rel_mse if ref.noise_rel_mse is not None else float("nan")
+            print(f"\n{resolution[0]}x{resolution[1]} (depth {depth}); reference {ref.samples} samples, "
+                  f"noise relMSE {noise:.2e}")
+            print(f"{'tracer setting':22s} {'s':>7s} {'relMSE':>9s} {'FLIP':>6s} "
+                  f"{'Cycles s':>9s} {'ratio':>6s}")
+            for r in kernel_rows:
+                reach = r["cycles_seconds_to_same_error"]
+                print(f"{r['setting']:22s} {r['seconds']:7.2f} {r['rel_mse']:9.2e} {r['flip']:6.3f} "
+                      f"{(reach or float('nan')):9.2f} {(r['ratio'] or float('nan')):6.2f}")
+            print(f"{'Cycles samples':22s} {'s':>7s} {'relMSE':>9s}")
+            for r in cycles_rows:
+                print(f"{r['samples']:<22d} {r['seconds']:7.2f} {r['rel_mse']:9.2e}")
+            print_profile(default)
     write_report("trace", ratios, figures, versions("bpy", "embreex"))
     return 0
 

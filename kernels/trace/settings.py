@@ -112,6 +112,8 @@ class TraceStats:
     depth_limited: int = 0  # rays alive at max_depth (their energy is lost)
     edge_pixels: int = 0
     rays_per_depth: list = field(default_factory=list)
+    # Seconds per phase, exclusive of nested phases, in all and per depth (`PhaseClock.as_dict`).
+    phases: dict = field(default_factory=dict)
 
     def as_dict(self) -> dict:
         return dict(self.__dict__)

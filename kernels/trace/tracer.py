@@ -35,10 +35,11 @@ from dataclasses import replace
 import numpy as np
 
 from ..bake.camera_view import edge_pixels, stratified_offsets
-from ..geometry.alpha_occlusion import transmittance
+from ..geometry.alpha_occlusion import clipped_hits, transmittance
 from ..geometry.bvh import BVH
 from ..geometry.camera import camera_rays, pixel_rays
 from ..geometry.scene import Scene, geometric_normals
+from ..measure.phase_clock import PhaseClock
 from ..progress import Steps, drain
 from ..shading import lights as light_units
 from ..shading.alpha import scene_alpha
@@ -114,6 +115,9 @@ class Tracer:
             self.map_suns, residual = extract_suns(scene.world_texture, scene.world_transform)
             self.sky_scene = replace(scene, world_texture=residual)
         self.stats = TraceStats()
+        # Seconds per phase and per depth (`PhaseClock`), for the profile benches print.
+        self.clock = PhaseClock()
+        self.pass_name = "rays"  # the profile's label for what `radiance` traces now
         mats = scene.materials
         self.metallic = np.array([m.metallic for m in mats])
         # A metal part's own tint where it is not the base colour (`Material.metal_color`).
@@ -134,10 +138,19 @@ class Tracer:
 
     def _visible(self, origins, directions, t_max) -> np.ndarray:
         self.stats.shadow_rays += len(origins)
-        if self.alpha is not None:  # (N,) float transmittance
-            return transmittance(self.shadow_bvh, origins, directions, 0.0, t_max,
-                                 self.alpha, self.offset, self.alpha.opaque)
-        return ~self.shadow_bvh.occluded(origins, directions, 0.0, t_max)
+        with self.clock("shadow traversal"):
+            if self.alpha is not None:  # (N,) float transmittance
+                return transmittance(self.shadow_bvh, origins, directions, 0.0, t_max,
+                                     self.alpha, self.offset, self.alpha.opaque)
+            return ~self.shadow_bvh.occluded(origins, directions, 0.0, t_max)
+
+    def _hits(self, origins, dirs, t_min):
+        """Closest hits of the rays that see; alpha surfaces are alpha-tested (0.5): their
+        holes let the rays through to what lies behind."""
+        if self.alpha is None:
+            return self.bvh.intersect(origins, dirs, t_min, np.inf)
+        return clipped_hits(self.bvh, origins, dirs, t_min, np.inf, self.alpha, self.offset,
+                            self.alpha.opaque)
 
     def direct(self, h: SurfaceHits, wo: np.ndarray, diffuse_w: np.ndarray, lobes: list, rough,
                strata: Strata | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -164,16 +177,30 @@ class Tracer:
         # world is hidden from diffuse rays in this model, but glossy ones see it).
         lamps = [(light, True) for light in self.emitters.lights]
         lamps += [(sun, False) for sun in self.map_suns] if lobes else []
+        # Every lamp's lit hits first, then all their shadow rays in one BVH call: a call's
+        # fixed cost (pool set-up, the traversal's steps) is paid once per depth, not per lamp.
+        lit_sets = []  # (light, diffuse, sub (k,), to_l (n, 3), e (n, 3))
+        shadow_o, shadow_d, shadow_t = [], [], []
         for light, diffuse in lamps:
             to_l, dist = light_units.light_vectors(light, p)
             e = light_units.direct_irradiance(light, p, ns)  # (n, 3), includes cos and falloff
-            lit = np.any(e > 0, axis=1)
-            if not lit.any():
+            sub = np.flatnonzero(np.any(e > 0, axis=1))
+            if not len(sub):
                 continue
-            sub = np.nonzero(lit)[0]
-            t_max = np.where(np.isinf(dist[sub]), np.inf, dist[sub] - self.offset)
+            lit_sets.append((light, diffuse, sub, to_l, e))
             if light.cast_shadow:
-                vis = self._visible(origin[sub], to_l[sub], t_max)
+                shadow_o.append(origin[sub])
+                shadow_d.append(to_l[sub])
+                shadow_t.append(np.where(np.isinf(dist[sub]), np.inf, dist[sub] - self.offset))
+        if shadow_o:
+            seen = self._visible(np.concatenate(shadow_o), np.concatenate(shadow_d),
+                                 np.concatenate(shadow_t))
+            seen_at = np.cumsum([0] + [len(o) for o in shadow_o])
+        shadowed = 0
+        for light, diffuse, sub, to_l, e in lit_sets:
+            if light.cast_shadow:
+                vis = seen[seen_at[shadowed]:seen_at[shadowed + 1]]
+                shadowed += 1
             else:
                 vis = np.ones(len(sub), bool)
             if diffuse:
@@ -352,6 +379,15 @@ class Tracer:
                  primary_ids: np.ndarray | None = None, footprint: Footprint | None = None,
                  untextured: np.ndarray | None = None, strata: Strata | None = None,
                  primary_t: np.ndarray | None = None) -> np.ndarray:
+        """`_radiance`, its time outside the named phases counted as bookkeeping."""
+        with self.clock("bookkeeping"):
+            return self._radiance(origins, dirs, primary_ids, footprint, untextured, strata,
+                                  primary_t)
+
+    def _radiance(self, origins: np.ndarray, dirs: np.ndarray,
+                  primary_ids: np.ndarray | None = None, footprint: Footprint | None = None,
+                  untextured: np.ndarray | None = None, strata: Strata | None = None,
+                  primary_t: np.ndarray | None = None) -> np.ndarray:
         """Radiance (N, 3) arriving at the camera along N primary rays.
 
         primary_ids: optional (N,) int64 filled with what each camera ray hit (object and
@@ -384,10 +420,12 @@ class Tracer:
         for depth in range(s.max_depth + 1):
             if len(origins) == 0:
                 break
+            self.clock.label = f"{self.pass_name} depth {depth}"
             self.stats.rays_per_depth.append(len(origins))
             if depth > 0:
                 self.stats.secondary_rays += len(origins)
-            hits = self.bvh.intersect(origins, dirs, t_min, np.inf)
+            with self.clock("traversal"):
+                hits = self._hits(origins, dirs, t_min)
             miss = hits.tri < 0
             if depth > 0 and sharp.any() and self.area_lamps:
                 rows = np.flatnonzero(sharp)
@@ -419,7 +457,8 @@ class Tracer:
             hits = type(hits)(t=hits.t[keep], tri=hits.tri[keep], u=hits.u[keep], v=hits.v[keep])
             if len(origins) == 0:
                 break
-            h = surface_at(self.scene, self.tri_normals, origins, dirs, hits, s.shading)
+            with self.clock("surface"):
+                h = surface_at(self.scene, self.tri_normals, origins, dirs, hits, s.shading)
             m = h.material
             if depth == 0 and footprint is not None:
                 textured = self.textured[m]
@@ -427,8 +466,9 @@ class Tracer:
                     rows = np.nonzero(textured)[0]
                     u, v = hits.u[rows].astype(np.float64), hits.v[rows].astype(np.float64)
                     centre = np.stack([1.0 - u - v, u, v], axis=1)
-                    h.albedo[rows] = filtered_albedo(self.scene, hits.tri[rows], centre,
-                                                      footprint, pixel[rows])
+                    with self.clock("texture filter"):
+                        h.albedo[rows] = filtered_albedo(self.scene, hits.tri[rows], centre,
+                                                          footprint, pixel[rows])
             metallic, trans, rough = self.metallic[m], self.transmission[m], self.roughness[m]
             dielectric = (1.0 - metallic) * (1.0 - trans)
             # The diffuse base shows through the specular layer less the layer's albedo at this
@@ -463,15 +503,17 @@ class Tracer:
             lit_w = np.where(dark, 0.0, diffuse_w)
             if self.diffuse is not None:
                 lit_w = np.zeros_like(lit_w)  # the solution's diffuse light replaces it below
-            if s.shading == "gouraud":
-                lit, lambert = self.gouraud_direct(h, hits, origins, lit_w, lobes, rough,
-                                                   hit_strata)
-            else:
-                lit, lambert = self.direct(h, wo, lit_w, lobes, rough, hit_strata)
+            with self.clock("light sampling"):
+                if s.shading == "gouraud":
+                    lit, lambert = self.gouraud_direct(h, hits, origins, lit_w, lobes, rough,
+                                                       hit_strata)
+                else:
+                    lit, lambert = self.direct(h, wo, lit_w, lobes, rough, hit_strata)
             if self.diffuse is not None:
                 u, v = hits.u.astype(np.float64), hits.v.astype(np.float64)
                 bary = np.stack([1.0 - u - v, u, v], axis=1)
-                reflected = self.diffuse(hits.tri, bary, dirs, h.front)
+                with self.clock("diffuse lookup"):
+                    reflected = self.diffuse(hits.tri, bary, dirs, h.front)
                 lit = lit + reflected
                 # A white base's share, for edge detection (the `untextured` image).
                 lambert = reflected / np.maximum(h.albedo, ALBEDO_FLOOR)
@@ -499,8 +541,9 @@ class Tracer:
             layer_w = np.where((dielectric > 0) & (spec_level > 0), dielectric - diffuse_w, 0.0)
             mirror_w = metal_w + layer_w[:, None]
             if self.environment:  # environment-mapped mirrors: a look-up, whatever the depth
-                own = own + self._environment(hits.tri, h.p, r_dir, mirror_w, h.ns,
-                                              lit_w[:, None] * h.albedo)
+                with self.clock("environment"):
+                    own = own + self._environment(hits.tri, h.p, r_dir, mirror_w, h.ns,
+                                                  lit_w[:, None] * h.albedo)
             np.add.at(result, pixel, weight * own)
             if untextured is not None:  # white base colour at the camera hits only
                 flat_own = own + (1.0 - h.albedo) * lambert if depth == 0 else own
@@ -572,8 +615,11 @@ def trace_steps(scene: Scene, settings: TracerSettings, bvh: BVH | None = None,
     row, col = np.divmod(np.arange(height * width), width)
     # Each sample stands for a 1/n cell of its pixel; its textures are averaged over that cell.
     grid = max(1, settings.texture_filter // n)
+    tracer.pass_name = "pixels"
     for k, (ox, oy) in enumerate(stratified_offsets(n)):
-        o, d = camera_rays(scene.camera, width, height, offsets=(ox, oy))
+        tracer.clock.label = "camera"
+        with tracer.clock("camera rays"):
+            o, d = camera_rays(scene.camera, width, height, offsets=(ox, oy))
         footprint = None if settings.texture_filter == 1 else Footprint(
             scene.camera, width, height, col + ox, row + oy, 1.0 / n, grid)
         acc += tracer.radiance(o.reshape(-1, 3), d.reshape(-1, 3), first_ids if k == 0 else None,
@@ -588,11 +634,15 @@ def trace_steps(scene: Scene, settings: TracerSettings, bvh: BVH | None = None,
         # Texture detail is already filtered: edges are where geometry, shadows or what the
         # mirrors show change, seen with a white base colour at the camera hits.
         seen = flat / passes if settings.texture_filter > 1 else pixels
-        mark = edge_pixels(seen.reshape(height, width, 3), first_ids.reshape(height, width)).ravel()
+        tracer.clock.label = "camera"
+        with tracer.clock("edge detection"):
+            mark = edge_pixels(seen.reshape(height, width, 3),
+                               first_ids.reshape(height, width)).ravel()
         tracer.stats.edge_pixels = int(mark.sum())
         if mark.any():
             sel = np.nonzero(mark)[0]
             grid = stratified_offsets(a)
+            tracer.pass_name = "edges"
             # All sub-samples of all edge pixels go out as few large wavefronts: per-call costs
             # (BVH pool set-up, one pass per depth) are paid once, not once per sub-sample.
             rays = [pixel_rays(scene.camera, width, height, col[sel] + ox, row[sel] + oy)
@@ -617,6 +667,7 @@ def trace_steps(scene: Scene, settings: TracerSettings, bvh: BVH | None = None,
                 yield 0.6 + 0.4 * min(last, len(origins)) / len(origins)
             pixels[sel] = radiance.reshape(len(grid), len(sel), 3).mean(axis=0)
     image[...] = pixels.reshape(height, width, 3)
+    tracer.stats.phases = tracer.clock.as_dict()
     return TraceResult(image=image, stats=tracer.stats, settings=settings)
 
 

@@ -355,3 +355,27 @@ def test_a_lamp_seen_in_a_mirror_through_a_rough_lobe_is_not_a_hot_spot():
         images[roughness] = trace(scene, TracerSettings(max_depth=2, adaptive=0)).image
     assert images[0.0].min() > 0.05  # the path exists: a smooth plate shows the lamp
     assert images[0.5].max() == 0.0
+
+
+def test_two_lamps_shadow_rays_in_one_call_and_the_profile():
+    """Two point lamps low on either side; a wall beyond the view hides the right one from every
+    pixel: each pixel is the left lamp's rho/pi E alone (all lamps' shadow rays share one BVH
+    call, each lamp's answers go to its own hits). The profile names the phases."""
+    rho, intensity, height = 0.5, 400.0, 1.0
+    plane = quad([(-2, -2, 0), (2, -2, 0), (2, 2, 0), (-2, 2, 0)])
+    wall = quad([(3, -5, 0), (3, 5, 0), (3, 5, 5), (3, -5, 5)])
+    cam = ortho_camera((0, 0, 5), (0, 0, -1), (0, 1, 0), 3.0, (16, 16))
+    lights = [point_light("L", (-6.0, 0.0, height), np.full(3, intensity)),
+              point_light("R", (6.0, 0.0, height), np.full(3, intensity))]
+    mat = Material(name="white", base_color=np.full(3, rho, np.float32), specular=0.0)
+    scene = build([(plane, mat), (wall, mat)], cam, lights)
+    result = trace(scene, TracerSettings(max_depth=0, adaptive=0))
+    xs = -1.5 + (np.arange(16) + 0.5) / 16 * 3.0
+    x, y = np.meshgrid(xs, xs[::-1])
+    d2 = (x + 6.0) ** 2 + y**2 + height**2
+    np.testing.assert_allclose(result.image[..., 0], rho / np.pi * intensity * height / d2**1.5,
+                               rtol=1e-5)
+    phases = result.stats.phases
+    assert {"traversal", "shadow traversal", "surface", "light sampling"} <= set(phases["seconds"])
+    assert "pixels depth 0" in phases["by_label"]
+    assert result.stats.shadow_rays == 2 * 16 * 16
