@@ -1,6 +1,8 @@
 """Normal maps made (issue 40): each mesh's relief — its materials' Bump-node heights, a named
 procedural pattern or an image — turned into a tangent-space normal map over its UV charts
-(float image "Normal <object>", Non-Color), and with Wire into Material the material wired
+(float image "Normal <object>", Non-Color), or (source "high") a detailed mesh's normals baked
+into each low mesh's map as Cycles' Selected to Active does (`kernels/normalmap/high_to_low.py`);
+and with Wire into Material the material wired
 Image Texture -> Normal Map (tangent space) -> the Principled BSDF's Normal, in place of the Bump
 node the map was made from (restorable: addon/bridge/normal_maps.py)."""
 
@@ -20,6 +22,7 @@ from ..kernels.normalmap.dilate import FLAT, pad_normals
 from ..kernels.normalmap.encode import normals_to_rgb, to_float, to_uint8
 from ..kernels.normalmap.from_height import STEEP_COS, NormalMap, NormalMapSettings, normal_map_steps
 from ..kernels.normalmap.heights import ImageHeight, ProceduralHeight
+from ..kernels.normalmap.high_to_low import HighToLowMap, HighToLowSettings, high_to_low_steps
 from ..kernels.normalmap.surface_metric import metric_normals, slope_matrices, texel_triangles
 from ..kernels.normalmap.texture_height import TextureHeight
 from ..kernels.progress import Steps, scaled
@@ -48,12 +51,15 @@ class NormalMapTarget:
     | uv_name | ""         | the UV layer the map covers ("": the Bump texture's, else the   |
     |         |            | active render layer)                                            |
     | wire    | False      | wire the map into the object's materials (Normal Map node)      |
+    | high    | ""         | source high: the mesh whose normals are baked ("": with two     |
+    |         |            | meshes selected, the one that is not active)                    |
     """
 
     source: str = "material"
     image: str = ""
     uv_name: str = ""
     wire: bool = False
+    high: str = ""
 
 
 SOURCE_CHOICES = (
@@ -63,6 +69,8 @@ SOURCE_CHOICES = (
     ("bricks", "Bricks", "The lecture's bricks: running bond with bevelled mortar"),
     ("checker", "Checker", "Steps of an 8 x 8 checker (a test pattern)"),
     ("image", "Image", "The Blender image named in Height Image"),
+    ("high", "High Poly Mesh", "The normals of a detailed mesh (High Mesh, or the selected mesh "
+     "that is not active) baked into each target's map, as Cycles' Selected to Active"),
 )
 
 OPTIONS = (
@@ -86,6 +94,15 @@ OPTIONS = (
     Option("wire", NormalMapTarget, "Wire into Material", "Wire the map into the materials "
            "(Image Texture -> Normal Map -> BSDF Normal) in place of the Bump node it was made "
            "from; the Bump node stays in the tree, unlinked"),
+    Option("high", NormalMapTarget, "High Mesh", "Source High Poly Mesh: the detailed mesh whose "
+           "normals are baked (empty: with two meshes selected, the one that is not active; the "
+           "active one gets the map)"),
+    Option("cage", HighToLowSettings, "Cage", "Source High Poly Mesh: how far outside the low "
+           "mesh, along its normals, the rays start, in metres (0: from the meshes' sizes)",
+           auto=0.0, minimum=0.0, soft_max=1.0),
+    Option("max_ray", HighToLowSettings, "Max Ray", "Source High Poly Mesh: the longest ray from "
+           "the cage inward, in metres (0: twice the cage)", auto=0.0, minimum=0.0,
+           soft_max=2.0),
 )
 
 
@@ -121,7 +138,13 @@ def settings(values: dict, scene=None) -> NormalMapSettings:
 
 def target(values: dict) -> NormalMapTarget:
     return NormalMapTarget(source=str(values["source"]), image=str(values["image"]).strip(),
-                           uv_name=str(values["uv_name"]).strip(), wire=bool(values["wire"]))
+                           uv_name=str(values["uv_name"]).strip(), wire=bool(values["wire"]),
+                           high=str(values.get("high", "")).strip())
+
+
+def high_settings(values: dict) -> HighToLowSettings:
+    return HighToLowSettings(cage=float(values.get("cage", 0.0)),
+                             max_ray=float(values.get("max_ray", 0.0)))
 
 
 def metres_per_uv(uv: np.ndarray, world: np.ndarray) -> float | None:
@@ -333,6 +356,92 @@ def normalmap_job(context, values: dict) -> Steps[JobSummary]:
     return summary
 
 
+def high_and_low_objects(context, values: dict, tgt: NormalMapTarget):
+    """(the high mesh object, the low mesh objects the maps are made for) of a high -> low bake:
+    the high mesh named in `tgt.high`, the targets those named in `objects`, else the selected
+    meshes, else every other renderable mesh; with no name, Blender's Selected to Active (two
+    meshes selected: the active one gets the map, the other is the high mesh)."""
+    meshes = {o.name: o for o in context.scene.objects if o.type == "MESH" and not o.hide_render}
+    selected = [o for o in context.selected_objects if o.type == "MESH"]
+    names = values.get("objects") or []
+    if tgt.high:
+        high = meshes.get(tgt.high)
+        if high is None:
+            raise ValueError(f"no renderable mesh named '{tgt.high}' to bake normals from")
+        chosen = ([meshes[n] for n in names if n in meshes] if names
+                  else [o for o in selected if o.name in meshes] or list(meshes.values()))
+        lows = [o for o in chosen if o is not high]
+    else:
+        active = context.view_layer.objects.active
+        others = [o for o in selected if o is not active]
+        if active is None or active.type != "MESH" or len(others) != 1:
+            raise ValueError("name the high mesh (High Mesh), or select it and then the low mesh "
+                             "(active): Selected to Active takes exactly two meshes")
+        high, lows = others[0], [active]
+    if not lows:
+        raise ValueError(f"no low mesh besides '{high.name}' to make a map for")
+    return high, lows
+
+
+def high_to_low_job(context, values: dict) -> Steps[JobSummary]:
+    """Bake the high mesh's normals into each low mesh's tangent-space map
+    (`kernels/normalmap/high_to_low.py`), then (after the last yield) write the images and, with
+    wire, the materials."""
+    tgt, base, cage = target(values), settings(values), high_settings(values)
+    if base.size <= 0:
+        raise ValueError("a high -> low bake needs a map size (Size > 0)")
+    high_obj, lows = high_and_low_objects(context, values, tgt)
+    depsgraph = context.evaluated_depsgraph_get()
+    high = normal_maps.high_mesh(high_obj, depsgraph)
+    plans, skipped = [], []
+    for obj in lows:
+        read = normal_maps.low_mesh(obj, depsgraph, tgt.uv_name or None)
+        if read is None:
+            skipped.append(f"{obj.name}: no UV layer '{tgt.uv_name or '(active render)'}'")
+            continue
+        plans.append((obj.name, *read))
+    if not plans:
+        raise ValueError("no low mesh with a UV layer to bake into"
+                         + (f" ({'; '.join(skipped)})" if skipped else ""))
+    maps: list[HighToLowMap] = []
+    for k, (_, low, _) in enumerate(plans):
+        maps.append((yield from scaled(high_to_low_steps(low, high, base, cage),
+                                       k / len(plans), 1.0 / len(plans))))
+    # --- write back: everything computed ---------------------------------------------------------
+    summary = JobSummary(message="", skipped=skipped)
+    per_object, wired = {}, []
+    for (name, _, layer), made in zip(plans, maps, strict=True):
+        image_name = f"{IMAGE_PREFIX} {name}"
+        image = normal_maps.write_normal_image(image_name, made.rgb,
+                                               image=bpy.data.images.get(image_name))
+        summary.images[name] = image
+        materials = []
+        if tgt.wire:
+            mats, why = normal_maps.wire_normal_map(bpy.data.objects[name], image, layer,
+                                                    keep_bump=True)
+            materials = [m.name for m in mats]
+            wired += materials
+            summary.skipped += why
+        summary.files[f"normalmap/{name}.png"] = to_uint8(made.rgb)
+        summary.files[f"normalmap/{name}.exr"] = to_float(made.rgb)
+        per_object[name] = {
+            "image": image.name, "uv_layer": layer, "size": base.size, "high": high_obj.name,
+            "cage_m": made.cage, "max_ray_m": made.max_ray, "chart_texels": made.chart_texels,
+            "missed_texels": made.misses, "back_face_texels": made.back_faces,
+            "wired_materials": materials}
+    summary.result = {name: made for (name, _, _), made in zip(plans, maps, strict=True)}
+    summary.settings = {**asdict(base), **asdict(tgt), **asdict(cage)}
+    summary.sizes = {"objects": len(plans), "texels": len(plans) * base.size ** 2,
+                     "high_triangles": len(high.triangles)}
+    summary.extra["normal_maps"] = per_object
+    misses = sum(m.misses for m in maps)
+    summary.message = (f"normal maps of {len(plans)} objects from '{high_obj.name}': "
+                       + ", ".join(f"'{i.name}'" for i in summary.images.values())
+                       + (f"; {misses} texels missed it (flat)" if misses else "")
+                       + (f"; wired into {', '.join(wired)}" if wired else ""))
+    return summary
+
+
 def cli_extra(parser) -> None:
     parser.add_argument("--objects", nargs="+", default=[], metavar="NAME",
                         help="objects to make maps of (default: the selected meshes, or every "
@@ -340,12 +449,15 @@ def cli_extra(parser) -> None:
 
 
 def start(context, values: dict, resolution=None) -> Steps[JobSummary]:
+    if values["source"] == "high":
+        return (yield from high_to_low_job(context, values))
     return (yield from normalmap_job(context, values))
 
 
 RECORD = Technique(
     name="normalmap", label="Normal Maps",
-    help="make tangent-space normal maps from heights and wire them into the materials",
+    help="make tangent-space normal maps from heights or a high-poly mesh and wire them into "
+         "the materials",
     options=OPTIONS, settings=settings, start=start, cli_extra=cli_extra, renders=False,
     # No matched Cycles model: the map is checked against Cycles rendering the Bump node it
     # replaces (tests/blender/test_normalmap.py), not against a camera view of its own.

@@ -18,12 +18,14 @@ from dataclasses import replace
 import bpy
 import numpy as np
 
+from ...kernels.normalmap.high_to_low import HighMesh, LowMesh
 from . import write_back
 from .images import flip_rows
 from .materials import MaterialReader
-from .mesh import mesh_positions, mesh_triangles, mesh_uv
+from .mesh import mesh_corner_normals, mesh_positions, mesh_triangles, mesh_uv
 from .nodes import follow
 from .request import SnapshotRequest
+from .tangents import loop_triangle_tangents, world_tangents
 from .transforms import matrix_array
 
 NORMAL_MAP_TAG = "classic_bake_normal_map"  # custom property on every node the wiring adds
@@ -54,6 +56,58 @@ def object_uv_triangles(obj, depsgraph, uv_name: str | None):
         local = mesh_positions(mesh).astype(np.float64)
         world = local @ matrix[:3, :3].T + matrix[:3, 3]
         return (loop_uv[loops].astype(np.float64), world[verts], slots.copy(), name)
+    finally:
+        evaluated.to_mesh_clear()
+
+
+def _world_corners(obj, mesh):
+    """(world positions (T, 3, 3) float64 m, world unit corner normals (T, 3, 3) float64,
+    corner loops (T, 3), material slots (T,), the corner order) of `obj`'s mesh, its triangles
+    wound counter-clockwise in the world (re-wound where the object is mirrored)."""
+    verts, loops, _, slots = mesh_triangles(mesh)
+    matrix = matrix_array(obj.matrix_world)
+    linear = matrix[:3, :3]
+    order = [0, 2, 1] if np.linalg.det(linear) < 0.0 else [0, 1, 2]
+    world = mesh_positions(mesh).astype(np.float64) @ linear.T + matrix[:3, 3]
+    try:
+        normal_matrix = np.linalg.inv(linear).T
+    except np.linalg.LinAlgError:
+        normal_matrix = np.eye(3)
+    normals = mesh_corner_normals(mesh).astype(np.float64) @ normal_matrix.T
+    length = np.linalg.norm(normals, axis=1, keepdims=True)
+    normals = np.divide(normals, length, out=np.zeros_like(normals), where=length > 0)
+    return world[verts[:, order]], normals[loops[:, order]], loops[:, order], slots, order
+
+
+def low_mesh(obj, depsgraph, uv_name: str | None) -> tuple[LowMesh, str] | None:
+    """`obj`'s evaluated mesh as the low mesh of a high -> low bake: its UV layer `uv_name`
+    (None: the active render layer) with the MikkTSpace frames on it, all in world space; and
+    the layer's name. None when the mesh lacks the layer."""
+    evaluated = obj.evaluated_get(depsgraph)
+    mesh = evaluated.to_mesh()
+    try:
+        name = uv_name or active_render_uv_name(mesh)
+        loop_uv = None if name is None else mesh_uv(mesh, name)
+        frames = None if loop_uv is None else loop_triangle_tangents(mesh, name)
+        if frames is None:
+            return None
+        world, normals, loops, _, order = _world_corners(obj, mesh)
+        tangents, signs = world_tangents(frames[0][:, order], frames[1][:, order],
+                                         matrix_array(obj.matrix_world))
+        return LowMesh(uv=loop_uv[loops].astype(np.float64), positions=world, normals=normals,
+                       tangents=tangents, signs=signs), name
+    finally:
+        evaluated.to_mesh_clear()
+
+
+def high_mesh(obj, depsgraph) -> HighMesh:
+    """`obj`'s evaluated mesh (modifiers applied: a Subdivision Surface or Displace gives the
+    detail) as the high mesh of a high -> low bake: world triangles and shading normals."""
+    evaluated = obj.evaluated_get(depsgraph)
+    mesh = evaluated.to_mesh()
+    try:
+        world, normals, _, _, _ = _world_corners(obj, mesh)
+        return HighMesh(triangles=world, normals=normals)
     finally:
         evaluated.to_mesh_clear()
 

@@ -216,9 +216,10 @@ def high_to_low_steps(low: LowMesh, high: HighMesh,
     found = hits.tri >= 0
     hit_tri = hits.tri[found].astype(np.int64)
     high_tris = np.asarray(high.triangles, np.float64)
-    facing = np.einsum("nj,nj->n", geometric_normals(high_tris[hit_tri]), -direction[found])
+    # The ray runs along -direction: a front face's normal points against it.
+    along = np.einsum("nj,nj->n", geometric_normals(high_tris[hit_tri]), -direction[found])
     back = np.zeros(len(tri), bool)
-    back[np.flatnonzero(found)[facing >= 0.0]] = True  # the ray meets its back: a miss
+    back[np.flatnonzero(found)[along >= 0.0]] = True  # the ray meets its back: a miss
     front = found & ~back
     hb = np.stack([1.0 - hits.u - hits.v, hits.u, hits.v], 1).astype(np.float64)[front]
     high_normal = _normalize(np.einsum(

@@ -1,0 +1,75 @@
+"""MikkTSpace tangent frames of a Blender mesh, per triangle corner, in world space.
+
+The frames a tangent-space normal map is read in (Blender's Normal Map node, Cycles, EEVEE) and
+made in (a bake): `kernels/normalmap/mikktspace.py` computes them as `Mesh.calc_tangents` does,
+from the mesh's positions, corner normals and a UV layer. `calc_tangents` refuses faces of more
+than four corners; here such a face is split into its loop triangles first (what Blender's bake
+and render do with it internally), the rest of the mesh is taken as it is.
+
+World space: a tangent is a direction along the surface, so it moves with the object's linear
+map and is normalised again (object-space frames are unit; their interpolation is what the
+Normal Map node uses, so the world frames must be unit too). A mirroring transform (negative
+determinant) turns n x t round, so the bitangent sign flips with it: b stays where the object's
+own b was taken.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ...kernels.normalmap.mikktspace import mikktspace_tangents
+from .mesh import mesh_corner_normals, mesh_positions, mesh_triangles, mesh_uv
+
+# Faces with more corners than this are split into their loop triangles (MikkTSpace's limit).
+MIKKTSPACE_MAX_CORNERS = 4
+MIN_LENGTH = 1e-12
+
+
+def _polygon_arrays(mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(corner verts (L,), face starts (F,), face sizes (F,)) int64 of a mesh."""
+    corner_verts = np.empty(len(mesh.loops), np.int32)
+    mesh.loops.foreach_get("vertex_index", corner_verts)
+    starts = np.empty(len(mesh.polygons), np.int32)
+    sizes = np.empty(len(mesh.polygons), np.int32)
+    mesh.polygons.foreach_get("loop_start", starts)
+    mesh.polygons.foreach_get("loop_total", sizes)
+    return corner_verts.astype(np.int64), starts.astype(np.int64), sizes.astype(np.int64)
+
+
+def loop_triangle_tangents(mesh, uv_name: str | None) -> tuple[np.ndarray, np.ndarray] | None:
+    """(tangents (T, 3, 3) float32 unit, signs (T, 3) float32) object space, per corner of the
+    mesh's loop triangles (`mesh_triangles` order), on UV layer `uv_name` (None: the active render
+    layer); None when the mesh lacks that layer."""
+    loop_uv = mesh_uv(mesh, uv_name)
+    if loop_uv is None:
+        return None
+    _, tri_loops, tri_polys, _ = mesh_triangles(mesh)
+    corner_verts, starts, sizes = _polygon_arrays(mesh)
+    normals = mesh_corner_normals(mesh)
+    big = sizes > MIKKTSPACE_MAX_CORNERS
+    index = tri_loops.astype(np.int64)  # (T, 3) rows of the frames below
+    if big.any():
+        split = np.flatnonzero(big[tri_polys])  # loop triangles of the large faces
+        extra = tri_loops[split].reshape(-1).astype(np.int64)  # their corners, appended
+        count = len(corner_verts)
+        corner_verts = np.concatenate([corner_verts, corner_verts[extra]])
+        normals = np.concatenate([normals, normals[extra]])
+        loop_uv = np.concatenate([loop_uv, loop_uv[extra]])
+        starts = np.concatenate([starts[~big], count + 3 * np.arange(len(split))])
+        sizes = np.concatenate([sizes[~big], np.full(len(split), 3)])
+        index[split] = count + np.arange(3 * len(split)).reshape(-1, 3)
+    frames = mikktspace_tangents(mesh_positions(mesh), corner_verts, normals, loop_uv,
+                                 starts, sizes)
+    return frames.tangents[index], frames.signs[index]
+
+
+def world_tangents(tangents: np.ndarray, signs: np.ndarray, matrix: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """Object-space corner frames (..., 3), (...) moved into world space by `matrix` (4, 4):
+    (unit tangents float32, signs float32, flipped when the matrix mirrors)."""
+    linear = np.asarray(matrix, np.float64)[:3, :3]
+    t = np.asarray(tangents, np.float64) @ linear.T
+    length = np.linalg.norm(t, axis=-1, keepdims=True)
+    t = np.divide(t, length, out=np.zeros_like(t), where=length > MIN_LENGTH)
+    mirror = -1.0 if np.linalg.det(linear) < 0.0 else 1.0
+    return t.astype(np.float32), (np.asarray(signs, np.float32) * mirror).astype(np.float32)

@@ -1,0 +1,143 @@
+"""High -> low normal maps (jobs/normalmap.py, source "high") through real Blender: the maps
+against Cycles' own NORMAL bake with Selected to Active (tangent space, the same cage extrusion
+and max ray distance, one sample so each texel is its centre), texel by texel; the option and
+the Selected to Active choice of the high mesh; misses counted."""
+
+import sys
+from pathlib import Path
+
+import bpy
+import numpy as np
+import pytest
+
+from classic_bake.addon import bridge
+from classic_bake.jobs.normalmap import RECORD
+from classic_bake.kernels.progress import drain
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from support.blender_parts import principled  # noqa: E402
+
+SIZE = 64
+CAGE_M = 0.1  # the cage extrusion both bakes use
+MAX_RAY_M = 1.0  # reaches the rounded high cube's corners, 0.4 m inside the low cube's
+# Measured (Blender 5.2, 64 x 64): cube mean 0.368 degrees, p99 0.196 (mean 0.04 without the 6
+# grazing texels below); cylinder mean 0.006, p99 0.052, max 0.063.
+CUBE_MEAN_DEG, CUBE_P99_DEG = 0.5, 0.5
+CYLINDER_MEAN_DEG, CYLINDER_P99_DEG = 0.05, 0.2
+# A ray that just touches the high mesh's silhouette (the rounded cube's widest ring of vertices
+# lies exactly under a column of texels) hits in one bake and misses in the other, by float
+# rounding: the texel is flat in one map and turned 84 degrees in the other. At most this share
+# of the chart's texels may disagree so.
+GRAZING_DEG = 5.0
+MAX_GRAZING_SHARE = 0.01
+# Half an 8-bit code: how close to (0.5, 0.5, 1) a Cycles texel must be to count as its flat miss.
+FLAT_CODE = 0.5 / 255.0
+
+
+def values(**overrides) -> dict:
+    return {**{o.name: o.default for o in RECORD.all_options()}, **overrides}
+
+
+def low_and_high(kind: str):
+    """(low, high): a low-poly mesh with its UV map and a material, and a detailed version of
+    it (a copy with a Subdivision Surface, smooth shaded)."""
+    if kind == "cube":
+        bpy.ops.mesh.primitive_cube_add(size=2.0)
+    else:
+        bpy.ops.mesh.primitive_cylinder_add(vertices=12, radius=1.0, depth=2.0,
+                                            end_fill_type="TRIFAN")
+        bpy.ops.object.shade_smooth()
+    low = bpy.context.object
+    low.name = "Low"
+    mat, _ = principled("Low")
+    low.data.materials.append(mat)
+    high = low.copy()
+    high.data = low.data.copy()
+    high.name = "High"
+    bpy.context.scene.collection.objects.link(high)
+    modifier = high.modifiers.new("Subdivision", "SUBSURF")
+    modifier.levels = modifier.render_levels = 3
+    for poly in high.data.polygons:
+        poly.use_smooth = True
+    return low, high
+
+
+def cycles_bake(low, high) -> np.ndarray:
+    """Cycles' tangent-space NORMAL bake of `high` into `low`'s UV map: (SIZE, SIZE, 4)."""
+    scene = bpy.context.scene
+    scene.render.engine = "CYCLES"
+    scene.cycles.device, scene.cycles.samples = "CPU", 1
+    image = bpy.data.images.new("Cycles", SIZE, SIZE, alpha=True, float_buffer=True)
+    image.colorspace_settings.name = "Non-Color"
+    image.pixels.foreach_set(np.zeros(SIZE * SIZE * 4, np.float32))  # alpha 0: not baked
+    tree = low.active_material.node_tree
+    node = tree.nodes.new("ShaderNodeTexImage")
+    node.image = image
+    tree.nodes.active = node
+    for obj in scene.objects:
+        obj.select_set(obj in (low, high))
+    bpy.context.view_layer.objects.active = low
+    assert bpy.ops.object.bake(
+        type="NORMAL", normal_space="TANGENT", normal_r="POS_X", normal_g="POS_Y",
+        normal_b="POS_Z", margin=0, use_selected_to_active=True, cage_extrusion=CAGE_M,
+        max_ray_distance=MAX_RAY_M, target="IMAGE_TEXTURES") == {"FINISHED"}
+    tree.nodes.remove(node)
+    return bridge.image_pixels(image)
+
+
+def angles(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    a = a / np.maximum(np.linalg.norm(a, axis=-1, keepdims=True), 1e-12)
+    b = b / np.maximum(np.linalg.norm(b, axis=-1, keepdims=True), 1e-12)
+    return np.degrees(np.arccos(np.clip((a * b).sum(-1), -1.0, 1.0)))
+
+
+@pytest.mark.parametrize("kind, mean_bound, p99_bound", [
+    ("cube", CUBE_MEAN_DEG, CUBE_P99_DEG),
+    ("cylinder", CYLINDER_MEAN_DEG, CYLINDER_P99_DEG),
+])
+def test_map_matches_cycles_selected_to_active_normal_bake(kind, mean_bound, p99_bound):
+    """A flat-shaded cube and a smooth 12-sided cylinder (2 m) under copies of themselves with a
+    Subdivision Surface of level 3 (tilts up to 45 degrees from the low faces), 64 x 64."""
+    low, high = low_and_high(kind)
+    theirs = cycles_bake(low, high)
+    summary = drain(RECORD.start(bpy.context, values(
+        source="high", high="High", size=SIZE, padding=0, cage=CAGE_M, max_ray=MAX_RAY_M,
+        objects=["Low"])))
+    ours = summary.files["normalmap/Low.exr"]
+    made = summary.result["Low"]
+    chart = made.mask  # padding 0: the texels the low mesh's UV triangles cover
+    assert chart.sum() == made.chart_texels
+    error = angles(2.0 * ours - 1.0, 2.0 * theirs[..., :3] - 1.0)[chart]
+    tilt = angles(2.0 * theirs[..., :3] - 1.0, np.broadcast_to([0, 0, 1.0], ours.shape))[chart]
+    # Cycles writes the flat colour where its ray misses (and clears the rest of the image to it).
+    flat = (np.abs(theirs[..., :3] - [0.5, 0.5, 1.0]).max(-1) < FLAT_CODE)[chart]
+    grazing = int((error > GRAZING_DEG).sum())
+    print(f"{kind} against Cycles' selected-to-active NORMAL bake: mean {error.mean():.3f}, p99 "
+          f"{np.percentile(error, 99):.3f}, max {error.max():.3f} degrees over {chart.sum()} "
+          f"texels; {grazing} over {GRAZING_DEG} degrees, mean without them "
+          f"{error[error <= GRAZING_DEG].mean():.4f} (tilt mean {tilt.mean():.1f}, max "
+          f"{tilt.max():.1f}); misses ours {made.misses}, Cycles' flat texels {flat.sum()}")
+    assert tilt.mean() > 3.0  # there is something to match
+    assert abs(int(flat.sum()) - made.misses) <= MAX_GRAZING_SHARE * made.chart_texels
+    assert grazing <= MAX_GRAZING_SHARE * made.chart_texels
+    assert error.mean() < mean_bound and np.percentile(error, 99) < p99_bound
+
+
+def test_selected_to_active_picks_the_high_mesh_and_counts_misses():
+    low, high = low_and_high("cube")
+    for obj in bpy.context.scene.objects:
+        obj.select_set(True)
+    bpy.context.view_layer.objects.active = low
+    # A cage ray that ends before reaching the rounded corners misses there: flat and counted.
+    summary = drain(RECORD.start(bpy.context, values(source="high", size=32, cage=0.05,
+                                                     max_ray=0.3)))
+    assert list(summary.images) == ["Low"]
+    record = summary.extra["normal_maps"]["Low"]
+    assert record["high"] == "High" and 0 < record["missed_texels"] < record["chart_texels"]
+    made = summary.result["Low"]
+    assert made.misses == record["missed_texels"]
+    flat = np.isclose(made.normals[made.mask][:, 2], 1.0)
+    assert flat.sum() >= made.misses
+    bpy.context.view_layer.objects.active = None
+    with pytest.raises(ValueError, match="Selected to Active"):
+        drain(RECORD.start(bpy.context, values(source="high", size=32)))
