@@ -99,6 +99,42 @@ def transmittance(bvh: BVH, origins: np.ndarray, directions: np.ndarray, t_min, 
     return out
 
 
+def clipped_hits(bvh: BVH, origins: np.ndarray, directions: np.ndarray, t_min, t_max,
+                 coverage: Coverage, offset: float, opaque: Opaque | None = None,
+                 threshold: float = 0.5,
+                 settings: AnyHitSettings = AnyHitSettings()) -> Hits:  # noqa: B008
+    """Closest hits (`BVH.intersect`) that skip surfaces where alpha < `threshold` (the alpha
+    test: a ray seeing a leaf card passes its holes and meets what lies behind). Parameters as
+    `transmittance`; a ray past `settings.max_layers` holes keeps its last hit."""
+    if isinstance(bvh, AlphaOccluder):
+        bvh = bvh.bvh
+    origins = np.ascontiguousarray(origins, np.float64)
+    directions = np.ascontiguousarray(directions, np.float64)
+    count = len(origins)
+    t_lo = np.broadcast_to(np.asarray(t_min, np.float64), (count,)).copy()
+    t_hi = np.broadcast_to(np.asarray(t_max, np.float64), (count,)).copy()
+    hits = bvh.intersect(origins, directions, t_lo, t_hi)
+    step = offset / np.maximum(np.linalg.norm(directions, axis=1), 1e-30)  # (R,) in t units
+    rays = np.flatnonzero(hits.tri >= 0)
+    for _ in range(settings.max_layers):
+        tri = hits.tri[rays].astype(np.int64)
+        if opaque is not None:
+            keep = ~opaque(tri)
+            rays, tri = rays[keep], tri[keep]
+        if rays.size == 0:
+            break
+        hole = coverage(tri, hits.u[rays], hits.v[rays]) < threshold
+        rays = rays[hole]
+        if rays.size == 0:
+            break
+        t_lo[rays] = hits.t[rays] + step[rays]
+        again = bvh.intersect(origins[rays], directions[rays], t_lo[rays], t_hi[rays])
+        hits.t[rays], hits.tri[rays] = again.t, again.tri
+        hits.u[rays], hits.v[rays] = again.u, again.v
+        rays = rays[again.tri >= 0]
+    return hits
+
+
 class AlphaOccluder:
     """A BVH whose `occluded` sees through alpha: a ray is blocked with probability 1 - T
     (`transmittance`), drawn from `rng`; the other queries are the BVH's own (closest hits see
