@@ -73,12 +73,16 @@ extension: $(VENV)/.stamp
 # Every benchmark (bench/_report.py and bench/meshes.py are their shared helpers).
 BENCHES := rays trace texture envmap bump shadowmap radiosity hybrid normalmap generated batch
 
+# Every bench, then their reports published into bench/results/ and the documents regenerated.
+# Run it on an idle machine: a second busy process halves NumPy's speed on two cores.
 bench: $(VENV)/.stamp
 	for b in $(BENCHES); do $(PY) bench/$$b.py || exit 1; done
+	$(PY) tools/gen_docs.py --publish
 
-# The documents' generated blocks: parameters from the settings dataclasses, figures from out/bench.
+# The documents' generated blocks: parameters from the settings dataclasses, figures from
+# bench/results/ (PUBLISH=1: first copy the reports the benches wrote into out/bench/).
 docs: $(VENV)/.stamp
-	$(PY) tools/gen_docs.py
+	$(PY) tools/gen_docs.py $(if $(PUBLISH),--publish)
 
 clean:
 	rm -rf $(OUT) dist wheels

@@ -4,9 +4,9 @@ A generated block sits between two HTML comments, which Markdown viewers do not 
 
     <!-- BEGIN parameters -->      the technique's settings dataclasses, one table each
     <!-- END parameters -->
-    <!-- BEGIN figures -->         the technique's latest local bench figures (out/bench/*.json)
+    <!-- BEGIN figures -->         the technique's published bench figures (bench/results/*.json)
     <!-- END figures -->
-    <!-- BEGIN results -->         bench/README.md: every bench's ratios (out/bench/*.json)
+    <!-- BEGIN results -->         bench/README.md: every bench's ratios (bench/results/*.json)
     <!-- END results -->
 
 In `docs/techniques/NAME.md` a block's subject is NAME unless the BEGIN line names another one
@@ -16,10 +16,14 @@ parameter table in the class's docstring. The classes are found by name in every
 `classic_bake.kernels`, so moving a class between modules changes nothing here.
 
     python tools/gen_docs.py            rewrite the blocks in place
-    python tools/gen_docs.py --check    exit 1 when a parameters block is out of date
+    python tools/gen_docs.py --publish  first copy out/bench/NAME.json into bench/results/
+    python tools/gen_docs.py --check    exit 1 when a generated block is out of date
 
-Parameters blocks depend only on the code (a test keeps them current); figures and results
-blocks depend on the benches run on this machine (`make bench`), so only their form is tested.
+A bench writes out/bench/NAME.json (not kept in git). Publishing copies it into bench/results/,
+which is kept: the figures the documents show, each with the versions it ran with. `make bench`
+runs every bench and publishes; run it on an idle machine (a second busy process on two cores
+halves NumPy's speed and turns ratios over). Tests keep every block current with the code and
+with bench/results/.
 """
 
 from __future__ import annotations
@@ -37,7 +41,8 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 TECHNIQUE_DOCS = REPO / "docs" / "techniques"
 BENCH_README = REPO / "bench" / "README.md"
-BENCH_OUT = REPO / "out" / "bench"
+BENCH_OUT = REPO / "out" / "bench"  # what the benches write
+PUBLISHED = REPO / "bench" / "results"  # what the documents show (`--publish` copies)
 
 # The one table of which settings dataclasses hold a technique's parameters (by class name; the
 # classes are looked up in classic_bake.kernels) and which benches measure it (out/bench/NAME.json).
@@ -50,7 +55,8 @@ TECHNIQUES: dict[str, dict[str, tuple[str, ...]]] = {
     "trace": {"settings": ("TracerSettings",), "benches": ("trace", "rays")},
     "radiosity": {"settings": ("RadiositySettings",), "benches": ("radiosity",)},
     "hybrid": {"settings": ("HybridSettings",), "benches": ("hybrid",)},
-    "normalmap": {"settings": ("NormalMapSettings",), "benches": ("normalmap",)},
+    "normalmap": {"settings": ("NormalMapSettings", "HighToLowSettings"),
+                  "benches": ("normalmap",)},
 }
 # Every bench, in the order bench/README.md describes them (the Makefile's BENCHES).
 BENCHES = ("rays", "trace", "texture", "envmap", "bump", "shadowmap", "radiosity", "hybrid",
@@ -60,7 +66,7 @@ BLOCK = re.compile(r"<!-- BEGIN (?P<kind>[a-z]+)(?: (?P<arg>[a-z0-9_-]+))? -->\n
                    r"(?P<body>.*?)"
                    r"<!-- END (?P=kind) -->", re.S)
 MARKER = re.compile(r"<!-- (BEGIN|END) ([a-z]+)(?: [a-z0-9_-]+)? -->")
-NO_FIGURES = "No local figures yet: run `make bench`"
+NO_FIGURES = "No published figures yet: run `make bench` on an idle machine"
 # Columns of a bench's ladder rows worth a table, in this order (the rest stay in the JSON).
 ROW_COLUMNS = ("setting", "mode", "case", "light", "rung", "samples", "patches", "faces",
                "seconds", "rel_mse", "rel_mse_mirror", "flip", "cycles_seconds_to_same_error",
@@ -239,20 +245,21 @@ def _read_bench(name: str, out_dir: Path) -> dict | None:
         return None
 
 
-def figures_block(technique: str, out_dir: Path = BENCH_OUT) -> str:
+def figures_block(technique: str, out_dir: Path = PUBLISHED) -> str:
     benches = TECHNIQUES.get(technique, {}).get("benches", (technique,))
     parts = []
     for name in benches:
         report = _read_bench(name, out_dir)
         if report is None:
-            parts.append(f"{NO_FIGURES} (or `.venv/bin/python bench/{name}.py`) to write "
-                         f"`out/bench/{name}.json`, then `make docs`.")
+            parts.append(f"{NO_FIGURES} (or `.venv/bin/python bench/{name}.py`, then "
+                         f"`make docs PUBLISH=1`).")
         else:
-            parts.append(f"From `out/bench/{name}.json` (`bench/{name}.py`):\n\n" + bench_tables(report))
+            parts.append(f"From `bench/results/{name}.json` (`bench/{name}.py`):\n\n"
+                         + bench_tables(report))
     return "\n\n".join(parts)
 
 
-def results_block(out_dir: Path = BENCH_OUT) -> str:
+def results_block(out_dir: Path = PUBLISHED) -> str:
     """One table of every bench's ratios (bench, ratio, value), then what ran and what did not."""
     rows, ran, missing = [], [], []
     for name in BENCHES:
@@ -271,14 +278,14 @@ def results_block(out_dir: Path = BENCH_OUT) -> str:
                                                  or "versions not recorded"))
     if missing:
         lines += ["", f"{NO_FIGURES} for " + ", ".join(f"`{n}`" for n in missing)
-                  + " (`.venv/bin/python bench/NAME.py` runs one), then `make docs`."]
+                  + " (`.venv/bin/python bench/NAME.py` runs one), then `make docs PUBLISH=1`."]
     return "\n".join(lines).strip()
 
 
 # --- documents -----------------------------------------------------------------------------------
 
 def fill(text: str, subject: str | None, kinds=("parameters", "figures", "results"),
-         out_dir: Path = BENCH_OUT) -> str:
+         out_dir: Path = PUBLISHED) -> str:
     """`text` with its generated blocks of the given kinds regenerated."""
     makers: dict[str, Callable[[str | None], str]] = {
         "parameters": lambda arg: parameters_block(arg),
@@ -314,11 +321,33 @@ def documents() -> list[tuple[Path, str | None]]:
     return pages + [(BENCH_README, None)]
 
 
+def publish(names=BENCHES, source: Path = BENCH_OUT, target: Path = PUBLISHED) -> list[str]:
+    """Copy source/NAME.json into target/ for every bench that wrote one; returns the names.
+    A report that is not a bench report (no "bench" and "ratios") is refused."""
+    copied = []
+    for name in names:
+        report = _read_bench(name, source)
+        if report is None:
+            continue
+        if report.get("bench") != name or not isinstance(report.get("ratios"), dict):
+            raise ValueError(f"{source / (name + '.json')} is not a bench report of {name!r}")
+        target.mkdir(parents=True, exist_ok=True)
+        (target / f"{name}.json").write_text(json.dumps(report, indent=1, sort_keys=True) + "\n",
+                                             encoding="utf-8")
+        copied.append(name)
+    return copied
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--check", action="store_true",
-                        help="change nothing; exit 1 when a parameters block is out of date")
+                        help="change nothing; exit 1 when a generated block is out of date")
+    parser.add_argument("--publish", action="store_true",
+                        help="copy out/bench/NAME.json into bench/results/ first")
     args = parser.parse_args(argv)
+    if args.publish and not args.check:
+        for name in publish():
+            print(f"gen_docs: published bench/results/{name}.json")
     stale = []
     for path, subject in documents():
         if not path.is_file():
@@ -326,7 +355,7 @@ def main(argv=None) -> int:
         text = path.read_text(encoding="utf-8")
         blocks(text)
         if args.check:
-            if fill(text, subject, kinds=("parameters",)) != text:
+            if fill(text, subject) != text:
                 stale.append(path.relative_to(REPO))
             continue
         new = fill(text, subject)
@@ -334,7 +363,7 @@ def main(argv=None) -> int:
             path.write_text(new, encoding="utf-8")
             print(f"gen_docs: updated {path.relative_to(REPO)}")
     if stale:
-        print("gen_docs: parameters out of date in " + ", ".join(map(str, stale))
+        print("gen_docs: generated blocks out of date in " + ", ".join(map(str, stale))
               + ": run `make docs`", file=sys.stderr)
         return 1
     return 0

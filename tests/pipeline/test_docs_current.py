@@ -67,6 +67,28 @@ def test_parameters_name_every_field_with_its_default(gen_docs):
     assert "shadow_back_faces" in gen_docs.docstring_table(classes["ShadowMapSettings"])
 
 
+def test_figures_and_results_blocks_show_the_published_reports(gen_docs):
+    """The figures in the documents are the ones in bench/results/ (`make docs` regenerates)."""
+    stale = []
+    for path, subject in gen_docs.documents():
+        text = path.read_text(encoding="utf-8")
+        if gen_docs.fill(text, subject, kinds=("figures", "results")) != text:
+            stale.append(str(path.relative_to(REPO)))
+    assert not stale, f"figures out of date in {stale}: run `make docs`"
+
+
+def test_publish_copies_bench_reports_and_refuses_others(gen_docs, tmp_path):
+    source, target = tmp_path / "out", tmp_path / "results"
+    source.mkdir()
+    (source / "trace.json").write_text(json.dumps(
+        {"bench": "trace", "ratios": {"r": 1.5}, "figures": {}, "versions": {}}), encoding="utf-8")
+    assert gen_docs.publish(("trace", "rays"), source, target) == ["trace"]
+    assert json.loads((target / "trace.json").read_text(encoding="utf-8"))["ratios"] == {"r": 1.5}
+    (source / "rays.json").write_text(json.dumps({"ratios": {}}), encoding="utf-8")
+    with pytest.raises(ValueError, match="not a bench report"):
+        gen_docs.publish(("rays",), source, target)
+
+
 def test_figures_and_results_blocks_are_well_formed(gen_docs):
     for path, _ in gen_docs.documents():
         for kind, _, body in gen_docs.blocks(path.read_text(encoding="utf-8")):
