@@ -215,6 +215,12 @@ OPTIONS = (
     Option("parallax_steps", EnvMapSettings, "Parallax Steps", "Refinements of the search along "
            "each reflected ray for the surface it meets (0: the lecture's look-up along the "
            "reflected direction alone)", minimum=0, maximum=16),
+    Option("rough_mips", EnvMapSettings, "Rough Look-up Mips", "GGX mip levels a mapped "
+           "object's rough surfaces read in the view, by roughness (0: the sharp look-up along "
+           "the reflected ray at every roughness)", minimum=0, maximum=16),
+    Option("diffuse_sh", EnvMapSettings, "Diffuse from SH", "A mapped object's diffuse part "
+           "also reflects its map's SH9 irradiance (light from the surroundings; Cycles' Whitted "
+           "model has none)"),
     Option("face_depth", EnvMapSettings, "Face Depth", "Ray-tree depth of the face renders (-1: "
            "from the scene)", minimum=-1, maximum=64),
     Option("adaptive", TracerSettings, "Edge Samples", "N x N camera samples again in pixels at "
@@ -240,7 +246,9 @@ def settings(values: dict, scene=None) -> EnvMapSettings:
     return EnvMapSettings(face_size=int(values["face_size"]),
                           face_supersample=int(values["face_samples"]), objects=objects,
                           face_depth=int(values["face_depth"]),
-                          parallax_steps=int(values["parallax_steps"]))
+                          parallax_steps=int(values["parallax_steps"]),
+                          rough_mips=int(values.get("rough_mips", EnvMapSettings.rough_mips)),
+                          diffuse_sh=bool(values.get("diffuse_sh", EnvMapSettings.diffuse_sh)))
 
 
 def output_settings(values: dict) -> tuple[int, EnvMapOutputs]:

@@ -35,11 +35,11 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..geometry.bvh import BVH
-from ..geometry.scene import Scene, triangle_areas
+from ..geometry.scene import Scene, triangle_areas, triangle_emission
 from ..progress import Steps, drain, scaled
 from ..trace.settings import TraceResult, TracerSettings
 from ..trace.tracer import Tracer, trace_steps
-from .cubemap import BORDER, bordered_directions, sample_bordered  # noqa: F401 (re-exported)
+from .cubemap import BORDER, bordered_directions, sample_bordered, texel_directions  # noqa: F401 (re-exported)
 from .prefilter import PrefilterSettings, prefilter_steps
 from .probe_lookup import GlossyMips
 from .sh_irradiance import irradiance, sh_coefficients
@@ -127,6 +127,16 @@ class EnvironmentMap:
     # texel sees (0: nothing, the world). Inverse, so that bilinear blends and misses stay finite.
     inverse_distance: np.ndarray | None = None
     border: int = BORDER
+    # (6, S, S, 3) float32 W/(m^2 sr): the emitted part of each texel's radiance (what emissive
+    # meshes send, which the tracer lights with directly; texel centres), None when nothing in
+    # the scene glows.
+    emission: np.ndarray | None = None
+
+    def reflected_light(self) -> np.ndarray:
+        """(6, S, S, 3) float32: the faces without borders less what emitters send (the light the
+        surroundings reflect; the diffuse look-up's SH holds this alone)."""
+        faces = self.face_images()
+        return faces if self.emission is None else np.maximum(faces - self.emission, 0.0)
 
     @property
     def size(self) -> int:
@@ -367,7 +377,20 @@ def capture_steps(scene: Scene, index: int, size: int, tracer_settings: TracerSe
     faces /= n * n
     inverse /= n * n
     return EnvironmentMap(object_index=index, centre=centre, faces=faces.astype(np.float32),
-                         inverse_distance=inverse.astype(np.float32))
+                         inverse_distance=inverse.astype(np.float32),
+                         emission=seen_emission(scene, hidden, centre, size))
+
+
+def seen_emission(scene: Scene, bvh: BVH, centre: np.ndarray, size: int) -> np.ndarray | None:
+    """(6, S, S, 3) float32: the emitted radiance of what each texel centre's ray from `centre`
+    meets in `bvh` (0 for the world), or None when no triangle glows."""
+    glow = triangle_emission(scene)
+    if not np.any(glow > 0.0):
+        return None
+    dirs = texel_directions(size).reshape(-1, 3)
+    hits = bvh.intersect(np.broadcast_to(centre, dirs.shape).copy(), dirs)
+    out = np.where((hits.tri >= 0)[:, None], glow[np.maximum(hits.tri, 0)], 0.0)
+    return out.reshape(6, size, size, 3).astype(np.float32)
 
 
 def resolve_objects(scene: Scene, names: Sequence[str], mirror_roughness: float) -> list[int]:
@@ -422,7 +445,7 @@ def render_steps(scene: Scene, settings: EnvMapSettings, tracer_settings: Tracer
         seconds["capture"] += time.perf_counter() - start
     # The probes' rough and diffuse look-ups, from the surfaces the faces hold (the lamps light
     # directly: their highlights on rough surfaces and their light on diffuse ones are the
-    # tracer's).
+    # tracer's; so does what emissive meshes send, which the SH leaves out too).
     start = time.perf_counter()
     environment = {}
     for env in maps:
@@ -432,7 +455,7 @@ def render_steps(scene: Scene, settings: EnvMapSettings, tracer_settings: Tracer
             chain = yield from scaled(prefilter_steps(
                 env.face_images(), PrefilterSettings(levels=settings.rough_mips)), 0.5, 0.0)
             mips = GlossyMips.from_prefiltered(chain, level0=env.faces, border=env.border)
-        sh = sh_coefficients(env.face_images()) if settings.diffuse_sh else None
+        sh = sh_coefficients(env.reflected_light()) if settings.diffuse_sh else None
         environment[env.object_index] = MapLookup(env, settings.parallax_steps,
                                                   tracer_settings.mirror_roughness, mips, sh)
     seconds["probe"] = time.perf_counter() - start
