@@ -8,12 +8,15 @@ follows such a chain from a socket back to its source:
 * linear nodes of constants (Math ADD / SUBTRACT / MULTIPLY / DIVIDE / MULTIPLY_ADD, Mix of a
   constant and a texture, Invert, Map Range LINEAR, Separate Color / RGB / XYZ channels) fold into
   the texture's `weights`, `gain`, `offset` and `clamp` (kernels/geometry/scene.py, `Texture`);
-* point-wise curves (Gamma, Bright/Contrast, ColorRamp, RGB Curves, Float Curve) are applied to the
-  image's texels once (`bake_curve`): exact at texel centres, the same filtering Cycles does
-  between them up to the curve's bend within one texel;
+* point-wise curves (Gamma, Bright/Contrast, ColorRamp, RGB Curves, Float Curve, Hue/Saturation/
+  Value of constants) are applied to the image's texels once (`bake_curve`): exact at texel
+  centres, the same filtering Cycles does between them up to the curve's bend within one texel;
+* Combine Color (RGB) and Combine XYZ of constants and at most one texture put that texture's
+  number in its channel (`_combine`);
 * node groups (the glTF importer's among them) are entered and left through their sockets, muted
   nodes pass their input through, reroutes are skipped;
-* everything else is reported (one reason appended to `ignored`) and the socket's own value used.
+* everything else is reported (one reason appended to `ignored`) and the socket's own value used
+  (the material reader then has Cycles bake the socket where it can: `socket_fallback`).
 
 A colour read where a number is wanted is its luminance (Rec. 709 weights, as Cycles converts),
 a vector read as a number the mean of its components.
@@ -27,6 +30,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ...kernels.geometry.scene import Texture
+from ...kernels.shading.hue_saturation import hue_saturation_value
 from ...kernels.shading.textures import node_chain, srgb_to_linear
 from .nodes import follow
 
@@ -180,6 +184,10 @@ class SocketReader:
             return self._map_range(node, what, groups)
         if kind in ("GAMMA", "BRIGHTCONTRAST", "VALTORGB", "CURVE_RGB", "CURVE_FLOAT"):
             return self._curve(node, out, what, groups)
+        if kind == "HUE_SAT":
+            return self._hue_saturation(node, what, groups)
+        if kind in ("COMBINE_COLOR", "COMBRGB", "COMBXYZ"):
+            return self._combine(node, what, groups)
         if kind == "GROUP":
             return self._group(node, out, what, groups)
         if kind == "GROUP_INPUT" and groups:
@@ -378,6 +386,39 @@ class SocketReader:
                          for c in range(3)] for x in xs])
         return pointwise(source, lambda x: (1 - fac) * x + fac * np.column_stack(
             [_lookup(lut[:, c:c + 1], x[:, c:c + 1])[:, 0] for c in range(3)]))
+
+    def _hue_saturation(self, node, what, groups) -> Value | None:
+        """Hue/Saturation/Value with constant hue, saturation, value and factor, point-wise."""
+        names = ("Hue", "Saturation", "Value", "Fac")
+        constants = [self._constant(node.inputs[name], what, groups) for name in names]
+        source = self.read(node.inputs["Color"], what, groups)
+        if source is None or any(c is None for c in constants):
+            return None
+        hue, saturation, value, fac = constants
+        return pointwise(source, lambda x: hue_saturation_value(x, hue, saturation, value, fac))
+
+    def _combine(self, node, what, groups) -> Value | None:
+        """Combine Color (RGB) or Combine XYZ of constants and at most one texture: the texture's
+        number (each input reads one) in its channel, the constants in theirs."""
+        if node.type == "COMBINE_COLOR" and node.mode != "RGB":
+            self._say(what, node, f"{node.mode} channels are not modelled")
+            return None
+        sockets = [s for s in node.inputs if s.enabled][:3]
+        values = [self.read(s, what, groups) for s in sockets]
+        if any(v is None for v in values):
+            return None
+        textured = [k for k, v in enumerate(values) if v.texture is not None]
+        consts = np.array([v.const[0] if v.texture is None else 0.0 for v in values])
+        if not textured:
+            return Value(consts)
+        if len(textured) > 1:
+            self._say(what, node, "more than one texture combined is not modelled")
+            return None
+        k = textured[0]
+        result = values[k].affine(np.eye(3)[k], consts)
+        if result is None:
+            self._say(what, node, "a clamped texture combined is not modelled")
+        return result
 
     def _group(self, node, out, what, groups) -> Value | None:
         tree = node.node_tree
