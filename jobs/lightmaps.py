@@ -166,13 +166,15 @@ def write_bakes(scene, bakes: dict, attribute: str, image_prefix: str, render_im
     return summary
 
 
-def lightmap_files(summary: JobSummary, suffix: str, previews: bool = False) -> dict:
+def lightmap_files(summary: JobSummary, suffix: str, previews: bool = False,
+                   names: list[str] | None = None) -> dict:
     """The CLI's lightmap outputs: lightmaps/OBJECT_SUFFIX.exr (and .png with `previews`), each
     object's name made a safe file name unique among them (`unique_stems`: a hash suffix where
     cleaning changed the name), the extension never cut; metrics.json maps object -> file
-    (`lightmap_files`)."""
+    (`lightmap_files`). names: every object's name the whole bake writes, in its order, where the
+    summary holds a share of them (a tile, jobs/tiles.py): the same files as the whole bake."""
     tail = f"_{suffix}.exr"
-    stems = unique_stems(list(summary.lightmaps), reserve=len(tail))
+    stems = unique_stems(list(summary.lightmaps) if names is None else names, reserve=len(tail))
     files, where = {}, {}
     for name, (lightmap, _mask) in summary.lightmaps.items():
         files[f"lightmaps/{stems[name]}{tail}"] = lightmap

@@ -5,6 +5,7 @@ solution baked into lightmaps ("Radiosity <object>") and a 'Radiosity' corner co
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
+from pathlib import Path
 
 from ..addon.bridge.request import SnapshotRequest
 from ..addon.bridge.snapshot import snapshot
@@ -23,6 +24,7 @@ from .lightmaps import (
     write_bakes,
 )
 from .record import JobSummary, OperatorSpec, Option, Technique
+from .tiles import PREPARE, SOLUTION, TILE_FOLDER, Tile, load_solution, save_solution, share
 
 ATTRIBUTE = "Radiosity"
 IMAGE_PREFIX = "Radiosity"
@@ -57,6 +59,18 @@ def radiosity_bake_job(context, settings: RadiositySettings, uv_name: str, uv_se
             image = yield from scaled(render_steps(scene, result, resolution), 0.95, 0.05)
     # --- write back: everything computed ---------------------------------------------------------
     summary = write_bakes(scene, bakes, ATTRIBUTE, IMAGE_PREFIX, image, RENDER_IMAGE, wire=wire)
+    describe(summary, scene, result, bakes, plan)
+    summary.message = (f"radiosity: {result.stats['patches']} patches (levels "
+                       f"{result.stats['per_level']}), {result.stats['solver']} with "
+                       f"{result.stats['method']} form factors in {result.stats['seconds']:.2f} s; "
+                       f"lightmaps on {len(summary.lightmaps)} objects, colour attribute "
+                       f"'{ATTRIBUTE}' on {len(summary.attributes)}")
+    summary.files = lightmap_files(summary, "radiosity")
+    return summary
+
+
+def describe(summary: JobSummary, scene, result, bakes: dict, plan: dict) -> None:
+    """In place: the summary's result, sizes and metrics.json sections of a solve and its bakes."""
     summary.result = result
     summary.extra["lightmap_sizes"] = plan
     stats = result.stats
@@ -80,11 +94,50 @@ def radiosity_bake_job(context, settings: RadiositySettings, uv_name: str, uv_se
         "final_gather": stats.get("final_gather"),  # None when switched off
         "world": stats.get("world"),  # sky rays per patch, suns taken from the world's map
     }
-    summary.message = (f"radiosity: {stats['patches']} patches (levels {stats['per_level']}), "
-                       f"{stats['solver']} with {stats['method']} form factors in "
-                       f"{stats['seconds']:.2f} s; lightmaps on {len(summary.lightmaps)} objects, "
-                       f"colour attribute '{ATTRIBUTE}' on {len(summary.attributes)}")
-    summary.files = lightmap_files(summary, "radiosity")
+
+
+def radiosity_tile_job(context, settings: RadiositySettings, uv_name: str, uv_settings, tile: Tile,
+                       out: Path, resolution=None) -> Steps[JobSummary]:
+    """A part of `radiosity_bake_job` (jobs/tiles.py). `--tile prepare` solves, saves the
+    solution into OUT/tiles/prepare/ and renders the camera's view; tile K of N reads that solution
+    and bakes the lightmaps of its share of the objects (by texel count), each exactly as the
+    whole bake does (`kernels/radiosity/lightmap.py`). Nothing is written into Blender."""
+    with lightmap_uvs(context, uv_name, uv_settings) as plan:
+        scene = snapshot(context, SnapshotRequest(lightmap_uv=uv_name, textures=True),
+                         resolution=resolution)
+        targets, sizes = bake_targets(scene, plan, uv_settings)
+        if tile.prepare:
+            result = yield from scaled(radiosity_steps(scene, settings), 0.0, 0.85)
+            image = None
+            if scene.camera is not None:
+                image = yield from scaled(render_steps(scene, result, resolution), 0.85, 0.15)
+            bakes, mine = {}, []
+        else:
+            result = load_solution(out / TILE_FOLDER / PREPARE / SOLUTION)
+            image = None
+            with_map = [k for k in targets
+                        if scene.lightmap_uv is not None and scene.objects[k].has_lightmap_uv]
+            weights = [(sizes[k] ** 2 if k in with_map else 0) + len(scene.triangles) / 64.0
+                       for k in targets]
+            mine = [targets[i] for i in share(weights, tile)]
+            bakes = yield from bake_steps(scene, result, mine, sizes, uv_settings.padding)
+    summary = JobSummary(message="", scene=scene, render=image)
+    for k, bake in bakes.items():
+        if bake.lightmap is not None:
+            summary.lightmaps[scene.objects[k].source_name] = (bake.lightmap, bake.lightmap_mask)
+    describe(summary, scene, result, bakes, plan)
+    if tile.prepare:
+        summary.files = {SOLUTION: lambda path: save_solution(path, result)}
+        summary.message = (f"radiosity {tile.name}: {result.stats['patches']} patches solved in "
+                           f"{result.stats['seconds']:.2f} s and saved for the tiles")
+    else:
+        names = [scene.objects[k].source_name for k in with_map]
+        summary.files = lightmap_files(summary, "radiosity", names=names)
+        summary.extra["tile_objects"] = [scene.objects[k].source_name for k in mine]
+        summary.extra["lightmap_order"] = names  # the whole bake's, for `merge`
+        summary.message = (f"radiosity tile {tile.index} of {tile.count}: lightmaps of "
+                           f"{len(summary.lightmaps)} objects, "
+                           f"{summary.sizes['baked_texels']} texels")
     return summary
 
 
@@ -146,8 +199,13 @@ def settings(values: dict, scene=None) -> RadiositySettings:
 def start(context, values: dict, resolution=None) -> Steps[JobSummary]:
     uv_name, uv_settings = lightmap_settings(values)
     solve = settings(values)
-    summary = yield from radiosity_bake_job(context, solve, uv_name, uv_settings,
-                                            resolution=resolution, wire=bool(values["wire"]))
+    if values.get("tile") is not None:
+        summary = yield from radiosity_tile_job(context, solve, uv_name, uv_settings,
+                                                values["tile"], Path(values["out_dir"]),
+                                                resolution=resolution)
+    else:
+        summary = yield from radiosity_bake_job(context, solve, uv_name, uv_settings,
+                                                resolution=resolution, wire=bool(values["wire"]))
     summary.settings = {**asdict(solve), **lightmap_record(uv_name, uv_settings)}
     return summary
 
@@ -163,7 +221,7 @@ RECORD = Technique(
     name="radiosity", label="Radiosity",
     help="solve radiosity; bake lightmaps, colour attributes and render the camera's view",
     options=OPTIONS, settings=settings, start=start, cycles_model=cycles_model, shared=LIGHTMAP_OPTIONS,
-    ladder=((),),
+    ladder=((),), tiles="lightmaps", tile_prepare=True,
     operator=OperatorSpec("classic_bake.radiosity", "Bake Radiosity", "LIGHT_AREA",
                           needs=("mesh",)),
 )

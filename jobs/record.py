@@ -135,6 +135,8 @@ class Technique:
     | shared        | options shared with other records (the lightmap options), before its own |
     | cli_extra     | extra argparse arguments (parser) -> None, for CLI-only switches        |
     | renders       | True: the CLI run must write render.exr (the camera view)               |
+    | tiles         | what `--tile K/N` splits ("lightmaps"; "": no tiles; jobs/tiles.py)     |
+    | tile_prepare  | True: the tiles need `--tile prepare` run first (radiosity: the solve)  |
     """
 
     name: str
@@ -149,6 +151,8 @@ class Technique:
     shared: tuple[Option, ...] = ()
     cli_extra: Callable[[Any], None] | None = None
     renders: bool = True
+    tiles: str = ""
+    tile_prepare: bool = False
 
     @property
     def prefix(self) -> str:

@@ -54,6 +54,16 @@ def pixels(text: str) -> int:
     return value
 
 
+def tile_part(text: str):
+    """argparse type of `--tile`: K/N or 'prepare' (jobs/tiles.py)."""
+    from ..jobs.tiles import parse_tile
+
+    try:
+        return parse_tile(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
 def option_type(option):
     """The argparse type of a record option: floats finite, names non-empty where the default
     is (an empty default means "none" and stays allowed), others as they are."""
@@ -95,6 +105,12 @@ def add_technique_arguments(parser: argparse.ArgumentParser, technique) -> None:
             add_option(parser, option)
     if technique.cli_extra is not None:
         technique.cli_extra(parser)
+    if technique.tiles:
+        parser.add_argument("--tile", type=tile_part, default=None, metavar="K/N",
+                            help=f"bake part K of N (1-based) of the {technique.tiles} into "
+                                 "OUT/tiles/, for `merge OUT` to put together"
+                                 + ("; 'prepare': the part every tile needs first"
+                                    if technique.tile_prepare else ""))
     if technique.ladder and technique.renders:
         parser.add_argument("--target-error", type=finite_float, default=None, metavar="REL_MSE",
                             help="pick the cheapest settings that reached this relative MSE on the "

@@ -161,7 +161,10 @@ class Staging:
                     for folder in reversed(dst.relative_to(self.out_dir).parents[:-1]):
                         folder = self.out_dir / folder
                         if not folder.exists():
-                            folder.mkdir()
+                            try:
+                                folder.mkdir()
+                            except FileExistsError:  # another run (a tile) made it meanwhile
+                                continue
                             made.append(folder)
                     if dst.exists() or dst.is_symlink():
                         aside = backup / rel

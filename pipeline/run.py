@@ -352,7 +352,8 @@ def _run_command(cmd: Command, args: argparse.Namespace) -> int:
             for why in missing:
                 ctx.say(f"  missing: {why}")
         _check_stopped()
-        if cmd.is_technique and not (staging.path / "render.exr").exists():
+        tile = getattr(args, "tile", None)
+        if cmd.is_technique and tile is None and not (staging.path / "render.exr").exists():
             raise UsageError(f"{cmd.name}: the technique wrote no render.exr")
         if cmd.is_technique:  # `info` lists them among what it ignores
             _say_skipped(ctx)
@@ -365,10 +366,14 @@ def _run_command(cmd: Command, args: argparse.Namespace) -> int:
         record = ctx.record
         record.seconds = timer.totals()
         record.versions = versions()
-        record.outputs = [f for f in staging.files if f != "metrics.json"]
+        # A tile's record goes into its folder (jobs/tiles.py), where `merge` reads it.
+        record_name = "metrics.json" if tile is None else f"{tile.folder}/metrics.json"
+        record.outputs = [f for f in staging.files if f != record_name]
+        if tile is not None:
+            record.extra["tile"] = {"index": tile.index, "count": tile.count, "name": tile.name}
         if staging.renamed:  # requested name -> the safe, unique file it was written as
             record.extra["file_names"] = dict(staging.renamed)
-        staging.write_json("metrics.json", record.as_json())
+        staging.write_json(record_name, record.as_json())
         with interrupts_deferred():
             published = staging.publish()
     except OSError as exc:  # a full disk, a permission changed mid-run: one line, nothing changed

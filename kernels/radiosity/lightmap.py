@@ -156,24 +156,30 @@ def _texel_neighbourhood(targets, seen: final_gather.Visibility, which: np.ndarr
 
 def _radiance_steps(result: RadiosityResult, parts: list, known: list | None = None
                     ) -> Steps[tuple[list, list]]:
-    """B / pi at every part (triangles (M,), bary (M, 3)), evaluated in chunks of
-    `final_gather.GATHER_CHUNK` points; yields progress, returns the parts' values [(M, 3)] and
-    what the final gather's rays found there [`final_gather.Visibility`] (all UNKNOWN without a
-    gather). known: a `Visibility` per part that the gather takes without rays, or None."""
-    sizes = [len(t) for t, _ in parts]
-    tri = np.concatenate([t for t, _ in parts]) if parts else np.zeros(0, np.int64)
-    bary = np.concatenate([b for _, b in parts]) if parts else np.zeros((0, 3))
+    """B / pi at every part (triangles (M,), bary (M, 3)), each part evaluated in chunks of
+    `final_gather.GATHER_CHUNK` points of its own; yields progress, returns the parts' values
+    [(M, 3)] and what the final gather's rays found there [`final_gather.Visibility`] (all
+    UNKNOWN without a gather). known: a `Visibility` per part that the gather takes without rays,
+    or None.
+
+    A chunk never spans two parts, and the gather draws its random numbers afresh per chunk: a
+    part's values depend on its own points only, so one object's bake is the same whichever
+    other objects are baked with it (a tiled bake, `jobs/radiosity.py`, bakes a share of them)."""
     emitters = 0 if result.gather is None else len(result.gather.emitters.triangles)
-    found = final_gather.Visibility.unknown(len(tri), emitters)
-    given = final_gather.Visibility.joined(known) if known is not None and parts else None
-    values = np.zeros((len(tri), 3))
+    total = sum(len(t) for t, _ in parts)
     chunk = final_gather.GATHER_CHUNK
-    for a in range(0, len(tri), chunk):
-        rows = slice(a, a + chunk)
-        values[rows] = result.radiance_at(
-            tri[rows], bary[rows], known=None if given is None else given.take(rows),
-            visibility_out=found.take(rows))  # views: the gather writes into `found`
-        yield min(a + chunk, len(tri)) / len(tri)
-    bounds = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
-    return ([values[a:b] for a, b in zip(bounds[:-1], bounds[1:], strict=True)],
-            [found.take(slice(a, b)) for a, b in zip(bounds[:-1], bounds[1:], strict=True)])
+    values, found_all, done = [], [], 0
+    for p, (tri, bary) in enumerate(parts):
+        given = known[p] if known is not None else None
+        found = final_gather.Visibility.unknown(len(tri), emitters)
+        out = np.zeros((len(tri), 3))
+        for a in range(0, len(tri), chunk):
+            rows = slice(a, a + chunk)
+            out[rows] = result.radiance_at(
+                tri[rows], bary[rows], known=None if given is None else given.take(rows),
+                visibility_out=found.take(rows))  # views: the gather writes into `found`
+            done += len(tri[rows])
+            yield done / total
+        values.append(out)
+        found_all.append(found)
+    return values, found_all

@@ -44,6 +44,28 @@ def write_files(ctx: RunContext, summary) -> None:
             write_back.pack_image(image)
 
 
+def check_tile(technique, tile, args) -> None:
+    """`--tile` as this technique can run it (one line otherwise)."""
+    if tile.prepare and not technique.tile_prepare:
+        raise UsageError(f"{technique.name}: --tile prepare: its tiles need no prepare step; "
+                         "run --tile K/N")
+    if getattr(args, "save_blend", False):
+        raise UsageError(f"{technique.name}: --tile bakes a part, so there is no result.blend; "
+                         "leave out --save-blend")
+
+
+def tile_outputs(summary, tile):
+    """A tile's outputs moved into its folder OUT/tiles/NAME/ (jobs/tiles.py), render.exr and
+    render.png among them, where `merge` finds them."""
+    files = {}
+    if summary.render is not None:
+        files["render.exr"] = files["render.png"] = summary.render
+        summary.render = None
+    files.update(summary.files)
+    summary.files = {f"{tile.folder}/{name}": data for name, data in files.items()}
+    return summary
+
+
 def technique_command(technique) -> Command:
     """The CLI command of a technique record."""
 
@@ -52,9 +74,13 @@ def technique_command(technique) -> Command:
 
         from ..quality import apply_target
 
+        tile = getattr(ctx.args, "tile", None)
+        if tile is not None:
+            check_tile(technique, tile, ctx.args)
         if getattr(ctx.args, "target_error", None) is not None:
             apply_target(ctx, technique)
-        values = {**vars(ctx.args), **technique.values_from_args(ctx.args)}
+        values = {**vars(ctx.args), **technique.values_from_args(ctx.args),
+                  "out_dir": ctx.staging.out_dir}
         with ctx.phase(technique.prefix):
             try:
                 from ...kernels.progress import drain
@@ -62,7 +88,9 @@ def technique_command(technique) -> Command:
                 summary = drain(technique.start(bpy.context, values, ctx.resolution), ctx.progress())
             except ValueError as exc:
                 raise UsageError(f"{technique.name}: {exc}") from exc
-        if technique.renders and summary.render is None:
+        if tile is not None:
+            summary = tile_outputs(summary, tile)
+        elif technique.renders and summary.render is None:
             raise UsageError(f"{technique.name}: the scene has no camera, so there is no render.exr")
         with ctx.phase("write"):
             write_files(ctx, summary)

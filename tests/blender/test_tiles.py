@@ -1,0 +1,104 @@
+"""A tiled bake equals the untiled one: `radiosity --tile prepare`, `--tile K/3` for K = 1..3 and
+`merge` write the same files as one run, bit for bit (each object's lightmap depends on its own
+texels only, and the tiles read the solve the prepare step saved); bad --tile values and an
+incomplete set of tiles fail with one line (exit 2)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from classic_bake.kernels.measure.exr import read_exr
+from classic_bake.pipeline.cli import main
+
+ROOT = Path(__file__).resolve().parents[2]
+SCENE = str(ROOT / "sample_blends" / "cornell_box.blend")
+SMALL = ["--resolution", "24", "18", "--lightmap-size", "48", "--patches", "60", "--quiet"]
+# What differs between a tiled and an untiled run's metrics.json: the clock, and the tiles' own.
+TIMED = ("seconds", "tiles")
+
+
+def radiosity(out: Path, *extra) -> int:
+    return main(["radiosity", SCENE, "--out", str(out), *SMALL, *extra])
+
+
+def files(folder: Path) -> list[str]:
+    return sorted(p.relative_to(folder).as_posix() for p in folder.rglob("*")
+                  if p.is_file() and "tiles" not in p.relative_to(folder).parts)
+
+
+def untimed(value):
+    """A metrics.json without its clock readings (the solve's own among them)."""
+    if isinstance(value, dict):
+        return {k: untimed(v) for k, v in value.items()
+                if k not in TIMED and not k.endswith("seconds")}
+    if isinstance(value, list):
+        return [untimed(v) for v in value]
+    return value
+
+
+@pytest.mark.slow
+def test_tiled_radiosity_equals_one_run(tmp_path):
+    one, tiled = tmp_path / "one", tmp_path / "tiled"
+    assert radiosity(one) == 0
+    assert radiosity(tiled, "--tile", "prepare") == 0
+    for k in (3, 1, 2):  # in any order
+        assert radiosity(tiled, "--tile", f"{k}/3") == 0
+    assert main(["merge", str(tiled), "--quiet"]) == 0
+    assert files(one) == files(tiled)
+    lightmaps = [f for f in files(one) if f.startswith("lightmaps/")]
+    assert len(lightmaps) == 8
+    for name in files(one):
+        if name.endswith(".exr"):
+            a, b = read_exr(one / name), read_exr(tiled / name)
+            assert a.shape == b.shape and np.array_equal(a, b), name
+        elif name.endswith(".png"):
+            assert (one / name).read_bytes() == (tiled / name).read_bytes(), name
+    single = json.loads((one / "metrics.json").read_text())
+    merged = json.loads((tiled / "metrics.json").read_text())
+    assert untimed(merged) == untimed(single)
+    assert merged["tiles"]["count"] == 3 and merged["tiles"]["prepare"] is True
+    assert set(merged["tiles"]["seconds"]) == {"prepare", "1-of-3", "2-of-3", "3-of-3"}
+    assert merged["seconds"]["total"] >= sum(merged["tiles"]["seconds"].values())
+    # Every object in exactly one tile.
+    shares = [json.loads((tiled / "tiles" / f"{k}-of-3" / "metrics.json").read_text())
+              ["tile_objects"] for k in (1, 2, 3)]
+    assert sorted(sum(shares, [])) == sorted(single["lightmap_files"]) and all(shares)
+    # Merging again gives the same files.
+    assert main(["merge", str(tiled), "--quiet"]) == 0
+    assert np.array_equal(read_exr(tiled / lightmaps[0]), read_exr(one / lightmaps[0]))
+
+
+@pytest.mark.parametrize("value, says", [
+    ("0/3", "K must be in [1, 3]"), ("4/3", "K must be in [1, 3]"), ("1/0", "N must be in"),
+    ("two", "--tile must be K/N"), ("1/2/3", "--tile must be K/N"), ("-1/2", "expected one argument"),
+])
+def test_a_bad_tile_value_is_one_line(tmp_path, capsys, value, says):
+    assert radiosity(tmp_path / "out", "--tile", value) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and says in err, err
+    assert not (tmp_path / "out").exists()
+
+
+def test_tile_refusals_are_one_line(tmp_path, capsys):
+    out = tmp_path / "out"
+    # Tiles need the prepare step's solution; --save-blend has no meaning for a part.
+    assert radiosity(out, "--tile", "1/2") == 2
+    assert "run --tile prepare into the same --out first" in capsys.readouterr().err
+    assert radiosity(out, "--tile", "1/2", "--save-blend") == 2
+    assert "leave out --save-blend" in capsys.readouterr().err
+    # Techniques that cannot tile have no --tile.
+    assert main(["trace", SCENE, "--out", str(out), "--tile", "1/2", "--quiet"]) == 2
+    assert "unrecognized arguments: --tile" in capsys.readouterr().err
+    # merge: nothing to merge; then a tile missing.
+    assert main(["merge", str(out), "--quiet"]) == 2
+    assert "no tiles in" in capsys.readouterr().err
+    assert radiosity(out, "--tile", "prepare") == 0
+    assert radiosity(out, "--tile", "2/2") == 0
+    assert main(["merge", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "tiles missing: 1-of-2" in err, err
+    assert not (out / "metrics.json").exists()
