@@ -263,6 +263,14 @@ def _run_section(results_dir: Path, run: _Run) -> str:
     if ignored:  # what the snapshot did not model, and what it used instead
         items = "".join(f"<li>{escape(why)}</li>" for why in ignored)
         parts += ["<h3>Not modelled</h3>", f"<ul class=\"ignored\">{items}</ul>"]
+    baked = [fb for fb in run.get_list("fallbacks") if isinstance(fb, Mapping)]
+    if baked:  # sockets read through a Cycles bake of their node graph, with its cost
+        items = "".join(
+            f"<li>{escape(str(fb.get('material')))}: '{escape(str(fb.get('socket')))}' read from "
+            f"a {escape(str(fb.get('read_as')))} over '{escape(str(fb.get('object')))}' "
+            f"({float(fb.get('seconds', 0.0)):.3g} s{', cached' if fb.get('cached') else ''})"
+            f"</li>" for fb in baked)
+        parts += ["<h3>Read through a Cycles bake</h3>", f"<ul class=\"fallbacks\">{items}</ul>"]
     for title, key in (("Sizes", "sizes"), ("Versions", "versions")):
         mapping = run.get_mapping(key)
         if mapping:

@@ -19,6 +19,7 @@ from ...kernels.geometry.scene import Material, Texture
 from .images import image_pixels, stored_srgb
 from .nodes import active_output, follow, node_tree
 from .request import SnapshotRequest
+from .socket_fallback import BakeTarget, SocketFallback
 from .socket_values import SocketReader, Value
 
 DEFAULT_MATERIAL_NAME = "(default surface)"
@@ -185,8 +186,26 @@ class MaterialReader:
     def __init__(self, request: SnapshotRequest):
         self.request = request
         self.images: dict[str, np.ndarray | None] = {}
+        # Sockets it cannot read are baked by Cycles over the object's UVs (socket_fallback.py);
+        # a bake that reads no textures bakes none but the alpha (coverage casts shadows).
+        self.fallback = (None if request.socket_bake is None
+                         else SocketFallback(request.socket_bake))
+        self._mat, self._target, self._baked = None, None, []
 
-    def read(self, mat) -> Material:
+    def read(self, mat, target: BakeTarget | None = None) -> Material:
+        """The kernel `Material` of `mat` on the object `target` (which a socket read through a
+        Cycles bake is baked over; None: such sockets take their defaults, listed as ignored)."""
+        self._mat, self._target, self._baked = mat, target, []
+        material = self._material(mat)
+        return replace(material, fallbacks=tuple(self._baked)) if self._baked else material
+
+    @property
+    def object_dependent(self) -> bool:
+        """Whether the last `read` baked a socket over its object (another object using the
+        material needs a read of its own)."""
+        return bool(self._baked)
+
+    def _material(self, mat) -> Material:
         if mat is None:
             return DEFAULT_MATERIAL
         if not self.request.materials:
@@ -302,16 +321,34 @@ class MaterialReader:
             ignored=tuple(ignored),
         )
 
-    def _read(self, socket, ignored) -> Value | None:
+    def _read(self, socket, ignored, bake: bool = False) -> Value | None:
         """What `socket` reads (socket_values.py): a constant or a texture with its node chain.
-        A bake that reads no textures follows chains of constants only (a texture: its default)."""
+        A bake that reads no textures follows chains of constants only (a texture: its default).
+        With `bake` (a socket the kernels read as a texture), a chain the reader cannot follow
+        is baked by Cycles instead (`SocketFallback`) and named in the material's `fallbacks`."""
         if self.request.textures:
             def texture_of(node, what):
                 return self._texture(node, ignored, what)
         else:
             def texture_of(node, what):
                 return None
-        return SocketReader(texture_of, ignored).read(socket, socket.name)
+        return self._read_or_bake(socket, texture_of, ignored, bake and self.request.textures)
+
+    def _read_or_bake(self, socket, texture_of, ignored, bake: bool) -> Value | None:
+        """`SocketReader`'s value of `socket`; where it cannot follow the chain and `bake`, the
+        texture Cycles bakes of it (`SocketFallback`, named in `fallbacks`) instead of the
+        reader's reasons in `ignored`."""
+        unread: list[str] = []
+        value = SocketReader(texture_of, unread).read(socket, socket.name)
+        if value is None and bake and self.fallback is not None and self._mat is not None:
+            texture, entry = self.fallback.texture(self._mat, socket, socket.type != "RGBA",
+                                                   self._target)
+            if texture is not None:
+                self._baked.append(entry)
+                return Value(np.zeros(3), texture)
+            unread = [f"{why} (not baked by Cycles: {entry})" for why in unread]
+        ignored.extend(unread)
+        return value
 
     def _value(self, socket, ignored) -> float:
         """A number: the socket's chain of constants, or its default where a texture drives it
@@ -326,7 +363,7 @@ class MaterialReader:
 
     def _number(self, socket, ignored) -> tuple[float, Texture | None]:
         """A number that may come from a texture: (constant, None) or (default, texture)."""
-        value = self._read(socket, ignored)
+        value = self._read(socket, ignored, bake=True)
         if value is None:
             return float(socket.default_value), None
         if value.texture is None:
@@ -336,8 +373,8 @@ class MaterialReader:
     def _alpha(self, socket, ignored) -> tuple[float, Texture | None]:
         """The Principled Alpha: (constant, None) or (1, texture). Read with its texture even
         when the bake reads no colours: coverage decides where shadows fall (a leaf card)."""
-        value = SocketReader(lambda node, what: self._texture(node, ignored, what),
-                             ignored).read(socket, socket.name)
+        value = self._read_or_bake(socket, lambda node, what: self._texture(node, ignored, what),
+                                   ignored, bake=True)
         if value is None:
             return min(max(float(socket.default_value), 0.0), 1.0), None
         if value.texture is None:
@@ -348,7 +385,7 @@ class MaterialReader:
         """A colour that may come from a texture: (constant, None) or (default, texture); with
         `textures` False a texture is noted and its default used."""
         default = np.array(socket.default_value[:3], np.float32)
-        value = self._read(socket, ignored)
+        value = self._read(socket, ignored, bake=textures)
         if value is None:
             return default, None
         if value.texture is None:

@@ -6,6 +6,25 @@ from dataclasses import dataclass
 
 
 @dataclass(frozen=True)
+class SocketBakeSettings:
+    """How a material socket whose node graph the bridge cannot read (a Voronoi texture, a colour
+    attribute, a mix of two textures) is baked by Cycles instead: once per graph, object and
+    size, into a float image over the object's active render UV map (`socket_fallback`).
+
+    | field   | range     | default | unit / meaning                                              |
+    |---------|-----------|---------|-------------------------------------------------------------|
+    | size    | [8, 4096] | 256     | texels per side of the square image                         |
+    | samples | [1, 1024] | 16      | samples per texel, spread over its area (a texel: its mean) |
+    | margin  | [0, 64]   | 2       | texels the UV charts are extended by, so that bilinear      |
+    |         |           |         | look-ups at a chart's rim read no empty texels              |
+    """
+
+    size: int = 256
+    samples: int = 16
+    margin: int = 2
+
+
+@dataclass(frozen=True)
 class SnapshotRequest:
     """What one bake needs from the scene; everything else is not read at all.
 
@@ -22,6 +41,9 @@ class SnapshotRequest:
     | world_render | True    | render a world shader the bridge cannot read into a map         |
     |              |         | (`read_world_texture`: Cycles, ~1.2 s); False: black or its     |
     |              |         | socket's colour                                                 |
+    | socket_bake  | (below) | how a material socket the bridge cannot read is baked by Cycles |
+    |              |         | over the object's UVs (`socket_fallback`); None: its default    |
+    |              |         | used and the socket listed in `Scene.ignored`                   |
     """
 
     normals: bool = True
@@ -33,3 +55,4 @@ class SnapshotRequest:
     camera: bool = True
     objects: tuple[str, ...] | None = None
     world_render: bool = True
+    socket_bake: SocketBakeSettings | None = SocketBakeSettings()

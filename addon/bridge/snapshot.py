@@ -15,6 +15,7 @@ from .lights import read_light
 from .materials import DEFAULT_MATERIAL, MaterialReader
 from .mesh import MeshChunk, mesh_chunk, triangles_problem
 from .request import SnapshotRequest
+from .socket_fallback import BakeTarget
 from .transforms import matrix_array
 from .world import read_world, read_world_texture, world_env_mapping
 
@@ -79,15 +80,23 @@ def snapshot(context=None, request: SnapshotRequest = DEFAULT_REQUEST,
     reader = MaterialReader(request)
     materials: list[Material] = [DEFAULT_MATERIAL]
     material_index: dict[str, int] = {}
+    per_object: set[str] = set()  # materials with a socket baked over their object
     for chunk in chunks:
         table = np.zeros(max(1, len(chunk.slot_materials)), np.int32)
+        source = bpy.data.objects.get(chunk.source_name)
+        target = None if source is None else BakeTarget(source, depsgraph, chunk)
         for slot, mat in enumerate(chunk.slot_materials):
             if mat is None:
                 continue
             key = mat.name_full
+            if key in per_object:  # read again for each object: its bake covers its UVs
+                key = (key, chunk.source_name)
             if key not in material_index:
                 material_index[key] = len(materials)
-                materials.append(reader.read(mat))
+                materials.append(reader.read(mat, target))
+                if reader.object_dependent:
+                    per_object.add(mat.name_full)
+                    material_index[(mat.name_full, chunk.source_name)] = material_index[key]
             table[slot] = material_index[key]
         # Out-of-range slots render with the default surface in Cycles; do the same.
         in_range = chunk.slot_ids < len(chunk.slot_materials)

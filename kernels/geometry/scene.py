@@ -104,6 +104,9 @@ class Material:
     |                    |           |         | `emission`                                     |
     | metallic_texture   | Texture   | None    | metallic per texel (its first channel)         |
     | roughness_texture  | Texture   | None    | roughness per texel (its first channel)        |
+    | fallbacks          | dicts     | ()      | sockets read from a Cycles bake of their graph |
+    |                    |           |         | (the bridge's general fallback): socket,       |
+    |                    |           |         | read_as, seconds, cached, object               |
     | alpha              | [0, 1]    | 1       | coverage: 0 a hole every ray passes, 1 opaque  |
     | alpha_texture      | Texture   | None    | coverage per texel (its first channel),        |
     |                    |           |         | replaces `alpha` (leaves, fences, decals)      |
@@ -136,6 +139,8 @@ class Material:
     alpha_texture: Texture | None = None
     # What the bridge could not model on this material, one reason per entry.
     ignored: tuple[str, ...] = ()
+    # Sockets the bridge read through a Cycles bake of their node graph, one dict each.
+    fallbacks: tuple[dict, ...] = ()
 
     @property
     def has_alpha(self) -> bool:

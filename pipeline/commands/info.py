@@ -8,6 +8,12 @@ from ..command import Command, RunContext
 from ..outputs import UsageError
 
 
+def baked_sockets(scene) -> list[dict]:
+    """The sockets the snapshot read through a Cycles bake of their node graph (the bridge's
+    general fallback), one entry each: material, socket, read_as, seconds, cached, object."""
+    return [{"material": mat.name, **entry} for mat in scene.materials for entry in mat.fallbacks]
+
+
 def describe(scene) -> dict:
     """A JSON-ready summary of a kernel Scene."""
     from ...kernels.geometry.scene import triangle_areas
@@ -51,6 +57,8 @@ def describe(scene) -> dict:
                 ("roughness", mat.roughness_texture)) if t is not None},
             "normal_map": None if mat.normal_texture is None else mat.normal_texture.name,
             "bump_height": None if mat.height_texture is None else mat.height_texture.name,
+            # Sockets read through a Cycles bake of their graph, with its cost.
+            "fallbacks": [dict(entry) for entry in mat.fallbacks],
         })
     lights = []
     for light in scene.lights:
@@ -89,6 +97,7 @@ def describe(scene) -> dict:
             "suns": [{"direction": -sun.direction, "irradiance": sun.irradiance}
                      for sun in extract_suns(scene.world_texture, scene.world_transform)[0]]},
         "ignored": list(scene.ignored),
+        "fallbacks": baked_sockets(scene),
     }
 
 
@@ -123,6 +132,9 @@ def _print(ctx: RunContext, d: dict) -> None:
         if m["normal_map"] or m["bump_height"]:
             parts.append(f"bump {m['normal_map'] or m['bump_height']}")
         ctx.say(f"  material {m['name']}: " + ", ".join(parts))
+        for fb in m["fallbacks"]:
+            ctx.say(f"    '{fb['socket']}' read from a {fb['read_as']} over '{fb['object']}' "
+                    f"({fb['seconds']:.3g} s{', cached' if fb['cached'] else ''})")
     for li in d["lights"]:
         value = next((f"{label} {_fmt(li[key])}" for key, label in (
             ("intensity_w_per_sr", "I W/sr"), ("irradiance_w_per_m2", "E W/m^2"),
@@ -156,6 +168,7 @@ def run(ctx: RunContext) -> None:
     summary = describe(scene)
     ctx.record.sizes = dict(summary["counts"])
     ctx.record.extra["ignored"] = summary["ignored"]  # as every technique's run lists it
+    ctx.record.extra["fallbacks"] = summary["fallbacks"]
     ctx.staging.write_json("info.json", summary)
     _print(ctx, summary)
 

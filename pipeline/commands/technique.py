@@ -103,6 +103,9 @@ def technique_command(technique) -> Command:
             # What the snapshot did not model (per material: each socket read from a default
             # and why), in every run's metrics.json as in `info`.
             ctx.record.extra["ignored"] = list(summary.scene.ignored)
+            from .info import baked_sockets  # and what it read through a Cycles bake
+
+            ctx.record.extra["fallbacks"] = baked_sockets(summary.scene)
         ctx.say(summary.message)
         if getattr(ctx.args, "target_error", None) is not None:
             from ..quality import check_target
