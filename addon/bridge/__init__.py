@@ -21,6 +21,9 @@ preallocated typed arrays. The conventions that differ between Blender and the k
 | mesh       | positions, triangles, corner normals, UVs; one mesh instance in world space; |
 |            | UV layers written, lightmap UVs made with xatlas                            |
 | materials  | node-tree materials as kernel `Material`s, textures, mixes, what is ignored |
+| socket_values | what a socket reads: a constant, or a texture with its node chain folded in |
+| socket_fallback | sockets it cannot read, baked by Cycles over the object's UVs, cached  |
+| tree_digest | a digest of a node tree (the fallback's cache key)                          |
 | lights     | lights as kernel `Light`s                                                   |
 | camera     | the camera as a kernel `Camera`, the render size                            |
 | world      | the world shader: uniform colour, radiance map (read, or rendered by Cycles) |

@@ -9,6 +9,7 @@ Every Classic Bake technique is measured against Cycles computing the SAME quant
 | settings    | `configure`, `matched_scene`, `SettingsLog`: a scene set up for a model and put back |
 | runner      | camera renders (`render_camera`, `warm_up`) read back through float32 OpenEXR |
 | world_map   | the world shader rendered alone into an equirectangular map (`render_world_map`) |
+| socket_bake | one material socket baked alone over an object's UVs (`bake_socket`)          |
 | bakes       | lightmap and colour-attribute bakes (`bake_lightmaps`, `bake_color_attributes`) |
 | runs        | one run of any kind (`run_cycles`, `BakeSpec`, `CyclesRun`)                 |
 | ladder      | sample ladders (`ladder_step`, `sample_ladder`, `doubling_counts`)          |
@@ -16,7 +17,8 @@ Every Classic Bake technique is measured against Cycles computing the SAME quant
 | cache       | converged references cached on disk (`reference`)                          |
 
 Modules depend in layers, never in a circle: `models` < `settings` < `runner` < `world_map`, which
-the bridge's `world` module uses to render world shaders it cannot read; `bakes` and `cache` sit
+the bridge's `world` module uses to render world shaders it cannot read (and `socket_bake`, which
+its `socket_fallback` uses to bake material sockets it cannot read); `bakes` and `cache` sit
 above the bridge and use its `images`, `write_back` and `mesh` modules. This facade re-exports the
 public names for callers that use `cycles.<name>`; no module of this package imports it.
 """

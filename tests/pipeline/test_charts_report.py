@@ -183,6 +183,8 @@ def make_results(root: Path) -> dict:
         "outputs": ["bake.png", "bake.exr", "missing_output.png", "../../etc/passwd"],
         "ignored": ["material 'Leaf': 'Emission Color' driven by a 'ShaderNodeVertexColor' node: "
                     "colour attributes are not modelled; its default used"],
+        "fallbacks": [{"material": "Bark", "socket": "Roughness", "read_as": "Cycles bake 256x256",
+                       "seconds": 0.8125, "cached": False, "object": "Tree <1>"}],
     }
     (full / "metrics.json").write_text(json.dumps(metrics), encoding="utf-8")
     minimal = root / "radiosity-box"
@@ -230,6 +232,9 @@ def test_report_lists_runs_numbers_and_existing_files_only(tmp_path):
     assert "broken-run/metrics.json: cannot be read" in page
     # What the snapshot did not model, as metrics.json lists it.
     assert "Not modelled" in page and "colour attributes are not modelled; its default used" in page
+    # Sockets read through a Cycles bake, with its cost (names escaped).
+    assert "Read through a Cycles bake" in page
+    assert "Bark: 'Roughness' read from a Cycles bake 256x256 over 'Tree &lt;1&gt;' (0.812 s)" in page
     # The summary links to both run sections.
     assert 'href="#run-1"' in page and 'href="#run-2"' in page
 
