@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .tangents import loop_triangle_tangents, normal_map_layer, world_tangents
 from .transforms import matrix_array
 
 # An object whose triangles together cover no more than this is skipped as having no area (scale
@@ -43,6 +44,9 @@ class MeshChunk:
     corner_verts: np.ndarray  # (T, 3) int32
     slot_materials: list = field(default_factory=list)
     topology_matches_original: bool = True
+    # MikkTSpace frames on the UV layer the materials' Normal Map nodes read (None: no node).
+    tangents: np.ndarray | None = None  # (T, 3, 3) float32, world, unit
+    tangent_signs: np.ndarray | None = None  # (T, 3) float32, +1 or -1: b = sign (n x t)
 
 
 def mesh_triangles(mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -150,11 +154,12 @@ def mesh_chunk(
     """`mesh` placed by `matrix` (4, 4) as a `MeshChunk`, reading what `request` asks for.
     original_mesh: the object's own mesh (None for instances), compared to tell whether modifiers
     changed the topology; texspace: the mesh whose texture space gives Generated coordinates."""
-    corner_verts, corner_loops, _, slots = mesh_triangles(mesh)
+    corner_verts, corner_loops, polys, slots = mesh_triangles(mesh)
     local = mesh_positions(mesh).astype(np.float64)
     world = local @ matrix[:3, :3].T + matrix[:3, 3]
     mirrored = np.linalg.det(matrix[:3, :3]) < 0.0
     order = [0, 2, 1] if mirrored else [0, 1, 2]
+    loop_triangles = corner_loops  # Blender's own corner order (the tangent frames read it)
     corner_verts = corner_verts[:, order]
     corner_loops = corner_loops[:, order]
     triangles = world[corner_verts].astype(np.float32)
@@ -179,6 +184,12 @@ def mesh_chunk(
         uv = None if loop_uv is None else loop_uv[corner_loops]
         # Texture space: the original mesh's (Cycles' orco), else this one's.
         generated = generated_coordinates(local, texspace or mesh)[corner_verts].astype(np.float32)
+    tangents = signs = None
+    layer = normal_map_layer(slot_materials, mesh) if request.normals and request.uv else None
+    if layer is not None:  # the frames the Normal Map node reads the map in
+        frames = loop_triangle_tangents(mesh, mesh_positions(mesh), mesh_corner_normals(mesh),
+                                        mesh_uv(mesh, layer), loop_triangles, polys)
+        tangents, signs = world_tangents(frames[0][:, order], frames[1][:, order], matrix)
     lightmap_uv = None
     if request.lightmap_uv:
         loop_uv = mesh_uv(mesh, request.lightmap_uv)
@@ -202,6 +213,8 @@ def mesh_chunk(
         corner_verts=corner_verts,
         slot_materials=slot_materials,
         topology_matches_original=matches,
+        tangents=tangents,
+        tangent_signs=signs,
     )
 
 

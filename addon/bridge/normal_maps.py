@@ -88,9 +88,11 @@ def low_mesh(obj, depsgraph, uv_name: str | None) -> tuple[LowMesh, str] | None:
     try:
         name = uv_name or active_render_uv_name(mesh)
         loop_uv = None if name is None else mesh_uv(mesh, name)
-        frames = None if loop_uv is None else loop_triangle_tangents(mesh, name)
-        if frames is None:
+        if loop_uv is None:
             return None
+        _, tri_loops, tri_polys, _ = mesh_triangles(mesh)
+        frames = loop_triangle_tangents(mesh, mesh_positions(mesh), mesh_corner_normals(mesh),
+                                        loop_uv, tri_loops, tri_polys)
         world, normals, loops, _, order = _world_corners(obj, mesh)
         tangents, signs = world_tangents(frames[0][:, order], frames[1][:, order],
                                          matrix_array(obj.matrix_world))

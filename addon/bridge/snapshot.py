@@ -188,6 +188,10 @@ def _assemble(chunks, materials, lights, camera, world, request, ignored) -> Sce
         uv=stack("uv", (3, 2), np.float32),
         lightmap_uv=stack("lightmap_uv", (3, 2), np.float32) if request.lightmap_uv else None,
         generated=stack("generated", (3, 3), np.float32) if request.uv else None,
+        corner_tangents=(stack("tangents", (3, 3), np.float32)
+                         if any(c.tangents is not None for c in chunks) else None),
+        corner_signs=(stack("tangent_signs", (3,), np.float32)
+                      if any(c.tangents is not None for c in chunks) else None),
         material_ids=stack("slot_ids", (), np.int32),
         object_ids=np.repeat(np.arange(len(chunks), dtype=np.int32), counts),
         corner_loops=stack("corner_loops", (3,), np.int32),

@@ -18,14 +18,13 @@ from __future__ import annotations
 import numpy as np
 
 from ...kernels.normalmap.mikktspace import mikktspace_tangents
-from .mesh import mesh_corner_normals, mesh_positions, mesh_triangles, mesh_uv
 
 # Faces with more corners than this are split into their loop triangles (MikkTSpace's limit).
 MIKKTSPACE_MAX_CORNERS = 4
 MIN_LENGTH = 1e-12
 
 
-def _polygon_arrays(mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def mesh_faces(mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(corner verts (L,), face starts (F,), face sizes (F,)) int64 of a mesh."""
     corner_verts = np.empty(len(mesh.loops), np.int32)
     mesh.loops.foreach_get("vertex_index", corner_verts)
@@ -36,21 +35,19 @@ def _polygon_arrays(mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return corner_verts.astype(np.int64), starts.astype(np.int64), sizes.astype(np.int64)
 
 
-def loop_triangle_tangents(mesh, uv_name: str | None) -> tuple[np.ndarray, np.ndarray] | None:
-    """(tangents (T, 3, 3) float32 unit, signs (T, 3) float32) object space, per corner of the
-    mesh's loop triangles (`mesh_triangles` order), on UV layer `uv_name` (None: the active render
-    layer); None when the mesh lacks that layer."""
-    loop_uv = mesh_uv(mesh, uv_name)
-    if loop_uv is None:
-        return None
-    _, tri_loops, tri_polys, _ = mesh_triangles(mesh)
-    corner_verts, starts, sizes = _polygon_arrays(mesh)
-    normals = mesh_corner_normals(mesh)
+def loop_triangle_tangents(mesh, positions: np.ndarray, corner_normals: np.ndarray,
+                           loop_uv: np.ndarray, tri_loops: np.ndarray, tri_polys: np.ndarray
+                           ) -> tuple[np.ndarray, np.ndarray]:
+    """(tangents (T, 3, 3) float32 unit, signs (T, 3) float32) object space, per corner of a
+    mesh's loop triangles, from its positions (V, 3), corner normals (L, 3) and a UV layer
+    (L, 2); tri_loops (T, 3) and tri_polys (T,) as `mesh.mesh_triangles` reads them."""
+    corner_verts, starts, sizes = mesh_faces(mesh)
+    normals = np.asarray(corner_normals)
     big = sizes > MIKKTSPACE_MAX_CORNERS
-    index = tri_loops.astype(np.int64)  # (T, 3) rows of the frames below
+    index = np.asarray(tri_loops, np.int64).copy()  # (T, 3) rows of the frames below
     if big.any():
         split = np.flatnonzero(big[tri_polys])  # loop triangles of the large faces
-        extra = tri_loops[split].reshape(-1).astype(np.int64)  # their corners, appended
+        extra = index[split].reshape(-1)  # their corners, appended
         count = len(corner_verts)
         corner_verts = np.concatenate([corner_verts, corner_verts[extra]])
         normals = np.concatenate([normals, normals[extra]])
@@ -58,8 +55,7 @@ def loop_triangle_tangents(mesh, uv_name: str | None) -> tuple[np.ndarray, np.nd
         starts = np.concatenate([starts[~big], count + 3 * np.arange(len(split))])
         sizes = np.concatenate([sizes[~big], np.full(len(split), 3)])
         index[split] = count + np.arange(3 * len(split)).reshape(-1, 3)
-    frames = mikktspace_tangents(mesh_positions(mesh), corner_verts, normals, loop_uv,
-                                 starts, sizes)
+    frames = mikktspace_tangents(positions, corner_verts, normals, loop_uv, starts, sizes)
     return frames.tangents[index], frames.signs[index]
 
 
@@ -73,3 +69,19 @@ def world_tangents(tangents: np.ndarray, signs: np.ndarray, matrix: np.ndarray
     t = np.divide(t, length, out=np.zeros_like(t), where=length > MIN_LENGTH)
     mirror = -1.0 if np.linalg.det(linear) < 0.0 else 1.0
     return t.astype(np.float32), (np.asarray(signs, np.float32) * mirror).astype(np.float32)
+
+
+def normal_map_layer(materials, mesh) -> str | None:
+    """The UV layer the first tangent-space Normal Map node of `materials` (Blender materials,
+    None for empty slots) reads on `mesh`: its UV Map, or the active render layer when that is
+    empty or not on the mesh. None: no material has such a node, or the mesh no UV layer."""
+    for mat in materials:
+        tree = getattr(mat, "node_tree", None)
+        if tree is None:
+            continue
+        for node in tree.nodes:
+            if node.type == "NORMAL_MAP" and node.space == "TANGENT":
+                if node.uv_map and mesh.uv_layers.get(node.uv_map) is not None:
+                    return node.uv_map
+                return next((lay.name for lay in mesh.uv_layers if lay.active_render), None)
+    return None

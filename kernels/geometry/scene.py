@@ -278,6 +278,12 @@ class Scene:
     # (T, 3) float64 emitted radiance W/(m^2 sr) per triangle where a material's emission comes
     # from a texture (its mean over the triangle, `shading/material_maps.py`); None: per material
     triangle_radiance: np.ndarray | None = None
+    # MikkTSpace frames per corner on the UV layer of the objects' Normal Map nodes, what Blender
+    # reads tangent-space normal maps in (`shading/bump.py`): (T, 3, 3) float32 world unit
+    # tangents, zero on objects without such a node, and (T, 3) float32 bitangent signs
+    # (b = sign (n x t)); None: no object has one.
+    corner_tangents: np.ndarray | None = None
+    corner_signs: np.ndarray | None = None
 
     @cached_property
     def texture_coords(self) -> np.ndarray:

@@ -15,11 +15,17 @@ Two sources of (x, y), as Blender's shader nodes define them (and Cycles renders
 * a tangent-space normal map: n* = 2 rgb - 1 directly (x along t, y along the UV map's v).
 The node's Strength blends the result with the unperturbed normal as Cycles does.
 
-Tangents come from each triangle's UV map: dp/du and dp/dv solve
+Tangents. A normal map is read in the frames Blender reads it in wherever the snapshot has them
+(`Scene.corner_tangents`, the bridge's MikkTSpace frames per corner on the Normal Map node's UV
+layer): t and the normal interpolated from the triangle's corners without normalising,
+b = sign (n x t), n* = normalize(x t + y b + z n) (`mikktspace_normal_mapped`), as Cycles'
+Normal Map node does, so a map made by this project, by Blender or by another MikkTSpace baker
+shades as in Cycles. Heights (the Bump node), and normal maps on objects without frames, take
+the lecture's per-triangle frame: dp/du and dp/dv solve
 [p1 - p0, p2 - p0] = [dp/du, dp/dv] [uv1 - uv0, uv2 - uv0]; t is dp/du made perpendicular to
 the (interpolated) normal; b = n x t, turned round where the UV map is mirrored (b . dp/dv < 0),
-so that y always runs along v. Blender's normal maps use MikkTSpace tangents, averaged over each
-vertex's triangles: on curved meshes they differ slightly from these per-triangle ones.
+so that y always runs along v. On coarse curved meshes the two frames differ by a few degrees
+about the normal (MikkTSpace averages each vertex's triangles).
 
 Arrays are (N, 3) float64 world vectors unless named otherwise; UVs are (N, 2).
 """
@@ -161,6 +167,22 @@ def normal_mapped(n: np.ndarray, dpdu: np.ndarray, dpdv: np.ndarray, rgb: np.nda
     return _normalize(n + max(strength, 0.0) * (world - n)) if strength != 1.0 else world
 
 
+def mikktspace_normal_mapped(n: np.ndarray, smooth: np.ndarray, tangents: np.ndarray,
+                             signs: np.ndarray, rgb: np.ndarray, strength: float = 1.0
+                             ) -> np.ndarray:
+    """(N, 3) unit normals of a tangent-space normal map read in the mesh's MikkTSpace frames,
+    as Blender's Normal Map node and Cycles read it: with t and s the corner tangents and normals
+    interpolated barycentrically and not normalised (`smooth`, `tangents` (N, 3)), the
+    bitangent b = sign (s x t) (`signs` (N,) interpolated), n* = normalize(x t + y b + z s) for
+    (x, y, z) = 2 rgb - 1; turned round where the shading normal n (unit, turned towards the
+    viewer by the caller) faces away from s; blended towards n by the node's strength."""
+    local = 2.0 * np.asarray(rgb, np.float64)[:, :3] - 1.0
+    b = np.cross(smooth, tangents) * np.asarray(signs, np.float64)[:, None]
+    world = _normalize(local[:, 0:1] * tangents + local[:, 1:2] * b + local[:, 2:3] * smooth)
+    world[np.einsum("ij,ij->i", n, smooth) < 0.0] *= -1.0
+    return _normalize(n + max(strength, 0.0) * (world - n)) if strength != 1.0 else world
+
+
 def valid_reflection(ng: np.ndarray, wo: np.ndarray, n: np.ndarray) -> np.ndarray:
     """(N, 3) unit normals n bent towards the geometric normals ng until the view wo (unit,
     towards the viewer, on ng's side) reflected about them leaves the surface by at least
@@ -255,7 +277,30 @@ def scene_normals(scene: Scene, tri: np.ndarray, bary: np.ndarray, n: np.ndarray
         if out is n:
             out = n.copy()
         rows = np.nonzero(materials == m)[0]
+        material = scene.materials[m]
+        if material.normal_texture is not None and scene.corner_tangents is not None:
+            framed = _mikktspace_rows(scene, tri, bary, rows, material, n, out)
+            rows = rows[~framed]  # objects without frames: the triangles' own, below
         corner_uvs = scene.uv[tri[rows]].astype(np.float64)
         uv = np.einsum("nk,nkc->nc", bary[rows], corner_uvs)
-        out[rows] = perturb(scene.materials[m], n[rows], scene.triangles[tri[rows]], corner_uvs, uv)
+        out[rows] = perturb(material, n[rows], scene.triangles[tri[rows]], corner_uvs, uv)
     return out
+
+
+def _mikktspace_rows(scene: Scene, tri: np.ndarray, bary: np.ndarray, rows: np.ndarray,
+                     material: Material, n: np.ndarray, out: np.ndarray) -> np.ndarray:
+    """Shade `rows` (M,) of a normal-mapped material in the scene's MikkTSpace corner frames
+    (`mikktspace_normal_mapped`), writing `out`; returns (M,) bool, the rows that had frames."""
+    weights, corners = bary[rows], tri[rows]
+    tangents = np.einsum("nk,nkc->nc", weights, scene.corner_tangents[corners].astype(np.float64))
+    framed = np.linalg.norm(tangents, axis=1) > MIN_LENGTH
+    if not framed.any():
+        return framed
+    weights, corners, done = weights[framed], corners[framed], rows[framed]
+    smooth = np.einsum("nk,nkc->nc", weights, scene.normals[corners].astype(np.float64))
+    signs = np.einsum("nk,nk->n", weights, scene.corner_signs[corners].astype(np.float64))
+    uv = np.einsum("nk,nkc->nc", weights, scene.uv[corners].astype(np.float64))
+    rgb = sample_texture(material.normal_texture, uv)
+    out[done] = mikktspace_normal_mapped(n[done], smooth, tangents[framed], signs, rgb,
+                                         material.bump_strength)
+    return framed
