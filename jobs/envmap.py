@@ -1,5 +1,7 @@
 """Environment mapping: the eye at the centre of each mirror (the object hidden), six cube faces
-rendered, then the camera's view with each mirror reading its map along the reflected ray.
+rendered, then the camera's view with each mirror reading its map along the reflected ray (rough
+surfaces of a mapped object its GGX mips by roughness, and with Diffuse from SH its diffuse parts
+the SH9 irradiance: kernels/envmap/probe_lookup.py).
 
 Beside the camera view the job writes, per mapped object, what other tools read
 (kernels/envmap/cube_files.py, docs/techniques/envmap.md): the OpenEXR standard cube
