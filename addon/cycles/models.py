@@ -5,7 +5,8 @@ The four models
 `whitted(depth)`, for the ray tracer: diffuse surfaces see lights directly (diffuse bounces 0),
 mirrors and glass are followed up to `depth` glossy/transmission bounces, point and spot lights
 are true points (radius 0), suns are parallel (angle 0), no caustics and no glossy filter (both
-would change mirrors), no transparent bounces. The pixel filter is a 1-px box: each pixel is the
+would change mirrors); alpha surfaces let rays through (up to 8 transparent bounces, Cycles' own
+default), as the kernels' alpha tests do (`geometry/alpha_occlusion.py`). The pixel filter is a 1-px box: each pixel is the
 average over its area, the limit the tracer's n x n supersampling converges to.
 Remaining differences: Cycles' glass picks reflection or refraction at random with the Fresnel
 weight where a Whitted tracer follows both rays weighted: the same expectation, only noise.
@@ -102,7 +103,7 @@ class CyclesModel:
     diffuse_bounces: int
     glossy_bounces: int
     transmission_bounces: int
-    transparent_bounces: int = 0
+    transparent_bounces: int = 8
     volume_bounces: int = 0
     caustics_reflective: bool = False
     caustics_refractive: bool = False

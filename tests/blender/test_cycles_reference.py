@@ -170,7 +170,7 @@ def test_matched_scene_sets_each_model_and_restores_every_setting():
     with cr.matched_scene(cr.whitted(5)) as log:
         c = scene.cycles
         assert (c.max_bounces, c.diffuse_bounces, c.glossy_bounces, c.transmission_bounces,
-                c.transparent_max_bounces) == (5, 0, 5, 5, 0)
+                c.transparent_max_bounces) == (5, 0, 5, 5, 8)
         assert not (c.caustics_reflective or c.caustics_refractive or c.use_denoising
                     or c.use_adaptive_sampling or scene.render.film_transparent)
         assert (c.blur_glossy, c.pixel_filter_type, c.filter_width) == (0.0, "BOX", 1.0)
