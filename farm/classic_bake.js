@@ -3,18 +3,21 @@
 // Flamenco job type "Classic Bake": one technique of Classic Bake on one .blend, on a render farm.
 //
 // A job compiles into three stages (farm/README.md):
-//   prepare  `blender -b -c classic_bake info SCENE --out OUT/info`: the scene opens on a
-//            worker and what it holds is recorded (OUT/info/info.json);
+//   prepare  one tile: `blender -b -c classic_bake info SCENE --out OUT/info` (the scene opens on
+//            a worker and what it holds is recorded); several: the technique's own prepare step,
+//            `TECHNIQUE SCENE --out OUT/TECHNIQUE --tile prepare [...]` (radiosity: the solve,
+//            saved once for the tiles);
 //   bake     one task per tile, `blender -b -c classic_bake TECHNIQUE SCENE --out OUT/TECHNIQUE
-//            [--resolution W H] [ARGS]`, each depending on prepare;
-//   merge    `blender -b -c classic_bake report OUT`, one HTML page of the runs, after every tile.
-// Only one tile per bake for now: the command line has no `--tile` option yet (splitting a bake
-// into texel ranges, cube faces or camera rows is future work), so `tiles` above 1 is refused
-// with a message rather than compiled into commands the workers would fail.
+//            [--resolution W H] [ARGS] [--tile K/N]`, each depending on prepare;
+//   merge    after every tile: with several, `classic_bake merge OUT/TECHNIQUE` (the tiles into
+//            the outputs one run writes); then `classic_bake report OUT`, one HTML page of the runs.
 
 const TECHNIQUES = ["lightmap-uv", "texture", "trace", "envmap", "bump", "shadowmap", "radiosity",
                     "hybrid", "normalmap"];
-const MAX_TILES_SUPPORTED = 1;
+// The techniques whose command line takes `--tile K/N`, and whether their tiles need
+// `--tile prepare` first (jobs/tiles.py).
+const TILED = { radiosity: { prepare: true } };
+const MAX_TILES = 256;
 
 const JOB_TYPE = {
     label: "Classic Bake",
@@ -24,7 +27,8 @@ const JOB_TYPE = {
         { key: "technique", type: "string", required: true, default: "trace", choices: TECHNIQUES,
           description: "Which Classic Bake command runs (python -m classic_bake --help lists them)" },
         { key: "tiles", type: "int32", default: 1, propargs: { min: 1, max: 256 },
-          description: "Tasks the bake is split into (1 until the command line can tile)" },
+          description: "Tasks the bake is split into (above 1: radiosity, whose tiles share its " +
+                       "objects' lightmaps after one solve)" },
         { key: "resolution", type: "string", default: "",
           description: "render.exr size 'W H'; empty: the scene's render size" },
         { key: "args", type: "string", default: "",
@@ -51,45 +55,58 @@ function compileJob(job) {
     if (!(tiles >= 1) || Math.floor(tiles) !== tiles) {
         throw `tiles must be a whole number of at least 1, got ${settings.tiles}`;
     }
-    if (tiles > MAX_TILES_SUPPORTED) {
-        throw `tiles = ${tiles}: classic_bake's command line cannot split a bake into tiles yet; ` +
-              `use tiles = 1`;
+    if (tiles > MAX_TILES) {
+        throw `tiles = ${tiles}: at most ${MAX_TILES}`;
+    }
+    const tiled = TILED[technique];
+    if (tiles > 1 && !tiled) {
+        throw `tiles = ${tiles}: ${technique} cannot be split into tiles (tiles above 1: ` +
+              `${Object.keys(TILED).join(", ")}); use tiles = 1`;
     }
     const out = outputPath(job);
     settings.output_path = out;  // the job shows where its output went
+    const runFolder = path.join(out, technique);
+    const bakeArgs = [technique, settings.blendfile, "--out", runFolder].concat(
+        resolutionArgs(settings.resolution), splitArgs(settings.args));
 
-    const prepare = bakeTask("prepare", ["info", settings.blendfile, "--out", path.join(out, "info")]);
+    const prepare = tiles > 1 && tiled.prepare
+        ? bakeTask("prepare", bakeArgs.concat(["--tile", "prepare"]))
+        : bakeTask("prepare", ["info", settings.blendfile, "--out", path.join(out, "info")]);
     job.addTask(prepare);
 
     const bakes = [];
-    for (let tile = 0; tile < tiles; tile++) {
-        const args = [technique, settings.blendfile, "--out", path.join(out, technique)];
-        const size = resolutionArgs(settings.resolution);
-        const task = bakeTask(tiles > 1 ? `bake-${technique}-${tile + 1}-of-${tiles}` : `bake-${technique}`,
-                              args.concat(size, splitArgs(settings.args)));
+    for (let tile = 1; tile <= tiles; tile++) {
+        const task = tiles > 1
+            ? bakeTask(`bake-${technique}-${tile}-of-${tiles}`, bakeArgs.concat(["--tile", `${tile}/${tiles}`]))
+            : bakeTask(`bake-${technique}`, bakeArgs);
         task.addDependency(prepare);
         job.addTask(task);
         bakes.push(task);
     }
 
-    const merge = bakeTask("merge", ["report", out, "--title", `${job.name}: ${technique}`]);
+    const steps = tiles > 1 ? [["merge", runFolder]] : [];
+    steps.push(["report", out, "--title", `${job.name}: ${technique}`]);
+    const merge = bakeTask("merge", ...steps);
     for (const task of bakes) {
         merge.addDependency(task);
     }
     job.addTask(merge);
 }
 
-// A "blender" task of one command: `{blender} {blenderArgs} -b -c classic_bake ARGS...`. The
-// blend file goes to the command, not to Blender (`blendfile` empty), as `blender -c` expects.
-function bakeTask(name, commandArgs) {
+// A "blender" task running one command, or several in turn: `{blender} {blenderArgs} -b -c
+// classic_bake ARGS...` each. The blend file goes to the command, not to Blender (`blendfile`
+// empty), as `blender -c` expects.
+function bakeTask(name, ...commands) {
     const task = author.Task(name, "blender");
-    task.addCommand(author.Command("blender-render", {
-        exe: "{blender}",
-        exeArgs: "{blenderArgs}",
-        argsBefore: ["-b"],
-        blendfile: "",
-        args: ["-c", "classic_bake"].concat(commandArgs),
-    }));
+    for (const commandArgs of commands) {
+        task.addCommand(author.Command("blender-render", {
+            exe: "{blender}",
+            exeArgs: "{blenderArgs}",
+            argsBefore: ["-b"],
+            blendfile: "",
+            args: ["-c", "classic_bake"].concat(commandArgs),
+        }));
+    }
     return task;
 }
 

@@ -13,9 +13,9 @@ const SAMPLE = {
     output_root: "/farm/out", resolution: "320 240", args: "--pcf 3 --eps-mode 'auto'",
 };
 
-function commandLine(task) {
-    assert.equal(task.commands.length, 1);
-    const { name, parameters } = task.commands[0];
+function commandLine(task, k = 0, count = 1) {
+    assert.equal(task.commands.length, count);
+    const { name, parameters } = task.commands[k];
     assert.equal(name, "blender-render");
     assert.equal(parameters.exe, "{blender}");
     assert.equal(parameters.exeArgs, "{blenderArgs}");
@@ -51,6 +51,30 @@ test("a sample bake compiles to prepare, bake and merge with their dependencies"
     assert.equal(job.settings.output_path, "/farm/out/shadows-job");
 });
 
+test("a tiled radiosity bake compiles to the solve, a task per tile and the merge", () => {
+    const settings = { ...SAMPLE, technique: "radiosity", blendfile: "/farm/scenes/cornell.blend",
+                       tiles: 3, args: "--patches 400" };
+    const { job } = compile(SCRIPT, settings, "cornell");
+    assert.deepEqual(job.tasks.map((t) => t.name), ["prepare", "bake-radiosity-1-of-3",
+        "bake-radiosity-2-of-3", "bake-radiosity-3-of-3", "merge"]);
+    const [prepare, ...rest] = job.tasks;
+    const merge = rest.pop();
+    const bake = ["-b", "-c", "classic_bake", "radiosity", "/farm/scenes/cornell.blend", "--out",
+                  "/farm/out/cornell/radiosity", "--resolution", "320", "240", "--patches", "400"];
+    assert.deepEqual(commandLine(prepare), [...bake, "--tile", "prepare"]);
+    rest.forEach((task, k) => {
+        assert.deepEqual(commandLine(task), [...bake, "--tile", `${k + 1}/3`]);
+        assert.deepEqual(task.dependencies.map((t) => t.uuid), [prepare.uuid]);
+    });
+    // The merge puts the tiles together, then the report reads the merged run.
+    assert.deepEqual(commandLine(merge, 0, 2), ["-b", "-c", "classic_bake", "merge",
+        "/farm/out/cornell/radiosity"]);
+    assert.deepEqual(commandLine(merge, 1, 2), ["-b", "-c", "classic_bake", "report",
+        "/farm/out/cornell", "--title", "cornell: radiosity"]);
+    assert.deepEqual(merge.dependencies.map((t) => t.uuid).sort(), rest.map((t) => t.uuid).sort());
+    assert.deepEqual(prepare.dependencies, []);
+});
+
 test("defaults: the scene's own resolution, no extra options, one tile", () => {
     const { job } = compile(SCRIPT, { blendfile: "/s/cornell box.blend", output_root: "/o" }, "j");
     const bake = job.tasks[1];
@@ -67,7 +91,9 @@ test("bad settings are refused with a message", () => {
     assert.throws(() => compile(SCRIPT, { ...SAMPLE, technique: "render" }), /unknown technique "render"/);
     assert.throws(() => compile(SCRIPT, { ...SAMPLE, resolution: "big" }), /resolution must be 'W H'/);
     assert.throws(() => compile(SCRIPT, { ...SAMPLE, tiles: 0 }), /at least 1/);
-    assert.throws(() => compile(SCRIPT, { ...SAMPLE, tiles: 4 }), /cannot split a bake into tiles yet/);
+    assert.throws(() => compile(SCRIPT, { ...SAMPLE, tiles: 4 }), /shadowmap cannot be split into tiles/);
+    assert.throws(() => compile(SCRIPT, { ...SAMPLE, technique: "radiosity", tiles: 2.5 }), /whole number/);
+    assert.throws(() => compile(SCRIPT, { ...SAMPLE, technique: "radiosity", tiles: 999 }), /at most 256/);
     assert.throws(() => compile(SCRIPT, { technique: "trace", output_root: "/o" }), /blendfile/);
 });
 
