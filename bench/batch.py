@@ -1,12 +1,24 @@
-"""The batch command's speed-up of 2 workers over 1, on the sample scenes.
+"""The batch command's speed-up of 2 workers over 1, on the sample scenes, and the overhead of a
+tiled radiosity bake against one process.
 
-    .venv/bin/python bench/batch.py [--quick] [--resolution W H]
+    .venv/bin/python bench/batch.py [--quick] [--resolution W H] [--tiles N]
 
 Runs `python -m classic_bake batch` over every sample scene x (trace, bump, shadowmap) with
 --workers 1 and --workers 2 (--force: nothing skipped), alternately, and reports the ratio of their
 wall-clock seconds (`one_vs_two_workers_seconds`: above 1, two workers are faster). Each run is a
 process of its own, so the batch pays each run's start-up (importing bpy, opening the scene) and
 two workers overlap it. --quick: two scenes, one technique, 16 x 12, one repeat.
+
+Tiles: radiosity of the Cornell box, once as one run and once as `--tile prepare`, `--tile K/N`
+for K = 1..N one after the other and `merge` (--tiles N, default 4), all in this process (each
+part opens the scene as a worker would) after an untimed warm-up run, alternately, best of the
+repeats; the merged files are
+checked equal to the one run's. `tiled_radiosity_overhead` is the tiled parts' seconds (their
+sum, as the merged metrics.json adds them, plus the merge) over the one run's: above 1 by what
+splitting costs (each tile opens the scene, makes its snapshot and reads the solution; the
+prepare step does the solve and the camera view once). `tiled_gather_overhead` is the same for
+the bake phase alone: the tiles' `radiosity` seconds less the prepare step's, over the one run's
+less the prepare step's. --quick: 32-texel lightmaps, 60 patches, 24 x 18, two tiles.
 Writes out/bench/batch.json.
 """
 
@@ -44,10 +56,58 @@ def run_batch(jobs: Path, workers: int) -> float:
     return seconds
 
 
+def tiled_radiosity(folder: Path, tiles: int, options: list[str], repeats: int) -> dict:
+    """Seconds of one radiosity run against the same bake as tiles (see the module docstring)."""
+    import json
+
+    import numpy as np
+
+    from classic_bake.kernels.measure.exr import read_exr
+    from classic_bake.pipeline.cli import main as cli
+
+    scene = str(SAMPLES / "cornell_box.blend")
+
+    def run(out: Path, *extra) -> dict:
+        if cli(["radiosity", scene, "--out", str(out), "--quiet", *options, *extra]) != 0:
+            raise SystemExit(f"radiosity {' '.join(extra)} failed")
+        return json.loads((out / "metrics.json").read_text()) if not extra else {}
+
+    run(folder / "warm-up")  # the first run in a process pays its imports: not timed
+    one, tiled = {"total": [], "radiosity": []}, {"total": [], "radiosity": [], "prepare": []}
+    for k in range(repeats):
+        single = run(folder / f"one-{k}")
+        one["total"].append(single["seconds"]["total"])
+        one["radiosity"].append(single["seconds"]["radiosity"])
+        out = folder / f"tiled-{k}"
+        run(out, "--tile", "prepare")
+        for tile in range(1, tiles + 1):
+            run(out, "--tile", f"{tile}/{tiles}")
+        if cli(["merge", str(out), "--quiet"]) != 0:
+            raise SystemExit("merge failed")
+        merged = json.loads((out / "metrics.json").read_text())
+        prepare = json.loads((out / "tiles" / "prepare" / "metrics.json").read_text())
+        tiled["total"].append(merged["seconds"]["total"])
+        tiled["radiosity"].append(merged["seconds"]["radiosity"])
+        tiled["prepare"].append(prepare["seconds"]["radiosity"])
+        for name in single["outputs"]:
+            if name.endswith(".exr") and not np.array_equal(
+                    read_exr(folder / f"one-{k}" / name), read_exr(out / name)):
+                raise SystemExit(f"tiled {name} differs from the one run's")
+    best = {"one_total": min(one["total"]), "tiled_total": min(tiled["total"]),
+            # The bake alone: the one run's radiosity phase less the solve and view the prepare
+            # step times on its own, against the tiles' radiosity phases.
+            "one_gather": min(o - p for o, p in zip(one["radiosity"], tiled["prepare"],
+                                                    strict=True)),
+            "tiled_gather": min(t - p for t, p in zip(tiled["radiosity"], tiled["prepare"],
+                                                      strict=True))}
+    return {"best": best, "one": one, "tiled": tiled, "tiles": tiles, "options": options}
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="a short smoke run")
     parser.add_argument("--resolution", type=int, nargs=2, default=None, metavar=("W", "H"))
+    parser.add_argument("--tiles", type=int, default=None, help="tiles of the radiosity bake (4)")
     args = parser.parse_args()
     scenes = sorted(SAMPLES.glob("*.blend"))
     techniques = ["trace", "bump", "shadowmap"]
@@ -60,16 +120,28 @@ def main() -> int:
         for _ in range(repeats):  # alternately, so that drift in the machine's load hits both
             for workers in (1, 2):
                 seconds[workers].append(run_batch(jobs, workers))
+        tiles = args.tiles or (2 if args.quick else 4)
+        options = (["--lightmap-size", "32", "--patches", "60", "--resolution", "24", "18"]
+                   if args.quick else ["--lightmap-size", "256", "--resolution", *map(str, size)])
+        tiled = tiled_radiosity(Path(folder), tiles, options, repeats)
     best = {w: min(s) for w, s in seconds.items()}
     runs = len(scenes) * len(techniques)
     ratio = best[1] / best[2]
     print(format_table(["workers", "seconds (best)", "runs", "seconds per run"],
                        [[str(w), best[w], runs, best[w] / runs] for w in (1, 2)]))
     print(f"2 workers over 1: {ratio:.2f}x")
-    path = write_report("batch", {"one_vs_two_workers_seconds": ratio},
+    t = tiled["best"]
+    overhead = t["tiled_total"] / t["one_total"]
+    gather = t["tiled_gather"] / t["one_gather"] if t["one_gather"] > 0 else float("nan")
+    print(format_table(["radiosity", "one run (s)", f"{tiles} tiles (s)", "tiled / one"],
+                       [["all parts", t["one_total"], t["tiled_total"], overhead],
+                        ["lightmap gather", t["one_gather"], t["tiled_gather"], gather]]))
+    path = write_report("batch", {"one_vs_two_workers_seconds": ratio,
+                                  "tiled_radiosity_overhead": overhead,
+                                  "tiled_gather_overhead": gather},
                         {"seconds": seconds, "runs": runs, "resolution": list(size),
                          "scenes": [s.name for s in scenes], "techniques": techniques,
-                         "quick": args.quick}, versions("bpy"))
+                         "tiled_radiosity": tiled, "quick": args.quick}, versions("bpy"))
     print(f"wrote {path}")
     return 0
 
