@@ -14,13 +14,18 @@ class SocketBakeSettings:
     | field   | range     | default | unit / meaning                                              |
     |---------|-----------|---------|-------------------------------------------------------------|
     | size    | [8, 4096] | 256     | texels per side of the square image                         |
-    | samples | [1, 1024] | 16      | samples per texel, spread over its area (a texel: its mean) |
+    | samples | [1, 1024] | 4       | samples per texel, spread over its area (a texel: its mean) |
     | margin  | [0, 64]   | 2       | texels the UV charts are extended by, so that bilinear      |
     |         |           |         | look-ups at a chart's rim read no empty texels              |
+
+    Cost against accuracy, measured on a Voronoi texture into roughness at 256 x 256 (2 cores
+    shared with other work), each texel against a 64-sample bake: 4 samples 0.6 s, within 0.55%
+    of the signal's largest value (mean 0.10%); 16 samples 2.1 s, within 0.27% (mean 0.025%).
+    The time grows with size^2 x samples and the graph's cost.
     """
 
     size: int = 256
-    samples: int = 16
+    samples: int = 4
     margin: int = 2
 
 
