@@ -1,8 +1,10 @@
 """High -> low normal maps (jobs/normalmap.py, source "high") through real Blender: the maps
 against Cycles' own NORMAL bake with Selected to Active (tangent space, the same cage extrusion
 and max ray distance, one sample so each texel is its centre), texel by texel; the option and
-the Selected to Active choice of the high mesh; misses counted."""
+the Selected to Active choice of the high mesh; misses counted; the command line and the operator."""
 
+import json
+import subprocess
 import sys
 from pathlib import Path
 
@@ -12,6 +14,7 @@ import pytest
 
 from classic_bake.addon import bridge
 from classic_bake.jobs.normalmap import RECORD
+from classic_bake.kernels.measure.exr import read_exr
 from classic_bake.kernels.progress import drain
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
@@ -141,3 +144,36 @@ def test_selected_to_active_picks_the_high_mesh_and_counts_misses():
     bpy.context.view_layer.objects.active = None
     with pytest.raises(ValueError, match="Selected to Active"):
         drain(RECORD.start(bpy.context, values(source="high", size=32)))
+
+
+def test_cli_bakes_the_named_high_mesh(tmp_path):
+    low_and_high("cylinder")
+    path = tmp_path / "pair.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    done = subprocess.run([sys.executable, "-m", "classic_bake", "normalmap", str(path), "--out",
+                           str(tmp_path / "out"), "--source", "high", "--high", "High",
+                           "--objects", "Low", "--size", "32", "--cage", "0.1", "--max-ray", "1"],
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    metrics = json.loads((tmp_path / "out" / "metrics.json").read_text())
+    record = metrics["normal_maps"]["Low"]
+    assert record["high"] == "High" and record["cage_m"] == 0.1 and record["max_ray_m"] == 1.0
+    assert record["missed_texels"] == 0
+    rgb = read_exr(tmp_path / "out" / "normalmap" / "Low.exr")
+    n = 2.0 * rgb.astype(np.float64) - 1.0
+    np.testing.assert_allclose(np.linalg.norm(n, axis=-1), 1.0, atol=1e-5)
+
+
+def test_operator_bakes_selected_to_active_and_wires_the_low_material(addon):
+    low, high = low_and_high("cylinder")
+    for obj in bpy.context.scene.objects:
+        obj.select_set(True)
+    bpy.context.view_layer.objects.active = low
+    props = bpy.context.scene.classic_bake
+    props.normalmap_source, props.normalmap_size, props.normalmap_wire = "high", 32, True
+    assert bpy.ops.classic_bake.normalmap() == {"FINISHED"}
+    image = bpy.data.images["Normal Low"]
+    assert "Normal High" not in bpy.data.images
+    nodes = low.active_material.node_tree.nodes
+    normal_map = next(n for n in nodes if n.type == "NORMAL_MAP")
+    assert normal_map.inputs["Color"].links[0].from_node.image == image
