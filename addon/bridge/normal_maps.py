@@ -124,9 +124,14 @@ def write_normal_image(name: str, rgb: np.ndarray, image=None):
     rgba[..., :3] = rgb[..., :3]
     if image is None:
         image = bpy.data.images.new(name, width, height, alpha=True, float_buffer=True)
-    elif tuple(image.size) != (width, height):
-        image.scale(width, height)
+    # Before the size and the pixels: setting the colour space (even to the one it has) reloads a
+    # generated image at its generated size, dropping its pixels.
     image.colorspace_settings.name = NON_COLOR
+    if tuple(image.size) != (width, height):
+        if image.source == "GENERATED":  # so that a reload keeps the new size
+            image.generated_width, image.generated_height = width, height
+        if tuple(image.size) != (width, height):
+            image.scale(width, height)
     image.pixels.foreach_set(np.ascontiguousarray(flip_rows(rgba)).ravel())
     image.update()
     return image

@@ -318,3 +318,14 @@ def test_map_matches_cycles_own_tangent_space_normal_bake():
           f"{np.percentile(error, 99):.3f}, max {error.max():.3f} degrees over {covered.sum()} texels")
     assert covered.sum() == size * size
     assert error.mean() < 1.0 and np.percentile(error, 99) < 2.5
+
+
+def test_rewriting_a_map_at_another_size_keeps_its_pixels():
+    """A map made again at another size reuses its image: resized, Non-Color, the new pixels."""
+    first = np.full((16, 16, 3), 0.25, np.float32)
+    image = normal_maps.write_normal_image("Normal Resized", first)
+    second = np.random.default_rng(3).random((32, 32, 3)).astype(np.float32)
+    again = normal_maps.write_normal_image("Normal Resized", second, image=image)
+    assert again == image and tuple(image.size) == (32, 32)
+    assert image.colorspace_settings.name == normal_maps.NON_COLOR
+    np.testing.assert_allclose(bridge.image_pixels(image)[..., :3], second, atol=1e-6)
