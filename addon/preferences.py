@@ -1,7 +1,7 @@
 """Add-on preferences, keyed by the extension's package name."""
 
 import bpy
-from bpy.props import BoolProperty, FloatProperty, StringProperty
+from bpy.props import BoolProperty, FloatProperty, IntProperty, StringProperty
 
 # "classic_bake" when run from a checkout, "bl_ext.<repo>.classic_bake" when installed.
 ADDON_PACKAGE = __package__.rpartition(".")[0]
@@ -21,6 +21,9 @@ class CLASSICBAKE_AP_preferences(bpy.types.AddonPreferences):
         name="Output Folder", description="Where baked images are saved ('//' is the .blend's "
         "folder; an unsaved file uses Blender's temporary folder)",
         default="//classic_bake", subtype="DIR_PATH", options={"PATH_SUPPORTS_BLEND_RELATIVE"})
+    threads: IntProperty(
+        name="Threads", description="Cores the bakes may use (0: every core of the machine); "
+        "fewer keep the machine responsive for other work", default=0, min=0, max=1024)
 
     def draw(self, context):
         layout = self.layout
@@ -29,6 +32,7 @@ class CLASSICBAKE_AP_preferences(bpy.types.AddonPreferences):
         row = layout.row()
         row.active = self.save_images
         row.prop(self, "output_dir")
+        layout.prop(self, "threads")
 
 
 def get(context=None):

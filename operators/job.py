@@ -23,11 +23,18 @@ import os
 import time
 
 from ..addon import preferences
+from ..kernels.geometry.threads import set_core_limit
 from ..kernels.progress import advance, drain
 
 TIMER_INTERVAL_S = 0.02  # how often the modal path wakes up to do another slice of work
 DEFAULT_TICK_BUDGET_MS = 50.0  # used when the add-on's preferences are not available
 IMAGE_PREFIX = "Classic Bake"  # every image the jobs write starts with this, or is a lightmap
+
+
+def apply_thread_preference(context) -> None:
+    """The kernels take at most the preferences' Threads cores (0, or no preferences: all)."""
+    prefs = preferences.get(context)
+    set_core_limit(prefs.threads if prefs else 0)
 
 
 class JobOperator:
@@ -53,6 +60,7 @@ class JobOperator:
 
     def execute(self, context):
         began = time.perf_counter()
+        apply_thread_preference(context)
         try:
             summary = drain(self.start(context))
         except ValueError as exc:
@@ -81,6 +89,7 @@ class JobOperator:
         """Start the job and the progress display (no timer: `invoke` adds it)."""
         self._began = time.perf_counter()
         self._timer = None
+        apply_thread_preference(context)
         try:
             self._job = self.start(context)
         except ValueError as exc:

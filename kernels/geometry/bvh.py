@@ -23,7 +23,6 @@ triangles.
 
 from __future__ import annotations
 
-import os
 import time
 from concurrent.futures import ThreadPoolExecutor, wait
 from dataclasses import dataclass
@@ -34,6 +33,7 @@ from ..progress import Steps, drain
 from .bvh_build import NONE, WideTree, build_tables
 from .bvh_traversal import BruteForce, Pool, RayQueue, unpack
 from .intersect import INT32_MAX, Hits, PreparedTriangles, prepare_triangles, ray_limits
+from .threads import core_count
 
 QUERY_BYTES_PER_SLOT = 810  # a pool slot's stack, state and one step's temporaries (tracemalloc)
 # Rays handed to a worker at a time (the unit of work sharing between threads).
@@ -85,7 +85,7 @@ class BVHSettings:
 
     @property
     def thread_count(self) -> int:
-        return self.threads or os.cpu_count() or 1
+        return self.threads or core_count()
 
     @property
     def query_bytes(self) -> int:

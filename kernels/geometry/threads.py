@@ -12,10 +12,24 @@ from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 
 _POOLS: dict[int, ThreadPoolExecutor] = {}
+# The most cores every kernel's "one per core" takes (0: all of them); `set_core_limit`.
+_core_limit = 0
+
+
+def set_core_limit(cores: int) -> None:
+    """Let every kernel that takes one thread per core take at most `cores` (0: all cores):
+    the add-on's Threads preference. Settings that name their own thread count keep it."""
+    global _core_limit
+    if cores < 0:
+        raise ValueError(f"cores must be >= 0, got {cores}")
+    _core_limit = int(cores)
 
 
 def core_count() -> int:
-    return os.cpu_count() or 1
+    """The machine's cores (os.cpu_count, which PYTHON_CPU_COUNT overrides on Python 3.13), at
+    most the limit `set_core_limit` set."""
+    cores = os.cpu_count() or 1
+    return min(cores, _core_limit) if _core_limit else cores
 
 
 def pool(threads: int) -> ThreadPoolExecutor:

@@ -18,13 +18,13 @@ failure measures (acne, peter-panning) `measures.py`.
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
 
 from ..geometry.raster import Projection
+from ..geometry.threads import core_count
 
 EpsMode = Literal["fixed", "auto"]
 MapKind = Literal["ORTHO", "PERSP", "CUBE"]
@@ -78,7 +78,7 @@ class ShadowMapSettings:
 
     @property
     def thread_count(self) -> int:
-        return self.threads or os.cpu_count() or 1
+        return self.threads or core_count()
 
 
 @dataclass(frozen=True, eq=False)
