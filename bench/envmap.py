@@ -44,6 +44,8 @@ MIRROR = "MirrorSphere"
 # (face size, parallax steps): 0 is the automatic size; steps 0 is the lecture's look-up.
 LADDER = [(16, 0), (0, 0), (32, 4), (0, 4), (128, 4), (256, 4)]
 DEFAULT_SETTING = "auto faces, 4 steps"  # EnvMapSettings()
+# --quick: the lecture's look-up at two sizes and the default (the ratios divide by it).
+QUICK_LADDER = [(16, 0), (0, 0), (0, 4)]
 
 
 def label(face: int, steps: int) -> str:
@@ -91,7 +93,7 @@ def view_part(args) -> tuple[dict, dict]:
         return {"rel_mse": rel_mse(image, reference),
                 "rel_mse_mirror": rel_mse(image[sphere][:, None], reference[sphere][:, None])}
 
-    ladder = LADDER[:3] if args.quick else LADDER
+    ladder = QUICK_LADDER if args.quick else LADDER
     cycles_counts = [1, 2, 4, 8, 16] if args.quick else [1, 2, 4, 8, 16, 32, 64, 128]
     kernel_rows, cycles_rows, tracer_row, views = [], [], None, {}
     for step in range(max(len(ladder) + 1, len(cycles_counts))):  # alternate the two sides
