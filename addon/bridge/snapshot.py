@@ -21,6 +21,9 @@ from .world import read_world, read_world_texture, world_env_mapping
 
 # What `snapshot` reads unless told otherwise: everything (a frozen dataclass, shared safely).
 DEFAULT_REQUEST = SnapshotRequest()
+# From this Blender version on, Cycles' Normal Map node builds its tangent frame on the unit
+# interpolated normal (measured in 5.2; 4.5 uses it as interpolated): `Scene.normal_map_unit_normal`.
+UNIT_NORMAL_MAP_VERSION = (5, 0, 0)
 
 
 def snapshot(context=None, request: SnapshotRequest = DEFAULT_REQUEST,
@@ -192,6 +195,7 @@ def _assemble(chunks, materials, lights, camera, world, request, ignored) -> Sce
                          if any(c.tangents is not None for c in chunks) else None),
         corner_signs=(stack("tangent_signs", (3,), np.float32)
                       if any(c.tangents is not None for c in chunks) else None),
+        normal_map_unit_normal=bpy.app.version >= UNIT_NORMAL_MAP_VERSION,
         material_ids=stack("slot_ids", (), np.int32),
         object_ids=np.repeat(np.arange(len(chunks), dtype=np.int32), counts),
         corner_loops=stack("corner_loops", (3,), np.int32),

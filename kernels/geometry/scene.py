@@ -284,6 +284,9 @@ class Scene:
     # (b = sign (n x t)); None: no object has one.
     corner_tangents: np.ndarray | None = None
     corner_signs: np.ndarray | None = None
+    # Whether the Normal Map node builds its frame on the interpolated normal made unit (Cycles
+    # in Blender 5.2) or as interpolated (4.5); the bridge sets it from Blender's version.
+    normal_map_unit_normal: bool = True
 
     @cached_property
     def texture_coords(self) -> np.ndarray:

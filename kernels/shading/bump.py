@@ -17,11 +17,12 @@ The node's Strength blends the result with the unperturbed normal as Cycles does
 
 Tangents. A normal map is read in the frames Blender reads it in wherever the snapshot has them
 (`Scene.corner_tangents`, the bridge's MikkTSpace frames per corner on the Normal Map node's UV
-layer): t and the normal interpolated from the triangle's corners without normalising,
-b = sign (n x t), n* = normalize(x t + y b + z n) (`mikktspace_normal_mapped`), as Cycles'
-Normal Map node does, so a map made by this project, by Blender or by another MikkTSpace baker
-shades as in Cycles. Heights (the Bump node), and normal maps on objects without frames, take
-the lecture's per-triangle frame: dp/du and dp/dv solve
+layer): t and the normal interpolated from the triangle's corners (t not normalised, n made
+unit in Blender 5.2, as interpolated in 4.5), b = sign (n x t), n* = normalize(x t + y b + z n)
+(`mikktspace_normal_mapped`), as Cycles' Normal Map node does, so a map made by this project,
+by Blender or by another MikkTSpace baker shades as in Cycles. Heights (the Bump node), and
+normal maps on objects without frames, take the lecture's per-triangle frame: dp/du and dp/dv
+solve
 [p1 - p0, p2 - p0] = [dp/du, dp/dv] [uv1 - uv0, uv2 - uv0]; t is dp/du made perpendicular to
 the (interpolated) normal; b = n x t, turned round where the UV map is mirrored (b . dp/dv < 0),
 so that y always runs along v. On coarse curved meshes the two frames differ by a few degrees
@@ -168,14 +169,17 @@ def normal_mapped(n: np.ndarray, dpdu: np.ndarray, dpdv: np.ndarray, rgb: np.nda
 
 
 def mikktspace_normal_mapped(n: np.ndarray, smooth: np.ndarray, tangents: np.ndarray,
-                             signs: np.ndarray, rgb: np.ndarray, strength: float = 1.0
-                             ) -> np.ndarray:
+                             signs: np.ndarray, rgb: np.ndarray, strength: float = 1.0,
+                             unit_normal: bool = True) -> np.ndarray:
     """(N, 3) unit normals of a tangent-space normal map read in the mesh's MikkTSpace frames,
     as Blender's Normal Map node and Cycles read it: with t and s the corner tangents and normals
-    interpolated barycentrically and not normalised (`smooth`, `tangents` (N, 3)), the
+    interpolated barycentrically (`tangents`, `smooth` (N, 3); t not normalised, s made unit
+    when `unit_normal`, as Cycles in Blender 5.2 does, else as interpolated, as 4.5 does), the
     bitangent b = sign (s x t) (`signs` (N,) interpolated), n* = normalize(x t + y b + z s) for
     (x, y, z) = 2 rgb - 1; turned round where the shading normal n (unit, turned towards the
     viewer by the caller) faces away from s; blended towards n by the node's strength."""
+    if unit_normal:
+        smooth = _normalize(smooth)
     local = 2.0 * np.asarray(rgb, np.float64)[:, :3] - 1.0
     b = np.cross(smooth, tangents) * np.asarray(signs, np.float64)[:, None]
     world = _normalize(local[:, 0:1] * tangents + local[:, 1:2] * b + local[:, 2:3] * smooth)
@@ -302,5 +306,5 @@ def _mikktspace_rows(scene: Scene, tri: np.ndarray, bary: np.ndarray, rows: np.n
     uv = np.einsum("nk,nkc->nc", weights, scene.uv[corners].astype(np.float64))
     rgb = sample_texture(material.normal_texture, uv)
     out[done] = mikktspace_normal_mapped(n[done], smooth, tangents[framed], signs, rgb,
-                                         material.bump_strength)
+                                         material.bump_strength, scene.normal_map_unit_normal)
     return framed
