@@ -246,12 +246,9 @@ class MaterialReader:
             return Material(name=name, base_color=color, base_color_texture=tex, specular=0.0,
                             ignored=tuple(ignored))
         if kind == "EMISSION":
-            color, tex = self._color(node.inputs["Color"], ignored)
-            strength = self._value(node.inputs["Strength"], ignored)
+            emission, tex = self._emission(node.inputs["Color"], node.inputs["Strength"], ignored)
             return Material(name=name, base_color=np.zeros(3, np.float32), specular=0.0,
-                            emission=(color * strength * (tex is None)).astype(np.float32),
-                            emission_texture=scaled_texture(tex, strength),
-                            ignored=tuple(ignored))
+                            emission=emission, emission_texture=tex, ignored=tuple(ignored))
         if kind == "BSDF_GLASS":
             color, _ = self._color(node.inputs["Color"], ignored, textures=False)
             return Material(name=name, base_color=color, transmission=1.0,
@@ -287,9 +284,8 @@ class MaterialReader:
     def _principled(self, name, node, ignored) -> Material:
         inputs = node.inputs
         color, tex = self._color(inputs["Base Color"], ignored)
-        emission, emission_tex = self._color(inputs["Emission Color"], ignored)
-        strength = self._value(inputs["Emission Strength"], ignored)
-        emission_tex = scaled_texture(emission_tex, strength)  # radiance: texture x strength
+        emission, emission_tex = self._emission(inputs["Emission Color"],
+                                                inputs["Emission Strength"], ignored)
         metallic, metallic_tex = self._number(inputs["Metallic"], ignored)
         roughness, roughness_tex = self._number(inputs["Roughness"], ignored)
         for unmodelled in ("Subsurface Weight", "Coat Weight", "Sheen Weight"):
@@ -308,7 +304,7 @@ class MaterialReader:
             ior=self._value(inputs["IOR"], ignored),
             transmission=self._value(inputs["Transmission Weight"], ignored),
             specular=self._value(inputs["Specular IOR Level"], ignored),
-            emission=(emission * strength * (emission_tex is None)).astype(np.float32),
+            emission=emission,
             emission_texture=emission_tex,
             metallic_texture=metallic_tex,
             roughness_texture=roughness_tex,
@@ -349,6 +345,26 @@ class MaterialReader:
             unread = [f"{why} (not baked by Cycles: {entry})" for why in unread]
         ignored.extend(unread)
         return value
+
+    def _emission(self, color_socket, strength_socket, ignored
+                  ) -> tuple[np.ndarray, Texture | None]:
+        """Emitted radiance, colour x strength: (constant (3,), None) or (0, texture). A strength
+        the reader cannot hold as one number (a texture, or a chain it cannot follow) has Cycles
+        bake the product (`SocketFallback`); else the colour is read (and baked where it must
+        be) and scaled by the strength."""
+        unread: list[str] = []
+        strength = self._read(strength_socket, unread)
+        if ((strength is None or strength.texture is not None) and self.request.textures
+                and self.fallback is not None and self._mat is not None):
+            texture, entry = self.fallback.texture(self._mat, color_socket, False, self._target,
+                                                   strength=strength_socket)
+            if texture is not None:
+                self._baked.append(entry)
+                return np.zeros(3, np.float32), texture
+        color, texture = self._color(color_socket, ignored)
+        factor = self._value(strength_socket, ignored)  # its reasons, where it is not read
+        radiance = color * factor * (texture is None)
+        return radiance.astype(np.float32), scaled_texture(texture, factor)
 
     def _value(self, socket, ignored) -> float:
         """A number: the socket's chain of constants, or its default where a texture drives it

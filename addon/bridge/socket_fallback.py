@@ -62,10 +62,11 @@ class SocketFallback:
     def __init__(self, settings: SocketBakeSettings):
         self.settings = settings
 
-    def texture(self, material, socket, as_number: bool, target: BakeTarget | None
-                ) -> tuple[Texture | None, dict | str]:
+    def texture(self, material, socket, as_number: bool, target: BakeTarget | None,
+                strength=None) -> tuple[Texture | None, dict | str]:
         """(the socket's texture, its report entry {socket, read_as, seconds, cached, object}),
-        or (None, why it cannot be baked)."""
+        or (None, why it cannot be baked). With `strength` (an emission's strength socket of the
+        same node), the texture is the colour times the strength: the emitted radiance."""
         if target is None:
             return None, "no object to bake it over"
         if target.chunk.uv is None:
@@ -76,7 +77,8 @@ class SocketFallback:
         s = self.settings
         key = hashlib.sha256(repr((
             tree_digest(material.node_tree), socket.node.name, socket.identifier, as_number,
-            target.digest, uv_layer, s.size, s.samples, s.margin, bpy.app.version,
+            None if strength is None else strength.identifier, target.digest, uv_layer,
+            s.size, s.samples, s.margin, bpy.app.version,
         )).encode()).hexdigest()
         cached = key in _CACHE
         if cached:
@@ -85,14 +87,16 @@ class SocketFallback:
         else:
             pixels, seconds = bake_socket(target.source, target.depsgraph, material,
                                           socket.node.name, socket.identifier, as_number,
-                                          uv_layer, s.size, s.samples, s.margin)
+                                          uv_layer, s.size, s.samples, s.margin,
+                                          None if strength is None else strength.identifier)
             _CACHE[key] = (pixels, seconds)
             while len(_CACHE) > CACHE_ENTRIES:
                 _CACHE.popitem(last=False)
         texture = Texture(kind="IMAGE", name=f"{material.name}: {socket.name} (Cycles bake)",
                           pixels=pixels, extension="EXTEND", interpolation="LINEAR",
                           encoding="linear")
-        entry = {"socket": socket.name, "read_as": f"Cycles bake {s.size}x{s.size}",
+        name = socket.name if strength is None else f"{socket.name} x {strength.name}"
+        entry = {"socket": name, "read_as": f"Cycles bake {s.size}x{s.size}",
                  "seconds": round(float(seconds), 4), "cached": cached,
                  "object": target.source.name}
         return texture, entry

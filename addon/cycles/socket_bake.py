@@ -30,8 +30,8 @@ BAKE_SEED = 0
 
 
 def bake_socket(source, depsgraph, material, node_name: str, socket_identifier: str,
-                as_number: bool, uv_layer: str, size: int, samples: int, margin: int
-                ) -> tuple[np.ndarray, float]:
+                as_number: bool, uv_layer: str, size: int, samples: int, margin: int,
+                strength_identifier: str | None = None) -> tuple[np.ndarray, float]:
     """The value the linked input `socket_identifier` of node `node_name` in `material` takes
     over `source`'s UV layer `uv_layer`, baked by Cycles: ((size, size, 4) float32 linear, row 0
     top, alpha 1; seconds of the bake operator).
@@ -41,9 +41,12 @@ def bake_socket(source, depsgraph, material, node_name: str, socket_identifier: 
     Cycles converts a colour or vector to a number as it would for the socket (luminance, mean);
     a colour socket's link feeds the Emission colour as it is. `samples` per texel, spread over
     its area; `margin` texels of the charts extended outwards (bilinear look-ups at a chart's
-    rim then read no black)."""
+    rim then read no black). With `strength_identifier`, the node's input of that identifier
+    (linked or not) is the Emission strength: the bake is colour x strength, an emission's
+    radiance."""
     with contextlib.ExitStack() as stack:
-        mat = _emission_copy(material, node_name, socket_identifier, as_number)
+        mat = _emission_copy(material, node_name, socket_identifier, as_number,
+                             strength_identifier)
         stack.callback(bpy.data.materials.remove, mat)
         image = bpy.data.images.new(f"{TEMP_PREFIX}_socket", size, size, alpha=True,
                                     float_buffer=True)
@@ -85,25 +88,38 @@ def bake_socket(source, depsgraph, material, node_name: str, socket_identifier: 
     return pixels, seconds
 
 
-def _emission_copy(material, node_name: str, socket_identifier: str, as_number: bool):
-    """A temporary copy of `material` whose only output is an Emission shader (strength 1) fed
-    by what feeds the socket; the socket itself must be linked."""
+def _emission_copy(material, node_name: str, socket_identifier: str, as_number: bool,
+                   strength_identifier: str | None = None):
+    """A temporary copy of `material` whose only output is an Emission shader fed by what feeds
+    the socket (its own value where it is unlinked), of strength 1 or what feeds the input
+    `strength_identifier` of the same node."""
     mat = material.copy()
     mat.name = f"{TEMP_PREFIX}_socket"
     tree = mat.node_tree
-    socket = next(s for s in tree.nodes[node_name].inputs if s.identifier == socket_identifier)
-    source = socket.links[0].from_socket
-    for node in [n for n in tree.nodes if n.type == "OUTPUT_MATERIAL"]:
-        tree.nodes.remove(node)
+    node = tree.nodes[node_name]
+    socket = next(s for s in node.inputs if s.identifier == socket_identifier)
+    strength = next((s for s in node.inputs if s.identifier == strength_identifier), None)
+    source = socket.links[0].from_socket if socket.is_linked else None
+    strength_source = strength.links[0].from_socket if strength and strength.is_linked else None
+    for output in [n for n in tree.nodes if n.type == "OUTPUT_MATERIAL"]:
+        tree.nodes.remove(output)
     emission = tree.nodes.new("ShaderNodeEmission")
-    emission.inputs["Strength"].default_value = UNIT_STRENGTH
-    if as_number:  # Cycles' own conversion of a colour or vector to the socket's number
-        number = tree.nodes.new("ShaderNodeMath")
-        number.operation = "ADD"
-        number.inputs[1].default_value = 0.0
-        tree.links.new(source, number.inputs[0])
-        source = number.outputs[0]
-    tree.links.new(source, emission.inputs["Color"])
+    emission.inputs["Strength"].default_value = (
+        UNIT_STRENGTH if strength is None else strength.default_value)
+    if strength_source is not None:
+        tree.links.new(strength_source, emission.inputs["Strength"])
+    if source is None:  # an unlinked colour (beside a linked strength): its own value
+        value = socket.default_value
+        emission.inputs["Color"].default_value = (
+            (value, value, value, 1.0) if as_number else tuple(value))
+    else:
+        if as_number:  # Cycles' own conversion of a colour or vector to the socket's number
+            number = tree.nodes.new("ShaderNodeMath")
+            number.operation = "ADD"
+            number.inputs[1].default_value = 0.0
+            tree.links.new(source, number.inputs[0])
+            source = number.outputs[0]
+        tree.links.new(source, emission.inputs["Color"])
     output = tree.nodes.new("ShaderNodeOutputMaterial")
     output.target = "ALL"
     tree.links.new(emission.outputs[0], output.inputs["Surface"])

@@ -257,3 +257,26 @@ def test_an_unread_alpha_is_baked_as_coverage():
     assert [e["socket"] for e in mat.fallbacks] == ["Alpha"]
     texels = mat.alpha_texture.pixels[..., 0]
     assert texels.min() < 0.1 and texels.max() > 0.9  # holes and cover
+
+
+@pytest.mark.slow
+def test_a_noise_emission_strength_bakes_the_radiance():
+    """A strength the reader cannot hold as one number: Cycles bakes colour x strength."""
+    mat = _plane()
+    tree = mat.node_tree
+    bsdf = next(n for n in tree.nodes if n.type == "BSDF_PRINCIPLED")
+    bsdf.inputs["Emission Color"].default_value = (0.9, 0.5, 0.2, 1.0)
+    noise = tree.nodes.new("ShaderNodeTexNoise")
+    tree.links.new(noise.outputs["Fac"], bsdf.inputs["Emission Strength"])
+    scene = bridge.snapshot()
+    mat = scene.materials[1]
+    assert [e["socket"] for e in mat.fallbacks] == ["Emission Color x Emission Strength"]
+    assert not [why for why in scene.ignored if "Emission" in why]
+    ours = sample_texture(mat.emission_texture, _texel_centres()).reshape(SIZE, SIZE, 3)
+    images, _, masks = cr.bake_lightmaps(bpy.context.scene, cr.albedo(), REFERENCE_SAMPLES,
+                                         ["Plane"], "UVMap", SIZE, "EMIT")
+    theirs = images["Plane"]  # the material itself: its emission's radiance
+    err = np.abs(ours - theirs).max(axis=2) / theirs.max()
+    assert masks["Plane"].all() and theirs.max() > 0.3
+    assert np.mean(err > TOLERANCE) <= 0.001 and err.mean() < TOLERANCE / 4, (
+        err.max(), err.mean(), np.mean(err > TOLERANCE))
