@@ -3,10 +3,10 @@
 // Flamenco job type "Classic Bake": one technique of Classic Bake on one .blend, on a render farm.
 //
 // A job compiles into three stages (farm/README.md):
-//   prepare  one tile: `blender -b -c classic_bake info SCENE --out OUT/info` (the scene opens on
-//            a worker and what it holds is recorded); several: the technique's own prepare step,
-//            `TECHNIQUE SCENE --out OUT/TECHNIQUE --tile prepare [...]` (radiosity: the solve,
-//            saved once for the tiles);
+//   prepare  `blender -b -c classic_bake info SCENE --out OUT/info` (the scene opens on a worker
+//            and what it holds is recorded); or, with several tiles of a technique that has one,
+//            its own prepare step `TECHNIQUE SCENE --out OUT/TECHNIQUE --tile prepare [...]`
+//            (radiosity: the solve, saved once for the tiles);
 //   bake     one task per tile, `blender -b -c classic_bake TECHNIQUE SCENE --out OUT/TECHNIQUE
 //            [--resolution W H] [ARGS] [--tile K/N]`, each depending on prepare;
 //   merge    after every tile: with several, `classic_bake merge OUT/TECHNIQUE` (the tiles into
@@ -16,7 +16,7 @@ const TECHNIQUES = ["lightmap-uv", "texture", "trace", "envmap", "bump", "shadow
                     "hybrid", "normalmap"];
 // The techniques whose command line takes `--tile K/N`, and whether their tiles need
 // `--tile prepare` first (jobs/tiles.py).
-const TILED = { radiosity: { prepare: true } };
+const TILED = { radiosity: { prepare: true }, trace: { prepare: false } };
 const MAX_TILES = 256;
 
 const JOB_TYPE = {
@@ -28,7 +28,7 @@ const JOB_TYPE = {
           description: "Which Classic Bake command runs (python -m classic_bake --help lists them)" },
         { key: "tiles", type: "int32", default: 1, propargs: { min: 1, max: 256 },
           description: "Tasks the bake is split into (above 1: radiosity, whose tiles share its " +
-                       "objects' lightmaps after one solve)" },
+                       "objects' lightmaps after one solve, or trace, whose tiles share the rows)" },
         { key: "resolution", type: "string", default: "",
           description: "render.exr size 'W H'; empty: the scene's render size" },
         { key: "args", type: "string", default: "",

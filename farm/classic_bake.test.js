@@ -75,6 +75,15 @@ test("a tiled radiosity bake compiles to the solve, a task per tile and the merg
     assert.deepEqual(prepare.dependencies, []);
 });
 
+test("a tiled trace needs no prepare step of its own: info, a task per rows' share, merge", () => {
+    const { job } = compile(SCRIPT, { ...SAMPLE, technique: "trace", tiles: 2, args: "" }, "t");
+    assert.deepEqual(job.tasks.map((t) => t.name), ["prepare", "bake-trace-1-of-2", "bake-trace-2-of-2",
+        "merge"]);
+    assert.deepEqual(commandLine(job.tasks[0]).slice(3, 4), ["info"]);
+    assert.deepEqual(commandLine(job.tasks[2]).slice(-2), ["--tile", "2/2"]);
+    assert.deepEqual(commandLine(job.tasks[3], 0, 2).slice(3), ["merge", "/farm/out/t/trace"]);
+});
+
 test("defaults: the scene's own resolution, no extra options, one tile", () => {
     const { job } = compile(SCRIPT, { blendfile: "/s/cornell box.blend", output_root: "/o" }, "j");
     const bake = job.tasks[1];

@@ -135,7 +135,7 @@ class Technique:
     | shared        | options shared with other records (the lightmap options), before its own |
     | cli_extra     | extra argparse arguments (parser) -> None, for CLI-only switches        |
     | renders       | True: the CLI run must write render.exr (the camera view)               |
-    | tiles         | what `--tile K/N` splits ("lightmaps"; "": no tiles; jobs/tiles.py)     |
+    | tiles         | what `--tile K/N` splits ("lightmaps", "rows"; "": none; jobs/tiles.py) |
     | tile_prepare  | True: the tiles need `--tile prepare` run first (radiosity: the solve)  |
     """
 

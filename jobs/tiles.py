@@ -3,9 +3,13 @@ and merge into the same outputs as one process writes (`pipeline/commands/merge.
 
 `--tile K/N` runs part K of N (1-based); `--tile prepare` runs the part every tile needs first,
 where a technique has one (radiosity: the solve, saved once, and the camera's view). What a tile
-splits is named by its record (`Technique.tiles`): "lightmaps", the objects' lightmaps, shared
-among the tiles by texel count (`share`); each object's bake depends on its own texels only
-(`kernels/radiosity/lightmap.py`), so a tile's objects come out exactly as in one process.
+splits is named by its record (`Technique.tiles`):
+
+* "lightmaps": the objects' lightmaps, shared among the tiles by texel count (`share`); each
+  object's bake depends on its own texels only (`kernels/radiosity/lightmap.py`), so a tile's
+  objects come out exactly as in one process;
+* "rows": the camera view's rows (`row_range`), each pixel traced as the whole view traces it
+  (`kernels/trace/tracer.trace_steps`, `rows`).
 
 A tile writes into OUT/tiles/: its part's files (`tile_folder`) and a record of its run
 (metrics.json there); `merge OUT` puts them together.
@@ -73,6 +77,15 @@ def share(weights: list[float], tile: Tile) -> list[int]:
         if least == tile.index - 1:
             mine.append(item)
     return sorted(mine)
+
+
+def row_range(height: int, tile: Tile) -> tuple[int, int]:
+    """Rows [a, b) of an image `height` rows tall that tile K of N takes: contiguous, in order,
+    their sizes differing by at most one. ValueError when there are more tiles than rows."""
+    if tile.count > height:
+        raise ValueError(f"--tile {tile.index}/{tile.count}: more tiles than the view's "
+                         f"{height} rows")
+    return (height * (tile.index - 1)) // tile.count, (height * tile.index) // tile.count
 
 
 # --- a solution saved by `--tile prepare` and read by the tiles ------------------------------------

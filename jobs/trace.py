@@ -14,6 +14,7 @@ from ..kernels.progress import Steps, scaled
 from ..kernels.trace.settings import TracerSettings, auto_settings
 from ..kernels.trace.tracer import trace_steps
 from .record import JobSummary, OperatorSpec, Option, Technique
+from .tiles import Tile, row_range
 
 IMAGE_NAME = "Classic Bake Trace"
 
@@ -39,6 +40,25 @@ def trace_job(scene, settings: TracerSettings, resolution=None) -> Steps[JobSumm
         sizes={"width": width, "height": height, "triangles": scene.triangle_count,
                "lights": len(scene.lights)},
         extra={"stats": s.as_dict()})
+
+
+def trace_tile_job(scene, settings: TracerSettings, tile: Tile, resolution=None
+                   ) -> Steps[JobSummary]:
+    """Tile K of N of `trace_job` (jobs/tiles.py): its share of the camera view's rows
+    (`row_range`), each pixel as the whole view traces it; `render` holds those rows. Nothing is
+    written into Blender."""
+    width, height = resolution or scene.camera.resolution
+    rows = row_range(height, tile)
+    result = yield from scaled(trace_steps(scene, settings, resolution=(width, height), rows=rows))
+    s = result.stats
+    return JobSummary(
+        message=f"traced rows {rows[0]}..{rows[1] - 1} of {width}x{height} (tile {tile.index} of "
+                f"{tile.count}): {s.camera_rays} camera, {s.secondary_rays} secondary, "
+                f"{s.shadow_rays} shadow rays",
+        scene=scene, render=result.image, result=result, settings=asdict(settings),
+        sizes={"width": width, "height": height, "triangles": scene.triangle_count,
+               "lights": len(scene.lights)},
+        extra={"stats": s.as_dict(), "tile_rows": list(rows)})
 
 
 def camera_snapshot(context, resolution=None):
@@ -75,6 +95,9 @@ def tracer_settings(values: dict, scene, **fixed) -> TracerSettings:
 
 def start(context, values: dict, resolution=None) -> Steps[JobSummary]:
     scene = camera_snapshot(context, resolution)
+    if values.get("tile") is not None:
+        return (yield from trace_tile_job(scene, tracer_settings(values, scene), values["tile"],
+                                          resolution))
     return (yield from trace_job(scene, tracer_settings(values, scene), resolution))
 
 
@@ -88,7 +111,7 @@ RECORD = Technique(
     name="trace", label="Ray Tracing", help="Whitted ray tracing of the scene camera's view",
     options=TRACE_OPTIONS, settings=tracer_settings, start=start, cycles_model=cycles_model,
     ladder=(("--adaptive", "0"), ("--adaptive", "2"), ("--adaptive", "4"),
-            ("--supersample", "2", "--adaptive", "4")),
+            ("--supersample", "2", "--adaptive", "4")), tiles="rows",
     operator=OperatorSpec("classic_bake.trace", "Trace Camera View", "RENDER_STILL",
                           needs=("camera",), undo=False),
 )

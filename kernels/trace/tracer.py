@@ -592,10 +592,15 @@ class Tracer:
 def trace_steps(scene: Scene, settings: TracerSettings, bvh: BVH | None = None,
                 resolution: tuple[int, int] | None = None, out: np.ndarray | None = None,
                 environment: Mapping[int, EnvironmentLookup] | None = None,
-                diffuse: DiffuseLookup | None = None) -> Steps[TraceResult]:
+                diffuse: DiffuseLookup | None = None, rows: tuple[int, int] | None = None
+                ) -> Steps[TraceResult]:
     """Trace the scene camera's view; yields progress in [0, 1), returns the `TraceResult`.
 
     resolution: (W, H) pixels, default the camera's. out: optional (H, W, 3) float32 buffer.
+    rows: (a, b): only the image's rows a..b-1 (a tile of the view, jobs/tiles.py), each pixel
+    traced as the whole view traces it; the image holds those rows (b - a, W, 3) (and `out` is
+    that size). The edge pass compares pixels with their 4-neighbours, so the rows next to the
+    band are traced too (and counted in the stats).
     environment: object index -> radiance lookup(points, directions), each (N, 3); those
     objects' mirror reflections read it instead of tracing rays (`envmap.py`). diffuse: the
     diffuse light at every hit read from elsewhere (`DiffuseLookup`; kernels/hybrid/).
@@ -603,16 +608,23 @@ def trace_steps(scene: Scene, settings: TracerSettings, bvh: BVH | None = None,
     if scene.camera is None:
         raise ValueError("the scene has no camera to trace from")
     width, height = resolution or scene.camera.resolution
+    top, bottom = rows if rows is not None else (0, height)
+    if not 0 <= top < bottom <= height:
+        raise ValueError(f"rows {top}..{bottom} are not rows of a {height}-row image")
+    halo = 1 if rows is not None and settings.adaptive > 1 else 0
+    first_row, last_row = max(0, top - halo), min(height, bottom + halo)  # the rows traced
+    band = last_row - first_row
     bvh = bvh or BVH.build(scene.triangles)
     tracer = Tracer(scene, bvh, settings, environment, diffuse=diffuse)
-    image = out if out is not None else np.empty((height, width, 3), np.float32)
+    image = out if out is not None else np.empty((bottom - top, width, 3), np.float32)
     n = settings.supersample
     passes = n * n
     # --- pass 1: n x n stratified samples everywhere (1: the pixel centres) ----------------------
-    acc = np.zeros((height * width, 3))
-    flat, flat_k = np.zeros((height * width, 3)), np.empty((height * width, 3))
-    first_ids = np.empty(height * width, np.int64)
-    row, col = np.divmod(np.arange(height * width), width)
+    acc = np.zeros((band * width, 3))
+    flat, flat_k = np.zeros((band * width, 3)), np.empty((band * width, 3))
+    first_ids = np.empty(band * width, np.int64)
+    row, col = np.divmod(np.arange(band * width), width)
+    row += first_row
     # Each sample stands for a 1/n cell of its pixel; its textures are averaged over that cell.
     grid = max(1, settings.texture_filter // n)
     tracer.pass_name = "pixels"
@@ -620,11 +632,12 @@ def trace_steps(scene: Scene, settings: TracerSettings, bvh: BVH | None = None,
         tracer.clock.label = "camera"
         with tracer.clock("camera rays"):
             o, d = camera_rays(scene.camera, width, height, offsets=(ox, oy))
+            o, d = o[first_row:last_row], d[first_row:last_row]  # the whole view's floats
         footprint = None if settings.texture_filter == 1 else Footprint(
             scene.camera, width, height, col + ox, row + oy, 1.0 / n, grid)
         acc += tracer.radiance(o.reshape(-1, 3), d.reshape(-1, 3), first_ids if k == 0 else None,
                                footprint=footprint, untextured=flat_k,
-                               strata=(np.full(height * width, k), passes))
+                               strata=(np.full(band * width, k), passes))
         flat += flat_k
         yield 0.6 * (k + 1) / passes
     pixels = acc / passes
@@ -636,8 +649,9 @@ def trace_steps(scene: Scene, settings: TracerSettings, bvh: BVH | None = None,
         seen = flat / passes if settings.texture_filter > 1 else pixels
         tracer.clock.label = "camera"
         with tracer.clock("edge detection"):
-            mark = edge_pixels(seen.reshape(height, width, 3),
-                               first_ids.reshape(height, width)).ravel()
+            mark = edge_pixels(seen.reshape(band, width, 3),
+                               first_ids.reshape(band, width)).ravel()
+            mark &= (row >= top) & (row < bottom)  # the band's own rows
         tracer.stats.edge_pixels = int(mark.sum())
         if mark.any():
             sel = np.nonzero(mark)[0]
@@ -666,7 +680,7 @@ def trace_steps(scene: Scene, settings: TracerSettings, bvh: BVH | None = None,
                     strata=(stratum[first:last], len(grid)))
                 yield 0.6 + 0.4 * min(last, len(origins)) / len(origins)
             pixels[sel] = radiance.reshape(len(grid), len(sel), 3).mean(axis=0)
-    image[...] = pixels.reshape(height, width, 3)
+    image[...] = pixels.reshape(band, width, 3)[top - first_row:bottom - first_row]
     tracer.stats.phases = tracer.clock.as_dict()
     return TraceResult(image=image, stats=tracer.stats, settings=settings)
 

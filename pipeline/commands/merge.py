@@ -3,8 +3,12 @@ together into the outputs one untiled run writes into OUT: its images and EXR fi
 metrics.json whose seconds are the sums over the prepare step, the tiles and the merge (per phase,
 and `tiles` lists each part's). The tiles' folder (OUT/tiles/) stays, so a merge can run again.
 
-What a tile holds, by the technique's record (`Technique.tiles`): "lightmaps": its objects'
-finished lightmap files, copied as they are; render.exr and render.png come from the prepare step.
+What a tile holds, by the technique's record (`Technique.tiles`):
+
+* "lightmaps": its objects' finished lightmap files, copied as they are; render.exr and
+  render.png come from the prepare step;
+* "rows": render.exr of its rows (metrics.json `tile_rows`), stacked in order into render.exr and
+  render.png; the rays in `stats` are summed (an edge pass traces the rows next to a tile too).
 """
 
 from __future__ import annotations
@@ -13,6 +17,8 @@ import copy
 import json
 import shutil
 from pathlib import Path
+
+import numpy as np
 
 from ..command import Command, RunContext
 from ..outputs import Staging, UsageError
@@ -85,7 +91,10 @@ def merged_record(technique, prepare: dict | None, tiles: list[dict]) -> dict:
         skipped = [why for t in tiles for why in t.get("skipped", ())]
         if skipped:
             record["skipped"] = skipped
-    record.pop("lightmap_order", None)
+    elif technique.tiles == "rows" and "stats" in record:
+        record["stats"] = summed([t.get("stats", {}) for t in tiles])
+    for key in ("lightmap_order", "tile_rows"):
+        record.pop(key, None)
     record["seconds"] = {k: round(v, 6) for k, v in
                          summed([p.get("seconds", {}) for p in parts]).items()}
     record["tiles"] = {"count": len(tiles), "prepare": prepare is not None,
@@ -103,6 +112,29 @@ def part_outputs(folder: Path, record: dict) -> list[tuple[str, Path]]:
         if rel not in KEEP_IN_TILES and rel != RECORD:
             out.append((rel, folder / rel))
     return out
+
+
+def merge_rows(staging: Staging, out: Path, tiles: list[dict]) -> None:
+    """render.exr and render.png from the tiles' rows, in order."""
+    from ...jobs.tiles import TILE_FOLDER
+    from ...kernels.measure.exr import read_exr, write_exr
+    from ..images import write_preview_png
+
+    bands, end = [], 0
+    for record in tiles:
+        name = record["tile"]["name"]
+        a, b = record.get("tile_rows", (None, None))
+        band = read_exr(out / TILE_FOLDER / name / "render.exr")
+        if a != end or band.shape[0] != b - a:
+            raise UsageError(f"tile {name} does not hold the rows after the tile before it")
+        bands.append(band)
+        end = b
+    image = np.concatenate(bands, axis=0)
+    if image.shape[0] != tiles[0]["sizes"].get("height", image.shape[0]):
+        raise UsageError(f"the tiles hold {image.shape[0]} rows, not the view's "
+                         f"{tiles[0]['sizes']['height']}")
+    write_exr(staging.file("render.exr"), image)
+    write_preview_png(staging.file("render.png"), image)
 
 
 def add_arguments(parser) -> None:
@@ -130,11 +162,14 @@ def run(ctx: RunContext) -> None:
         with timer.phase("merge"):
             record = merged_record(technique, prepare, tiles)
             # In the order one run writes them: the prepare step's, then the lightmaps'.
-            rank = {f: k for k, f in enumerate(record.get("lightmap_files", {}).values())}
-            found = [pair for part in ([prepare] if prepare else []) + tiles
-                     for pair in part_outputs(out / TILE_FOLDER / part["tile"]["name"], part)]
-            for rel, source in sorted(found, key=lambda pair: rank.get(pair[0], -1)):
-                shutil.copyfile(source, staging.file(rel))
+            if technique.tiles == "rows":
+                merge_rows(staging, out, tiles)
+            else:
+                rank = {f: k for k, f in enumerate(record.get("lightmap_files", {}).values())}
+                found = [pair for part in ([prepare] if prepare else []) + tiles
+                         for pair in part_outputs(out / TILE_FOLDER / part["tile"]["name"], part)]
+                for rel, source in sorted(found, key=lambda pair: rank.get(pair[0], -1)):
+                    shutil.copyfile(source, staging.file(rel))
         own = timer.totals()
         record["seconds"]["merge"] = own["merge"]
         record["seconds"]["total"] = record["seconds"].get("total", 0.0) + own["total"]

@@ -1,6 +1,7 @@
 """A tiled bake equals the untiled one: `radiosity --tile prepare`, `--tile K/3` for K = 1..3 and
 `merge` write the same files as one run, bit for bit (each object's lightmap depends on its own
-texels only, and the tiles read the solve the prepare step saved); bad --tile values and an
+texels only, and the tiles read the solve the prepare step saved); so do `trace --tile K/N` (rows
+of the camera view, with and without the edge pass) and `merge`; bad --tile values and an
 incomplete set of tiles fail with one line (exit 2)."""
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from classic_bake.pipeline.cli import main
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENE = str(ROOT / "sample_blends" / "cornell_box.blend")
+MIRRORS = str(ROOT / "sample_blends" / "raytrace.blend")
 SMALL = ["--resolution", "24", "18", "--lightmap-size", "48", "--patches", "60", "--quiet"]
 # What differs between a tiled and an untiled run's metrics.json: the clock, and the tiles' own.
 TIMED = ("seconds", "tiles")
@@ -72,6 +74,26 @@ def test_tiled_radiosity_equals_one_run(tmp_path):
     assert np.array_equal(read_exr(tiled / lightmaps[0]), read_exr(one / lightmaps[0]))
 
 
+@pytest.mark.parametrize("options", [("--adaptive", "0"), ("--supersample", "2", "--adaptive", "4")])
+def test_tiled_trace_equals_one_run(tmp_path, options):
+    one, tiled = tmp_path / "one", tmp_path / "tiled"
+    size = ["--resolution", "31", "23", "--quiet", *options]  # 23 rows: tiles of 7, 8, 8
+    assert main(["trace", MIRRORS, "--out", str(one), *size]) == 0
+    for k in (2, 3, 1):
+        assert main(["trace", MIRRORS, "--out", str(tiled), *size, "--tile", f"{k}/3"]) == 0
+    assert main(["merge", str(tiled), "--quiet"]) == 0
+    a, b = read_exr(one / "render.exr"), read_exr(tiled / "render.exr")
+    assert a.shape == b.shape == (23, 31, 3) and np.array_equal(a, b)
+    assert (one / "render.png").read_bytes() == (tiled / "render.png").read_bytes()
+    single = json.loads((one / "metrics.json").read_text())
+    merged = json.loads((tiled / "metrics.json").read_text())
+    for key in ("technique", "settings", "sizes", "outputs"):
+        assert merged[key] == single[key], key
+    # Each pixel traced once for its tile (and the rows beside a tile again for the edge pass).
+    rays = merged["stats"]["camera_rays"] - single["stats"]["camera_rays"]
+    assert rays == 0 if options[1] == "0" else 0 <= rays <= 4 * 31 * 4 * 2
+
+
 @pytest.mark.parametrize("value, says", [
     ("0/3", "K must be in [1, 3]"), ("4/3", "K must be in [1, 3]"), ("1/0", "N must be in"),
     ("two", "--tile must be K/N"), ("1/2/3", "--tile must be K/N"), ("-1/2", "expected one argument"),
@@ -90,9 +112,15 @@ def test_tile_refusals_are_one_line(tmp_path, capsys):
     assert "run --tile prepare into the same --out first" in capsys.readouterr().err
     assert radiosity(out, "--tile", "1/2", "--save-blend") == 2
     assert "leave out --save-blend" in capsys.readouterr().err
-    # Techniques that cannot tile have no --tile.
-    assert main(["trace", SCENE, "--out", str(out), "--tile", "1/2", "--quiet"]) == 2
+    # Techniques that cannot tile have no --tile; trace's tiles need no prepare step and no more
+    # tiles than rows.
+    assert main(["shadowmap", SCENE, "--out", str(out), "--tile", "1/2", "--quiet"]) == 2
     assert "unrecognized arguments: --tile" in capsys.readouterr().err
+    trace = ["trace", SCENE, "--out", str(tmp_path / "trace"), "--resolution", "8", "6", "--quiet"]
+    assert main([*trace, "--tile", "prepare"]) == 2
+    assert "its tiles need no prepare step" in capsys.readouterr().err
+    assert main([*trace, "--tile", "7/7"]) == 2
+    assert "more tiles than the view's 6 rows" in capsys.readouterr().err
     # merge: nothing to merge; then a tile missing.
     assert main(["merge", str(out), "--quiet"]) == 2
     assert "no tiles in" in capsys.readouterr().err
