@@ -3,8 +3,8 @@
 The frames a tangent-space normal map is read in (Blender's Normal Map node, Cycles, EEVEE) and
 made in (a bake): `kernels/normalmap/mikktspace.py` computes them as `Mesh.calc_tangents` does,
 from the mesh's positions, corner normals and a UV layer. `calc_tangents` refuses faces of more
-than four corners; here such a face is split into its loop triangles first (what Blender's bake
-and render do with it internally), the rest of the mesh is taken as it is.
+than four corners; here such a face is split into its loop triangles first (Blender's own
+triangulation of it), the rest of the mesh is taken as it is.
 
 World space: a tangent is a direction along the surface, so it moves with the object's linear
 map and is normalised again (object-space frames are unit; their interpolation is what the
