@@ -13,9 +13,10 @@ import hashlib
 
 import bpy
 
-# Structs inside a node (a ColorRamp's elements, a curve's points) are followed this deep;
-# deeper structs are not part of what a shader node reads.
-MAX_STRUCT_DEPTH = 4
+# Structs and collections inside a node are followed this deep: a curve's point sits at depth 4
+# (mapping > curves > curve > points > point), a ColorRamp's element at 2; nothing a shader node
+# reads lies deeper.
+MAX_STRUCT_DEPTH = 6
 # Node properties that only the editor shows; the rest of a node's properties are its own.
 EDITOR_ONLY = frozenset({
     "rna_type", "name", "label", "location", "location_absolute", "width", "height",

@@ -280,3 +280,28 @@ def test_a_noise_emission_strength_bakes_the_radiance():
     assert masks["Plane"].all() and theirs.max() > 0.3
     assert np.mean(err > TOLERANCE) <= 0.001 and err.mean() < TOLERANCE / 4, (
         err.max(), err.mean(), np.mean(err > TOLERANCE))
+
+
+def test_the_cache_key_follows_what_cycles_shades_with():
+    """The node tree's digest changes with a ColorRamp stop, a curve point, a default value or a
+    link, and not with where a node sits in the editor."""
+    from classic_bake.addon.bridge.tree_digest import tree_digest
+
+    mat = _plane()
+    tree = mat.node_tree
+    bsdf = next(n for n in tree.nodes if n.type == "BSDF_PRINCIPLED")
+    ramp = tree.nodes.new("ShaderNodeValToRGB")
+    curve = tree.nodes.new("ShaderNodeRGBCurve")
+    tree.links.new(ramp.outputs["Color"], curve.inputs["Color"])
+    digests = [tree_digest(tree)]
+    ramp.color_ramp.elements[1].position = 0.6
+    digests.append(tree_digest(tree))
+    curve.mapping.curves[3].points[0].location = (0.0, 0.2)
+    digests.append(tree_digest(tree))
+    bsdf.inputs["Roughness"].default_value = 0.25
+    digests.append(tree_digest(tree))
+    tree.links.new(curve.outputs["Color"], bsdf.inputs["Base Color"])
+    digests.append(tree_digest(tree))
+    assert len(set(digests)) == len(digests)
+    ramp.location = (-400.0, 300.0)
+    assert tree_digest(tree) == digests[-1]
