@@ -6,8 +6,10 @@ arrays (`bvh_build.py`); rays walk it in a lockstep pool, each with its own stac
 worker threads that share a query, and shaft culling (`BVH.convex_clear`).
 
 Threads: each worker thread runs its own pool on batches taken from the queue (NumPy releases the
-GIL inside its loops); a call takes one thread per THREAD_RAYS rays, up to one per core. A ray's
-answer does not depend on the batching or the thread count.
+GIL inside its loops); a call takes one thread per THREAD_RAYS rays, up to one per core, and with
+the automatic thread count (`threads` 0) one thread instead when that has been faster lately on
+this machine (`thread_choice.py`: under another process's load, threads lose). A ray's answer does
+not depend on the batching or the thread count.
 
 Exactness: the answer equals `intersect.intersect_all` bit for bit (same triangle, same t, u, v);
 see the module docstring of `intersect.py` for why no node holding the closest hit is culled.
@@ -33,6 +35,7 @@ from ..progress import Steps, drain
 from .bvh_build import NONE, WideTree, build_tables
 from .bvh_traversal import BruteForce, Pool, RayQueue, unpack
 from .intersect import INT32_MAX, Hits, PreparedTriangles, prepare_triangles, ray_limits
+from .thread_choice import CHOICE
 from .threads import core_count
 
 QUERY_BYTES_PER_SLOT = 810  # a pool slot's stack, state and one step's temporaries (tracemalloc)
@@ -144,6 +147,12 @@ class BVH:
             return
         settings = self.settings
         threads = max(1, min(settings.thread_count, -(-count // THREAD_RAYS)))
+        # Automatic thread count: one thread or several, whichever has been faster lately on
+        # this machine under its current load (`thread_choice.py`).
+        measured = threads > 1 and settings.threads == 0
+        if measured and not CHOICE.threaded():
+            threads = 1
+        began = time.perf_counter()
         pool_size = min(settings.chunk_size, -(-count // threads))
         if skip is not None:
             skip = np.asarray(skip, np.int64)
@@ -168,6 +177,8 @@ class BVH:
                 if now - last > PROGRESS_SECONDS:
                     last = now
                     yield queue.answered / count
+            if measured:
+                CHOICE.record(False, count, time.perf_counter() - began)
             yield 1.0
             return
         with ThreadPoolExecutor(threads) as executor:
@@ -179,6 +190,7 @@ class BVH:
                 queue.cancelled = True  # a generator closed early stops its workers
             for future in futures:
                 future.result()
+        CHOICE.record(True, count, time.perf_counter() - began)
         yield 1.0
 
     def intersect_steps(
