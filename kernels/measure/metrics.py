@@ -101,8 +101,8 @@ class MetricSettings:
     flip_tonemapper: str = "ACES"
 
     def __post_init__(self) -> None:
-        if not self.rel_mse_eps > 0.0:
-            raise ValueError(f"rel_mse_eps must be > 0, got {self.rel_mse_eps}")
+        if not (math.isfinite(self.rel_mse_eps) and self.rel_mse_eps > 0.0):  # inf: every error 0
+            raise ValueError(f"rel_mse_eps must be a finite value > 0, got {self.rel_mse_eps}")
         peak = self.psnr_peak
         if peak is not None and not (math.isfinite(peak) and peak > 0):
             raise ValueError(f"psnr_peak must be a finite value > 0 or None, got {self.psnr_peak}")
@@ -224,8 +224,8 @@ def mae(test: Any, reference: Any, mask: Any = None) -> float:
 
 def rel_mse(test: Any, reference: Any, mask: Any = None, eps: float = REL_MSE_EPS) -> float:
     """Relative MSE: mean over valid pixels and channels of (t - r)^2 / (r^2 + eps)."""
-    if not eps > 0.0:
-        raise ValueError(f"eps must be > 0, got {eps}")
+    if not (math.isfinite(eps) and eps > 0.0):
+        raise ValueError(f"eps must be a finite value > 0, got {eps}")
     t, r = _valid_values(test, reference, mask)
     return float(np.mean((t - r) ** 2 / (r * r + eps)))
 
@@ -393,8 +393,8 @@ def relative_squared_error_image(
 
     Its mean over the valid pixels equals `rel_mse`. `out`: optional caller-owned (H, W) float32.
     """
-    if not eps > 0.0:
-        raise ValueError(f"eps must be > 0, got {eps}")
+    if not (math.isfinite(eps) and eps > 0.0):
+        raise ValueError(f"eps must be a finite value > 0, got {eps}")
     t, r, valid = _prepare(test, reference, mask)
     if out is None:
         out = np.zeros(valid.shape, dtype=np.float32)

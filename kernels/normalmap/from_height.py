@@ -21,6 +21,7 @@ Texel (i, j) of the (size x size) map sits at u = (j + 0.5) / size, v = 1 - (i +
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -65,6 +66,8 @@ class NormalMapSettings:
             raise ValueError(f"green must be one of {GREEN_CONVENTIONS}, not {self.green!r}")
         if self.size < 0 or self.strength < 0 or self.padding < 0:
             raise ValueError("size, strength and padding must not be negative")
+        if not math.isfinite(self.strength):  # nan slipped past the test above: nan normals
+            raise ValueError(f"strength must be finite, got {self.strength}")
 
 
 @dataclass(frozen=True)
