@@ -6,6 +6,7 @@ Every texel of a lightmap belongs to at most one chart: charts are packed `paddi
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -37,6 +38,8 @@ class LightmapUVSettings:
             raise ValueError(f"lightmap resolution must be in [16, 16384], got {self.resolution}")
         if not 0 <= self.padding <= 64:
             raise ValueError(f"lightmap padding must be in [0, 64] texels, got {self.padding}")
+        if not (math.isfinite(self.max_chart_area) and self.max_chart_area >= 0.0):
+            raise ValueError(f"max_chart_area must be finite and >= 0, got {self.max_chart_area}")
 
 
 @dataclass(frozen=True)

@@ -4,7 +4,7 @@ gather (`FinalGatherSettings`, `gather_settings`)."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Literal
 
 from ..shading.world_light import WORLD_RAYS
@@ -155,6 +155,10 @@ class RadiositySettings:
             raise ValueError(f"max_shots must be >= 0, got {self.max_shots}")
         if self.hemicube_resolution < 2 or self.hemicube_resolution % 2:
             raise ValueError("hemicube_resolution must be even and >= 2")
+        for f in fields(self):  # nan passes every comparison above (a nan patch size: no patches)
+            value = getattr(self, f.name)
+            if isinstance(value, float) and not math.isfinite(value):
+                raise ValueError(f"{f.name} must be finite, got {value}")
 
 
 @dataclass(frozen=True)

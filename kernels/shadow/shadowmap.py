@@ -18,6 +18,7 @@ failure measures (acne, peter-panning) `measures.py`.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Literal
 
@@ -69,8 +70,10 @@ class ShadowMapSettings:
             raise ValueError(f"resolution {self.resolution} outside [8, 16384]")
         if self.eps_mode not in ("fixed", "auto"):
             raise ValueError(f"eps_mode must be 'fixed' or 'auto', got {self.eps_mode!r}")
-        if min(self.eps, self.slope_bias, self.normal_offset) < 0.0:
-            raise ValueError("eps, slope_bias and normal_offset must be >= 0")
+        biases = (self.eps, self.slope_bias, self.normal_offset)
+        if not all(math.isfinite(b) and b >= 0.0 for b in biases):  # nan passed a "< 0" test
+            raise ValueError(f"eps, slope_bias and normal_offset must be finite and >= 0, got "
+                             f"{biases}")
         if self.pcf_size < 1 or self.pcf_size % 2 == 0 or self.pcf_size > 15:
             raise ValueError(f"pcf_size must be odd in [1, 15], got {self.pcf_size}")
         if self.threads < 0:

@@ -59,6 +59,8 @@ def mesh_light_samples(scene: Scene, tri_ids: np.ndarray, n: int
         return (pts, np.repeat(ng, k, axis=0), np.repeat(radiance * (area / k)[:, None], k, axis=0),
                 np.tile(np.arange(k), len(tri_ids)), k)
     total = MESH_LIGHT_TRIANGLES * n * n
+    if not area.sum() > 0.0:  # every triangle degenerate: nothing emits (and no nan CDF)
+        return np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0, np.int64), total
     cdf = np.cumsum(area) / area.sum()
     position = (np.arange(total) + 0.5) / total
     t = np.minimum(np.searchsorted(cdf, position, side="right"), len(area) - 1)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -76,6 +77,14 @@ class TracerSettings:
             raise ValueError(f"texture_filter must be in [1, 16], got {self.texture_filter}")
         if self.offset_scale < 0 or self.min_weight < 0:
             raise ValueError("offset_scale and min_weight must be >= 0")
+        floats = {"min_weight": self.min_weight, "offset_scale": self.offset_scale,
+                  "point_like_ratio": self.point_like_ratio,
+                  "mirror_roughness": self.mirror_roughness}
+        for name, value in floats.items():  # nan passes every comparison above
+            if not (math.isfinite(value) and value >= 0.0):
+                raise ValueError(f"{name} must be finite and >= 0, got {value}")
+        if self.min_weight > 1.0 or self.mirror_roughness > 1.0:
+            raise ValueError("min_weight and mirror_roughness must be in [0, 1]")
 
 
 def auto_settings(scene: Scene, **overrides) -> TracerSettings:

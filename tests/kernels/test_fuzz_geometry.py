@@ -6,6 +6,7 @@ documents say so, and only ValueErrors with a message."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from fuzz_inputs import all_finite, cameras, documented_error, fuzz, meshes, rays
 from hypothesis import given
 from hypothesis import strategies as st
@@ -20,6 +21,9 @@ from classic_bake.kernels.progress import drain
 ONE_THREAD = BVHSettings(threads=1, brute_force_below=0)
 # Non-finite corners the snapshot could meet (the bridge refuses them, the kernels must not hang).
 POISON = st.sampled_from([np.nan, np.inf, -np.inf])
+
+# A NumPy RuntimeWarning (a division by zero, nan met) is where a nan would come from: fail on it.
+pytestmark = pytest.mark.filterwarnings("error")
 
 
 @fuzz

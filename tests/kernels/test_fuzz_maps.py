@@ -25,6 +25,9 @@ from classic_bake.kernels.shading.textures import sample_texture
 radiance = st.floats(0.0, 100.0, width=32)
 uv_value = st.one_of(st.floats(-1e6, 1e6), st.floats(-2.0, 2.0))
 
+# A NumPy RuntimeWarning (a division by zero, nan met) is where a nan would come from: fail on it.
+pytestmark = pytest.mark.filterwarnings("error")
+
 
 def images(max_side: int = 6, channels: int = 4):
     return hnp.arrays(np.float32, st.tuples(st.integers(1, max_side), st.integers(1, max_side),
