@@ -305,3 +305,27 @@ def test_the_cache_key_follows_what_cycles_shades_with():
     assert len(set(digests)) == len(digests)
     ramp.location = (-400.0, 300.0)
     assert tree_digest(tree) == digests[-1]
+
+
+def test_a_colour_attribute_base_colour_is_read_as_cycles_bakes_it():
+    """A Color Attribute node (per-corner colours, blended across the face) into Base Color:
+    the reader has no per-vertex colours, so the bake reads it; the kernels' texels equal an
+    independent Cycles bake of the attribute within 1%."""
+    mat = _plane()
+    mesh = bpy.data.objects["Plane"].data
+    colours = mesh.color_attributes.new("Paint", "FLOAT_COLOR", "CORNER")
+    colours.data.foreach_set("color", [1.0, 0.1, 0.1, 1.0, 0.1, 1.0, 0.1, 1.0,
+                                       0.1, 0.1, 1.0, 1.0, 0.9, 0.9, 0.2, 1.0])
+    tree = mat.node_tree
+    bsdf = next(n for n in tree.nodes if n.type == "BSDF_PRINCIPLED")
+    attr = tree.nodes.new("ShaderNodeVertexColor")
+    attr.layer_name = "Paint"
+    tree.links.new(attr.outputs["Color"], bsdf.inputs["Base Color"])
+    scene = bridge.snapshot()
+    material = scene.materials[1]
+    assert [e["socket"] for e in material.fallbacks] == ["Base Color"]
+    ours = sample_texture(material.base_color_texture, _texel_centres()).reshape(SIZE, SIZE, 3)
+    theirs, mask = _reference(tree, bsdf, attr.outputs["Color"])
+    err = np.abs(ours - theirs).max(axis=2)[mask] / theirs.max()
+    assert mask.all() and theirs.max() > 0.5
+    assert err.max() <= TOLERANCE, err.max()
