@@ -13,7 +13,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .tangents import loop_triangle_tangents, normal_map_layer, world_tangents
+from .tangents import (
+    loop_triangle_tangents,
+    normal_map_layer,
+    normal_texture_layer,
+    world_tangents,
+)
 from .transforms import matrix_array
 
 # An object whose triangles together cover no more than this is skipped as having no area (scale
@@ -47,6 +52,9 @@ class MeshChunk:
     # MikkTSpace frames on the UV layer the materials' Normal Map nodes read (None: no node).
     tangents: np.ndarray | None = None  # (T, 3, 3) float32, world, unit
     tangent_signs: np.ndarray | None = None  # (T, 3) float32, +1 or -1: b = sign (n x t)
+    # UVs the normal-map image is looked up on where that is not the active render layer (a UV
+    # Map node into its Image Texture naming another layer); None: `uv`.
+    normal_map_uv: np.ndarray | None = None  # (T, 3, 2) float32
 
 
 def mesh_triangles(mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -190,6 +198,10 @@ def mesh_chunk(
         frames = loop_triangle_tangents(mesh, mesh_positions(mesh), mesh_corner_normals(mesh),
                                         mesh_uv(mesh, layer), loop_triangles, polys)
         tangents, signs = world_tangents(frames[0][:, order], frames[1][:, order], matrix)
+    normal_map_uv = None
+    texture_layer = normal_texture_layer(slot_materials, mesh) if layer is not None else None
+    if texture_layer is not None and not mesh.uv_layers[texture_layer].active_render:
+        normal_map_uv = mesh_uv(mesh, texture_layer)[corner_loops]
     lightmap_uv = None
     if request.lightmap_uv:
         loop_uv = mesh_uv(mesh, request.lightmap_uv)
@@ -215,6 +227,7 @@ def mesh_chunk(
         topology_matches_original=matches,
         tangents=tangents,
         tangent_signs=signs,
+        normal_map_uv=normal_map_uv,
     )
 
 

@@ -195,6 +195,11 @@ def _assemble(chunks, materials, lights, camera, world, request, ignored) -> Sce
                          if any(c.tangents is not None for c in chunks) else None),
         corner_signs=(stack("tangent_signs", (3,), np.float32)
                       if any(c.tangents is not None for c in chunks) else None),
+        normal_map_uv=(np.concatenate([
+            c.normal_map_uv if c.normal_map_uv is not None
+            else c.uv if c.uv is not None else np.zeros((n, 3, 2), np.float32)
+            for c, n in zip(chunks, counts, strict=True)]).astype(np.float32)
+            if any(c.normal_map_uv is not None for c in chunks) else None),
         normal_map_unit_normal=bpy.app.version >= UNIT_NORMAL_MAP_VERSION,
         material_ids=stack("slot_ids", (), np.int32),
         object_ids=np.repeat(np.arange(len(chunks), dtype=np.int32), counts),

@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...kernels.normalmap.mikktspace import mikktspace_tangents
+from .nodes import follow
 
 # Faces with more corners than this are split into their loop triangles (MikkTSpace's limit).
 MIKKTSPACE_MAX_CORNERS = 4
@@ -71,17 +72,48 @@ def world_tangents(tangents: np.ndarray, signs: np.ndarray, matrix: np.ndarray
     return t.astype(np.float32), (np.asarray(signs, np.float32) * mirror).astype(np.float32)
 
 
-def normal_map_layer(materials, mesh) -> str | None:
-    """The UV layer the first tangent-space Normal Map node of `materials` (Blender materials,
-    None for empty slots) reads on `mesh`: its UV Map, or the active render layer when that is
-    empty or not on the mesh. None: no material has such a node, or the mesh no UV layer."""
+def _tangent_normal_maps(materials):
+    """The tangent-space Normal Map nodes of `materials` (Blender materials, None for empty
+    slots), in slot and node order."""
     for mat in materials:
         tree = getattr(mat, "node_tree", None)
         if tree is None:
             continue
         for node in tree.nodes:
             if node.type == "NORMAL_MAP" and node.space == "TANGENT":
-                if node.uv_map and mesh.uv_layers.get(node.uv_map) is not None:
-                    return node.uv_map
-                return next((lay.name for lay in mesh.uv_layers if lay.active_render), None)
+                yield node
+
+
+def _render_layer(mesh) -> str | None:
+    return next((lay.name for lay in mesh.uv_layers if lay.active_render), None)
+
+
+def normal_texture_layer(materials, mesh) -> str | None:
+    """The UV layer the image feeding the first tangent-space Normal Map node of `materials` is
+    looked up on, on `mesh`: the layer a UV Map node into the Image Texture's Vector names
+    (through a Mapping node too), else the active render layer (an unlinked Vector, a UV Map node
+    naming no layer or one the mesh lacks: Blender's default UVs). None: no such node, or the
+    mesh has no UV layer."""
+    for node in _tangent_normal_maps(materials):
+        texture, _ = follow(node.inputs["Color"])
+        vector = None
+        if texture is not None and texture.type == "TEX_IMAGE":
+            vector, _ = follow(texture.inputs["Vector"])
+            if vector is not None and vector.type == "MAPPING":
+                vector, _ = follow(vector.inputs["Vector"])
+        if (vector is not None and vector.type == "UVMAP" and vector.uv_map
+                and mesh.uv_layers.get(vector.uv_map) is not None):
+            return vector.uv_map
+        return _render_layer(mesh)
+    return None
+
+
+def normal_map_layer(materials, mesh) -> str | None:
+    """The UV layer the first tangent-space Normal Map node of `materials` (Blender materials,
+    None for empty slots) reads on `mesh`: its UV Map, or the active render layer when that is
+    empty or not on the mesh. None: no material has such a node, or the mesh no UV layer."""
+    for node in _tangent_normal_maps(materials):
+        if node.uv_map and mesh.uv_layers.get(node.uv_map) is not None:
+            return node.uv_map
+        return _render_layer(mesh)
     return None

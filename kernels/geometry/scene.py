@@ -284,6 +284,10 @@ class Scene:
     # (b = sign (n x t)); None: no object has one.
     corner_tangents: np.ndarray | None = None
     corner_signs: np.ndarray | None = None
+    # (T, 3, 2) float32 UVs per corner that normal-map textures are looked up on (the layer a
+    # UV Map node into the Image Texture names, where that is not the active render layer;
+    # elsewhere equal to `uv`); None: `uv`.
+    normal_map_uv: np.ndarray | None = None
     # Whether the Normal Map node builds its frame on the interpolated normal made unit (Cycles
     # in Blender 5.2) or as interpolated (4.5); the bridge sets it from Blender's version.
     normal_map_unit_normal: bool = True

@@ -17,8 +17,9 @@ The node's Strength blends the result with the unperturbed normal as Cycles does
 
 Tangents. A normal map is read in the frames Blender reads it in wherever the snapshot has them
 (`Scene.corner_tangents`, the bridge's MikkTSpace frames per corner on the Normal Map node's UV
-layer): t and the normal interpolated from the triangle's corners (t not normalised, n made
-unit in Blender 5.2, as interpolated in 4.5), b = sign (n x t), n* = normalize(x t + y b + z n)
+layer; the image is looked up on the layer its Image Texture reads, `Scene.normal_map_uv`): t
+and the normal interpolated from the triangle's corners (t not normalised, n made unit in
+Blender 5.2, as interpolated in 4.5), b = sign (n x t), n* = normalize(x t + y b + z n)
 (`mikktspace_normal_mapped`), as Cycles' Normal Map node does, so a map made by this project,
 by Blender or by another MikkTSpace baker shades as in Cycles. Heights (the Bump node), and
 normal maps on objects without frames, take the lecture's per-triangle frame: dp/du and dp/dv
@@ -285,10 +286,18 @@ def scene_normals(scene: Scene, tri: np.ndarray, bary: np.ndarray, n: np.ndarray
         if material.normal_texture is not None and scene.corner_tangents is not None:
             framed = _mikktspace_rows(scene, tri, bary, rows, material, n, out)
             rows = rows[~framed]  # objects without frames: the triangles' own, below
-        corner_uvs = scene.uv[tri[rows]].astype(np.float64)
+        corner_uvs = _relief_uv(scene, material)[tri[rows]].astype(np.float64)
         uv = np.einsum("nk,nkc->nc", bary[rows], corner_uvs)
         out[rows] = perturb(material, n[rows], scene.triangles[tri[rows]], corner_uvs, uv)
     return out
+
+
+def _relief_uv(scene: Scene, material: Material) -> np.ndarray:
+    """(T, 3, 2) corner UVs `material`'s relief texture is read on: a normal map's own layer
+    (`Scene.normal_map_uv`), else the active render layer's (`Scene.uv`)."""
+    if material.normal_texture is not None and scene.normal_map_uv is not None:
+        return scene.normal_map_uv
+    return scene.uv
 
 
 def _mikktspace_rows(scene: Scene, tri: np.ndarray, bary: np.ndarray, rows: np.ndarray,
@@ -303,7 +312,7 @@ def _mikktspace_rows(scene: Scene, tri: np.ndarray, bary: np.ndarray, rows: np.n
     weights, corners, done = weights[framed], corners[framed], rows[framed]
     smooth = np.einsum("nk,nkc->nc", weights, scene.normals[corners].astype(np.float64))
     signs = np.einsum("nk,nk->n", weights, scene.corner_signs[corners].astype(np.float64))
-    uv = np.einsum("nk,nkc->nc", weights, scene.uv[corners].astype(np.float64))
+    uv = np.einsum("nk,nkc->nc", weights, _relief_uv(scene, material)[corners].astype(np.float64))
     rgb = sample_texture(material.normal_texture, uv)
     out[done] = mikktspace_normal_mapped(n[done], smooth, tangents[framed], signs, rgb,
                                          material.bump_strength, scene.normal_map_unit_normal)
