@@ -12,13 +12,12 @@ import bpy
 import numpy as np
 import pytest
 
-from classic_bake.addon import bridge
 from classic_bake.jobs.normalmap import RECORD
 from classic_bake.kernels.measure.exr import read_exr
 from classic_bake.kernels.progress import drain
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from support.blender_parts import principled  # noqa: E402
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "support"))
+from normalmap_pairs import cycles_normal_bake, low_and_high  # noqa: E402
 
 SIZE = 64
 CAGE_M = 0.1  # the cage extrusion both bakes use
@@ -41,51 +40,9 @@ def values(**overrides) -> dict:
     return {**{o.name: o.default for o in RECORD.all_options()}, **overrides}
 
 
-def low_and_high(kind: str):
-    """(low, high): a low-poly mesh with its UV map and a material, and a detailed version of
-    it (a copy with a Subdivision Surface, smooth shaded)."""
-    if kind == "cube":
-        bpy.ops.mesh.primitive_cube_add(size=2.0)
-    else:
-        bpy.ops.mesh.primitive_cylinder_add(vertices=12, radius=1.0, depth=2.0,
-                                            end_fill_type="TRIFAN")
-        bpy.ops.object.shade_smooth()
-    low = bpy.context.object
-    low.name = "Low"
-    mat, _ = principled("Low")
-    low.data.materials.append(mat)
-    high = low.copy()
-    high.data = low.data.copy()
-    high.name = "High"
-    bpy.context.scene.collection.objects.link(high)
-    modifier = high.modifiers.new("Subdivision", "SUBSURF")
-    modifier.levels = modifier.render_levels = 3
-    for poly in high.data.polygons:
-        poly.use_smooth = True
-    return low, high
-
-
 def cycles_bake(low, high) -> np.ndarray:
     """Cycles' tangent-space NORMAL bake of `high` into `low`'s UV map: (SIZE, SIZE, 4)."""
-    scene = bpy.context.scene
-    scene.render.engine = "CYCLES"
-    scene.cycles.device, scene.cycles.samples = "CPU", 1
-    image = bpy.data.images.new("Cycles", SIZE, SIZE, alpha=True, float_buffer=True)
-    image.colorspace_settings.name = "Non-Color"
-    image.pixels.foreach_set(np.zeros(SIZE * SIZE * 4, np.float32))  # alpha 0: not baked
-    tree = low.active_material.node_tree
-    node = tree.nodes.new("ShaderNodeTexImage")
-    node.image = image
-    tree.nodes.active = node
-    for obj in scene.objects:
-        obj.select_set(obj in (low, high))
-    bpy.context.view_layer.objects.active = low
-    assert bpy.ops.object.bake(
-        type="NORMAL", normal_space="TANGENT", normal_r="POS_X", normal_g="POS_Y",
-        normal_b="POS_Z", margin=0, use_selected_to_active=True, cage_extrusion=CAGE_M,
-        max_ray_distance=MAX_RAY_M, target="IMAGE_TEXTURES") == {"FINISHED"}
-    tree.nodes.remove(node)
-    return bridge.image_pixels(image)
+    return cycles_normal_bake(low, high, SIZE, CAGE_M, MAX_RAY_M)[0]
 
 
 def angles(a: np.ndarray, b: np.ndarray) -> np.ndarray:
