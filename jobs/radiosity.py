@@ -10,7 +10,7 @@ from pathlib import Path
 from ..addon.bridge.request import SnapshotRequest
 from ..addon.bridge.snapshot import snapshot
 from ..kernels.progress import Steps, scaled
-from ..kernels.radiosity.lightmap import bake_steps
+from ..kernels.radiosity.lightmap import bake_steps, gather_groups
 from ..kernels.radiosity.settings import RadiositySettings
 from ..kernels.radiosity.solve import radiosity_steps
 from ..kernels.radiosity.view import render_steps
@@ -100,8 +100,9 @@ def radiosity_tile_job(context, settings: RadiositySettings, uv_name: str, uv_se
                        out: Path, resolution=None) -> Steps[JobSummary]:
     """A part of `radiosity_bake_job` (jobs/tiles.py). `--tile prepare` solves, saves the
     solution into OUT/tiles/prepare/ and renders the camera's view; tile K of N reads that solution
-    and bakes the lightmaps of its share of the objects (by texel count), each exactly as the
-    whole bake does (`kernels/radiosity/lightmap.py`). Nothing is written into Blender."""
+    and bakes the lightmaps of its share of the objects: of the runs of objects the bake gathers
+    together (`gather_groups`), by texel count, so each comes out exactly as the whole bake gives
+    it (`kernels/radiosity/lightmap.py`). Nothing is written into Blender."""
     with lightmap_uvs(context, uv_name, uv_settings) as plan:
         scene = snapshot(context, SnapshotRequest(lightmap_uv=uv_name, textures=True),
                          resolution=resolution)
@@ -117,10 +118,13 @@ def radiosity_tile_job(context, settings: RadiositySettings, uv_name: str, uv_se
             image = None
             with_map = [k for k in targets
                         if scene.lightmap_uv is not None and scene.objects[k].has_lightmap_uv]
-            weights = [(sizes[k] ** 2 if k in with_map else 0) + len(scene.triangles) / 64.0
-                       for k in targets]
-            mine = [targets[i] for i in share(weights, tile)]
-            bakes = yield from bake_steps(scene, result, mine, sizes, uv_settings.padding)
+            groups = gather_groups(scene, targets, sizes)
+            weights = [sum((sizes[k] ** 2 if k in with_map else 0)
+                           + 3 * scene.objects[k].tri_count for k in run) for run in groups]
+            runs = [groups[i] for i in share(weights, tile)]
+            mine = [k for k in targets if any(k in run for run in runs)]
+            bakes = yield from bake_steps(scene, result, mine, sizes, uv_settings.padding,
+                                          groups=runs)
     summary = JobSummary(message="", scene=scene, render=image)
     for k, bake in bakes.items():
         if bake.lightmap is not None:

@@ -38,9 +38,27 @@ class ObjectRadiosityBake:
     filtered_texels: int = 0  # lightmap texels averaged over sub-texel points (edges)
 
 
+def gather_groups(scene: Scene, objects, lightmap_sizes: dict) -> list[list[int]]:
+    """`objects` (indices into scene.objects) in runs whose points the bake's gather evaluates
+    together (`bake_steps`): consecutive objects while their estimated points (lightmap texels
+    and corners) stay within `final_gather.GATHER_CHUNK`; a larger object is a run of its own.
+    Made from the geometry alone, so a share of the runs (a tile) is baked as the whole bake
+    bakes it."""
+    groups, points = [], 0
+    for k in objects:
+        size = lightmap_sizes.get(k, 0) if scene.objects[k].has_lightmap_uv else 0
+        need = size * size + 3 * scene.objects[k].tri_count
+        if not groups or points + need > final_gather.GATHER_CHUNK:
+            groups.append([])
+            points = 0
+        groups[-1].append(k)
+        points += need
+    return groups
+
+
 def bake_steps(scene: Scene, result: RadiosityResult, objects, lightmap_sizes: dict, padding: int,
-               texel_filter: TexelFilterSettings = TexelFilterSettings()  # noqa: B008
-               ) -> Steps[dict[int, ObjectRadiosityBake]]:
+               texel_filter: TexelFilterSettings = TexelFilterSettings(),  # noqa: B008
+               groups: list[list[int]] | None = None) -> Steps[dict[int, ObjectRadiosityBake]]:
     """Radiance B / pi of `objects` (indices into scene.objects) on their lightmap texels (when
     the scene carries lightmap UVs; sizes {object index: texels per side}), box-filtered over the
     texels an edge crosses as Cycles' bake filters them (`bake_targets.box_filter`), and at their
@@ -51,7 +69,13 @@ def bake_steps(scene: Scene, result: RadiosityResult, objects, lightmap_sizes: d
     texels' sub-texel points. The later passes reuse what the earlier ones' rays found around a
     point (`final_gather.Visibility`: 10-12% of the bake's seconds on the Cornell box). The
     gather's shadow rays reach the BVH in large batches, and a BVH call costs ~2 ms besides its
-    rays (0.6 M rays/s in calls of 2k rays, 1.0 M at 128k on the Cornell box)."""
+    rays (0.6 M rays/s in calls of 2k rays, 1.0 M at 128k on the Cornell box).
+
+    groups: the objects in runs whose points are evaluated together (default `gather_groups`);
+    an object's values depend on its run's points only, so a bake of some of the runs (a tile,
+    jobs/radiosity.py) gives their objects exactly what the bake of all of them gives."""
+    group = {k: g for g, run in enumerate(groups or gather_groups(scene, objects, lightmap_sizes))
+             for k in run}
     lightmaps = {k: lightmap_targets(scene, k, lightmap_sizes[k]) for k in objects
                  if scene.lightmap_uv is not None and scene.objects[k].has_lightmap_uv}
     corners = {k: corner_targets(scene, k) for k in objects}
@@ -64,7 +88,8 @@ def bake_steps(scene: Scene, result: RadiosityResult, objects, lightmap_sizes: d
     parts = [(lightmaps[k].triangles[first_of(k)], lightmaps[k].bary[first_of(k)])
              for k in lightmaps]
     values, seen = yield from scaled(
-        _radiance_steps(result, parts + [(c.triangles, c.bary) for c in corners.values()]),
+        _radiance_steps(result, parts + [(c.triangles, c.bary) for c in corners.values()],
+                        groups=[group[k] for k in lightmaps] + [group[k] for k in corners]),
         0.0, 0.5)
     centre, todo, texel_seen = {}, {}, {}
     for k, first, found in zip(lightmaps, values[:len(lightmaps)], seen[:len(lightmaps)],
@@ -80,7 +105,7 @@ def bake_steps(scene: Scene, result: RadiosityResult, objects, lightmap_sizes: d
             _lattice_visibility(plans[k], texel_seen[k])
     rest, seen = yield from scaled(_radiance_steps(
         result, [(lightmaps[k].triangles[todo[k]], lightmaps[k].bary[todo[k]]) for k in lightmaps],
-        [texel_seen[k].take(todo[k]) for k in lightmaps]), 0.5, 0.3)
+        [texel_seen[k].take(todo[k]) for k in lightmaps], [group[k] for k in lightmaps]), 0.5, 0.3)
     for k, got, found in zip(lightmaps, rest, seen, strict=True):
         centre[k][todo[k]] = got
         texel_seen[k].put(todo[k], found)
@@ -96,7 +121,7 @@ def bake_steps(scene: Scene, result: RadiosityResult, objects, lightmap_sizes: d
     sampled, _ = yield from scaled(_radiance_steps(
         thinned, [(s.triangles, s.bary) for s in samples.values()],
         [_texel_neighbourhood(lightmaps[k], texel_seen[k], s.which).take(s.owner)
-         for k, s in samples.items()]), 0.8, 0.2)
+         for k, s in samples.items()], [group[k] for k in samples]), 0.8, 0.2)
     out = {}
     for k, corner_values in zip(corners, values[len(lightmaps):], strict=True):
         lightmap = mask = None
@@ -154,23 +179,28 @@ def _texel_neighbourhood(targets, seen: final_gather.Visibility, which: np.ndarr
     return seen.agreed(sources)
 
 
-def _radiance_steps(result: RadiosityResult, parts: list, known: list | None = None
-                    ) -> Steps[tuple[list, list]]:
-    """B / pi at every part (triangles (M,), bary (M, 3)), each part evaluated in chunks of
-    `final_gather.GATHER_CHUNK` points of its own; yields progress, returns the parts' values
-    [(M, 3)] and what the final gather's rays found there [`final_gather.Visibility`] (all
-    UNKNOWN without a gather). known: a `Visibility` per part that the gather takes without rays,
-    or None.
+def _radiance_steps(result: RadiosityResult, parts: list, known: list | None = None,
+                    groups: list[int] | None = None) -> Steps[tuple[list, list]]:
+    """B / pi at every part (triangles (M,), bary (M, 3)), the parts of one group (`groups`, a
+    number per part; default one group) concatenated and evaluated in chunks of
+    `final_gather.GATHER_CHUNK` points; yields progress, returns the parts' values [(M, 3)] and
+    what the final gather's rays found there [`final_gather.Visibility`] (all UNKNOWN without a
+    gather). known: a `Visibility` per part that the gather takes without rays, or None.
 
-    A chunk never spans two parts, and the gather draws its random numbers afresh per chunk: a
-    part's values depend on its own points only, so one object's bake is the same whichever
-    other objects are baked with it (a tiled bake, `jobs/radiosity.py`, bakes a share of them)."""
+    A chunk never spans two groups, and the gather draws its random numbers afresh per chunk: a
+    group's values depend on its own points only, so they are the same whichever other groups
+    are evaluated beside it (a tiled bake, `jobs/radiosity.py`, bakes a share of them)."""
+    groups = [0] * len(parts) if groups is None else list(groups)
     emitters = 0 if result.gather is None else len(result.gather.emitters.triangles)
     total = sum(len(t) for t, _ in parts)
     chunk = final_gather.GATHER_CHUNK
-    values, found_all, done = [], [], 0
-    for p, (tri, bary) in enumerate(parts):
-        given = known[p] if known is not None else None
+    values, found_all, done = [None] * len(parts), [None] * len(parts), 0
+    for g in dict.fromkeys(groups):
+        members = [p for p in range(len(parts)) if groups[p] == g]
+        tri = np.concatenate([parts[p][0] for p in members])
+        bary = np.concatenate([parts[p][1] for p in members])
+        given = (final_gather.Visibility.joined([known[p] for p in members])
+                 if known is not None else None)
         found = final_gather.Visibility.unknown(len(tri), emitters)
         out = np.zeros((len(tri), 3))
         for a in range(0, len(tri), chunk):
@@ -180,6 +210,7 @@ def _radiance_steps(result: RadiosityResult, parts: list, known: list | None = N
                 visibility_out=found.take(rows))  # views: the gather writes into `found`
             done += len(tri[rows])
             yield done / total
-        values.append(out)
-        found_all.append(found)
+        bounds = np.cumsum([0] + [len(parts[p][0]) for p in members])
+        for p, a, b in zip(members, bounds[:-1], bounds[1:], strict=True):
+            values[p], found_all[p] = out[a:b], found.take(slice(a, b))
     return values, found_all
