@@ -16,9 +16,10 @@ repeats; the merged files are
 checked equal to the one run's. `tiled_radiosity_overhead` is the tiled parts' seconds (their
 sum, as the merged metrics.json adds them, plus the merge) over the one run's: above 1 by what
 splitting costs (each tile opens the scene, makes its snapshot and reads the solution; the
-prepare step does the solve and the camera view once). `tiled_gather_overhead` is the same for
-the bake phase alone: the tiles' `radiosity` seconds less the prepare step's, over the one run's
-less the prepare step's. --quick: 32-texel lightmaps, 60 patches, 24 x 18, two tiles.
+prepare step does the solve and the camera view once). `tiled_gather_overhead` is the lightmap
+gather alone: the N tiles' `radiosity` seconds (snapshot, solution read, bake) summed, over one
+`--tile 1/1` run's from the same prepared solution (the whole gather in one process).
+--quick: 32-texel lightmaps, 60 patches, 24 x 18, two tiles.
 Writes out/bench/batch.json.
 """
 
@@ -59,6 +60,7 @@ def run_batch(jobs: Path, workers: int) -> float:
 def tiled_radiosity(folder: Path, tiles: int, options: list[str], repeats: int) -> dict:
     """Seconds of one radiosity run against the same bake as tiles (see the module docstring)."""
     import json
+    import shutil
 
     import numpy as np
 
@@ -73,33 +75,31 @@ def tiled_radiosity(folder: Path, tiles: int, options: list[str], repeats: int) 
         return json.loads((out / "metrics.json").read_text()) if not extra else {}
 
     run(folder / "warm-up")  # the first run in a process pays its imports: not timed
-    one, tiled = {"total": [], "radiosity": []}, {"total": [], "radiosity": [], "prepare": []}
+    one, tiled = {"total": [], "gather": []}, {"total": [], "gather": []}
     for k in range(repeats):
         single = run(folder / f"one-{k}")
         one["total"].append(single["seconds"]["total"])
-        one["radiosity"].append(single["seconds"]["radiosity"])
-        out = folder / f"tiled-{k}"
+        out, whole = folder / f"tiled-{k}", folder / f"whole-{k}"
         run(out, "--tile", "prepare")
+        shutil.copytree(out / "tiles" / "prepare", whole / "tiles" / "prepare")
+        run(whole, "--tile", "1/1")  # the whole gather in one process, from the same solution
         for tile in range(1, tiles + 1):
             run(out, "--tile", f"{tile}/{tiles}")
         if cli(["merge", str(out), "--quiet"]) != 0:
             raise SystemExit("merge failed")
         merged = json.loads((out / "metrics.json").read_text())
-        prepare = json.loads((out / "tiles" / "prepare" / "metrics.json").read_text())
         tiled["total"].append(merged["seconds"]["total"])
-        tiled["radiosity"].append(merged["seconds"]["radiosity"])
-        tiled["prepare"].append(prepare["seconds"]["radiosity"])
+        one["gather"].append(json.loads((whole / "tiles" / "1-of-1" / "metrics.json")
+                                        .read_text())["seconds"]["radiosity"])
+        tiled["gather"].append(sum(json.loads((out / "tiles" / f"{t}-of-{tiles}" / "metrics.json")
+                                              .read_text())["seconds"]["radiosity"]
+                                   for t in range(1, tiles + 1)))
         for name in single["outputs"]:
             if name.endswith(".exr") and not np.array_equal(
                     read_exr(folder / f"one-{k}" / name), read_exr(out / name)):
                 raise SystemExit(f"tiled {name} differs from the one run's")
     best = {"one_total": min(one["total"]), "tiled_total": min(tiled["total"]),
-            # The bake alone: the one run's radiosity phase less the solve and view the prepare
-            # step times on its own, against the tiles' radiosity phases.
-            "one_gather": min(o - p for o, p in zip(one["radiosity"], tiled["prepare"],
-                                                    strict=True)),
-            "tiled_gather": min(t - p for t, p in zip(tiled["radiosity"], tiled["prepare"],
-                                                      strict=True))}
+            "one_gather": min(one["gather"]), "tiled_gather": min(tiled["gather"])}
     return {"best": best, "one": one, "tiled": tiled, "tiles": tiles, "options": options}
 
 
@@ -132,7 +132,7 @@ def main() -> int:
     print(f"2 workers over 1: {ratio:.2f}x")
     t = tiled["best"]
     overhead = t["tiled_total"] / t["one_total"]
-    gather = t["tiled_gather"] / t["one_gather"] if t["one_gather"] > 0 else float("nan")
+    gather = t["tiled_gather"] / t["one_gather"]
     print(format_table(["radiosity", "one run (s)", f"{tiles} tiles (s)", "tiled / one"],
                        [["all parts", t["one_total"], t["tiled_total"], overhead],
                         ["lightmap gather", t["one_gather"], t["tiled_gather"], gather]]))
