@@ -11,6 +11,7 @@ import warnings
 from contextlib import contextmanager
 from pathlib import Path
 
+from . import time_estimate
 from .arguments import Parser, pixels, positive_float
 from .command import Command, RunContext
 from .outputs import PhaseTimer, Staging, UsageError, safe_name
@@ -45,6 +46,9 @@ def add_scene_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--memory-budget-gb", type=positive_float, default=None, metavar="GB",
                    help="refuse, before any work, a run estimated to need more memory than this "
                         f"(default {DEFAULT_MEMORY_BUDGET_GB:g}, or the memory available if less)")
+    p.add_argument("--time-budget-s", type=positive_float, default=None, metavar="S",
+                   help="refuse, before any work, a run estimated to take longer than this many "
+                        "seconds (default: no limit; the estimate is rough, within about 2x)")
 
 
 def command_args(cmd: Command, scene: Path, out: Path, resolution=None, argv=()) -> argparse.Namespace:
@@ -196,6 +200,12 @@ def missing_libraries() -> list[str]:
             if not os.path.exists(bpy.path.abspath(lib.filepath, library=lib.library))]
 
 
+def bpy_context():
+    import bpy
+
+    return bpy.context
+
+
 def available_memory_bytes() -> int | None:
     """The memory the machine has available now (Linux /proc/meminfo MemAvailable), or None."""
     try:
@@ -246,12 +256,13 @@ def _scene_triangles(context, with_area_over: float = 0.0) -> tuple[int, float]:
     return count, patches
 
 
-def estimate_memory(cmd: Command, args) -> list[tuple[float, str, str]]:
+def estimate_memory(cmd: Command, args, sizes: dict | None = None) -> list[tuple[float, str, str]]:
     """What a technique run will need before it starts: [(bytes, what, the flag that lowers
     it)]. The camera view: pixels x RENDER_BYTES_PER_PIXEL; lightmaps: their texels at the
     planned sizes x LIGHTMAP_BYTES_PER_TEXEL; radiosity: its solve's estimate
     (`kernels/radiosity/planning.memory_estimate`) over the patches it will make, at least one
-    per triangle (--patch-size: the surface over that edge; else the --patches budget)."""
+    per triangle (--patch-size: the surface over that edge; else the --patches budget).
+    `sizes`, when given, receives the work's size: rays, texels, triangles, patches."""
     import bpy
 
     from ..addon.bridge import mesh as bridge_mesh
@@ -260,6 +271,7 @@ def estimate_memory(cmd: Command, args) -> list[tuple[float, str, str]]:
 
     scene = bpy.context.scene
     out = []
+    sizes = {} if sizes is None else sizes
     if cmd.is_technique:
         if args.resolution:
             width, height = args.resolution
@@ -268,6 +280,7 @@ def estimate_memory(cmd: Command, args) -> list[tuple[float, str, str]]:
             width = max(1, int(scene.render.resolution_x * pct))
             height = max(1, int(scene.render.resolution_y * pct))
         samples = getattr(args, "supersample", 1) or 1
+        sizes["rays"] = width * height * samples ** 2
         out.append((width * height * RENDER_BYTES_PER_PIXEL,
                     f"the camera view at {width} x {height} pixels ({width * height * samples ** 2:,} "
                     "rays a bounce)", "--resolution W H"))
@@ -279,6 +292,7 @@ def estimate_memory(cmd: Command, args) -> list[tuple[float, str, str]]:
         objects = [o for o in mesh_objects(bpy.context)
                    if bridge_mesh.object_problem(o) is None]
         texels = sum(size * size for size in lightmap_plan(objects, uv_settings).values())
+        sizes["texels"] = texels
         out.append((texels * LIGHTMAP_BYTES_PER_TEXEL, f"the lightmaps of {len(objects)} objects "
                     f"({texels:,} texels)", "a smaller --lightmap-size"))
     if cmd.name == "radiosity":
@@ -289,6 +303,7 @@ def estimate_memory(cmd: Command, args) -> list[tuple[float, str, str]]:
         else:
             patches, flag = max(triangles, settings.patch_budget), "fewer triangles"
         n = int(min(patches, 1e15))
+        sizes["patches"], sizes["triangles"] = n, triangles
         solver = settings.solver if settings.solver != "auto" else (
             "gauss_seidel" if n * n * 8 <= settings.dense_memory_limit else "progressive")
         lean = settings if settings.samples_per_side else type(settings)(
@@ -300,18 +315,37 @@ def estimate_memory(cmd: Command, args) -> list[tuple[float, str, str]]:
     return out
 
 
-def check_estimates(cmd: Command, args) -> None:
+def check_estimates(cmd: Command, args, ctx: RunContext | None = None) -> None:
     """Refuse, before any work, a run whose estimate (the sum of its parts) exceeds the memory
-    budget: one line with the estimate, its largest part, the budget and the flag that lowers
-    that part."""
+    budget, or the time budget when --time-budget-s is given: one line with the estimate, its
+    largest part, the budget and the flag that lowers that part. With `ctx`, the estimates are
+    said in the run's first lines and kept in metrics.json (`estimate`)."""
     if not cmd.is_technique:
         return
     budget, source = memory_budget(args)
+    sizes: dict = {}
     try:
-        parts = estimate_memory(cmd, args)
+        parts = estimate_memory(cmd, args, sizes)
     except ValueError as exc:  # settings the kernel refuses (--patches 0): the same one line
         raise UsageError(f"{cmd.name}: {exc}") from exc
     total = sum(need for need, _, _ in parts)
+    if "triangles" not in sizes:
+        sizes["triangles"] = _scene_triangles(bpy_context())[0]
+    timing = time_estimate.estimate_seconds(cmd.name, sizes)
+    seconds = sum(s for s, _, _ in timing)
+    if ctx is not None:
+        ctx.record.extra["estimate"] = {
+            "memory_bytes": int(total), "seconds": round(seconds, 1), "sizes": sizes,
+            "note": "rough, before the work started (pipeline/time_estimate.py)"}
+        ctx.say(f"estimate: about {total / GB:.2g} GB and {time_estimate.rough_seconds(seconds)} "
+                "(rough)")
+    time_budget = getattr(args, "time_budget_s", None)
+    if time_budget is not None and seconds > time_budget:
+        _, what, flag = max(timing)
+        lower = f"lower it with {flag}, or raise" if flag else "raise"
+        raise UsageError(f"{cmd.name}: would take {time_estimate.rough_seconds(seconds)} (rough), "
+                         f"over --time-budget-s {time_budget:g}, mostly for {what}; {lower} "
+                         "--time-budget-s")
     if total > budget:
         _, what, flag = max(parts)  # the largest part, and the flag that lowers it
         raise UsageError(f"{cmd.name}: would need about {total / GB:.3g} GB, over {source} of "
@@ -341,7 +375,7 @@ def _run_command(cmd: Command, args: argparse.Namespace) -> int:
             open_blend(scene_path)
         check_camera(cmd)
         with timer.phase("estimate"):
-            check_estimates(cmd, args)
+            check_estimates(cmd, args, ctx)
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", RuntimeWarning)
             cmd.run(ctx)

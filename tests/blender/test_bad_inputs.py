@@ -312,8 +312,11 @@ def test_demo_refuses_a_bad_resolution(size, tmp_path):
      ("lightmaps", "texels", "--lightmap-size")),
     (("trace", "--memory-budget-gb", "nan"), ("finite",)),
     (("trace", "--memory-budget-gb", "0"), ("above 0",)),
+    (("trace", "--resolution", "1000", "1000", "--time-budget-s", "5"),
+     ("--time-budget-s", "camera rays", "--resolution")),
+    (("trace", "--time-budget-s", "nan"), ("finite",)),
 ])
-def test_runs_over_the_memory_budget_are_refused_up_front(args, words, tmp_path):
+def test_runs_over_the_memory_or_time_budget_are_refused_up_front(args, words, tmp_path):
     default_scene()
     scene = save(tmp_path / "s.blend")
     start = time.monotonic()

@@ -1,0 +1,84 @@
+"""Seconds a technique run will take, estimated before it starts from the size of its work: the
+camera view's rays, the lightmaps' texels, the triangles and, for radiosity, the patch pairs,
+each times a rate measured on the sample scenes.
+
+The estimate is rough (a factor of two either way: scenes differ in lights, materials and depth
+of the ray tree, and the machine in cores and load); it is printed in a run's first lines, kept
+in metrics.json (`estimate`) and refused against only when `--time-budget-s` is given.
+
+The rates were measured with every technique's command at its default settings on
+cornell_box.blend and raytrace.blend (`sample_blends/`), on a two-core machine with other work
+running beside it: seconds of the technique's phase (metrics.json `seconds`) over the size of its
+work (`sizes`), the larger of the two scenes' figures taken so that the estimate errs long.
+"""
+
+from __future__ import annotations
+
+import math
+
+# Seconds of start-up every run pays before its work: opening the scene, the snapshot, building
+# the BVH of a sample scene (0.3 - 1 s measured).
+START_SECONDS = 1.0
+# Seconds per camera ray (pixel x supersample^2) of each technique's camera view: the whole
+# shading of a pixel (shadow rays, bounces, texture filtering) per primary ray. Measured (the
+# technique's phase over its rays): trace 9.5e-5 (cornell_box) and 1.4e-4 (raytrace); envmap
+# 2.6e-4 (raytrace: the cube faces' capture as well); bump 1.8e-4 (cornell_box: four shadings);
+# texture's albedo view 2.3e-5 (both scenes, solved together with its texels below).
+SECONDS_PER_RAY = {
+    "trace": 1.4e-4, "envmap": 2.6e-4, "bump": 1.8e-4, "texture": 2.3e-5, "shadowmap": 1e-4,
+    "radiosity": 1e-4, "hybrid": 2e-4, "normalmap": 2.3e-5, "lightmap-uv": 0.0,
+}
+DEFAULT_SECONDS_PER_RAY = 1.4e-4
+# Seconds per lightmap texel baked. Measured: texture 4e-6 (filtered look-ups; cornell_box's
+# 0.46 M planned texels and raytrace's 86 k, solved together with the rays above). Shadow maps
+# (every light's depth tests with PCF) and radiosity (the final gather) are taken 5 and 25 times
+# dearer, as their per-texel work is.
+SECONDS_PER_TEXEL = {"texture": 4e-6, "shadowmap": 2e-5, "radiosity": 1e-4, "lightmap-uv": 0.0}
+DEFAULT_SECONDS_PER_TEXEL = 2e-5
+# Seconds per triangle of xatlas charting and packing (lightmap-uv of raytrace.blend: 0.98 s for
+# 6626 triangles); the other techniques' per-triangle work (snapshot, BVH) is ~10x cheaper.
+SECONDS_PER_TRIANGLE = {"lightmap-uv": 1.5e-4}
+DEFAULT_SECONDS_PER_TRIANGLE = 1.5e-5
+# Radiosity's solve: seconds per patch at the planned patch count, times log2 of the count (the
+# clustered and hierarchical solvers link each patch with O(log N) others; a dense solver's
+# N^2 factors fit the memory limit only up to a few thousand patches).
+SECONDS_PER_PATCH_LOG = 2e-3
+# The flag that lowers each part of the estimate.
+LOWER_WITH = {
+    "rays": "--resolution W H",
+    "texels": "a smaller --lightmap-size",
+    "triangles": "fewer triangles",
+    "patches": "a larger --patch-size or fewer --patches",
+}
+
+
+def estimate_seconds(technique: str, sizes: dict) -> list[tuple[float, str, str]]:
+    """[(seconds, what, the flag that lowers it)] of a run of `technique` over `sizes`: rays,
+    texels, triangles, patches (each optional; what `pipeline/run.estimate_memory` planned)."""
+    parts = [(START_SECONDS, "starting up", "")]
+    rays = sizes.get("rays", 0)
+    if rays:
+        rate = SECONDS_PER_RAY.get(technique, DEFAULT_SECONDS_PER_RAY)
+        parts.append((rays * rate, f"{rays:,} camera rays", LOWER_WITH["rays"]))
+    texels = sizes.get("texels", 0)
+    if texels:
+        rate = SECONDS_PER_TEXEL.get(technique, DEFAULT_SECONDS_PER_TEXEL)
+        parts.append((texels * rate, f"{texels:,} lightmap texels", LOWER_WITH["texels"]))
+    triangles = sizes.get("triangles", 0)
+    if triangles:
+        rate = SECONDS_PER_TRIANGLE.get(technique, DEFAULT_SECONDS_PER_TRIANGLE)
+        parts.append((triangles * rate, f"{triangles:,} triangles", LOWER_WITH["triangles"]))
+    patches = sizes.get("patches", 0)
+    if patches:
+        parts.append((patches * math.log2(max(patches, 2)) * SECONDS_PER_PATCH_LOG,
+                      f"{patches:,} radiosity patches", LOWER_WITH["patches"]))
+    return [p for p in parts if p[0] > 0.0]
+
+
+def rough_seconds(seconds: float) -> str:
+    """'~40 s', '~3 min', '~2.5 h': an estimate printed without false precision."""
+    for limit, unit, per in ((90.0, "s", 1.0), (5400.0, "min", 60.0), (float("inf"), "h", 3600.0)):
+        if seconds < limit:
+            value = seconds / per
+            return f"~{value:.2g} {unit}" if value < 10.0 else f"~{value:,.0f} {unit}"
+    return "~? s"  # nan
