@@ -246,7 +246,7 @@ def high_to_low_figures(quick: bool, repeats: int) -> dict:
               for s in samples]
     kernel = []
     for k in ladder:
-        row = {"samples_per_texel": k * k, "seconds": kernel_seconds[k],
+        row = {"setting": f"{k} x {k}", "samples_per_texel": k * k, "seconds": kernel_seconds[k],
                "misses": kernel_maps[k][2], **error(kernel_maps[k][0])}
         for prefix in ("", "cycles_ref_"):
             reach = cycles_seconds_to(row[f"{prefix}mean_deg"], cycles, f"{prefix}mean_deg")
