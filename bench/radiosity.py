@@ -29,8 +29,8 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _lightmaps import cycles_lightmaps, radiosity_lightmaps, texel_rel_mse  # noqa: E402
 from _report import OUT_DIR, format_table, versions, write_report  # noqa: E402
-from _report import stack_texels as stack  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "sample_blends" / "cornell_box.blend"
@@ -78,12 +78,9 @@ def cornell(args) -> tuple[dict, dict, list]:
     from classic_bake.addon import cycles as cr
     from classic_bake.jobs.lightmaps import create_lightmap_uvs, lightmap_plan
     from classic_bake.kernels.bake.lightmap_uv import LightmapUVSettings
-    from classic_bake.kernels.geometry.bvh import BVH
     from classic_bake.kernels.measure.metrics import rel_mse
     from classic_bake.kernels.progress import drain
-    from classic_bake.kernels.radiosity.lightmap import bake_steps
     from classic_bake.kernels.radiosity.settings import RadiositySettings
-    from classic_bake.kernels.radiosity.solve import solve_radiosity
     from classic_bake.kernels.radiosity.view import render_steps
     from classic_bake.pipeline.charts import frontier, speed_accuracy_chart
     from classic_bake.pipeline.images import write_preview_png
@@ -102,15 +99,7 @@ def cornell(args) -> tuple[dict, dict, list]:
     cr.warm_up()
 
     def cycles_bake(samples):
-        images, masks, seconds = {}, {}, 0.0
-        for size in sorted({plan[n] for n in names}):
-            group = [n for n in names if plan[n] == size]
-            got, secs, m = cr.bake_lightmaps(bpy.context.scene, model, samples, group, UV_NAME,
-                                             size, "DIFFUSE")
-            images.update(got)
-            masks.update(m)
-            seconds += secs
-        return images, masks, seconds
+        return cycles_lightmaps(bpy.context.scene, model, samples, names, plan, UV_NAME)
 
     start = time.perf_counter()
     ref_images, ref_masks, ref_seconds = cycles_bake(args.ref_samples)
@@ -120,13 +109,7 @@ def cornell(args) -> tuple[dict, dict, list]:
           f"({args.ref_samples} samples; {time.perf_counter() - start:.0f} s wall)")
 
     def radiosity_run(settings):
-        start = time.perf_counter()
-        bvh = BVH.build(scene.triangles)
-        result = solve_radiosity(scene, settings, bvh)
-        bakes = drain(bake_steps(scene, result, objects, sizes, 2))
-        seconds = time.perf_counter() - start
-        images = {scene.objects[k].source_name: b.lightmap for k, b in bakes.items()}
-        masks = {scene.objects[k].source_name: b.lightmap_mask for k, b in bakes.items()}
+        images, masks, seconds, result = radiosity_lightmaps(scene, settings, objects, sizes, 2)
         start = time.perf_counter()
         image = drain(render_steps(scene, result, RENDER_SIZE))
         render_s = seconds + time.perf_counter() - start  # solve + bake + camera view
@@ -162,8 +145,7 @@ def cornell(args) -> tuple[dict, dict, list]:
             runs, last = repeated(lambda r: r[4], radiosity_run, settings)
             images, masks, _, image, _, result = last
             seconds, render_s = median_of(runs, lambda r: r[2]), median_of(runs, lambda r: r[4])
-            valid = {n: masks[n] & ref_masks[n] for n in names}
-            error = rel_mse(stack(images, valid, names), stack(ref_images, valid, names))
+            error = texel_rel_mse(images, masks, ref_images, ref_masks, names)
             label = (f"{method} {solver} {result.stats['patches']}p"
                      f"{' gather' if gather else ' interpolated'}"
                      f"{' 1pt' if result.stats['samples_per_side'] == 1 else ''}"
@@ -179,10 +161,8 @@ def cornell(args) -> tuple[dict, dict, list]:
             n = cycles_samples[step]
             bakes, (images, masks, _) = repeated(lambda b: b[2], cycles_bake, n)
             seconds = median_of(bakes, lambda b: b[2])
-            valid = {k: masks[k] & ref_masks[k] for k in names}
             cycles.append({"samples": n, "seconds": seconds,
-                           "rel_mse": rel_mse(stack(images, valid, names),
-                                              stack(ref_images, valid, names))})
+                           "rel_mse": texel_rel_mse(images, masks, ref_images, ref_masks, names)})
             renders, (image, _) = repeated(lambda r: r[1], cr.render_camera, bpy.context.scene,
                                            model, n, RENDER_SIZE)
             seconds = median_of(renders, lambda r: r[1])
