@@ -23,17 +23,19 @@ START_SECONDS = 1.0
 # shading of a pixel (shadow rays, bounces, texture filtering) per primary ray. Measured (the
 # technique's phase over its rays): trace 9.5e-5 (cornell_box) and 1.4e-4 (raytrace); envmap
 # 2.6e-4 (raytrace: the cube faces' capture as well); bump 1.8e-4 (cornell_box: four shadings);
-# texture's albedo view 2.3e-5 (both scenes, solved together with its texels below).
+# texture's albedo view 2.3e-5 (both scenes, solved together with its texels below); hybrid
+# 5.5e-4 (raytrace: its radiosity solve included, which the camera view's size does not show).
+# shadowmap 2e-5 (raytrace: the view reads the masks).
 SECONDS_PER_RAY = {
-    "trace": 1.4e-4, "envmap": 2.6e-4, "bump": 1.8e-4, "texture": 2.3e-5, "shadowmap": 1e-4,
-    "radiosity": 1e-4, "hybrid": 2e-4, "normalmap": 2.3e-5, "lightmap-uv": 0.0,
+    "trace": 1.4e-4, "envmap": 2.6e-4, "bump": 1.8e-4, "texture": 2.3e-5, "shadowmap": 2e-5,
+    "radiosity": 1e-4, "hybrid": 5.5e-4, "normalmap": 2.3e-5, "lightmap-uv": 0.0,
 }
 DEFAULT_SECONDS_PER_RAY = 1.4e-4
 # Seconds per lightmap texel baked. Measured: texture 4e-6 (filtered look-ups; cornell_box's
-# 0.46 M planned texels and raytrace's 86 k, solved together with the rays above). Shadow maps
-# (every light's depth tests with PCF) and radiosity (the final gather) are taken 5 and 25 times
-# dearer, as their per-texel work is.
-SECONDS_PER_TEXEL = {"texture": 4e-6, "shadowmap": 2e-5, "radiosity": 1e-4, "lightmap-uv": 0.0}
+# 0.46 M planned texels and raytrace's 86 k, solved together with the rays above); radiosity's
+# final gather 5e-5 (cornell_box: 32 s in all). Shadow maps (every light's depth tests with PCF):
+# 2e-5, an estimate of 4.9 s for raytrace's 2.7 s.
+SECONDS_PER_TEXEL = {"texture": 4e-6, "shadowmap": 2e-5, "radiosity": 5e-5, "lightmap-uv": 0.0}
 DEFAULT_SECONDS_PER_TEXEL = 2e-5
 # Seconds per triangle of xatlas charting and packing (lightmap-uv of raytrace.blend: 0.98 s for
 # 6626 triangles); the other techniques' per-triangle work (snapshot, BVH) is ~10x cheaper.
@@ -41,8 +43,9 @@ SECONDS_PER_TRIANGLE = {"lightmap-uv": 1.5e-4}
 DEFAULT_SECONDS_PER_TRIANGLE = 1.5e-5
 # Radiosity's solve: seconds per patch at the planned patch count, times log2 of the count (the
 # clustered and hierarchical solvers link each patch with O(log N) others; a dense solver's
-# N^2 factors fit the memory limit only up to a few thousand patches).
-SECONDS_PER_PATCH_LOG = 2e-3
+# N^2 factors fit the memory limit only up to a few thousand patches). raytrace.blend, 6626
+# patches planned: ~9 s of its 21 s beside the view and the gather.
+SECONDS_PER_PATCH_LOG = 1.5e-4
 # The flag that lowers each part of the estimate.
 LOWER_WITH = {
     "rays": "--resolution W H",
