@@ -60,7 +60,7 @@ TECHNIQUES: dict[str, dict[str, tuple[str, ...]]] = {
 }
 # Every bench, in the order bench/README.md describes them (the Makefile's BENCHES).
 BENCHES = ("rays", "trace", "texture", "envmap", "bump", "shadowmap", "radiosity", "hybrid",
-           "normalmap", "generated", "batch")
+           "normalmap", "generated", "batch", "demo")
 
 BLOCK = re.compile(r"<!-- BEGIN (?P<kind>[a-z]+)(?: (?P<arg>[a-z0-9_-]+))? -->\n"
                    r"(?P<body>.*?)"

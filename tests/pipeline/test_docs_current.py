@@ -135,6 +135,13 @@ def test_code_and_documents_name_no_machine_path():
 WORK_LOG = re.compile(r"\bsession \d+\b|\(session\b|^#+ .*\bsession\b", re.I | re.M)
 
 
+def test_readme_states_the_demo_budget_the_bench_measures_against():
+    source = (REPO / "pipeline" / "commands" / "demo.py").read_text(encoding="utf-8")
+    minutes = int(re.search(r"^DEMO_BUDGET_S = (\d+) \* 60$", source, re.M)[1])
+    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    assert f"at most {minutes} minutes" in readme
+
+
 def test_readme_is_a_short_guide_and_documents_keep_no_work_log():
     readme = (REPO / "README.md").read_text(encoding="utf-8")
     assert len(readme.splitlines()) <= 300
