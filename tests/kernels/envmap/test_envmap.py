@@ -3,7 +3,8 @@ shading, and the technique's failure mode (parallax) against true reflection ray
 
 import numpy as np
 import pytest
-from scene_builder import build, ortho_camera, persp_camera, quad, tessellated_box, uv_sphere
+from envmap_rooms import coloured_room, emissive, room
+from scene_builder import build, ortho_camera, persp_camera, quad, uv_sphere
 
 from classic_bake.kernels.envmap import cubemap, envmap
 from classic_bake.kernels.geometry.bvh import BVH
@@ -16,27 +17,6 @@ from classic_bake.kernels.trace.tracer import Tracer, trace
 CHROME = Material(name="chrome", base_color=np.array([0.9, 0.7, 0.5], np.float32), metallic=1.0,
                   roughness=0.0)
 GREY = Material(name="grey", base_color=np.full(3, 0.7, np.float32), specular=0.0)
-# The six walls' emitted radiance, W/(m^2 sr): distinct colours, so a misplaced face shows.
-WALL_COLOURS = np.array([[1.0, 0.2, 0.2], [0.2, 1.0, 0.2], [0.2, 0.2, 1.0],
-                         [1.0, 1.0, 0.2], [0.2, 1.0, 1.0], [1.0, 0.2, 1.0]], np.float32)
-
-
-def emissive(colour, name="wall"):
-    """A wall that only glows: black and Lambertian (no specular layer), it reflects nothing, so
-    no shadow rays are cast from it towards the other glowing walls (which would only add zero,
-    slowly)."""
-    return Material(name=name, base_color=np.zeros(3, np.float32), specular=0.0,
-                    emission=np.asarray(colour, np.float32))
-
-
-def room(half: float) -> np.ndarray:
-    """(12, 3, 3) triangles of the cube [-half, half]^3, normals inward, two per wall."""
-    return tessellated_box(1, 2.0 * half) - half
-
-
-def coloured_room(half: float) -> list:
-    walls = room(half)
-    return [(walls[2 * k:2 * k + 2], emissive(WALL_COLOURS[k], f"wall{k}")) for k in range(6)]
 
 
 def test_bordered_directions_inside_the_border_are_the_cube_map_texels():

@@ -3,7 +3,8 @@
 seams of the captured map; and the known error of a concave mirror (it never reflects itself)."""
 
 import numpy as np
-from scene_builder import build, persp_camera, tessellated_box, uv_sphere
+from envmap_rooms import coloured_room, emissive, room
+from scene_builder import build, persp_camera, uv_sphere
 
 from classic_bake.kernels.envmap import cubemap, envmap
 from classic_bake.kernels.envmap.prefilter import PrefilterSettings, level_roughness, prefilter
@@ -21,24 +22,6 @@ CHROME = Material(name="chrome", base_color=np.array([0.9, 0.7, 0.5], np.float32
                   roughness=0.0)
 GREY = Material(name="grey", base_color=np.full(3, 0.7, np.float32), specular=0.0)
 # Six walls' emitted radiance, W/(m^2 sr): distinct colours (as in test_envmap.py).
-WALL_COLOURS = np.array([[1.0, 0.2, 0.2], [0.2, 1.0, 0.2], [0.2, 0.2, 1.0],
-                         [1.0, 1.0, 0.2], [0.2, 1.0, 1.0], [1.0, 0.2, 1.0]], np.float32)
-
-
-def emissive(colour, name="wall"):
-    """A wall that only glows (black, Lambertian): it reflects nothing."""
-    return Material(name=name, base_color=np.zeros(3, np.float32), specular=0.0,
-                    emission=np.asarray(colour, np.float32))
-
-
-def room(half: float) -> np.ndarray:
-    """(12, 3, 3) triangles of the cube [-half, half]^3, normals inward, two per wall."""
-    return tessellated_box(1, 2.0 * half) - half
-
-
-def coloured_room(half: float) -> list:
-    walls = room(half)
-    return [(walls[2 * k:2 * k + 2], emissive(WALL_COLOURS[k], f"wall{k}")) for k in range(6)]
 
 
 def _smooth(d: np.ndarray) -> np.ndarray:
