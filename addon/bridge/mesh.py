@@ -155,6 +155,20 @@ def generated_coordinates(positions: np.ndarray, texspace) -> np.ndarray:
     return (positions - (centre - size)) / (2.0 * size)
 
 
+def world_corner_normals(mesh, matrix: np.ndarray) -> np.ndarray:
+    """(L, 3) float64 unit world normals of `mesh`'s face corners placed by `matrix` (4, 4).
+    Normals transform with the inverse transpose; a zero-scale axis leaves them as they are, and
+    a zero normal stays zero."""
+    linear = matrix[:3, :3]
+    try:
+        normal_matrix = np.linalg.inv(linear).T
+    except np.linalg.LinAlgError:
+        normal_matrix = np.eye(3)
+    loop_n = mesh_corner_normals(mesh).astype(np.float64) @ normal_matrix.T
+    length = np.linalg.norm(loop_n, axis=1, keepdims=True)
+    return np.divide(loop_n, length, out=np.zeros_like(loop_n), where=length > 0)
+
+
 def mesh_chunk(
     name, source_name, is_instance, mesh, matrix, request, original_mesh, slot_materials,
     texspace=None,
@@ -174,16 +188,7 @@ def mesh_chunk(
 
     normals = None
     if request.normals:
-        # Normals transform with the inverse transpose; a zero-scale axis leaves them as they are.
-        linear = matrix[:3, :3]
-        try:
-            normal_matrix = np.linalg.inv(linear).T
-        except np.linalg.LinAlgError:
-            normal_matrix = np.eye(3)
-        loop_n = mesh_corner_normals(mesh).astype(np.float64) @ normal_matrix.T
-        length = np.linalg.norm(loop_n, axis=1, keepdims=True)
-        loop_n = np.divide(loop_n, length, out=np.zeros_like(loop_n), where=length > 0)
-        normals = loop_n[corner_loops].astype(np.float32)
+        normals = world_corner_normals(mesh, matrix)[corner_loops].astype(np.float32)
 
     uv = None
     generated = None

@@ -13,6 +13,7 @@ nodes and links the recorded sources back; in the interface one Ctrl+Z undoes th
 from __future__ import annotations
 
 import json
+from contextlib import contextmanager
 from dataclasses import replace
 
 import bpy
@@ -22,7 +23,13 @@ from ...kernels.normalmap.high_to_low import HighMesh, LowMesh
 from . import write_back
 from .images import flip_rows
 from .materials import MaterialReader
-from .mesh import mesh_corner_normals, mesh_positions, mesh_triangles, mesh_uv
+from .mesh import (
+    mesh_corner_normals,
+    mesh_positions,
+    mesh_triangles,
+    mesh_uv,
+    world_corner_normals,
+)
 from .nodes import follow
 from .request import SnapshotRequest
 from .tangents import loop_triangle_tangents, world_tangents
@@ -44,11 +51,7 @@ def object_uv_triangles(obj, depsgraph, uv_name: str | None):
     active render layer): (uv (T, 3, 2) float64, world (T, 3, 3) float64 corner positions in
     metres, material slot (T,) int32, the layer's name), or None when the mesh lacks the layer.
     Nothing is written: the evaluated mesh is freed again."""
-    evaluated = obj.evaluated_get(depsgraph)
-    mesh = evaluated.to_mesh()
-    try:
-        name = uv_name or active_render_uv_name(mesh)
-        loop_uv = None if name is None else mesh_uv(mesh, name)
+    with _evaluated_uv(obj, depsgraph, uv_name) as (mesh, loop_uv, name):
         if loop_uv is None:
             return None
         verts, loops, _, slots = mesh_triangles(mesh)
@@ -56,6 +59,18 @@ def object_uv_triangles(obj, depsgraph, uv_name: str | None):
         local = mesh_positions(mesh).astype(np.float64)
         world = local @ matrix[:3, :3].T + matrix[:3, 3]
         return (loop_uv[loops].astype(np.float64), world[verts], slots.copy(), name)
+
+
+@contextmanager
+def _evaluated_uv(obj, depsgraph, uv_name: str | None):
+    """`obj`'s evaluated mesh (modifiers applied), its UV layer `uv_name` (None: the active
+    render layer) as (L, 2) per corner and the layer's name: (mesh, None, name) when the mesh
+    lacks the layer. The evaluated mesh is freed on leaving."""
+    evaluated = obj.evaluated_get(depsgraph)
+    mesh = evaluated.to_mesh()
+    try:
+        name = uv_name or active_render_uv_name(mesh)
+        yield mesh, (None if name is None else mesh_uv(mesh, name)), name
     finally:
         evaluated.to_mesh_clear()
 
@@ -69,13 +84,7 @@ def _world_corners(obj, mesh):
     linear = matrix[:3, :3]
     order = [0, 2, 1] if np.linalg.det(linear) < 0.0 else [0, 1, 2]
     world = mesh_positions(mesh).astype(np.float64) @ linear.T + matrix[:3, 3]
-    try:
-        normal_matrix = np.linalg.inv(linear).T
-    except np.linalg.LinAlgError:
-        normal_matrix = np.eye(3)
-    normals = mesh_corner_normals(mesh).astype(np.float64) @ normal_matrix.T
-    length = np.linalg.norm(normals, axis=1, keepdims=True)
-    normals = np.divide(normals, length, out=np.zeros_like(normals), where=length > 0)
+    normals = world_corner_normals(mesh, matrix)
     return world[verts[:, order]], normals[loops[:, order]], loops[:, order], slots, order
 
 
@@ -83,11 +92,7 @@ def low_mesh(obj, depsgraph, uv_name: str | None) -> tuple[LowMesh, str] | None:
     """`obj`'s evaluated mesh as the low mesh of a high -> low bake: its UV layer `uv_name`
     (None: the active render layer) with the MikkTSpace frames on it, all in world space; and
     the layer's name. None when the mesh lacks the layer."""
-    evaluated = obj.evaluated_get(depsgraph)
-    mesh = evaluated.to_mesh()
-    try:
-        name = uv_name or active_render_uv_name(mesh)
-        loop_uv = None if name is None else mesh_uv(mesh, name)
+    with _evaluated_uv(obj, depsgraph, uv_name) as (mesh, loop_uv, name):
         if loop_uv is None:
             return None
         _, tri_loops, tri_polys, _ = mesh_triangles(mesh)
@@ -98,8 +103,6 @@ def low_mesh(obj, depsgraph, uv_name: str | None) -> tuple[LowMesh, str] | None:
                                          matrix_array(obj.matrix_world))
         return LowMesh(uv=loop_uv[loops].astype(np.float64), positions=world, normals=normals,
                        tangents=tangents, signs=signs), name
-    finally:
-        evaluated.to_mesh_clear()
 
 
 def high_mesh(obj, depsgraph) -> HighMesh:
