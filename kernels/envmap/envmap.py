@@ -349,21 +349,55 @@ def capture_steps(scene: Scene, index: int, size: int, tracer_settings: TracerSe
     hidden from the rays that see, not from shadow rays: its shadow on the floor under it is part
     of what it reflects. `bvh`: the whole scene's (built when omitted).
     """
+    faces = yield from capture_faces_steps(scene, index, size, tracer_settings, supersample, bvh)
+    return faces.environment_map()
+
+
+@dataclass
+class CapturedFaces:
+    """Some faces of one object's cube map (`capture_faces_steps`): what `EnvironmentMap` holds
+    for them, `faces` naming which (OpenGL face numbers, in order)."""
+
+    object_index: int
+    centre: np.ndarray  # (3,) float64, world, m
+    faces: tuple[int, ...]
+    radiance: np.ndarray  # (F, S + 2B, S + 2B, 3) float32
+    inverse_distance: np.ndarray  # (F, S + 2B, S + 2B, 1) float32
+    emission: np.ndarray | None  # (F, S, S, 3) float32, None when nothing glows
+
+    def environment_map(self) -> EnvironmentMap:
+        """The map, when these are the six faces in order."""
+        if self.faces != tuple(range(6)):
+            raise ValueError(f"a cube map needs the six faces in order, not {self.faces}")
+        return EnvironmentMap(object_index=self.object_index, centre=self.centre,
+                              faces=self.radiance, inverse_distance=self.inverse_distance,
+                              emission=self.emission)
+
+
+def capture_faces_steps(scene: Scene, index: int, size: int, tracer_settings: TracerSettings,
+                        supersample: int = 1, bvh: BVH | None = None,
+                        faces: Sequence[int] = tuple(range(6))) -> Steps[CapturedFaces]:
+    """`capture_steps` for the cube faces `faces` alone (a tile's share, jobs/tiles.py): each
+    texel traced as the whole cube traces it (every ray on its own), so faces captured apart and
+    stacked equal the six captured together, bit for bit."""
+    faces = tuple(int(f) for f in faces)
     centre, _ = object_bounds(scene, index)
     bvh = bvh or BVH.build(scene.triangles)
     hidden = hidden_bvh(scene, [index])
     tracer = Tracer(scene, hidden, tracer_settings, shadow_bvh=bvh)
     side = size + 2 * BORDER
     n = supersample
-    faces = np.zeros((6, side, side, 3), np.float64)
-    inverse = np.zeros((6, side, side, 1), np.float64)
-    total = 6 * side * side * n * n
+    radiance = np.zeros((len(faces), side, side, 3), np.float64)
+    inverse = np.zeros((len(faces), side, side, 1), np.float64)
+    total = max(len(faces) * side * side * n * n, 1)
     done = 0
-    flat, flat_q = faces.reshape(-1, 3), inverse.reshape(-1)
+    flat, flat_q = radiance.reshape(-1, 3), inverse.reshape(-1)
+    chosen = list(faces)
     for oy in range(n):
         for ox in range(n):
             # n x n stratified positions in each texel of the face plane.
-            dirs = bordered_directions(size, BORDER, ((ox + 0.5) / n, (oy + 0.5) / n)).reshape(-1, 3)
+            dirs = bordered_directions(size, BORDER, ((ox + 0.5) / n, (oy + 0.5) / n))
+            dirs = dirs[chosen].reshape(-1, 3)
             for first in range(0, len(dirs), FACE_WAVEFRONT):
                 chunk = dirs[first:first + FACE_WAVEFRONT]
                 origins = np.broadcast_to(centre, chunk.shape).copy()
@@ -374,23 +408,25 @@ def capture_steps(scene: Scene, index: int, size: int, tracer_settings: TracerSe
                     t, 1e-12), 0.0)
                 done += len(chunk)
                 yield done / total
-    faces /= n * n
+    radiance /= n * n
     inverse /= n * n
-    return EnvironmentMap(object_index=index, centre=centre, faces=faces.astype(np.float32),
-                         inverse_distance=inverse.astype(np.float32),
-                         emission=seen_emission(scene, hidden, centre, size))
+    return CapturedFaces(index, centre, faces, radiance.astype(np.float32),
+                         inverse.astype(np.float32),
+                         seen_emission(scene, hidden, centre, size, faces))
 
 
-def seen_emission(scene: Scene, bvh: BVH, centre: np.ndarray, size: int) -> np.ndarray | None:
-    """(6, S, S, 3) float32: the emitted radiance of what each texel centre's ray from `centre`
-    meets in `bvh` (0 for the world), or None when no triangle glows."""
+def seen_emission(scene: Scene, bvh: BVH, centre: np.ndarray, size: int,
+                  faces: Sequence[int] = tuple(range(6))) -> np.ndarray | None:
+    """(F, S, S, 3) float32: the emitted radiance of what each texel centre's ray from `centre`
+    meets in `bvh` (0 for the world) on the cube faces `faces` (all six by default), or None when
+    no triangle glows."""
     glow = triangle_emission(scene)
     if not np.any(glow > 0.0):
         return None
-    dirs = texel_directions(size).reshape(-1, 3)
+    dirs = texel_directions(size)[list(faces)].reshape(-1, 3)
     hits = bvh.intersect(np.broadcast_to(centre, dirs.shape).copy(), dirs)
     out = np.where((hits.tri >= 0)[:, None], glow[np.maximum(hits.tri, 0)], 0.0)
-    return out.reshape(6, size, size, 3).astype(np.float32)
+    return out.reshape(len(faces), size, size, 3).astype(np.float32)
 
 
 def resolve_objects(scene: Scene, names: Sequence[str], mirror_roughness: float) -> list[int]:
@@ -406,6 +442,29 @@ def resolve_objects(scene: Scene, names: Sequence[str], mirror_roughness: float)
     return chosen
 
 
+def face_tracer_settings(settings: EnvMapSettings, tracer_settings: TracerSettings
+                         ) -> TracerSettings:
+    """The tracer settings the faces are rendered with (depth from `settings.face_depth`)."""
+    if settings.face_depth >= 0:
+        return replace(tracer_settings, max_depth=settings.face_depth)
+    return tracer_settings
+
+
+def capture_plan(scene: Scene, settings: EnvMapSettings, tracer_settings: TracerSettings,
+                 resolution: tuple[int, int] | None = None) -> list[tuple[int, int]]:
+    """(object index, face size) of every object to map, in the order `render_steps` captures
+    them; ValueError without a camera or an object to map."""
+    if scene.camera is None:
+        raise ValueError("the scene has no camera to render from")
+    objects = resolve_objects(scene, settings.objects, tracer_settings.mirror_roughness)
+    if not objects:
+        raise ValueError("nothing to environment-map: no object is a mirror (smooth metal); "
+                         "name the objects to map")
+    return [(k, settings.face_size or auto_face_size(scene, k, resolution,
+                                                      settings.parallax_steps > 0))
+            for k in objects]
+
+
 def render_steps(scene: Scene, settings: EnvMapSettings, tracer_settings: TracerSettings,
                  bvh: BVH | None = None, resolution: tuple[int, int] | None = None,
                  out: np.ndarray | None = None) -> Steps[EnvMapResult]:
@@ -419,30 +478,39 @@ def render_steps(scene: Scene, settings: EnvMapSettings, tracer_settings: Tracer
     """
     import time
 
-    if scene.camera is None:
-        raise ValueError("the scene has no camera to render from")
-    objects = resolve_objects(scene, settings.objects, tracer_settings.mirror_roughness)
-    if not objects:
-        raise ValueError("nothing to environment-map: no object is a mirror (smooth metal); "
-                         "name the objects to map")
-    face_tracer = tracer_settings
-    if settings.face_depth >= 0:
-        face_tracer = replace(tracer_settings, max_depth=settings.face_depth)
-    seconds = {"capture": 0.0, "probe": 0.0, "render": 0.0}
+    plan = capture_plan(scene, settings, tracer_settings, resolution)
+    face_tracer = face_tracer_settings(settings, tracer_settings)
     start = time.perf_counter()
     bvh = bvh or BVH.build(scene.triangles)
-    seconds["bvh"] = time.perf_counter() - start
-    maps, face_rays = [], 0
-    share = 0.5 / len(objects)  # half the progress bar for the faces, half for the view
-    for number, k in enumerate(objects):
+    bvh_seconds = time.perf_counter() - start
+    maps, capture = [], 0.0
+    share = 0.5 / len(plan)  # half the progress bar for the faces, half for the view
+    for number, (k, size) in enumerate(plan):
         start = time.perf_counter()
-        size = settings.face_size or auto_face_size(scene, k, resolution,
-                                                     settings.parallax_steps > 0)
         maps.append((yield from scaled(
             capture_steps(scene, k, size, face_tracer, settings.face_supersample, bvh),
             share * number, share)))
-        face_rays += maps[-1].faces[..., 0].size * settings.face_supersample ** 2
-        seconds["capture"] += time.perf_counter() - start
+        capture += time.perf_counter() - start
+    result = yield from scaled(view_steps(scene, settings, tracer_settings, maps, bvh,
+                                          resolution, out), 0.5, 0.5)
+    result.seconds = {"capture": capture, **result.seconds, "bvh": bvh_seconds}
+    return result
+
+
+def view_steps(scene: Scene, settings: EnvMapSettings, tracer_settings: TracerSettings,
+               maps: list[EnvironmentMap], bvh: BVH | None = None,
+               resolution: tuple[int, int] | None = None, out: np.ndarray | None = None
+               ) -> Steps[EnvMapResult]:
+    """The second half of `render_steps`: the camera's view with the captured `maps` (also what
+    `merge` runs on the maps the tiles captured). Yields progress, returns the `EnvMapResult`
+    (seconds: probe, render; face_rays: the maps' texels times the rays per texel)."""
+    import time
+
+    if scene.camera is None:
+        raise ValueError("the scene has no camera to render from")
+    bvh = bvh or BVH.build(scene.triangles)
+    face_rays = sum(env.faces[..., 0].size * settings.face_supersample ** 2 for env in maps)
+    seconds = {"probe": 0.0, "render": 0.0}
     # The probes' rough and diffuse look-ups, from the surfaces the faces hold (the lamps light
     # directly: their highlights on rough surfaces and their light on diffuse ones are the
     # tracer's; so does what emissive meshes send, which the SH leaves out too).
@@ -453,18 +521,18 @@ def render_steps(scene: Scene, settings: EnvMapSettings, tracer_settings: Tracer
         if settings.rough_mips and has_rough_reflections(scene, env.object_index,
                                                          tracer_settings.mirror_roughness):
             chain = yield from scaled(prefilter_steps(
-                env.face_images(), PrefilterSettings(levels=settings.rough_mips)), 0.5, 0.0)
+                env.face_images(), PrefilterSettings(levels=settings.rough_mips)), 0.0, 0.0)
             mips = GlossyMips.from_prefiltered(chain, level0=env.faces, border=env.border)
         sh = sh_coefficients(env.reflected_light()) if settings.diffuse_sh else None
         environment[env.object_index] = MapLookup(env, settings.parallax_steps,
                                                   tracer_settings.mirror_roughness, mips, sh)
     seconds["probe"] = time.perf_counter() - start
     start = time.perf_counter()
-    result = yield from scaled(trace_steps(scene, tracer_settings, bvh=bvh, resolution=resolution,
-                                           out=out, environment=environment), 0.5, 0.5)
+    result = yield from trace_steps(scene, tracer_settings, bvh=bvh, resolution=resolution,
+                                    out=out, environment=environment)
     seconds["render"] = time.perf_counter() - start
     return EnvMapResult(image=result.image, maps=maps, trace=result, face_rays=face_rays,
-                       seconds=seconds)
+                        seconds=seconds)
 
 
 def render(scene: Scene, settings: EnvMapSettings | None = None,

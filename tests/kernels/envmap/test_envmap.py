@@ -92,6 +92,29 @@ def test_capture_holds_what_rays_from_the_centre_see_with_the_object_hidden():
     assert np.all(expected <= bare + 1e-7) and np.sum(expected[:, 0] < 0.5 * bare[:, 0]) >= 3
 
 
+def test_faces_captured_apart_equal_the_cube_captured_whole():
+    # What a tile of an envmap run captures (jobs/envmap.py): any faces, each texel traced as the
+    # whole cube traces it, so the parts stacked are the cube bit for bit (supersampled, with an
+    # emitter's seen emission too).
+    scene = build([(room(2.0), GREY), (uv_sphere((0, 0, 0), 0.3, 8, 16), CHROME),
+                   (quad([(-0.3, -0.3, 1.9), (-0.3, 0.3, 1.9), (0.3, 0.3, 1.9), (0.3, -0.3, 1.9)]),
+                    emissive(np.full(3, 5.0)))],
+                  lights=[point_light("P", (0.7, -0.4, 1.2), np.full(3, 30.0))])
+    settings = TracerSettings(max_depth=2, adaptive=0)
+    whole = drain(envmap.capture_steps(scene, 1, 8, settings, supersample=2))
+    parts = [drain(envmap.capture_faces_steps(scene, 1, 8, settings, 2, faces=faces))
+             for faces in ((0, 1, 2, 3), (4,), (5,))]
+    stacked = envmap.CapturedFaces(1, parts[0].centre, tuple(range(6)),
+                                   np.concatenate([p.radiance for p in parts]),
+                                   np.concatenate([p.inverse_distance for p in parts]),
+                                   np.concatenate([p.emission for p in parts])).environment_map()
+    assert whole.emission is not None
+    for field in ("faces", "inverse_distance", "emission", "centre"):
+        assert np.array_equal(getattr(stacked, field), getattr(whole, field)), field
+    with pytest.raises(ValueError, match="six faces in order"):
+        parts[0].environment_map()
+
+
 def test_env_mapped_mirror_equals_traced_mirror_in_a_uniform_room():
     # A uniformly glowing room is the same from every point: no parallax, so the map is exact and
     # the environment-mapped sphere must match true reflection rays pixel for pixel, Fresnel
