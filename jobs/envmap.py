@@ -16,6 +16,7 @@ that reads the lat-long map along the reflection vector (addon/bridge/envmap_mat
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, replace
+from pathlib import Path
 
 import bpy
 import numpy as np
@@ -30,14 +31,28 @@ from ..kernels.envmap.cube_files import (
     write_equirect_exr,
     write_openexr_cube,
 )
-from ..kernels.envmap.envmap import EnvironmentMap, EnvMapSettings, render_steps, strip_image
+from ..kernels.envmap.cubemap import FACE_NAMES
+from ..kernels.envmap.envmap import (
+    CapturedFaces,
+    EnvironmentMap,
+    EnvMapSettings,
+    capture_faces_steps,
+    capture_plan,
+    face_tracer_settings,
+    object_bounds,
+    render_steps,
+    strip_image,
+    view_steps,
+)
 from ..kernels.envmap.prefilter import PrefilterSettings, prefilter_steps
 from ..kernels.envmap.probe_lamps import lamp_faces
 from ..kernels.envmap.sh_irradiance import sh_coefficients
+from ..kernels.geometry.bvh import BVH
 from ..kernels.geometry.scene import Scene
 from ..kernels.progress import Steps, scaled
 from ..kernels.trace.settings import TracerSettings, auto_settings
 from .record import JobSummary, OperatorSpec, Option, Technique
+from .tiles import Tile, load_solution, save_solution
 from .trace import camera_snapshot
 
 IMAGE_NAME = "Classic Bake Environment"
@@ -156,6 +171,42 @@ def probe_files(probe: ProbeOutputs) -> dict:
     return files
 
 
+def outputs_steps(scene, settings: EnvMapSettings, tracer: TracerSettings, result, mips: int,
+                  outputs: EnvMapOutputs, start: float = 1.0 - OUTPUT_SHARE
+                  ) -> Steps[tuple[list[ProbeOutputs], JobSummary]]:
+    """Each map's outputs (`probe_steps`) after the capture and the view (`result`), and the
+    summary of the run without what it writes into Blender (images, wired materials): the files,
+    settings, sizes and statistics, the same for one run and for `merge` of its tiles."""
+    probes = []
+    share = (1.0 - start) / max(len(result.maps), 1)
+    for number, env in enumerate(result.maps):
+        probes.append((yield from scaled(probe_steps(scene, env, mips),
+                                         start + number * share, share)))
+    files, maps = {}, {}
+    for probe in probes:
+        files.update(probe_files(probe))
+        maps[probe.name] = {"face_size": probe.env.size,
+                            "centre": [float(c) for c in probe.env.centre],
+                            "latlong": list(probe.latlong.shape[1::-1]),
+                            "mip_sizes": [int(level.shape[1]) for level in probe.mips],
+                            "box": probe.record["box"]}
+    height, width = result.image.shape[:2]
+    listed = ", ".join(f"{n} ({m['face_size']} texels per face)" for n, m in maps.items())
+    summary = JobSummary(
+        message=f"cube maps of {listed}: {result.face_rays} face rays in "
+                f"{result.seconds.get('capture', 0.0):.2f} s; camera view {width}x{height} in "
+                f"{result.seconds['render']:.2f} s",
+        scene=scene, render=result.image, files=files, result=result,
+        settings={**asdict(settings), "tracer": asdict(tracer), "mips": int(mips),
+                  **asdict(outputs)},
+        sizes={"width": width, "height": height, "triangles": scene.triangle_count, "maps": maps,
+               "face_rays": result.face_rays},
+        # Not "seconds": metrics.json keeps that key for the phases and the total.
+        extra={"stage_seconds": result.seconds, "stats": result.trace.stats.as_dict(),
+               "wired_materials": []})
+    return probes, summary
+
+
 def envmap_job(scene, settings: EnvMapSettings, tracer: TracerSettings, resolution=None,
                mips: int = PrefilterSettings().levels, outputs: EnvMapOutputs | None = None
                ) -> Steps[JobSummary]:
@@ -165,14 +216,10 @@ def envmap_job(scene, settings: EnvMapSettings, tracer: TracerSettings, resoluti
     outputs = outputs or EnvMapOutputs()
     result = yield from scaled(render_steps(scene, settings, tracer, resolution=resolution),
                                0.0, 1.0 - OUTPUT_SHARE)
-    probes = []
-    share = OUTPUT_SHARE / max(len(result.maps), 1)
-    for number, env in enumerate(result.maps):
-        probes.append((yield from scaled(probe_steps(scene, env, mips),
-                                         1.0 - OUTPUT_SHARE + number * share, share)))
+    probes, summary = yield from outputs_steps(scene, settings, tracer, result, mips, outputs)
     # --- write back: everything computed ---------------------------------------------------------
     image = write_back.write_image(IMAGE_NAME, result.image, image=bpy.data.images.get(IMAGE_NAME))
-    images, files, maps, wired = {IMAGE_NAME: image}, {}, {}, []
+    images, wired = {IMAGE_NAME: image}, []
     for probe in probes:
         name, env = probe.name, probe.env
         images[name] = write_back.write_image(CUBE_PREFIX + name, strip_image(env),
@@ -180,11 +227,6 @@ def envmap_job(scene, settings: EnvMapSettings, tracer: TracerSettings, resoluti
         latlong = write_back.write_image(LATLONG_PREFIX + name, probe.latlong,
                                          image=bpy.data.images.get(LATLONG_PREFIX + name))
         images[LATLONG_PREFIX + name] = latlong
-        files.update(probe_files(probe))
-        maps[name] = {"face_size": env.size, "centre": [float(c) for c in env.centre],
-                      "latlong": list(probe.latlong.shape[1::-1]),
-                      "mip_sizes": [int(level.shape[1]) for level in probe.mips],
-                      "box": probe.record["box"]}
         obj = bpy.data.objects.get(name)
         if outputs.wire and obj is not None and obj.type == "MESH":
             box = probe.box if outputs.box_projection else None
@@ -192,21 +234,121 @@ def envmap_job(scene, settings: EnvMapSettings, tracer: TracerSettings, resoluti
                 obj, latlong, centre=env.centre, box=box,
                 tints=envmap_material.mirror_tints(scene, env.object_index))
             wired += [m.name for m in materials]
-    height, width = result.image.shape[:2]
-    listed = ", ".join(f"{n} ({m['face_size']} texels per face)" for n, m in maps.items())
+    summary.images = images
+    summary.extra["wired_materials"] = wired
+    if wired:
+        summary.message += f"; materials {', '.join(wired)}"
+    return summary
+
+
+# --- tiles (jobs/tiles.py): the cube faces -----------------------------------------------------------
+
+FACE_FOLDER = "faces"
+VIEW = "view.pickle"  # what merge needs to render the camera's view: the snapshot and settings
+
+
+def face_list(plan: list[tuple[int, int]]) -> list[tuple[int, int]]:
+    """(number in the plan, OpenGL face) of every face the run captures, in a fixed order: the
+    objects in the plan's order, each one's faces +X -X +Y -Y +Z -Z."""
+    return [(number, face) for number in range(len(plan)) for face in range(6)]
+
+
+def face_file(number: int, face: int) -> str:
+    return f"{FACE_FOLDER}/{number}_{face}.npz"
+
+
+def _faces_writer(captured: CapturedFaces, k: int):
+    """A writer of face `k` of `captured` (exact float32 arrays, read back without pickle)."""
+    arrays = {"radiance": captured.radiance[k], "inverse_distance": captured.inverse_distance[k]}
+    if captured.emission is not None:
+        arrays["emission"] = captured.emission[k]
+    return lambda path: np.savez(path, **arrays)
+
+
+def envmap_tile_job(scene, settings: EnvMapSettings, tracer: TracerSettings, tile: Tile,
+                    resolution=None, mips: int = PrefilterSettings().levels,
+                    outputs: EnvMapOutputs | None = None) -> Steps[JobSummary]:
+    """Tile K of N of `envmap_job`: its share of the faces (`face_list`, split by count), each
+    captured as one run captures it, into OUT/tiles/K-of-N/faces/; tile 1 also saves the snapshot
+    and settings (`VIEW`) for `merge`, which renders the view and writes the files. Nothing is
+    written into Blender."""
+    outputs = outputs or EnvMapOutputs()
+    plan = capture_plan(scene, settings, tracer, resolution)
+    every = face_list(plan)
+    if tile.count > len(every):
+        maps = f"{len(plan)} map" + ("s" if len(plan) > 1 else "")
+        raise ValueError(f"--tile {tile.index}/{tile.count}: more tiles than the {len(every)} "
+                         f"cube faces ({maps} of six)")
+    first, end = (len(every) * (tile.index - 1)) // tile.count, (len(every) * tile.index) // tile.count
+    mine = every[first:end]
+    face_tracer = face_tracer_settings(settings, tracer)
+    bvh = BVH.build(scene.triangles)
+    files, names = {}, []
+    for count, number in enumerate(sorted({n for n, _ in mine})):
+        k, size = plan[number]
+        faces = [f for n, f in mine if n == number]
+        captured = yield from scaled(
+            capture_faces_steps(scene, k, size, face_tracer, settings.face_supersample, bvh, faces),
+            count / len(plan), 1.0 / len(plan))
+        for j, face in enumerate(faces):
+            files[face_file(number, face)] = _faces_writer(captured, j)
+        names += [[scene.objects[k].source_name, face] for face in faces]
+    if tile.index == 1:
+        view = {"scene": scene, "settings": settings, "tracer": tracer,
+                "resolution": None if resolution is None else tuple(resolution),
+                "mips": int(mips), "box_projection": bool(outputs.box_projection),
+                "plan": plan}
+        files[VIEW] = lambda path: save_solution(path, view)
     return JobSummary(
-        message=f"cube maps of {listed}: {result.face_rays} face rays in "
-                f"{result.seconds['capture']:.2f} s; camera view {width}x{height} in "
-                f"{result.seconds['render']:.2f} s"
-                + (f"; materials {', '.join(wired)}" if wired else ""),
-        scene=scene, render=result.image, images=images, files=files, result=result,
+        message=f"cube faces {first + 1}..{end} of {len(every)} (tile {tile.index} of "
+                f"{tile.count}): {', '.join(f'{n} {FACE_NAMES[f]}' for n, f in names)}",
+        scene=scene, files=files,
         settings={**asdict(settings), "tracer": asdict(tracer), "mips": int(mips),
                   **asdict(outputs)},
-        sizes={"width": width, "height": height, "triangles": scene.triangle_count, "maps": maps,
-               "face_rays": result.face_rays},
-        # Not "seconds": metrics.json keeps that key for the phases and the total.
-        extra={"stage_seconds": result.seconds, "stats": result.trace.stats.as_dict(),
-               "wired_materials": wired})
+        sizes={"faces": len(every)}, extra={"tile_faces": names})
+
+
+def envmap_merge(folder: Path, tiles: list[dict]) -> JobSummary:
+    """The outputs of one envmap run from its tiles' faces (OUT/tiles/): the cube maps put
+    together, then the camera's view and each map's files, as `envmap_job` computes them."""
+    from ..kernels.progress import drain
+
+    names = [t["tile"]["name"] for t in tiles]
+    view = load_solution(folder / names[0] / VIEW)
+    scene, settings, tracer = view["scene"], view["settings"], view["tracer"]
+    plan = view["plan"]
+    every = face_list(plan)
+    where = {}
+    for name in names:
+        for path in (folder / name / FACE_FOLDER).glob("*.npz"):
+            where[path.name] = path
+    missing = [f"{n}_{f}" for n, f in every if face_file(n, f).rpartition("/")[2] not in where]
+    if missing:
+        raise ValueError(f"{folder}: the tiles hold no face {', '.join(missing)}")
+    maps = []
+    for number, (k, size) in enumerate(plan):
+        parts = []
+        for face in range(6):
+            with np.load(where[face_file(number, face).rpartition("/")[2]],
+                         allow_pickle=False) as data:
+                parts.append({key: data[key] for key in data.files})
+        emission = (np.stack([p["emission"] for p in parts])
+                    if all("emission" in p for p in parts) else None)
+        centre, _ = object_bounds(scene, k)
+        maps.append(CapturedFaces(k, centre, tuple(range(6)),
+                                  np.stack([p["radiance"] for p in parts]),
+                                  np.stack([p["inverse_distance"] for p in parts]),
+                                  emission).environment_map())
+        if maps[-1].size != size:
+            raise ValueError(f"{folder}: the faces of map {number} are not {size} texels wide")
+    result = drain(view_steps(scene, settings, tracer, maps, resolution=view["resolution"]))
+    outputs = EnvMapOutputs(wire=False, box_projection=view["box_projection"])
+    _, summary = drain(outputs_steps(scene, settings, tracer, result, view["mips"], outputs,
+                                     start=0.0))
+    # The settings as the tiles recorded them (--wire among them: it changes no file).
+    summary.settings = tiles[0].get("settings", summary.settings)
+    summary.message = f"{len(maps)} cube maps of {len(every)} faces; " + summary.message
+    return summary
 
 
 OPTIONS = (
@@ -284,6 +426,9 @@ def start(context, values: dict, resolution=None) -> Steps[JobSummary]:
     with envmap_material.originals_shown(context.scene):
         scene = camera_snapshot(context, resolution)
     tracer = auto_settings(scene, adaptive=int(values["adaptive"]))
+    if values.get("tile") is not None:
+        return (yield from envmap_tile_job(scene, settings(values), tracer, values["tile"],
+                                           resolution, mips, outputs))
     return (yield from envmap_job(scene, settings(values), tracer, resolution, mips, outputs))
 
 
@@ -300,4 +445,5 @@ RECORD = Technique(
             ("--face-size", "128")),
     operator=OperatorSpec("classic_bake.envmap", "Environment Map Mirrors", "MAT_SPHERE_SKY",
                           needs=("camera", "mesh"), undo=True),
+    tiles="faces", tile_merge=envmap_merge,
 )

@@ -135,8 +135,11 @@ class Technique:
     | shared        | options shared with other records (the lightmap options), before its own |
     | cli_extra     | extra argparse arguments (parser) -> None, for CLI-only switches        |
     | renders       | True: the CLI run must write render.exr (the camera view)               |
-    | tiles         | what `--tile K/N` splits ("lightmaps", "rows"; "": none; jobs/tiles.py) |
+    | tiles         | what `--tile K/N` splits ("lightmaps", "rows", "faces"; "": none;       |
+    |               | jobs/tiles.py)                                                          |
     | tile_prepare  | True: the tiles need `--tile prepare` run first (radiosity: the solve)  |
+    | tile_merge    | (OUT/tiles folder, the tiles' metrics.json) -> the whole run's          |
+    |               | JobSummary, for tiles `merge` cannot put together alone ("faces")       |
     """
 
     name: str
@@ -153,6 +156,7 @@ class Technique:
     renders: bool = True
     tiles: str = ""
     tile_prepare: bool = False
+    tile_merge: Callable[..., Any] | None = None
 
     @property
     def prefix(self) -> str:

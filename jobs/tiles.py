@@ -10,7 +10,11 @@ splits is named by its record (`Technique.tiles`):
   a run's values depend on its own points only, so a tile's objects come out exactly as in one
   process;
 * "rows": the camera view's rows (`row_range`), each pixel traced as the whole view traces it
-  (`kernels/trace/tracer.trace_steps`, `rows`).
+  (`kernels/trace/tracer.trace_steps`, `rows`);
+* "faces": the cube maps' faces (envmap: `jobs/envmap.face_list`, every mapped object's six in
+  a fixed order, split by count like rows), each texel traced as the whole cube traces it
+  (`kernels/envmap/envmap.capture_faces_steps`); `merge` renders the view from the assembled
+  maps (the technique's `tile_merge`).
 
 A tile writes into OUT/tiles/: its part's files (`tile_folder`) and a record of its run
 (metrics.json there); `merge OUT` puts them together.

@@ -8,7 +8,10 @@ What a tile holds, by the technique's record (`Technique.tiles`):
 * "lightmaps": its objects' finished lightmap files, copied as they are; render.exr and
   render.png come from the prepare step;
 * "rows": render.exr of its rows (metrics.json `tile_rows`), stacked in order into render.exr and
-  render.png; the rays in `stats` are summed (an edge pass traces the rows next to a tile too).
+  render.png; the rays in `stats` are summed (an edge pass traces the rows next to a tile too);
+* "faces": its share of the cube maps' faces (envmap): the technique's `tile_merge` puts the cube
+  maps together and computes from them what one run writes (the camera's view, each map's
+  lat-long, cross, mips and probe record), its sizes and statistics replacing the tiles'.
 """
 
 from __future__ import annotations
@@ -24,7 +27,7 @@ from ..command import Command, RunContext
 from ..outputs import Staging, UsageError
 
 RECORD = "metrics.json"
-KEEP_IN_TILES = {"solution.pickle"}  # what a tile writes for the other tiles, not an output
+KEEP_IN_TILES = {"solution.pickle", "view.pickle"}  # what a tile writes for the other tiles, not an output
 
 
 def read_tiles(out: Path) -> tuple[dict | None, list[dict]]:
@@ -93,7 +96,7 @@ def merged_record(technique, prepare: dict | None, tiles: list[dict]) -> dict:
             record["skipped"] = skipped
     elif technique.tiles == "rows" and "stats" in record:
         record["stats"] = summed([t.get("stats", {}) for t in tiles])
-    for key in ("lightmap_order", "tile_rows"):
+    for key in ("lightmap_order", "tile_rows", "tile_faces"):
         record.pop(key, None)
     record["seconds"] = {k: round(v, 6) for k, v in
                          summed([p.get("seconds", {}) for p in parts]).items()}
@@ -137,6 +140,25 @@ def merge_rows(staging: Staging, out: Path, tiles: list[dict]) -> None:
     write_preview_png(staging.file("render.png"), image)
 
 
+def merge_computed(technique, staging: Staging, out: Path, tiles: list[dict], record: dict) -> None:
+    """The files the technique's `tile_merge` computes from the tiles (envmap: the view and the
+    maps' files from the faces), written as one run writes them; their sizes and statistics
+    replace the tiles' in `record`."""
+    from ...jobs.tiles import TILE_FOLDER
+    from .technique import write_outputs
+
+    try:
+        summary = technique.tile_merge(out / TILE_FOLDER, tiles)
+    except ValueError as exc:
+        raise UsageError(f"merge: {exc}") from exc
+    write_outputs(staging, summary)
+    record["settings"] = summary.settings
+    record["sizes"] = summary.sizes
+    record.update(summary.extra)
+    if staging.renamed:
+        record["file_names"] = dict(staging.renamed)
+
+
 def add_arguments(parser) -> None:
     parser.add_argument("out", type=Path, metavar="OUT",
                         help="the --out folder the tiles ran into (OUT/tiles/)")
@@ -164,6 +186,8 @@ def run(ctx: RunContext) -> None:
             # In the order one run writes them: the prepare step's, then the lightmaps'.
             if technique.tiles == "rows":
                 merge_rows(staging, out, tiles)
+            elif technique.tile_merge is not None:
+                merge_computed(technique, staging, out, tiles, record)
             else:
                 rank = {f: k for k, f in enumerate(record.get("lightmap_files", {}).values())}
                 found = [pair for part in ([prepare] if prepare else []) + tiles

@@ -21,27 +21,34 @@ def write_files(ctx: RunContext, summary) -> None:
     format its kernels write themselves, e.g. an OpenEXR cube map with its envmap attribute,
     called with the path); with --save-blend the job's images are packed into the saved file."""
     from ...addon.bridge import write_back
+
+    write_outputs(ctx.staging, summary)
+    if getattr(ctx.args, "save_blend", False):
+        for image in summary.images.values():
+            write_back.pack_image(image)
+
+
+def write_outputs(staging, summary) -> None:
+    """`write_files` without the Blender side: render.exr/png and the job's files into
+    `staging` (`merge` writes a whole run's files with it)."""
     from ...kernels.measure.exr import write_exr
     from ..images import write_png, write_preview_png
 
     if summary.render is not None:
-        ctx.write_render(summary.render)
-        write_preview_png(ctx.output("render.png"), summary.render)
+        write_exr(staging.file("render.exr"), summary.render)
+        write_preview_png(staging.file("render.png"), summary.render)
     for name, data in summary.files.items():
         safe = output_name(name)
         if callable(data):
-            data(ctx.output(safe))
+            data(staging.file(safe))
         elif safe.endswith(".json"):
-            ctx.staging.write_json(safe, data)
+            staging.write_json(safe, data)
         elif safe.endswith(".png") and getattr(data, "dtype", None) == "uint8":
-            write_png(ctx.output(safe), data)
+            write_png(staging.file(safe), data)
         elif safe.endswith(".png"):
-            write_preview_png(ctx.output(safe), data)
+            write_preview_png(staging.file(safe), data)
         else:
-            write_exr(ctx.output(safe), data)
-    if getattr(ctx.args, "save_blend", False):
-        for image in summary.images.values():
-            write_back.pack_image(image)
+            write_exr(staging.file(safe), data)
 
 
 def check_tile(technique, tile, args) -> None:

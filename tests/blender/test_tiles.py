@@ -1,8 +1,9 @@
 """A tiled bake equals the untiled one: `radiosity --tile prepare`, `--tile K/3` for K = 1..3 and
 `merge` write the same files as one run, bit for bit (each object's lightmap depends on its own
 texels only, and the tiles read the solve the prepare step saved); so do `trace --tile K/N` (rows
-of the camera view, with and without the edge pass) and `merge`; bad --tile values and an
-incomplete set of tiles fail with one line (exit 2)."""
+of the camera view, with and without the edge pass) and `merge`, and `envmap --tile K/N` (cube
+faces, merge rendering the view from the assembled maps); bad --tile values and an incomplete set
+of tiles fail with one line (exit 2)."""
 
 from __future__ import annotations
 
@@ -18,9 +19,11 @@ from classic_bake.pipeline.cli import main
 ROOT = Path(__file__).resolve().parents[2]
 SCENE = str(ROOT / "sample_blends" / "cornell_box.blend")
 MIRRORS = str(ROOT / "sample_blends" / "raytrace.blend")
+ENV_ROOM = str(ROOT / "sample_blends" / "env_room.blend")
 SMALL = ["--resolution", "24", "18", "--lightmap-size", "48", "--patches", "60", "--quiet"]
-# What differs between a tiled and an untiled run's metrics.json: the clock, and the tiles' own.
-TIMED = ("seconds", "tiles")
+# What differs between a tiled and an untiled run's metrics.json: the clock (the tracer's phases
+# among it), and the tiles' own.
+TIMED = ("seconds", "tiles", "phases")
 
 
 def radiosity(out: Path, *extra, small=SMALL) -> int:
@@ -96,6 +99,47 @@ def test_tiled_trace_equals_one_run(tmp_path, options):
     # Each pixel traced once for its tile (and the rows beside a tile again for the edge pass).
     rays = merged["stats"]["camera_rays"] - single["stats"]["camera_rays"]
     assert rays == 0 if options[1] == "0" else 0 <= rays <= 4 * 31 * 4 * 2
+
+
+@pytest.mark.slow
+def test_tiled_envmap_equals_one_run(tmp_path):
+    one, tiled = tmp_path / "one", tmp_path / "tiled"
+    # Two maps, 12 faces: tile 2 of 3 holds the last two faces of one and the first two of the
+    # other.
+    run = ["envmap", ENV_ROOM, "--face-size", "16", "--resolution", "32", "24", "--mips", "2",
+           "--objects", "MirrorSphere", "CrateSmall", "--quiet"]
+    assert main([*run, "--out", str(one)]) == 0
+    for k in (2, 3, 1):
+        assert main([*run, "--out", str(tiled), "--tile", f"{k}/3"]) == 0
+    shares = [json.loads((tiled / "tiles" / f"{k}-of-3" / "metrics.json").read_text())
+              ["tile_faces"] for k in (1, 2, 3)]
+    assert [len(s) for s in shares] == [4, 4, 4]
+    assert shares[1] == [["MirrorSphere", 4], ["MirrorSphere", 5], ["CrateSmall", 0],
+                         ["CrateSmall", 1]]
+    assert not (tiled / "render.exr").exists()
+    assert main(["merge", str(tiled), "--quiet"]) == 0
+    assert files(one) == files(tiled)
+    assert {"render.exr", "cube/MirrorSphere.exr", "cube/CrateSmall_latlong.exr",
+            "cube/MirrorSphere_cross.png", "cube/CrateSmall_mip1.exr",
+            "cube/MirrorSphere_probe.json"} <= set(files(one))
+    for name in files(one):
+        if name != "metrics.json":
+            assert (one / name).read_bytes() == (tiled / name).read_bytes(), name
+    single = json.loads((one / "metrics.json").read_text())
+    merged = json.loads((tiled / "metrics.json").read_text())
+    assert untimed(merged) == untimed(single)
+    assert merged["tiles"]["count"] == 3 and merged["tiles"]["prepare"] is False
+
+
+def test_envmap_tile_refusals_are_one_line(tmp_path, capsys):
+    run = ["envmap", ENV_ROOM, "--out", str(tmp_path / "out"), "--face-size", "8",
+           "--resolution", "8", "6", "--quiet", "--tile"]
+    for value, says in (("4/3", "K must be in [1, 3]"), ("7/7", "more tiles than the 6 cube faces"),
+                        ("prepare", "its tiles need no prepare step")):
+        assert main([*run, value]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and says in err, err
+    assert not (tmp_path / "out").exists()
 
 
 @pytest.mark.parametrize("value, says", [
