@@ -84,6 +84,16 @@ test("a tiled trace needs no prepare step of its own: info, a task per rows' sha
     assert.deepEqual(commandLine(job.tasks[3], 0, 2).slice(3), ["merge", "/farm/out/t/trace"]);
 });
 
+test("a tiled envmap shares the cube faces: info, a task per share, merge renders the view", () => {
+    const { job } = compile(SCRIPT, { ...SAMPLE, technique: "envmap", tiles: 3, args: "--face-size 64" }, "e");
+    assert.deepEqual(job.tasks.map((t) => t.name), ["prepare", "bake-envmap-1-of-3", "bake-envmap-2-of-3",
+        "bake-envmap-3-of-3", "merge"]);
+    assert.deepEqual(commandLine(job.tasks[0]).slice(3, 4), ["info"]);
+    assert.deepEqual(commandLine(job.tasks[2]).slice(-4), ["--face-size", "64", "--tile", "2/3"]);
+    assert.deepEqual(commandLine(job.tasks[4], 0, 2).slice(3), ["merge", "/farm/out/e/envmap"]);
+    assert.equal(job.tasks[4].dependencies.length, 3);
+});
+
 test("defaults: the scene's own resolution, no extra options, one tile", () => {
     const { job } = compile(SCRIPT, { blendfile: "/s/cornell box.blend", output_root: "/o" }, "j");
     const bake = job.tasks[1];
