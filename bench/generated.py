@@ -112,8 +112,9 @@ def radiosity_room(args, path: Path, drawn: dict, plan: dict) -> dict:
                             samples=256 if args.quick else None,
                             max_samples=args.max_ref_samples, target_rel_mse=2e-4)
     ref_images, ref_masks, ref_info = cycles_lightmap_reference(
-        path, model, names, plan, UV_NAME, samples=32 if args.quick else None,
-        max_samples=args.max_ref_bake_samples, target_rel_mse=args.bake_target_rel_mse)
+        path, model, names, plan, UV_NAME, samples=None,
+        max_samples=32 if args.quick else args.max_ref_bake_samples,
+        target_rel_mse=args.bake_target_rel_mse)
     # The reference's own noise (estimated from its two halves) adds to every error measured
     # against it, ours and Cycles' rungs alike: the net error subtracts it.
     noise = reference_noise(ref_info) or 0.0
@@ -233,7 +234,8 @@ def main() -> int:
     parser.add_argument("--seeds", type=int, nargs="+", default=None,
                         help="the rooms' seeds (default: drawn now, printed)")
     parser.add_argument("--quick", action="store_true",
-                        help="short ladders, fixed-sample references (smoke run)")
+                        help="short ladders, references of few samples (a smoke run: its "
+                             "errors and ratios mean little)")
     parser.add_argument("--max-ref-samples", type=int, default=2048,
                         help="cap of the converged Cycles references (default 2048)")
     parser.add_argument("--max-ref-bake-samples", type=int, default=1024,
@@ -274,7 +276,7 @@ def main() -> int:
         b, v, s = r["bake"]["radiosity"][0], r["view"], r["shadowmap"]
         rows.append([str(r["seed"]), r["lighting"], "yes" if r["closed"] else "no",
                      max(r["lightmap_sizes"].values()), r["bake"]["texels"], b["patches"],
-                     b["rel_mse"], r["bake"]["error_floor"]["radiosity"],
+                     b["rel_mse"], b["rel_mse_raw"], r["bake"]["error_floor"]["radiosity"],
                      r["bake"]["error_floor"]["cycles"], b["seconds"],
                      b["cycles_seconds_to_same_rel_mse"],
                      f"{bound(b['cycles_reached'])}{b['ratio']:.3g}",
@@ -283,7 +285,7 @@ def main() -> int:
                      "-" if s is None else s["seconds"],
                      "-" if s is None else f"{bound(s['cycles_reached'])}{s['ratio']:.3g}"])
     print(format_table(["seed", "lighting", "closed", "lm size", "texels", "patches",
-                        "bake relMSE", "floor", "cycles floor", "bake s", "cycles s same",
+                        "bake relMSE", "raw", "floor", "cycles floor", "bake s", "cycles s same",
                         "bake ratio", "view relMSE", "brightness", "view ratio", "shadow disagree",
                         "shadow s", "shadow ratio"], rows))
 
