@@ -5,10 +5,10 @@ and merge into the same outputs as one process writes (`pipeline/commands/merge.
 where a technique has one (radiosity: the solve, saved once, and the camera's view). What a tile
 splits is named by its record (`Technique.tiles`):
 
-* "lightmaps": the objects' lightmaps, in the runs of objects the bake gathers together
-  (`kernels/radiosity/lightmap.gather_groups`), shared among the tiles by texel count (`share`);
-  a run's values depend on its own points only, so a tile's objects come out exactly as in one
-  process;
+* "lightmaps": the objects' lightmaps, shared among the tiles by texel count (`share`):
+  radiosity's in the runs of objects the bake gathers together
+  (`kernels/radiosity/lightmap.gather_groups`), texture's one by one; a run's (an object's)
+  values depend on its own points only, so a tile's objects come out exactly as in one process;
 * "rows": the camera view's rows (`row_range`), each pixel traced as the whole view traces it
   (`kernels/trace/tracer.trace_steps`, `rows`);
 * "faces": the cube maps' faces (envmap: `jobs/envmap.face_list`, every mapped object's six in

@@ -6,7 +6,7 @@ and `tiles` lists each part's). The tiles' folder (OUT/tiles/) stays, so a merge
 What a tile holds, by the technique's record (`Technique.tiles`):
 
 * "lightmaps": its objects' finished lightmap files, copied as they are; render.exr and
-  render.png come from the prepare step;
+  render.png come from the prepare step (radiosity) or tile 1 (texture);
 * "rows": render.exr of its rows (metrics.json `tile_rows`), stacked in order into render.exr and
   render.png; the rays in `stats` are summed (an edge pass traces the rows next to a tile too);
 * "faces": its share of the cube maps' faces (envmap): the technique's `tile_merge` puts the cube
@@ -85,9 +85,12 @@ def merged_record(technique, prepare: dict | None, tiles: list[dict]) -> dict:
     for key in ("tile", "file_names", "tile_objects", "outputs"):
         record.pop(key, None)
     if technique.tiles == "lightmaps":
-        for key in ("baked_texels", "filtered_texels"):
+        for key in ("baked_texels", "filtered_texels", "objects", "look_ups"):
             if key in record.get("sizes", {}):
                 record["sizes"][key] = sum(t["sizes"].get(key, 0) for t in tiles)
+        if "texels_per_cells_per_side" in record:  # texture: texels by cells per side
+            counts = summed([t.get("texels_per_cells_per_side", {}) for t in tiles])
+            record["texels_per_cells_per_side"] = {k: counts[k] for k in sorted(counts, key=int)}
         files = {k: v for t in tiles for k, v in t.get("lightmap_files", {}).items()}
         order = tiles[0].get("lightmap_order", list(files))  # the whole bake's
         record["lightmap_files"] = {k: files[k] for k in sorted(files, key=order.index)}
@@ -189,10 +192,13 @@ def run(ctx: RunContext) -> None:
             elif technique.tile_merge is not None:
                 merge_computed(technique, staging, out, tiles, record)
             else:
-                rank = {f: k for k, f in enumerate(record.get("lightmap_files", {}).values())}
+                # A lightmap's preview (texture: .png) beside its .exr, as one run writes them.
+                rank = {f.rpartition(".")[0]: k
+                        for k, f in enumerate(record.get("lightmap_files", {}).values())}
                 found = [pair for part in ([prepare] if prepare else []) + tiles
                          for pair in part_outputs(out / TILE_FOLDER / part["tile"]["name"], part)]
-                for rel, source in sorted(found, key=lambda pair: rank.get(pair[0], -1)):
+                for rel, source in sorted(found,
+                                          key=lambda pair: rank.get(pair[0].rpartition(".")[0], -1)):
                     shutil.copyfile(source, staging.file(rel))
         own = timer.totals()
         record["seconds"]["merge"] = own["merge"]

@@ -2,8 +2,9 @@
 `merge` write the same files as one run, bit for bit (each object's lightmap depends on its own
 texels only, and the tiles read the solve the prepare step saved); so do `trace --tile K/N` (rows
 of the camera view, with and without the edge pass) and `merge`, and `envmap --tile K/N` (cube
-faces, merge rendering the view from the assembled maps); bad --tile values and an incomplete set
-of tiles fail with one line (exit 2)."""
+faces, merge rendering the view from the assembled maps) and `texture --tile K/N` (objects'
+lightmaps, tile 1 the view); bad --tile values and an incomplete set of tiles fail with one line
+(exit 2)."""
 
 from __future__ import annotations
 
@@ -131,6 +132,32 @@ def test_tiled_envmap_equals_one_run(tmp_path):
     assert merged["tiles"]["count"] == 3 and merged["tiles"]["prepare"] is False
 
 
+@pytest.mark.slow
+def test_tiled_texture_equals_one_run(tmp_path):
+    one, tiled = tmp_path / "one", tmp_path / "tiled"
+    # env_room: a packed checkerboard image on the floor, nine objects shared by texel count.
+    run = ["texture", ENV_ROOM, "--resolution", "24", "18", "--lightmap-size", "32", "--quiet"]
+    assert main([*run, "--out", str(one)]) == 0
+    for k in (3, 1, 2):
+        assert main([*run, "--out", str(tiled), "--tile", f"{k}/3"]) == 0
+    assert main(["merge", str(tiled), "--quiet"]) == 0
+    assert files(one) == files(tiled)
+    assert {"render.exr", "render.png"} < set(files(one))
+    for name in files(one):
+        if name != "metrics.json":
+            assert (one / name).read_bytes() == (tiled / name).read_bytes(), name
+    single = json.loads((one / "metrics.json").read_text())
+    merged = json.loads((tiled / "metrics.json").read_text())
+    assert single["sizes"]["textured_materials"]
+    assert untimed(merged) == untimed(single)
+    shares = [json.loads((tiled / "tiles" / f"{k}-of-3" / "metrics.json").read_text())
+              ["tile_objects"] for k in (1, 2, 3)]
+    assert sorted(sum(shares, [])) == sorted(single["lightmap_files"]) and all(shares)
+    # The camera's view is tile 1's.
+    assert (tiled / "tiles" / "1-of-3" / "render.exr").exists()
+    assert not (tiled / "tiles" / "2-of-3" / "render.exr").exists()
+
+
 def test_envmap_tile_refusals_are_one_line(tmp_path, capsys):
     run = ["envmap", ENV_ROOM, "--out", str(tmp_path / "out"), "--face-size", "8",
            "--resolution", "8", "6", "--quiet", "--tile"]
@@ -140,6 +167,11 @@ def test_envmap_tile_refusals_are_one_line(tmp_path, capsys):
         err = capsys.readouterr().err.strip()
         assert len(err.splitlines()) == 1 and says in err, err
     assert not (tmp_path / "out").exists()
+    texture = ["texture", SCENE, "--out", str(tmp_path / "texture"), "--resolution", "8", "6",
+               "--lightmap-size", "16", "--quiet", "--tile", "99/99"]
+    assert main(texture) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "more tiles than the scene's 8 objects" in err, err
 
 
 @pytest.mark.parametrize("value, says", [
