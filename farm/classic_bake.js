@@ -17,7 +17,7 @@ const TECHNIQUES = ["lightmap-uv", "texture", "trace", "envmap", "bump", "shadow
 // The techniques whose command line takes `--tile K/N`, and whether their tiles need
 // `--tile prepare` first (jobs/tiles.py).
 const TILED = { radiosity: { prepare: true }, trace: { prepare: false },
-                envmap: { prepare: false } };
+                envmap: { prepare: false }, texture: { prepare: false } };
 const MAX_TILES = 256;
 
 const JOB_TYPE = {
@@ -29,8 +29,9 @@ const JOB_TYPE = {
           description: "Which Classic Bake command runs (python -m classic_bake --help lists them)" },
         { key: "tiles", type: "int32", default: 1, propargs: { min: 1, max: 256 },
           description: "Tasks the bake is split into (above 1: radiosity, whose tiles share its " +
-                       "objects' lightmaps after one solve, trace, whose tiles share the rows, " +
-                       "or envmap, whose tiles share the cube faces and whose merge renders the view)" },
+                       "objects' lightmaps after one solve, texture, whose tiles share the lightmaps, " +
+                       "trace, whose tiles share the rows, or envmap, whose tiles share the cube " +
+                       "faces and whose merge renders the view)" },
         { key: "resolution", type: "string", default: "",
           description: "render.exr size 'W H'; empty: the scene's render size" },
         { key: "args", type: "string", default: "",

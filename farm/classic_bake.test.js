@@ -94,6 +94,14 @@ test("a tiled envmap shares the cube faces: info, a task per share, merge render
     assert.equal(job.tasks[4].dependencies.length, 3);
 });
 
+test("a tiled texture bake shares the objects' lightmaps without a prepare step", () => {
+    const { job } = compile(SCRIPT, { ...SAMPLE, technique: "texture", tiles: 2, args: "" }, "x");
+    assert.deepEqual(job.tasks.map((t) => t.name), ["prepare", "bake-texture-1-of-2",
+        "bake-texture-2-of-2", "merge"]);
+    assert.deepEqual(commandLine(job.tasks[0]).slice(3, 4), ["info"]);
+    assert.deepEqual(commandLine(job.tasks[3], 0, 2).slice(3), ["merge", "/farm/out/x/texture"]);
+});
+
 test("defaults: the scene's own resolution, no extra options, one tile", () => {
     const { job } = compile(SCRIPT, { blendfile: "/s/cornell box.blend", output_root: "/o" }, "j");
     const bake = job.tasks[1];
