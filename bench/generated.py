@@ -2,7 +2,8 @@
 
     .venv/bin/python bench/generated.py [--scenes 8] [--seeds 11 12 ...] [--quick]
 
-Each run draws new seeds (printed; `--seeds` rebuilds any scene) unless given. Every room gets
+Each run draws new seeds (printed; `--seeds` rebuilds any scene) unless given, the lightings in
+turn. Every room gets
 lightmap UVs as the `radiosity` and `shadowmap` commands make them by default (the automatic plan:
 one texel density, the largest object at the default lightmap size), saved with the room so
 Cycles' cached references bake the same texels. Per room:
@@ -247,7 +248,9 @@ def main() -> int:
 
     from classic_bake.addon import cycles as cr
 
-    seeds = args.seeds or [int(s) for s in np.random.default_rng().integers(0, 10**6, args.scenes)]
+    # New seeds, each lighting (seed mod 6, bench/scenes.py) in turn: eight rooms cover all six.
+    drawn = np.random.default_rng().integers(0, 10**6, args.scenes)
+    seeds = args.seeds or [int(s - s % 6 + k % 6) for k, s in enumerate(drawn)]
     print("seeds:", " ".join(map(str, seeds)), flush=True)
     folder = OUT_DIR / "generated"
     folder.mkdir(parents=True, exist_ok=True)
