@@ -49,6 +49,39 @@ def light_visibility(light, origins: np.ndarray, occluded, area_samples_per_side
     return seen if per_target else seen.mean(axis=0)
 
 
+def triangle_solid_angles(point: np.ndarray, corners: np.ndarray) -> np.ndarray:
+    """(N,) solid angle, sr, of triangles corners (N, 3, 3) world m seen from `point` (3,)
+    (Van Oosterom and Strackee 1983: tan(omega / 2) = a.(b x c) / (|a||b||c| + (a.b)|c| +
+    (a.c)|b| + (b.c)|a|), a, b, c the corners relative to the point); either side, unsigned."""
+    a, b, c = (corners[:, k] - point for k in range(3))
+    la, lb, lc = (np.linalg.norm(v, axis=1) for v in (a, b, c))
+    triple = np.einsum("ij,ij->i", a, np.cross(b, c))
+    den = (la * lb * lc + np.einsum("ij,ij->i", a, b) * lc + np.einsum("ij,ij->i", a, c) * lb
+           + np.einsum("ij,ij->i", b, c) * la)
+    return np.abs(2.0 * np.arctan2(triple, den))
+
+
+def near_lamp_scale(light, corners: np.ndarray, normals: np.ndarray, areas: np.ndarray,
+                    weights: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """(N,) factors that make a point or spot lamp's sampled irradiance over each patch integrate
+    exactly: the mean of cos / d^2 over a planar patch is its solid angle from the lamp over its
+    area, where n x n sample points of a patch much wider than its distance to the lamp miss the
+    peak under the lamp or straddle it (5 cm under 0.5 m patches, 3 x 3 points: -11% or +11% of
+    the flux). Shadows and the spot's cone stay those of the samples.
+
+    corners (N, 3, 3) m and normals (N, 3) of the patches, areas (N,) m^2; weights (N, S) of
+    their samples (summing to 1), points (N S, 3) m. 1 where the lamp is behind a patch."""
+    position = np.asarray(light.position, np.float64)
+    delta = (position - points).reshape(len(corners), -1, 3)  # (N, S, 3) towards the lamp
+    dist2 = np.maximum(np.einsum("nsj,nsj->ns", delta, delta), light_units.MIN_LIGHT_DISTANCE ** 2)
+    cos = np.clip(np.einsum("nsj,nj->ns", delta, normals), 0.0, None) / np.sqrt(dist2)
+    sampled = np.einsum("ns,ns->n", weights, cos / dist2)  # mean cos / d^2 by the samples
+    in_front = np.einsum("nj,nj->n", position - corners[:, 0], normals) > 0.0
+    exact = triangle_solid_angles(position, corners) / np.maximum(areas, 1e-300)
+    return np.where(in_front & (sampled > 0.0), exact / np.where(sampled > 0.0, sampled, 1.0),
+                    1.0)
+
+
 def hard_lamps(scene: Scene) -> list:
     """The point, spot and sun lamps that cast shadows: steps, not ramps."""
     return [light for light in scene.lights if light.kind != "AREA" and light.cast_shadow]

@@ -24,7 +24,7 @@ from ..shading.world_light import extract_suns, world_irradiance, world_lit, wor
 from . import patches as patching
 from .emitters import Emitters, emitter_irradiance, emitters_of, open_backs
 from .form_factors.sampling import sample_patches
-from .lamps import hard_lamps, shadowed_irradiance
+from .lamps import hard_lamps, near_lamp_scale, shadowed_irradiance
 from .settings import RadiositySettings, gather_settings
 
 
@@ -148,8 +148,12 @@ def first_shot(scene: Scene, patches: patching.Patches, occluded, settings: Radi
         boundary[:] |= some_lit & some_dark
 
     for light in scene.lights:
-        add(*shadowed_irradiance(light, flat, normals, origins, occluded,
-                                 settings.area_light_samples_per_side))  # (N S, 3), (N S,)
+        e, vis = shadowed_irradiance(light, flat, normals, origins, occluded,
+                                     settings.area_light_samples_per_side)  # (N S, 3), (N S,)
+        if light.kind in ("POINT", "SPOT"):  # the samples' mean made the exact patch integral
+            e *= np.repeat(near_lamp_scale(light, patches.corners, patches.normals,
+                                           patches.areas, weights, flat), samples)[:, None]
+        add(e, vis)
     if shooting:
         share = np.ones(len(flat))
         e = emitter_irradiance(
