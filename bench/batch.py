@@ -3,7 +3,8 @@ tiled radiosity bake against one process.
 
     .venv/bin/python bench/batch.py [--quick] [--resolution W H] [--tiles N]
 
-Runs `python -m classic_bake batch` over every sample scene x (trace, bump, shadowmap) with
+Runs `python -m classic_bake batch` over every sample scene x (trace, bump, texture: each applies
+to every sample; a shadow map refuses the Cornell box, which has no lamp) with
 --workers 1 and --workers 2 (--force: nothing skipped), alternately, and reports the ratio of their
 wall-clock seconds (`one_vs_two_workers_seconds`: above 1, two workers are faster). Each run is a
 process of its own, so the batch pays each run's start-up (importing bpy, opening the scene) and
@@ -110,7 +111,7 @@ def main() -> int:
     parser.add_argument("--tiles", type=int, default=None, help="tiles of the radiosity bake (4)")
     args = parser.parse_args()
     scenes = sorted(SAMPLES.glob("*.blend"))
-    techniques = ["trace", "bump", "shadowmap"]
+    techniques = ["trace", "bump", "texture"]
     size, repeats = args.resolution or (160, 120), 2
     if args.quick:
         scenes, techniques, size, repeats = scenes[:2], ["trace"], args.resolution or (16, 12), 1

@@ -19,7 +19,7 @@ from ..run import command_args, run_command
 # The demo's cost: each technique at its defaults, Cycles to 16 samples, references capped at 256
 # samples, half the scenes' size. DEMO_BUDGET_S is what the README promises for a fresh clone on a
 # 2-core machine (the references computed, not cached); bench/demo.py measures it.
-DEMO_BUDGET_S = 15 * 60
+DEMO_BUDGET_S = 10 * 60
 DEMO_CYCLES_SAMPLES = 16
 DEMO_REFERENCE_SAMPLES = 256
 DEMO_SCALE = 0.5
