@@ -48,6 +48,19 @@ class AnyHitSettings:
     opaque_below: float = 1e-4
 
 
+def _queries(bvh, origins, directions, t_min, t_max):
+    """The BVH's own queries (an `AlphaOccluder`'s, not its stochastic one), the rays as
+    contiguous float64 (R, 3) and their segments as (R,) float64 copies the walk may move."""
+    if isinstance(bvh, AlphaOccluder):
+        bvh = bvh.bvh
+    origins = np.ascontiguousarray(origins, np.float64)
+    directions = np.ascontiguousarray(directions, np.float64)
+    count = len(origins)
+    t_lo = np.broadcast_to(np.asarray(t_min, np.float64), (count,)).copy()
+    t_hi = np.broadcast_to(np.asarray(t_max, np.float64), (count,)).copy()
+    return bvh, origins, directions, t_lo, t_hi
+
+
 def transmittance(bvh: BVH, origins: np.ndarray, directions: np.ndarray, t_min, t_max,
                   coverage: Coverage, offset: float, opaque: Opaque | None = None,
                   skip: np.ndarray | None = None,
@@ -65,13 +78,8 @@ def transmittance(bvh: BVH, origins: np.ndarray, directions: np.ndarray, t_min, 
     | opaque     | Opaque or None      | triangles known opaque: no look-up there               |
     | skip       | (R,) int or None    | a triangle each ray passes through (-1: none)          |
     """
-    if isinstance(bvh, AlphaOccluder):  # its own queries, not the stochastic one
-        bvh = bvh.bvh
-    origins = np.ascontiguousarray(origins, np.float64)
-    directions = np.ascontiguousarray(directions, np.float64)
+    bvh, origins, directions, t_lo, t_hi = _queries(bvh, origins, directions, t_min, t_max)
     count = len(origins)
-    t_lo = np.broadcast_to(np.asarray(t_min, np.float64), (count,)).copy()
-    t_hi = np.broadcast_to(np.asarray(t_max, np.float64), (count,)).copy()
     out = np.ones(count)
     if count == 0:
         return out
@@ -106,13 +114,7 @@ def clipped_hits(bvh: BVH, origins: np.ndarray, directions: np.ndarray, t_min, t
     """Closest hits (`BVH.intersect`) that skip surfaces where alpha < `threshold` (the alpha
     test: a ray seeing a leaf card passes its holes and meets what lies behind). Parameters as
     `transmittance`; a ray past `settings.max_layers` holes keeps its last hit."""
-    if isinstance(bvh, AlphaOccluder):
-        bvh = bvh.bvh
-    origins = np.ascontiguousarray(origins, np.float64)
-    directions = np.ascontiguousarray(directions, np.float64)
-    count = len(origins)
-    t_lo = np.broadcast_to(np.asarray(t_min, np.float64), (count,)).copy()
-    t_hi = np.broadcast_to(np.asarray(t_max, np.float64), (count,)).copy()
+    bvh, origins, directions, t_lo, t_hi = _queries(bvh, origins, directions, t_min, t_max)
     hits = bvh.intersect(origins, directions, t_lo, t_hi)
     step = offset / np.maximum(np.linalg.norm(directions, axis=1), 1e-30)  # (R,) in t units
     rays = np.flatnonzero(hits.tri >= 0)
