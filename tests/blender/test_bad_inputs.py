@@ -2,7 +2,9 @@
 Blender's default scene (Cube, Camera, Light), saved to a temporary folder and run as
 `python -m classic_bake ...` in a subprocess with a timeout (a hang fails the test). Each case
 asserts the exit code and either one clear line on stderr (no traceback) or the sensible result,
-and that earlier outputs are untouched where a run fails."""
+and that earlier outputs are untouched where a run fails. Refusals that come before any work
+(bad flags, budgets, cameras) call the same entry point in this process
+(`support.cli_calls.refusal`)."""
 
 from __future__ import annotations
 
@@ -15,6 +17,9 @@ from pathlib import Path
 
 import bpy
 import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from support.cli_calls import refusal  # noqa: E402
 
 # A hang (xatlas looping on inf coordinates ran for minutes) fails well before this.
 TIMEOUT_S = 120
@@ -177,28 +182,28 @@ def test_sigterm_is_handled_like_ctrl_c(tmp_path):
 # --- 2. clear errors instead of tracebacks ----------------------------------------------------
 
 @pytest.mark.parametrize("command", ["texture", "shadowmap"])
-def test_no_camera_fails_before_baking(command, tmp_path):
+def test_no_camera_fails_before_baking(command, tmp_path, capfd):
     default_scene()
     bpy.data.objects.remove(bpy.data.objects["Camera"])
-    done = run_cli(command, save(tmp_path / "s.blend"), "--out", tmp_path / "out", *SMALL)
+    done = refusal(capfd, command, save(tmp_path / "s.blend"), "--out", tmp_path / "out", *SMALL)
     assert_one_line_error(done, "no camera")
     assert "baked" not in done.stdout and not (tmp_path / "out").exists()
 
 
-def test_a_panoramic_camera_is_one_line(tmp_path):
+def test_a_panoramic_camera_is_one_line(tmp_path, capfd):
     default_scene()
     bpy.data.objects["Camera"].data.type = "PANO"
     scene = save(tmp_path / "s.blend")
     assert_one_line_error(run_cli("trace", scene, "--out", tmp_path / "a", *SMALL[:3]),
                           "panoramic", "only perspective and orthographic")
-    assert_one_line_error(run_cli("info", scene, "--out", tmp_path / "b"),
+    assert_one_line_error(refusal(capfd, "info", scene, "--out", tmp_path / "b"),
                           "PANO", "only perspective and orthographic")
 
 
-def test_a_camera_scaled_to_zero_is_one_line(tmp_path):
+def test_a_camera_scaled_to_zero_is_one_line(tmp_path, capfd):
     default_scene()
     bpy.data.objects["Camera"].scale = (0.0, 0.0, 0.0)
-    done = run_cli("trace", save(tmp_path / "s.blend"), "--out", tmp_path / "out", *SMALL[:3])
+    done = refusal(capfd, "trace", save(tmp_path / "s.blend"), "--out", tmp_path / "out", *SMALL[:3])
     assert_one_line_error(done, "scaled", "Camera")
 
 
@@ -220,11 +225,18 @@ def test_a_missing_linked_library_is_named(tmp_path):
     assert any("lib.blend" in why and "not found" in why for why in ignored)
 
 
-def _bad_geometry(kind: str):
-    """The default scene, a floor, and an object 'Bad' with `kind` geometry."""
-    default_scene()
-    add_plane("Floor")
-    cube = bpy.data.objects["Cube"]
+BAD_KINDS = {"nan": "non-finite", "inf": "out of range", "scale0": "no surface area",
+             "collapsed": "no surface area", "no_faces": "no faces"}
+
+
+def _bad_object(kind: str, name: str):
+    """An object `name` with `kind` geometry (a copy of the default cube, or a faceless mesh)."""
+    if kind == "no_faces":
+        return add_mesh(name, [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [])
+    cube = bpy.data.objects["Cube"].copy()
+    cube.data = cube.data.copy()
+    cube.name = name
+    bpy.context.scene.collection.objects.link(cube)
     if kind in ("nan", "inf"):
         cube.data.vertices[0].co = (float(kind), 0.0, 0.0)
     elif kind == "scale0":
@@ -232,35 +244,43 @@ def _bad_geometry(kind: str):
     elif kind == "collapsed":
         for v in cube.data.vertices:
             v.co = (0.5, 0.5, 0.5)
-    elif kind == "no_faces":
-        bpy.data.objects.remove(cube)
-        cube = add_mesh("Bad", [(0, 0, 0), (1, 0, 0), (0, 1, 0)], [])
-    cube.name = "Bad"
+    return cube
 
 
-@pytest.mark.parametrize("kind, words", [
-    ("nan", "non-finite"), ("inf", "out of range"), ("scale0", "no surface area"),
-    ("collapsed", "no surface area"), ("no_faces", "no faces")])
+def _bad_geometry(*kinds: str) -> dict:
+    """The default scene with a floor and, for each kind, an object named after it ('Bad' for
+    one kind); the cube itself removed. Returns {object name: the words its skip line says}."""
+    default_scene()
+    add_plane("Floor")
+    named = {("Bad" if len(kinds) == 1 else f"Bad_{kind}"): kind for kind in kinds}
+    for name, kind in named.items():
+        _bad_object(kind, name)
+    bpy.data.objects.remove(bpy.data.objects["Cube"])
+    return {name: BAD_KINDS[kind] for name, kind in named.items()}
+
+
 @pytest.mark.parametrize("command", ["info", "texture", "shadowmap"])
-def test_bad_geometry_is_skipped_by_name(command, kind, words, tmp_path):
-    _bad_geometry(kind)
+def test_bad_geometry_is_skipped_by_name(command, tmp_path):
+    """Every kind of bad object in one scene: each is skipped with a line naming it."""
+    words_of = _bad_geometry(*BAD_KINDS)
     out = tmp_path / "out"
     args = () if command == "info" else SMALL
     done = run_cli(command, save(tmp_path / "s.blend"), "--out", out, *args)
     assert_clean(done)
-    line = next(ln for ln in done.stdout.splitlines() if "'Bad'" in ln)
-    assert words in line and "skipped" in line
     metrics = json.loads((out / "metrics.json").read_text())  # valid JSON: no nan written
-    assert any("'Bad'" in why and words in why for why in metrics["ignored"])
+    for name, words in words_of.items():
+        line = next(ln for ln in done.stdout.splitlines() if f"'{name}'" in ln)
+        assert words in line and "skipped" in line, line
+        assert any(f"'{name}'" in why and words in why for why in metrics["ignored"])
     if command != "info":
         assert list(metrics["lightmap_files"]) == ["Floor"]
 
 
 @pytest.mark.parametrize("kind, words", [("nan", "non-finite"), ("inf", "out of range")])
-def test_lightmap_uv_names_a_non_finite_object(kind, words, tmp_path):
+def test_lightmap_uv_names_a_non_finite_object(kind, words, tmp_path, capfd):
     # Blender stores inf as FLT_MAX: out of range, never handed to xatlas (which loops on it).
     _bad_geometry(kind)
-    done = run_cli("lightmap-uv", save(tmp_path / "s.blend"), "--out", tmp_path / "out")
+    done = refusal(capfd, "lightmap-uv", save(tmp_path / "s.blend"), "--out", tmp_path / "out")
     assert_one_line_error(done, "'Bad'", words)
 
 
@@ -286,17 +306,17 @@ def test_tiny_objects_still_get_lightmap_uvs(tmp_path):
     (("trace", "--resolution", "0", "0"), "resolution"),
     (("trace", "--resolution", "-4", "-4"), "resolution"),
 ])
-def test_bad_flags_are_refused_up_front(args, words, tmp_path):
+def test_bad_flags_are_refused_up_front(args, words, tmp_path, capfd):
     default_scene()
     scene = save(tmp_path / "s.blend")
-    done = run_cli(args[0], scene, "--out", tmp_path / "out", *args[1:])
+    done = refusal(capfd, args[0], scene, "--out", tmp_path / "out", *args[1:])
     assert_one_line_error(done, words)
     assert not (tmp_path / "out").exists()
 
 
 @pytest.mark.parametrize("size", [("0", "0"), ("-4", "-4")])
-def test_demo_refuses_a_bad_resolution(size, tmp_path):
-    assert_one_line_error(run_cli("demo", tmp_path, "--out", tmp_path / "o", "--resolution", *size),
+def test_demo_refuses_a_bad_resolution(size, tmp_path, capfd):
+    assert_one_line_error(refusal(capfd, "demo", tmp_path, "--out", tmp_path / "o", "--resolution", *size),
                           "resolution")
 
 
@@ -316,11 +336,11 @@ def test_demo_refuses_a_bad_resolution(size, tmp_path):
      ("--time-budget-s", "camera rays", "--resolution")),
     (("trace", "--time-budget-s", "nan"), ("finite",)),
 ])
-def test_runs_over_the_memory_or_time_budget_are_refused_up_front(args, words, tmp_path):
+def test_runs_over_the_memory_or_time_budget_are_refused_up_front(args, words, tmp_path, capfd):
     default_scene()
     scene = save(tmp_path / "s.blend")
     start = time.monotonic()
-    done = run_cli(args[0], scene, "--out", tmp_path / "out", *args[1:], timeout=60)
+    done = refusal(capfd, args[0], scene, "--out", tmp_path / "out", *args[1:])
     assert_one_line_error(done, *words)
     assert time.monotonic() - start < 60 and not (tmp_path / "out").exists()
 

@@ -11,6 +11,9 @@ import pytest
 from classic_bake.pipeline.cli import main
 from classic_bake.pipeline.outputs import Staging, safe_name
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from support.cli_calls import refusal  # noqa: E402
+
 ROOT = Path(__file__).resolve().parents[2]
 CORNELL = ROOT / "sample_blends" / "cornell_box.blend"
 
@@ -43,8 +46,9 @@ def test_info_prints_the_extracted_scene(tmp_path):
     (("info", CORNELL, "--resolution", "0", "10"), "resolution"),
     (("lightmap-uv", CORNELL, "--lightmap-size", "4"), "resolution must be"),
 ])
-def test_bad_input_exits_2_with_one_line(args, words, tmp_path):
-    done = run_cli(*args, "--out", tmp_path / "o") if args[0] != "nonsense" else run_cli(*args)
+def test_bad_input_exits_2_with_one_line(args, words, tmp_path, capfd):
+    done = (refusal(capfd, *args, "--out", tmp_path / "o") if args[0] != "nonsense"
+            else run_cli(*args))  # one of them in a process of its own
     assert done.returncode == 2
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and "Traceback" not in done.stderr

@@ -62,12 +62,12 @@ def test_compare_writes_both_ladders_errors_and_chart_and_feeds_auto_quality(tmp
 
 @pytest.mark.slow
 def test_report_of_the_sample_scenes_opens_in_chromium(tmp_path):
-    """The demo on two sample scenes (a folder of links to them, to keep the test short): every
-    technique beside Cycles, the gallery a thumbnail per run, the charts, then the browser."""
+    """The demo on one sample scene (a folder with a link to it, to keep the test short): every
+    technique that applies beside Cycles, the gallery a thumbnail per run, the charts, then the
+    browser."""
     scenes = tmp_path / "scenes"
     scenes.mkdir()
-    for name in ("raytrace", "shadows"):
-        (scenes / f"{name}.blend").symlink_to(ROOT / "sample_blends" / f"{name}.blend")
+    (scenes / "shadows.blend").symlink_to(ROOT / "sample_blends" / "shadows.blend")
     out = tmp_path / "demo"
     done = run_cli("demo", scenes, "--out", out, "--resolution", "32", "24")
     assert done.returncode == 0, done.stderr[-2000:]
@@ -75,10 +75,10 @@ def test_report_of_the_sample_scenes_opens_in_chromium(tmp_path):
     html = index.read_text()
     gallery = html[html.index("<h2>Gallery</h2>"):html.index("<h2>Summary</h2>")]
     runs = [p for p in out.iterdir() if (p / "render.png").is_file()]
-    assert len(runs) >= 10  # five or more techniques on each scene
+    assert len(runs) >= 5  # five or more techniques on the scene
     for run in runs:
         assert f'src="{run.name}/render.png"' in gallery
-    assert gallery.count("cycles_reference.png") >= 8  # the compared ones show Cycles beside
+    assert gallery.count("cycles_reference.png") >= 4  # the compared ones show Cycles beside
     assert "<h2>Speed against accuracy</h2>" in html
     shot = subprocess.run([sys.executable, str(ROOT / "tools" / "screenshot_report.py"), str(index),
                            "--out", str(out / "shot.png")], capture_output=True, text=True,

@@ -174,12 +174,12 @@ def test_the_solver_with_source_clusters_agrees_with_every_link_exact():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("rho", [0.5, 0.9])
-def test_furnace_with_source_clusters(rho):
-    """A closed box of 1728 small triangles emitting E = pi L and reflecting rho, solved by the
-    hierarchical solver through far groups: B = E / (1 - rho) on every patch within 1%
-    (measured 0.36% at rho = 0.9, which amplifies a row-sum error of the disc factors ten times;
-    0.48% with every link exact)."""
+def test_furnace_with_source_clusters():
+    """A closed box of 1728 small triangles emitting E = pi L and reflecting rho = 0.9 (which
+    amplifies a row-sum error of the disc factors ten times), solved by the hierarchical solver
+    through far groups: B = E / (1 - rho) on every patch within 1% (measured 0.36%; 0.48% with
+    every link exact)."""
+    rho = 0.9
     scene = build([(tessellated_box(12), grey(rho, emission=1.0))])
     result = solve_radiosity(scene, RadiositySettings(
         solver="hierarchical", patch_budget=60, tolerance=1e-7, samples_per_side=2,
