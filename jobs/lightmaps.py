@@ -12,7 +12,7 @@ import numpy as np
 
 from ..addon.bridge import mesh as bridge_mesh
 from ..addon.bridge import write_back
-from ..kernels.bake.lightmap_uv import LightmapUVSettings, lightmap_sizes
+from ..kernels.bake.lightmap_uv import LightmapUVSettings, UnwrapCrash, lightmap_sizes
 from ..kernels.geometry.scene import triangle_areas
 from .file_names import unique_stems
 from .record import JobSummary, Option
@@ -88,6 +88,8 @@ def create_lightmap_uvs(objects, uv_name, uv_settings, plan):
                 settings = replace(uv_settings, resolution=plan[obj.name])
                 made, _ = bridge_mesh.ensure_lightmap_uv(obj, uv_name, settings)
                 break
+            except UnwrapCrash:
+                raise
             except ValueError:
                 if plan[obj.name] >= 4 * uv_settings.resolution:
                     raise

@@ -276,7 +276,10 @@ def lightmap_loop_uv(obj, settings) -> tuple[np.ndarray, dict]:
     why = coordinates_problem(world)
     if why is not None:  # never handed to xatlas, which loops on them
         raise ValueError(f"object '{obj.name}' {why}")
-    result = unwrap(world, corner_verts, settings, polys)
+    try:
+        result = unwrap(world, corner_verts, settings, polys)
+    except ValueError as exc:
+        raise type(exc)(f"object '{obj.name}': {exc}") from exc  # UnwrapCrash stays one
     loop_uv = np.zeros((len(mesh.loops), 2), np.float32)
     flat_loops = corner_loops.ravel()
     flat_uv = result.corner_uv.reshape(-1, 2)

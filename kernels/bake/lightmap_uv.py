@@ -7,9 +7,26 @@ Every texel of a lightmap belongs to at most one chart: charts are packed `paddi
 from __future__ import annotations
 
 import math
+import os
+import pickle
+import signal
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
+
+# xatlas (0.0.11) ends the whole process with a segmentation fault on some dense closed meshes: a
+# UV sphere of 250 or more segments (125k triangles; 200 segments pass), whatever the chart and
+# pack options (jpcy/xatlas#146 describes one chart grown over a whole icosphere). Inside Blender
+# that would close the session. Where the platform can fork, meshes of at least this many
+# triangles are charted in a child process, so that a crash becomes an error naming the mesh;
+# smaller ones (none seen to crash) skip the fork's few milliseconds.
+ISOLATE_TRIANGLES = 10_000
+
+
+class UnwrapCrash(ValueError):
+    """xatlas ended the child process that charted a mesh (`ISOLATE_TRIANGLES`); a larger
+    lightmap does not help."""
 
 # Density fitting: start a little under xatlas' own estimate, shrink by 10% until one atlas holds
 # every chart; 12 tries cover a 3.5x over-estimate.
@@ -76,12 +93,62 @@ def unwrap(
     sliver across the atlas, over other charts (944 of its 3865 texels claimed twice at 128^2).
     Such polygons are kept whole (`_polygons_whole`) and the charts packed again.
     """
-    import xatlas
-
     positions = np.asarray(positions, np.float64)
     triangles = np.ascontiguousarray(triangles, np.uint32)
     if not np.isfinite(positions).all():  # xatlas loops for minutes on nan or inf
         raise ValueError("lightmap UVs: vertex coordinates are not finite (nan or inf)")
+    if triangles.shape[0] >= ISOLATE_TRIANGLES and hasattr(os, "fork"):
+        return _in_child(_unwrap, positions, triangles, settings, polygons)
+    return _unwrap(positions, triangles, settings, polygons)
+
+
+def _in_child(function, *args):
+    """function(*args) computed in a forked child process and sent back pickled: a crash of the
+    child (xatlas' segmentation faults) raises ValueError here instead of ending this process.
+    The child's exceptions are raised here as they were."""
+    read, write = os.pipe()
+    with warnings.catch_warnings():  # fork() in a process with threads warns (3.12+); the
+        warnings.simplefilter("ignore", DeprecationWarning)  # child only computes and exits
+        pid = os.fork()
+    if pid == 0:  # the child: compute, send, exit without running the parent's clean-up
+        code = 0
+        try:
+            os.close(read)
+            try:
+                payload = pickle.dumps((True, function(*args)), pickle.HIGHEST_PROTOCOL)
+            except Exception as exc:  # noqa: BLE001 - sent back and raised in the parent
+                payload = pickle.dumps((False, exc), pickle.HIGHEST_PROTOCOL)
+            with os.fdopen(write, "wb") as pipe:
+                pipe.write(payload)
+        except BaseException:  # noqa: BLE001 - a child must never return into the caller
+            code = 1
+        finally:
+            os._exit(code)
+    os.close(write)
+    try:
+        with os.fdopen(read, "rb") as pipe:
+            payload = pipe.read()
+    finally:
+        _, status = os.waitpid(pid, 0)
+    if os.WIFSIGNALED(status) or not payload:
+        number = os.WTERMSIG(status) if os.WIFSIGNALED(status) else os.WEXITSTATUS(status)
+        name = signal.Signals(number).name if os.WIFSIGNALED(status) else f"exit {number}"
+        count = len(args[1])
+        raise UnwrapCrash(f"lightmap UVs: xatlas crashed ({name}) charting this mesh of {count:,} "
+                         "triangles (an xatlas defect on some dense closed meshes); give the "
+                         "mesh a lightmap UV layer of its own (e.g. Blender's Lightmap Pack) "
+                         "under the name the bake uses")
+    ok, value = pickle.loads(payload)  # noqa: S301 - our own child's bytes
+    if not ok:
+        raise value
+    return value
+
+
+def _unwrap(positions: np.ndarray, triangles: np.ndarray, settings: LightmapUVSettings,
+            polygons: np.ndarray | None) -> LightmapUV:
+    """`unwrap` past its checks: positions (V, 3) float64 finite, triangles (T, 3) uint32."""
+    import xatlas
+
     count = triangles.shape[0]
     no_charts = LightmapUV(np.zeros((count, 3, 2), np.float32), np.full(count, -1, np.int32), 0,
                            0.0)

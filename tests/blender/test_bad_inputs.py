@@ -16,6 +16,7 @@ import time
 from pathlib import Path
 
 import bpy
+import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
@@ -282,6 +283,28 @@ def test_lightmap_uv_names_a_non_finite_object(kind, words, tmp_path, capfd):
     _bad_geometry(kind)
     done = refusal(capfd, "lightmap-uv", save(tmp_path / "s.blend"), "--out", tmp_path / "out")
     assert_one_line_error(done, "'Bad'", words)
+
+
+def test_a_mesh_xatlas_crashes_on_is_named(tmp_path, capfd):
+    # xatlas 0.0.11 ends its process on a dense sphere whose pole rows are collapsed (250 rings of
+    # 500 quads, 250k triangles, in well under a second); charted in a child process, the run
+    # ends with one line naming the object (and a way round it), and this process goes on.
+    default_scene()
+    rings, segments = 250, 500
+    theta = np.linspace(0.0, np.pi, rings + 1)[:, None]
+    phi = np.linspace(0.0, 2.0 * np.pi, segments, endpoint=False)[None, :]
+    verts = np.stack([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi),
+                      np.cos(theta) + 0.0 * phi], -1).reshape(-1, 3)
+    a = np.arange(rings * segments).reshape(rings, segments)
+    b = np.roll(a, -1, axis=1)
+    quads = np.stack([a, a + segments, b + segments, b], -1).reshape(-1, 4)
+    add_mesh("DenseBall", verts.tolist(), quads.tolist())
+    scene = save(tmp_path / "s.blend")
+    done = refusal(capfd, "lightmap-uv", scene, "--out", tmp_path / "out")
+    if done.returncode == 0:  # an xatlas build without the defect charts it
+        return
+    assert_one_line_error(done, "'DenseBall'", "xatlas crashed", "Lightmap Pack")
+    assert not (tmp_path / "out").exists()
 
 
 def test_tiny_objects_still_get_lightmap_uvs(tmp_path):

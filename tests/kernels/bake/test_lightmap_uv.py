@@ -5,11 +5,17 @@ A chart's footprint is every texel whose square overlaps one of its triangles (a
 triangle/box separating-axis test, so bilinear lookups of any point of a chart read only its texels).
 """
 
+import os
+import signal
+
 import numpy as np
 import pytest
 
 from classic_bake.kernels.bake.lightmap_uv import (
+    ISOLATE_TRIANGLES,
     LightmapUVSettings,
+    UnwrapCrash,
+    _in_child,
     _moved,
     _polygons_whole,
     unwrap,
@@ -201,3 +207,38 @@ def test_a_zero_area_triangle_does_not_pull_its_polygon_to_the_origin():
     assert uv_area(13) > 0.0  # the real half keeps its area in UV
     # The zero-area half stays chartless and lies on its edge in UV too: it covers no texel.
     assert result.chart_ids[12] == -1 and uv_area(12) < 1e-6 * uv_area(13)
+
+
+# --- xatlas' crashes kept out of the process ---------------------------------------------------
+
+def _crash(*_):
+    os.kill(os.getpid(), signal.SIGSEGV)
+
+
+def _refuse():
+    raise ValueError("refused in the child")
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="no fork on this platform")
+def test_a_crash_in_the_child_is_an_error_here_and_results_come_back():
+    with pytest.raises(UnwrapCrash, match="SIGSEGV"):
+        _in_child(_crash, None, np.zeros((12, 3)))
+    with pytest.raises(ValueError, match="refused in the child"):
+        _in_child(_refuse)
+    arrays = (np.arange(6.0).reshape(2, 3), np.ones(4, np.uint32))
+    back = _in_child(lambda a, b: (a * 2, b), *arrays)
+    assert np.array_equal(back[0], arrays[0] * 2) and np.array_equal(back[1], arrays[1])
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="no fork on this platform")
+def test_a_dense_sphere_is_charted_or_refused_never_the_end_of_the_process():
+    # 250k triangles; xatlas 0.0.11 ends its process on this sphere in a fraction of a second
+    positions, triangles = uv_sphere(rings=250, segments=500)
+    assert len(triangles) >= ISOLATE_TRIANGLES
+    try:
+        result = unwrap(positions, triangles, LightmapUVSettings(resolution=256))
+    except UnwrapCrash as exc:  # xatlas 0.0.11 on this machine
+        assert "250,000 triangles" in str(exc) and "Lightmap Pack" in str(exc)
+    else:  # a build of xatlas without the defect
+        assert result.chart_count > 0 and np.isfinite(result.corner_uv).all()
