@@ -15,6 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..geometry.scene import triangle_areas
+
 # xatlas (0.0.11) ends the whole process with a segmentation fault on some dense closed meshes: a
 # UV sphere of 250 or more segments (125k triangles; 200 segments pass), whatever the chart and
 # pack options (jpcy/xatlas#146 describes one chart grown over a whole icosphere). Inside Blender
@@ -27,6 +29,14 @@ ISOLATE_TRIANGLES = 10_000
 class UnwrapCrash(ValueError):
     """xatlas ended the child process that charted a mesh (`ISOLATE_TRIANGLES`); a larger
     lightmap does not help."""
+
+# xatlas flattens each chart as a whole, in time that grows much faster than the chart's size: a
+# smooth 62.5k-triangle sphere grown into 6 charts took 26 s a pass (two passes per unwrap), a
+# gently rolling 20k-triangle terrain as one chart 42 s. Meshes of more triangles than this get
+# charts of at most (their area x this / their triangle count), about this many triangles each:
+# 49 charts and 2.5 s a pass on that sphere, 19 charts and 1 s on that terrain; flat regions stay
+# one chart whatever their size (xatlas projects them without flattening).
+CHART_TRIANGLES = 2000
 
 # Density fitting: start a little under xatlas' own estimate, shrink by 10% until one atlas holds
 # every chart; 12 tries cover a 3.5x over-estimate.
@@ -41,7 +51,8 @@ class LightmapUVSettings:
     |--------------|-----------|---------|---------------------------------------------------------|
     | resolution   | 16..16384 | 256     | texels along each side of the square lightmap           |
     | padding      | 0..64     | 2       | texels kept free between charts (and from the border)   |
-    | max_chart_area | >= 0    | 0       | xatlas chart area limit, 0 = unlimited                  |
+    | max_chart_area | >= 0    | 0       | xatlas chart area limit, in the mesh's own units scaled |
+    |              |           |         | to unit size; 0 = automatic (CHART_TRIANGLES)           |
     | seed_bilinear| bool      | True    | xatlas `bilinear`: pad for bilinear filtering           |
     """
 
@@ -161,13 +172,18 @@ def _unwrap(positions: np.ndarray, triangles: np.ndarray, settings: LightmapUVSe
     if extent <= 0.0:
         return no_charts
     positions = np.ascontiguousarray((positions - low) / extent, np.float32)
+    max_chart_area = settings.max_chart_area
+    if max_chart_area <= 0.0 and count > CHART_TRIANGLES:
+        corners = positions[triangles].astype(np.float64)
+        area = float(triangle_areas(corners).sum())
+        max_chart_area = area * CHART_TRIANGLES / count
 
     def generate(add, texels_per_unit: float):
         atlas = xatlas.Atlas()
         add(atlas)
         chart_options = xatlas.ChartOptions()
-        if settings.max_chart_area > 0:
-            chart_options.max_chart_area = float(settings.max_chart_area)
+        if max_chart_area > 0:
+            chart_options.max_chart_area = float(max_chart_area)
         pack = xatlas.PackOptions()
         pack.resolution = int(settings.resolution)
         pack.padding = int(settings.padding)

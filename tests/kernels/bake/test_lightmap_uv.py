@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from classic_bake.kernels.bake.lightmap_uv import (
+    CHART_TRIANGLES,
     ISOLATE_TRIANGLES,
     LightmapUVSettings,
     UnwrapCrash,
@@ -242,3 +243,25 @@ def test_a_dense_sphere_is_charted_or_refused_never_the_end_of_the_process():
         assert "250,000 triangles" in str(exc) and "Lightmap Pack" in str(exc)
     else:  # a build of xatlas without the defect
         assert result.chart_count > 0 and np.isfinite(result.corner_uv).all()
+
+
+def _terrain(side: int, amplitude: float):
+    """A square grid of side x side quads (two triangles each) 12 m wide, rolling by
+    `amplitude` m."""
+    u, v = np.meshgrid(np.linspace(-6.0, 6.0, side + 1), np.linspace(-6.0, 6.0, side + 1))
+    positions = np.stack([u, v, amplitude * np.sin(1.3 * u) * np.cos(0.9 * v)], -1).reshape(-1, 3)
+    ids = np.arange((side + 1) ** 2).reshape(side + 1, side + 1)
+    a, b, c, d = ids[:-1, :-1].ravel(), ids[:-1, 1:].ravel(), ids[1:, :-1].ravel(), ids[1:, 1:].ravel()
+    return positions, np.concatenate([np.stack([a, b, d], 1), np.stack([a, d, c], 1)])
+
+
+def test_large_curved_meshes_get_charts_of_bounded_size_and_flat_ones_stay_whole():
+    # 20k triangles: xatlas alone grew the rolling one into one chart (42 s a pass).
+    rolling = unwrap(*_terrain(100, 0.15), LightmapUVSettings(resolution=256))
+    assert rolling.chart_count >= 20_000 // (2 * CHART_TRIANGLES)
+    sizes = np.bincount(rolling.chart_ids[rolling.chart_ids >= 0])
+    assert sizes.max() <= 3 * CHART_TRIANGLES
+    flat = unwrap(*_terrain(100, 0.0), LightmapUVSettings(resolution=256))
+    assert flat.chart_count == 1
+    small = unwrap(*_terrain(30, 0.15), LightmapUVSettings(resolution=256))  # under the bound
+    assert small.chart_count <= 2
