@@ -26,6 +26,10 @@ RENDER_BYTES_PER_PIXEL = 2200
 # Peak bytes per lightmap texel of a bake. Measured: `texture` of cornell_box.blend peaked at
 # 0.35 GB with 0.46 M texels (--lightmap-size 256) and 0.95 GB with 7.4 M (1024): ~85 B a texel.
 LIGHTMAP_BYTES_PER_TEXEL = 100
+# Peak bytes per scene triangle (Blender's mesh, the snapshot, the BVH, lightmap UVs and bake
+# targets). Measured with bench/huge.py on a 2M-triangle terrain (bpy itself ~0.3 GB): info
+# peaked at 1.21 GB, trace 1.75, bump 1.75, envmap 1.97, texture 3.22: 0.45-1.45 kB a triangle.
+SCENE_BYTES_PER_TRIANGLE = 1500
 GB = 1 << 30
 # A camera scaled below this along any axis sees a flat image (its rays collapse).
 CAMERA_MIN_SCALE = 1e-6
@@ -258,7 +262,8 @@ def _scene_triangles(context, with_area_over: float = 0.0) -> tuple[int, float]:
 
 def estimate_memory(cmd: Command, args, sizes: dict | None = None) -> list[tuple[float, str, str]]:
     """What a technique run will need before it starts: [(bytes, what, the flag that lowers
-    it)]. The camera view: pixels x RENDER_BYTES_PER_PIXEL; lightmaps: their texels at the
+    it)]. The scene: its triangles x SCENE_BYTES_PER_TRIANGLE; the camera view: pixels x
+    RENDER_BYTES_PER_PIXEL; lightmaps: their texels at the
     planned sizes x LIGHTMAP_BYTES_PER_TEXEL; radiosity: its solve's estimate
     (`kernels/radiosity/planning.memory_estimate`) over the patches it will make, at least one
     per triangle (--patch-size: the surface over that edge; else the --patches budget).
@@ -273,6 +278,9 @@ def estimate_memory(cmd: Command, args, sizes: dict | None = None) -> list[tuple
     out = []
     sizes = {} if sizes is None else sizes
     if cmd.is_technique:
+        triangles = sizes["triangles"] = _scene_triangles(bpy.context)[0]
+        out.append((triangles * SCENE_BYTES_PER_TRIANGLE, f"the scene's {triangles:,} triangles",
+                    "fewer triangles (decimate, or hide objects from the render)"))
         if args.resolution:
             width, height = args.resolution
         else:

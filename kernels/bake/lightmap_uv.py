@@ -6,6 +6,7 @@ Every texel of a lightmap belongs to at most one chart: charts are packed `paddi
 
 from __future__ import annotations
 
+import faulthandler
 import math
 import os
 import pickle
@@ -124,6 +125,7 @@ def _in_child(function, *args):
     if pid == 0:  # the child: compute, send, exit without running the parent's clean-up
         code = 0
         try:
+            faulthandler.disable()  # a crash here is reported by the parent, in one line
             os.close(read)
             try:
                 payload = pickle.dumps((True, function(*args)), pickle.HIGHEST_PROTOCOL)

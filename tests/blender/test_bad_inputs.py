@@ -368,6 +368,16 @@ def test_runs_over_the_memory_or_time_budget_are_refused_up_front(args, words, t
     assert time.monotonic() - start < 60 and not (tmp_path / "out").exists()
 
 
+def test_a_scene_over_the_memory_budget_names_its_triangles(tmp_path, capfd):
+    default_scene()
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=256, ring_count=128)  # 65k triangles
+    scene = save(tmp_path / "s.blend")
+    done = refusal(capfd, "trace", scene, "--out", tmp_path / "out", "--resolution", "8", "6",
+                   "--memory-budget-gb", "0.01")
+    assert_one_line_error(done, "triangles", "fewer triangles", "--memory-budget-gb")
+    assert not (tmp_path / "out").exists()
+
+
 # --- 4. silent wrong output -------------------------------------------------------------------
 
 @pytest.mark.parametrize("command", ["info", "trace", "shadowmap", "texture", "radiosity"])
