@@ -8,7 +8,8 @@ The scene is Blender's default one (Cube, Camera, Light) over a rolling terrain 
 `--triangles` triangles, with a small mirror ball, built here and saved to out/bench/huge.blend.
 Each command runs as `python -m classic_bake COMMAND huge.blend --out TMP` in a process of its
 own, under a watchdog (a run past --timeout is a hang: its threads' stacks are saved, then it is
-killed); its peak resident memory is read from the kernel's accounting of the finished child
+killed) and with `--time-budget-s` at the same seconds (a run its own estimate puts past them is
+refused before any work); its peak resident memory is read from the kernel's accounting of the finished child
 (wait4). The outcome of a run: ok (exit 0, no traceback), refused (exit 2 and one
 `classic_bake: error:` line; `with_estimate` when the line gives the memory it would need),
 failed, or hung. The memory budget is the commands' default (pipeline/run.py: the default budget
@@ -96,6 +97,9 @@ def run_watched(command: str, scene: Path, out: Path, resolution, timeout: float
     args = [sys.executable, "-c", RUNNER, command, str(scene), "--out", str(out)]
     if command != "lightmap-uv":
         args += ["--resolution", str(resolution[0]), str(resolution[1])]
+    if command not in ("info", "lightmap-uv"):
+        # A run its own estimate puts past the watchdog is refused up front, as a user's would be.
+        args += ["--time-budget-s", f"{timeout:g}"]
     with tempfile.TemporaryFile("w+") as stdout, tempfile.TemporaryFile("w+") as stderr:
         start = time.perf_counter()
         proc = subprocess.Popen(args, stdout=stdout, stderr=stderr, text=True, cwd=ROOT)
