@@ -8,10 +8,10 @@ The scene is Blender's default one (Cube, Camera, Light) over a rolling terrain 
 `--triangles` triangles, with a small mirror ball, built here and saved to out/bench/huge.blend.
 Each command runs as `python -m classic_bake COMMAND huge.blend --out TMP` in a process of its
 own, under a watchdog (a run past --timeout is a hang: its threads' stacks are saved, then it is
-killed) and with `--time-budget-s` at the same seconds (a run its own estimate puts past them is
-refused before any work); its peak resident memory is read from the kernel's accounting of the finished child
-(wait4). The outcome of a run: ok (exit 0, no traceback), refused (exit 2 and one
-`classic_bake: error:` line; `with_estimate` when the line gives the memory it would need),
+killed) and with `--time-budget-s` at the same seconds (a run its own estimate puts past them
+is refused before any work); its peak resident memory is read from the kernel's accounting of
+the finished child (wait4). The outcome of a run: ok (exit 0, no traceback), refused (exit 2 and
+one `classic_bake: error:` line; `with_estimate` when the line gives the memory it would need),
 failed, or hung. The memory budget is the commands' default (pipeline/run.py: the default budget
 or the memory available, whichever is less).
 
@@ -155,7 +155,8 @@ def main() -> int:
             run = run_watched(command, SCENE, Path(tmp) / command, args.resolution, args.timeout)
             # Held: finished within the budget, or refused in one line (the memory estimate's
             # refusals say the GB they would need).
-            run["with_estimate"] = run["outcome"] == "refused" and "GB" in run["detail"]
+            run["with_estimate"] = run["outcome"] == "refused" and (
+                "GB" in run["detail"] or "--time-budget-s" in run["detail"])
             run["held"] = ((run["outcome"] == "ok" and run["peak_gb"] * GB <= budget)
                            or run["outcome"] == "refused")
             runs.append(run)
