@@ -27,9 +27,10 @@ RENDER_BYTES_PER_PIXEL = 2200
 # 0.35 GB with 0.46 M texels (--lightmap-size 256) and 0.95 GB with 7.4 M (1024): ~85 B a texel.
 LIGHTMAP_BYTES_PER_TEXEL = 100
 # Peak bytes per scene triangle (Blender's mesh, the snapshot, the BVH, lightmap UVs and bake
-# targets). Measured with bench/huge.py on a 2M-triangle terrain (bpy itself ~0.3 GB): info
-# peaked at 1.21 GB, trace 1.75, bump 1.75, envmap 1.97, texture 3.22: 0.45-1.45 kB a triangle.
-SCENE_BYTES_PER_TRIANGLE = 1500
+# targets), by command. Measured with bench/huge.py on a 2M-triangle terrain (bpy itself ~0.3 GB):
+# info peaked at 1.21 GB, lightmap-uv 1.65, bump 1.74, trace 1.8, envmap 1.99 (0.45-0.85 kB a
+# triangle), texture 3.22 (1.46 kB), shadowmap 5.0 (2.35 kB: its depth maps' fragments).
+SCENE_BYTES_PER_TRIANGLE = {"default": 1000, "texture": 1600, "shadowmap": 2500}
 GB = 1 << 30
 # A camera scaled below this along any axis sees a flat image (its rays collapse).
 CAMERA_MIN_SCALE = 1e-6
@@ -262,7 +263,7 @@ def _scene_triangles(context, with_area_over: float = 0.0) -> tuple[int, float]:
 
 def estimate_memory(cmd: Command, args, sizes: dict | None = None) -> list[tuple[float, str, str]]:
     """What a technique run will need before it starts: [(bytes, what, the flag that lowers
-    it)]. The scene: its triangles x SCENE_BYTES_PER_TRIANGLE; the camera view: pixels x
+    it)]. The scene: its triangles x SCENE_BYTES_PER_TRIANGLE (by command); the camera view: pixels x
     RENDER_BYTES_PER_PIXEL; lightmaps: their texels at the
     planned sizes x LIGHTMAP_BYTES_PER_TEXEL; radiosity: its solve's estimate
     (`kernels/radiosity/planning.memory_estimate`) over the patches it will make, at least one
@@ -279,7 +280,8 @@ def estimate_memory(cmd: Command, args, sizes: dict | None = None) -> list[tuple
     sizes = {} if sizes is None else sizes
     if cmd.is_technique:
         triangles = sizes["triangles"] = _scene_triangles(bpy.context)[0]
-        out.append((triangles * SCENE_BYTES_PER_TRIANGLE, f"the scene's {triangles:,} triangles",
+        per = SCENE_BYTES_PER_TRIANGLE.get(cmd.name, SCENE_BYTES_PER_TRIANGLE["default"])
+        out.append((triangles * per, f"the scene's {triangles:,} triangles",
                     "fewer triangles (decimate, or hide objects from the render)"))
         if args.resolution:
             width, height = args.resolution
@@ -303,8 +305,9 @@ def estimate_memory(cmd: Command, args, sizes: dict | None = None) -> list[tuple
         sizes["texels"] = texels
         out.append((texels * LIGHTMAP_BYTES_PER_TEXEL, f"the lightmaps of {len(objects)} objects "
                     f"({texels:,} texels)", "a smaller --lightmap-size"))
-    if cmd.name == "radiosity":
+    if cmd.name in ("radiosity", "hybrid"):  # the hybrid's first pass is the radiosity solve
         settings = technique.settings(technique.values_from_args(args), None)
+        settings = getattr(settings, "radiosity", settings)
         triangles, by_size = _scene_triangles(bpy.context, settings.patch_size)
         if settings.patch_size > 0.0:
             patches, flag = max(triangles, by_size), "a larger --patch-size"

@@ -24,11 +24,12 @@ START_SECONDS = 1.0
 # technique's phase over its rays): trace 9.5e-5 (cornell_box) and 1.4e-4 (raytrace); envmap
 # 2.6e-4 (raytrace: the cube faces' capture as well); bump 1.8e-4 (cornell_box: four shadings);
 # texture's albedo view 2.3e-5 (both scenes, solved together with its texels below); hybrid
-# 5.5e-4 (raytrace: its radiosity solve included, which the camera view's size does not show).
+# 2.5e-4 (bench/hybrid.py's trace pass: the final gather at every diffuse hit; its radiosity
+# solve is counted by its patches, as radiosity's).
 # shadowmap 2e-5 (raytrace: the view reads the masks).
 SECONDS_PER_RAY = {
     "trace": 1.4e-4, "envmap": 2.6e-4, "bump": 1.8e-4, "texture": 2.3e-5, "shadowmap": 2e-5,
-    "radiosity": 1e-4, "hybrid": 5.5e-4, "normalmap": 2.3e-5, "lightmap-uv": 0.0,
+    "radiosity": 1e-4, "hybrid": 2.5e-4, "normalmap": 2.3e-5, "lightmap-uv": 0.0,
 }
 DEFAULT_SECONDS_PER_RAY = 1.4e-4
 # Seconds per lightmap texel baked. Measured: texture 4e-6 (filtered look-ups; cornell_box's
