@@ -1,6 +1,6 @@
 """Seconds a technique run will take, estimated before it starts from the size of its work: the
-camera view's rays, the lightmaps' texels, the triangles and, for radiosity, the patch pairs,
-each times a rate measured on the sample scenes.
+camera view's rays, the lightmaps' texels, the triangles and, for radiosity and the hybrid's
+first pass, the patch pairs, each times a rate measured on the sample scenes.
 
 The estimate is rough (a factor of two either way: scenes differ in lights, materials and depth
 of the ray tree, and the machine in cores and load); it is printed in a run's first lines, kept
