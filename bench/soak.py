@@ -11,9 +11,10 @@ run that exits 2 with one `classic_bake: error:` line is a refusal (envmap on a 
 mirror), counted apart; any other non-zero exit, or a traceback, is a failure. The CPU-bound
 process is started before the first run and stopped after the last, whatever happens.
 
-Writes out/bench/soak.json: {"bench": "soak", "ratios": {"held_fraction": runs that ended on their
-own without failing, over all runs}, "figures": {runs, hangs, failures, refusals, per command,
-the slowest runs, hang stacks and failure messages}, "versions": {...}}.
+Writes out/bench/soak.json after every pass (a soak stopped early keeps its finished passes):
+{"bench": "soak", "ratios": {"held_fraction": runs that ended on their own without failing, over
+all runs}, "figures": {runs, passes done, hangs, failures, refusals, per command, the slowest
+runs, hang stacks and failure messages}, "versions": {...}}.
 """
 
 from __future__ import annotations
@@ -88,7 +89,9 @@ def run_once(command: str, scene: Path, out: Path, resolution, timeout: float) -
 
 
 def soak(scenes: list[Path], commands: list[str], repeat: int, timeout: float, resolution,
-         load: bool) -> list[dict]:
+         load: bool, after_pass=None) -> list[dict]:
+    """Every command on every scene, `repeat` passes; after_pass(runs) is called after each
+    pass (the report is written there, so a soak stopped early keeps its finished passes)."""
     burner = subprocess.Popen([sys.executable, "-c", LOAD]) if load else None
     runs = []
     try:
@@ -105,6 +108,8 @@ def soak(scenes: list[Path], commands: list[str], repeat: int, timeout: float, r
                 print(f"pass {k + 1}/{repeat}: {len(runs)} runs, "
                       f"{sum(r['outcome'] == 'hung' for r in runs)} hangs, "
                       f"{sum(r['outcome'] == 'failed' for r in runs)} failures", flush=True)
+                if after_pass is not None:
+                    after_pass(runs)
     finally:
         if burner is not None:
             burner.terminate()
@@ -139,33 +144,42 @@ def main() -> int:
         parser.error(f"no such sample scene: {', '.join(missing)}")
 
     started = time.perf_counter()
+
+    def report(runs: list[dict]) -> dict:
+        count = {o: sum(r["outcome"] == o for r in runs)
+                 for o in ("ok", "refused", "failed", "hung")}
+        per_command = {}
+        for command in args.commands:
+            mine = [r for r in runs if r["command"] == command]
+            per_command[command] = {**{o: sum(r["outcome"] == o for r in mine) for o in count},
+                                    "max_seconds": max((r["seconds"] for r in mine), default=0.0)}
+        held = (count["ok"] + count["refused"]) / len(runs)
+        figures = {
+            "runs": len(runs), "hangs": count["hung"], "failures": count["failed"],
+            "refusals": count["refused"], "ok": count["ok"], "repeat": args.repeat,
+            "passes_done": len(runs) // (len(scenes) * len(args.commands)),
+            "scenes": names, "commands": args.commands, "timeout_s": args.timeout,
+            "resolution": list(args.resolution), "cpu_load_beside": not args.no_load,
+            "seconds": round(time.perf_counter() - started, 1), "per_command": per_command,
+            "slowest": sorted(runs, key=lambda r: -r["seconds"])[:5],
+            "hung": [r for r in runs if r["outcome"] == "hung"],
+            "failed": [r for r in runs if r["outcome"] == "failed"],
+            "refused": sorted({f"{r['command']} {r['scene']}: {r['detail']}" for r in runs
+                               if r["outcome"] == "refused"}),
+        }
+        write_report("soak", {"held_fraction": held}, figures,
+                     {**versions(), "blender": blender})
+        return {"count": count, "per_command": per_command}
+
+    blender = blender_version()
     runs = soak(scenes, args.commands, args.repeat, args.timeout, args.resolution,
-                not args.no_load)
-    count = {o: sum(r["outcome"] == o for r in runs) for o in ("ok", "refused", "failed", "hung")}
-    per_command = {}
-    for command in args.commands:
-        mine = [r for r in runs if r["command"] == command]
-        per_command[command] = {**{o: sum(r["outcome"] == o for r in mine) for o in count},
-                                "max_seconds": max(r["seconds"] for r in mine)}
+                not args.no_load, after_pass=report)
+    summary = report(runs)
+    count, per_command = summary["count"], summary["per_command"]
     rows = [[c, *(v[o] for o in count), v["max_seconds"]] for c, v in per_command.items()]
     print(format_table(["command", *count, "max s"], rows))
-    held = (count["ok"] + count["refused"]) / len(runs)
-    figures = {
-        "runs": len(runs), "hangs": count["hung"], "failures": count["failed"],
-        "refusals": count["refused"], "ok": count["ok"], "repeat": args.repeat,
-        "scenes": names, "commands": args.commands, "timeout_s": args.timeout,
-        "resolution": list(args.resolution), "cpu_load_beside": not args.no_load,
-        "seconds": round(time.perf_counter() - started, 1), "per_command": per_command,
-        "slowest": sorted(runs, key=lambda r: -r["seconds"])[:5],
-        "hung": [r for r in runs if r["outcome"] == "hung"],
-        "failed": [r for r in runs if r["outcome"] == "failed"],
-        "refused": sorted({f"{r['command']} {r['scene']}: {r['detail']}" for r in runs
-                           if r["outcome"] == "refused"}),
-    }
-    path = write_report("soak", {"held_fraction": held}, figures,
-                        {**versions(), "blender": blender_version()})
     print(f"{len(runs)} runs, {count['hung']} hangs, {count['failed']} failures, "
-          f"{count['refused']} refusals; wrote {path}")
+          f"{count['refused']} refusals; wrote out/bench/soak.json")
     return 1 if count["hung"] or count["failed"] else 0
 
 
