@@ -60,18 +60,14 @@ def estimate_seconds(technique: str, sizes: dict) -> list[tuple[float, str, str]
     """[(seconds, what, the flag that lowers it)] of a run of `technique` over `sizes`: rays,
     texels, triangles, patches (each optional; what `pipeline/run.estimate_memory` planned)."""
     parts = [(START_SECONDS, "starting up", "")]
-    rays = sizes.get("rays", 0)
-    if rays:
-        rate = SECONDS_PER_RAY.get(technique, DEFAULT_SECONDS_PER_RAY)
-        parts.append((rays * rate, f"{rays:,} camera rays", LOWER_WITH["rays"]))
-    texels = sizes.get("texels", 0)
-    if texels:
-        rate = SECONDS_PER_TEXEL.get(technique, DEFAULT_SECONDS_PER_TEXEL)
-        parts.append((texels * rate, f"{texels:,} lightmap texels", LOWER_WITH["texels"]))
-    triangles = sizes.get("triangles", 0)
-    if triangles:
-        rate = SECONDS_PER_TRIANGLE.get(technique, DEFAULT_SECONDS_PER_TRIANGLE)
-        parts.append((triangles * rate, f"{triangles:,} triangles", LOWER_WITH["triangles"]))
+    for key, rates, default, what in (
+            ("rays", SECONDS_PER_RAY, DEFAULT_SECONDS_PER_RAY, "camera rays"),
+            ("texels", SECONDS_PER_TEXEL, DEFAULT_SECONDS_PER_TEXEL, "lightmap texels"),
+            ("triangles", SECONDS_PER_TRIANGLE, DEFAULT_SECONDS_PER_TRIANGLE, "triangles")):
+        count = sizes.get(key, 0)
+        if count:
+            parts.append((count * rates.get(technique, default), f"{count:,} {what}",
+                          LOWER_WITH[key]))
     patches = sizes.get("patches", 0)
     if patches:
         parts.append((patches * math.log2(max(patches, 2)) * SECONDS_PER_PATCH_LOG,
