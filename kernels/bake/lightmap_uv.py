@@ -31,6 +31,7 @@ class UnwrapCrash(ValueError):
     """xatlas ended the child process that charted a mesh (`ISOLATE_TRIANGLES`); a larger
     lightmap does not help."""
 
+
 # xatlas flattens each chart as a whole, in time that grows much faster than the chart's size: a
 # smooth 62.5k-triangle sphere grown into 6 charts took 26 s a pass (two passes per unwrap), a
 # gently rolling 20k-triangle terrain as one chart 42 s. Meshes of more triangles than this get
@@ -109,15 +110,22 @@ def unwrap(
     triangles = np.ascontiguousarray(triangles, np.uint32)
     if not np.isfinite(positions).all():  # xatlas loops for minutes on nan or inf
         raise ValueError("lightmap UVs: vertex coordinates are not finite (nan or inf)")
-    if triangles.shape[0] >= ISOLATE_TRIANGLES and hasattr(os, "fork"):
+    count = triangles.shape[0]
+    if count < ISOLATE_TRIANGLES or not hasattr(os, "fork"):
+        return _unwrap(positions, triangles, settings, polygons)
+    try:
         return _in_child(_unwrap, positions, triangles, settings, polygons)
-    return _unwrap(positions, triangles, settings, polygons)
+    except UnwrapCrash as exc:
+        raise UnwrapCrash(f"lightmap UVs: xatlas crashed ({exc}) charting this mesh of "
+                          f"{count:,} triangles (an xatlas defect on some dense closed meshes); "
+                          "give the mesh a lightmap UV layer of its own (e.g. Blender's "
+                          "Lightmap Pack) under the name the bake uses") from None
 
 
 def _in_child(function, *args):
     """function(*args) computed in a forked child process and sent back pickled: a crash of the
-    child (xatlas' segmentation faults) raises ValueError here instead of ending this process.
-    The child's exceptions are raised here as they were."""
+    child (xatlas' segmentation faults) raises UnwrapCrash(the signal's name) here instead of
+    ending this process. The child's exceptions are raised here as they were."""
     read, write = os.pipe()
     with warnings.catch_warnings():  # fork() in a process with threads warns (3.12+); the
         warnings.simplefilter("ignore", DeprecationWarning)  # child only computes and exits
@@ -143,14 +151,10 @@ def _in_child(function, *args):
             payload = pipe.read()
     finally:
         _, status = os.waitpid(pid, 0)
-    if os.WIFSIGNALED(status) or not payload:
-        number = os.WTERMSIG(status) if os.WIFSIGNALED(status) else os.WEXITSTATUS(status)
-        name = signal.Signals(number).name if os.WIFSIGNALED(status) else f"exit {number}"
-        count = len(args[1])
-        raise UnwrapCrash(f"lightmap UVs: xatlas crashed ({name}) charting this mesh of {count:,} "
-                         "triangles (an xatlas defect on some dense closed meshes); give the "
-                         "mesh a lightmap UV layer of its own (e.g. Blender's Lightmap Pack) "
-                         "under the name the bake uses")
+    if os.WIFSIGNALED(status):
+        raise UnwrapCrash(signal.Signals(os.WTERMSIG(status)).name)
+    if not payload:
+        raise UnwrapCrash(f"exit {os.WEXITSTATUS(status)}")
     ok, value = pickle.loads(payload)  # noqa: S301 - our own child's bytes
     if not ok:
         raise value
