@@ -263,9 +263,9 @@ def _scene_triangles(context, with_area_over: float = 0.0) -> tuple[int, float]:
 
 def estimate_memory(cmd: Command, args, sizes: dict | None = None) -> list[tuple[float, str, str]]:
     """What a technique run will need before it starts: [(bytes, what, the flag that lowers
-    it)]. The scene: its triangles x SCENE_BYTES_PER_TRIANGLE (by command); the camera view: pixels x
-    RENDER_BYTES_PER_PIXEL; lightmaps: their texels at the
-    planned sizes x LIGHTMAP_BYTES_PER_TEXEL; radiosity: its solve's estimate
+    it)]. The scene: its triangles x SCENE_BYTES_PER_TRIANGLE (by command); the camera view:
+    pixels x RENDER_BYTES_PER_PIXEL; lightmaps: their texels at the planned sizes x
+    LIGHTMAP_BYTES_PER_TEXEL; radiosity and the hybrid's first pass: the solve's estimate
     (`kernels/radiosity/planning.memory_estimate`) over the patches it will make, at least one
     per triangle (--patch-size: the surface over that edge; else the --patches budget).
     `sizes`, when given, receives the work's size: rays, texels, triangles, patches."""
