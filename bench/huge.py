@@ -5,15 +5,16 @@ budget or is refused before any work with its estimate (issue 43).
                                    [--resolution W H]
 
 The scene is Blender's default one (Cube, Camera, Light) over a rolling terrain of about
-`--triangles` triangles, with a small mirror ball, built here and saved to out/bench/huge.blend.
-Each command runs as `python -m classic_bake COMMAND huge.blend --out TMP` in a process of its
-own, under a watchdog (a run past --timeout is a hang: its threads' stacks are saved, then it is
-killed) and with `--time-budget-s` at the same seconds (a run its own estimate puts past them
-is refused before any work); its peak resident memory is read from the kernel's accounting of
-the finished child (wait4). The outcome of a run: ok (exit 0, no traceback), refused (exit 2 and
-one `classic_bake: error:` line; `with_estimate` when the line gives the memory it would need),
-failed, or hung. The memory budget is the commands' default (pipeline/run.py: the default budget
-or the memory available, whichever is less).
+`--triangles` triangles (bumped by an image height), with a small mirror ball, built here and
+saved to out/bench/huge.blend. Each command runs as `python -m classic_bake COMMAND huge.blend
+--out TMP` in a process of its own, under a watchdog (a run past --timeout is a hang: its
+threads' stacks are saved, then it is killed) and with `--time-budget-s` at the same seconds (a
+run its own estimate puts past them is refused before any work); its peak resident memory is
+read from the kernel's accounting of the finished child (wait4). The outcome of a run: ok (exit
+0, no traceback), refused (exit 2 and one `classic_bake: error:` line; `with_estimate` when the
+line gives the memory or time it would need), failed, or hung. The memory budget is the
+commands' default (pipeline/run.py: the default budget or the memory available, whichever is
+less).
 
 Writes out/bench/huge.json: {"bench": "huge", "ratios": {"held_fraction": runs that finished
 within the budget or were refused in one line, over all runs; "peak_over_budget": the largest
@@ -66,6 +67,7 @@ def build_scene(path: Path, triangles: int) -> int:
     co[:, 2] = 0.15 * np.sin(1.3 * co[:, 0]) * np.cos(0.9 * co[:, 1])
     terrain.data.vertices.foreach_set("co", co.ravel())
     terrain.data.update()
+    terrain.data.materials.append(_rough_ground())
     bpy.ops.mesh.primitive_uv_sphere_add(segments=32, ring_count=16, radius=0.8,
                                          location=(2.5, 0.0, 0.0))
     ball = bpy.context.active_object
@@ -78,6 +80,9 @@ def build_scene(path: Path, triangles: int) -> int:
     bsdf.inputs["Metallic"].default_value = 1.0
     bsdf.inputs["Roughness"].default_value = 0.0
     ball.data.materials.append(mirror)
+    for obj in bpy.context.scene.objects:  # `normalmap` maps the selected meshes
+        obj.select_set(obj is terrain)
+    bpy.context.view_layer.objects.active = terrain
     path.parent.mkdir(parents=True, exist_ok=True)
     bpy.ops.wm.save_as_mainfile(filepath=str(path))
     depsgraph = bpy.context.evaluated_depsgraph_get()
@@ -88,6 +93,32 @@ def build_scene(path: Path, triangles: int) -> int:
             mesh.calc_loop_triangles()
             count += len(mesh.loop_triangles)
     return count
+
+
+def _rough_ground():
+    """A Principled material whose normal is a Bump node over an image height (a packed 256^2
+    image of ripples), so that `normalmap` has a relief to make a map of."""
+    import bpy
+    import numpy as np
+
+    size = 256
+    u, v = np.meshgrid(np.linspace(0.0, 8.0 * np.pi, size), np.linspace(0.0, 6.0 * np.pi, size))
+    height = 0.5 + 0.25 * np.sin(u) * np.cos(v)
+    image = bpy.data.images.new("GroundHeight", size, size, float_buffer=True)
+    image.pixels.foreach_set(np.repeat(height.ravel(), 4).astype(np.float32))
+    image.pack()
+    mat = bpy.data.materials.new("Ground")
+    if bpy.app.version < (5, 0, 0):
+        mat.use_nodes = True
+    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+    bsdf = next(n for n in nodes if n.type == "BSDF_PRINCIPLED")
+    texture = nodes.new("ShaderNodeTexImage")
+    texture.image = image
+    bump = nodes.new("ShaderNodeBump")
+    bump.inputs["Strength"].default_value = 0.5
+    links.new(texture.outputs["Color"], bump.inputs["Height"])
+    links.new(bump.outputs["Normal"], bsdf.inputs["Normal"])
+    return mat
 
 
 def run_watched(command: str, scene: Path, out: Path, resolution, timeout: float) -> dict:

@@ -70,8 +70,12 @@ def estimate_seconds(technique: str, sizes: dict) -> list[tuple[float, str, str]
                           LOWER_WITH[key]))
     patches = sizes.get("patches", 0)
     if patches:
+        # Every triangle is at least one patch: with as many patches as triangles, only fewer
+        # triangles lower the count.
+        flag = (LOWER_WITH["triangles"] + " (each is at least one patch)"
+                if patches <= sizes.get("triangles", 0) else LOWER_WITH["patches"])
         parts.append((patches * math.log2(max(patches, 2)) * SECONDS_PER_PATCH_LOG,
-                      f"{patches:,} radiosity patches", LOWER_WITH["patches"]))
+                      f"{patches:,} radiosity patches", flag))
     return [p for p in parts if p[0] > 0.0]
 
 
