@@ -30,7 +30,7 @@ LIGHTMAP_BYTES_PER_TEXEL = 100
 # targets), by command. Measured with bench/huge.py on a 2M-triangle terrain (bpy itself ~0.3 GB):
 # info peaked at 1.21 GB, lightmap-uv 1.65, bump 1.74, trace 1.8, envmap 1.99 (0.45-0.85 kB a
 # triangle), texture 3.22 (1.46 kB), shadowmap 5.0 (2.35 kB: its depth maps' fragments).
-SCENE_BYTES_PER_TRIANGLE = {"default": 1000, "texture": 1600, "shadowmap": 2500}
+SCENE_BYTES_PER_TRIANGLE = {"default": 1000, "info": 600, "texture": 1600, "shadowmap": 2500}
 GB = 1 << 30
 # A camera scaled below this along any axis sees a flat image (its rays collapse).
 CAMERA_MIN_SCALE = 1e-6
@@ -278,11 +278,11 @@ def estimate_memory(cmd: Command, args, sizes: dict | None = None) -> list[tuple
     scene = bpy.context.scene
     out = []
     sizes = {} if sizes is None else sizes
+    triangles = sizes["triangles"] = _scene_triangles(bpy.context)[0]
+    per = SCENE_BYTES_PER_TRIANGLE.get(cmd.name, SCENE_BYTES_PER_TRIANGLE["default"])
+    out.append((triangles * per, f"the scene's {triangles:,} triangles",
+                "fewer triangles (decimate, or hide objects from the render)"))
     if cmd.is_technique:
-        triangles = sizes["triangles"] = _scene_triangles(bpy.context)[0]
-        per = SCENE_BYTES_PER_TRIANGLE.get(cmd.name, SCENE_BYTES_PER_TRIANGLE["default"])
-        out.append((triangles * per, f"the scene's {triangles:,} triangles",
-                    "fewer triangles (decimate, or hide objects from the render)"))
         if args.resolution:
             width, height = args.resolution
         else:
@@ -330,9 +330,8 @@ def check_estimates(cmd: Command, args, ctx: RunContext | None = None) -> None:
     """Refuse, before any work, a run whose estimate (the sum of its parts) exceeds the memory
     budget, or the time budget when --time-budget-s is given: one line with the estimate, its
     largest part, the budget and the flag that lowers that part. With `ctx`, the estimates are
-    said in the run's first lines and kept in metrics.json (`estimate`)."""
-    if not cmd.is_technique:
-        return
+    said in the run's first lines and kept in metrics.json (`estimate`). Every command that opens
+    a scene is estimated (info and the map makers by their triangles and texels)."""
     budget, source = memory_budget(args)
     sizes: dict = {}
     try:
