@@ -61,6 +61,10 @@ TECHNIQUES: dict[str, dict[str, tuple[str, ...]]] = {
 # Every bench, in the order bench/README.md describes them (the Makefile's BENCHES).
 BENCHES = ("rays", "trace", "texture", "envmap", "bump", "shadowmap", "radiosity", "hybrid",
            "normalmap", "generated", "batch", "demo")
+# The reliability runs (not speed benches; hours, so `make bench` leaves them out): published
+# like the benches, shown in docs/reliability.md.
+RELIABILITY_BENCHES = ("huge", "soak")
+RELIABILITY_DOC = REPO / "docs" / "reliability.md"
 
 BLOCK = re.compile(r"<!-- BEGIN (?P<kind>[a-z]+)(?: (?P<arg>[a-z0-9_-]+))? -->\n"
                    r"(?P<body>.*?)"
@@ -68,9 +72,9 @@ BLOCK = re.compile(r"<!-- BEGIN (?P<kind>[a-z]+)(?: (?P<arg>[a-z0-9_-]+))? -->\n
 MARKER = re.compile(r"<!-- (BEGIN|END) ([a-z]+)(?: [a-z0-9_-]+)? -->")
 NO_FIGURES = "No published figures yet: run `make bench` on an idle machine"
 # Columns of a bench's ladder rows worth a table, in this order (the rest stay in the JSON).
-ROW_COLUMNS = ("setting", "mode", "case", "light", "rung", "samples", "patches", "faces",
-               "seconds", "rel_mse", "rel_mse_mirror", "flip", "cycles_seconds_to_same_error",
-               "ratio")
+ROW_COLUMNS = ("setting", "mode", "case", "command", "scene", "light", "rung", "samples",
+               "patches", "faces", "outcome", "seconds", "peak_gb", "rel_mse", "rel_mse_mirror",
+               "flip", "cycles_seconds_to_same_error", "ratio")
 MAX_ROW_COLUMNS = 7
 
 
@@ -318,10 +322,11 @@ def blocks(text: str) -> list[tuple[str, str | None, str]]:
 def documents() -> list[tuple[Path, str | None]]:
     """(path, subject) of every document with generated blocks."""
     pages = [(p, p.stem) for p in sorted(TECHNIQUE_DOCS.glob("*.md"))]
-    return pages + [(BENCH_README, None)]
+    return pages + [(BENCH_README, None), (RELIABILITY_DOC, None)]
 
 
-def publish(names=BENCHES, source: Path = BENCH_OUT, target: Path = PUBLISHED) -> list[str]:
+def publish(names=BENCHES + RELIABILITY_BENCHES, source: Path = BENCH_OUT,
+            target: Path = PUBLISHED) -> list[str]:
     """Copy source/NAME.json into target/ for every bench that wrote one; returns the names.
     A report that is not a bench report (no "bench" and "ratios") is refused."""
     copied = []
