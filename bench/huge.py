@@ -34,6 +34,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _report import OUT_DIR, format_table, versions, write_report  # noqa: E402
+from scenes import _material  # noqa: E402
 from soak import COMMANDS as TECHNIQUE_COMMANDS  # noqa: E402
 from soak import RUNNER, STACK_GRACE_S, TAIL_CHARS  # noqa: E402
 
@@ -73,9 +74,7 @@ def build_scene(path: Path, triangles: int) -> int:
     ball = bpy.context.active_object
     ball.name = "Mirror"
     bpy.ops.object.shade_smooth()
-    mirror = bpy.data.materials.new("Mirror")
-    if bpy.app.version < (5, 0, 0):
-        mirror.use_nodes = True
+    mirror = _material(bpy, "Mirror", (0.8, 0.8, 0.8))
     bsdf = next(n for n in mirror.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
     bsdf.inputs["Metallic"].default_value = 1.0
     bsdf.inputs["Roughness"].default_value = 0.0
@@ -107,9 +106,7 @@ def _rough_ground():
     image = bpy.data.images.new("GroundHeight", size, size, float_buffer=True)
     image.pixels.foreach_set(np.repeat(height.ravel(), 4).astype(np.float32))
     image.pack()
-    mat = bpy.data.materials.new("Ground")
-    if bpy.app.version < (5, 0, 0):
-        mat.use_nodes = True
+    mat = _material(bpy, "Ground", (0.8, 0.8, 0.8))
     nodes, links = mat.node_tree.nodes, mat.node_tree.links
     bsdf = next(n for n in nodes if n.type == "BSDF_PRINCIPLED")
     texture = nodes.new("ShaderNodeTexImage")

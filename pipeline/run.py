@@ -205,12 +205,6 @@ def missing_libraries() -> list[str]:
             if not os.path.exists(bpy.path.abspath(lib.filepath, library=lib.library))]
 
 
-def bpy_context():
-    import bpy
-
-    return bpy.context
-
-
 def available_memory_bytes() -> int | None:
     """The memory the machine has available now (Linux /proc/meminfo MemAvailable), or None."""
     try:
@@ -308,13 +302,13 @@ def estimate_memory(cmd: Command, args, sizes: dict | None = None) -> list[tuple
     if cmd.name in ("radiosity", "hybrid"):  # the hybrid's first pass is the radiosity solve
         settings = technique.settings(technique.values_from_args(args), None)
         settings = getattr(settings, "radiosity", settings)
-        triangles, by_size = _scene_triangles(bpy.context, settings.patch_size)
-        if settings.patch_size > 0.0:
+        if settings.patch_size > 0.0:  # the surface over that edge (the count is known)
+            by_size = _scene_triangles(bpy.context, settings.patch_size)[1]
             patches, flag = max(triangles, by_size), "a larger --patch-size"
         else:
             patches, flag = max(triangles, settings.patch_budget), "fewer triangles"
         n = int(min(patches, 1e15))
-        sizes["patches"], sizes["triangles"] = n, triangles
+        sizes["patches"] = n
         solver = settings.solver if settings.solver != "auto" else (
             "gauss_seidel" if n * n * 8 <= settings.dense_memory_limit else "progressive")
         lean = settings if settings.samples_per_side else type(settings)(
@@ -339,8 +333,6 @@ def check_estimates(cmd: Command, args, ctx: RunContext | None = None) -> None:
     except ValueError as exc:  # settings the kernel refuses (--patches 0): the same one line
         raise UsageError(f"{cmd.name}: {exc}") from exc
     total = sum(need for need, _, _ in parts)
-    if "triangles" not in sizes:
-        sizes["triangles"] = _scene_triangles(bpy_context())[0]
     timing = time_estimate.estimate_seconds(cmd.name, sizes)
     seconds = sum(s for s, _, _ in timing)
     if ctx is not None:
