@@ -2,7 +2,7 @@
 running beside them, each run under a watchdog. Expected: no hangs, no failures.
 
     .venv/bin/python bench/soak.py [--repeat N] [--scenes NAME ...] [--commands NAME ...]
-                                   [--timeout S] [--resolution W H] [--no-load]
+                                   [--timeout S] [--resolution W H] [--no-load] [--resume REPORT]
 
 Each run is `python -m classic_bake COMMAND SCENE --out TMP --resolution W H` in a process of its
 own (started with Python's fault handler listening for SIGUSR1). A run still going after --timeout
@@ -14,12 +14,17 @@ process is started before the first run and stopped after the last, whatever hap
 Writes out/bench/soak.json after every pass (a soak stopped early keeps its finished passes):
 {"bench": "soak", "ratios": {"held_fraction": runs that ended on their own without failing, over
 all runs}, "figures": {runs, passes done, hangs, failures, refusals, per command, the slowest
-runs, hang stacks and failure messages}, "versions": {...}}.
+runs, hang stacks and failure messages, segments}, "versions": {...}}.
+
+A soak of many passes may run in segments: `--resume REPORT` continues an earlier report of the
+same scenes, commands, resolution, timeout and load, adding passes until --repeat passes in all;
+each segment's commit, passes and seconds are kept in `figures.segments`.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import signal
 import subprocess
 import sys
@@ -117,6 +122,36 @@ def soak(scenes: list[Path], commands: list[str], repeat: int, timeout: float, r
     return runs
 
 
+def merged(previous: dict, figures: dict) -> dict:
+    """An earlier soak report's figures followed by this segment's: counts add, the slowest and
+    the refusals are pooled, hangs and failures kept whole."""
+    out = dict(figures)
+    for key in ("runs", "hangs", "failures", "refusals", "ok", "passes_done"):
+        out[key] = previous[key] + figures[key]
+    out["seconds"] = round(previous["seconds"] + figures["seconds"], 1)
+    out["per_command"] = {
+        command: {**{o: previous["per_command"][command][o] + mine[o]
+                     for o in ("ok", "refused", "failed", "hung")},
+                  "max_seconds": max(previous["per_command"][command]["max_seconds"],
+                                     mine["max_seconds"])}
+        for command, mine in figures["per_command"].items()}
+    out["slowest"] = sorted(previous["slowest"] + figures["slowest"],
+                            key=lambda r: -r["seconds"])[:5]
+    for key in ("hung", "failed"):
+        out[key] = previous[key] + figures[key]
+    out["refused"] = sorted(set(previous["refused"]) | set(figures["refused"]))
+    out["segments"] = previous.get("segments", [
+        {"commit": "not recorded", "passes": previous["passes_done"],
+         "seconds": previous["seconds"]}]) + figures["segments"]
+    return out
+
+
+def commit() -> str:
+    done = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT, capture_output=True,
+                          text=True)
+    return done.stdout.strip() if done.returncode == 0 else "unknown"
+
+
 def blender_version() -> str:
     done = subprocess.run([sys.executable, "-c", "import bpy; print(bpy.app.version_string)"],
                           capture_output=True, text=True)
@@ -134,10 +169,22 @@ def main() -> int:
     parser.add_argument("--resolution", type=int, nargs=2, default=RESOLUTION, metavar=("W", "H"))
     parser.add_argument("--no-load", action="store_true",
                         help="no CPU-bound process beside the runs")
+    parser.add_argument("--resume", type=Path, default=None, metavar="REPORT",
+                        help="continue this earlier soak report up to --repeat passes in all")
     args = parser.parse_args()
     if args.repeat < 1 or args.timeout <= 0:
         parser.error("--repeat must be >= 1 and --timeout > 0")
     names = args.scenes or sorted(p.stem for p in SAMPLES.glob("*.blend"))
+    previous = None
+    if args.resume is not None:
+        previous = json.loads(args.resume.read_text())["figures"]
+        same = {"scenes": names, "commands": args.commands, "timeout_s": args.timeout,
+                "resolution": list(args.resolution), "cpu_load_beside": not args.no_load}
+        differs = [k for k, v in same.items() if previous.get(k) != v]
+        if differs:
+            parser.error(f"--resume: {args.resume} differs in {', '.join(differs)}")
+        if previous["passes_done"] >= args.repeat:
+            parser.error(f"--resume: {args.resume} already has {previous['passes_done']} passes")
     scenes = [SAMPLES / f"{name}.blend" for name in names]
     missing = [s.name for s in scenes if not s.is_file()]
     if missing:
@@ -167,18 +214,24 @@ def main() -> int:
             "refused": sorted({f"{r['command']} {r['scene']}: {r['detail']}" for r in runs
                                if r["outcome"] == "refused"}),
         }
+        figures["segments"] = [{"commit": head, "passes": figures["passes_done"],
+                                "seconds": figures["seconds"]}]
+        if previous is not None:
+            figures = merged(previous, figures)
+            held = (figures["ok"] + figures["refusals"]) / figures["runs"]
         write_report("soak", {"held_fraction": held}, figures,
                      {**versions(), "blender": blender})
         return {"count": count, "per_command": per_command}
 
-    blender = blender_version()
-    runs = soak(scenes, args.commands, args.repeat, args.timeout, args.resolution,
+    blender, head = blender_version(), commit()
+    passes = args.repeat - (previous["passes_done"] if previous else 0)
+    runs = soak(scenes, args.commands, passes, args.timeout, args.resolution,
                 not args.no_load, after_pass=report)
     summary = report(runs)
     count, per_command = summary["count"], summary["per_command"]
     rows = [[c, *(v[o] for o in count), v["max_seconds"]] for c, v in per_command.items()]
     print(format_table(["command", *count, "max s"], rows))
-    print(f"{len(runs)} runs, {count['hung']} hangs, {count['failed']} failures, "
+    print(f"this segment: {len(runs)} runs, {count['hung']} hangs, {count['failed']} failures, "
           f"{count['refused']} refusals; wrote out/bench/soak.json")
     return 1 if count["hung"] or count["failed"] else 0
 
