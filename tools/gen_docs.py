@@ -48,7 +48,8 @@ PUBLISHED = REPO / "bench" / "results"  # what the documents show (`--publish` c
 # classes are looked up in classic_bake.kernels) and which benches measure it (out/bench/NAME.json).
 TECHNIQUES: dict[str, dict[str, tuple[str, ...]]] = {
     "texture": {"settings": ("TextureBakeSettings", "LightmapUVSettings"), "benches": ("texture",)},
-    "envmap": {"settings": ("EnvMapSettings", "PrefilterSettings"), "benches": ("envmap",)},
+    "envmap": {"settings": ("EnvMapSettings", "PrefilterSettings"),
+               "benches": ("envmap", "envmap_eevee")},
     "bump": {"settings": ("TracerSettings",), "benches": ("bump",)},
     "shadowmap": {"settings": ("ShadowMapSettings", "DirectLightSettings"),
                   "benches": ("shadowmap",)},
@@ -59,8 +60,8 @@ TECHNIQUES: dict[str, dict[str, tuple[str, ...]]] = {
                   "benches": ("normalmap",)},
 }
 # Every bench, in the order bench/README.md describes them (the Makefile's BENCHES).
-BENCHES = ("rays", "trace", "texture", "envmap", "bump", "shadowmap", "radiosity", "hybrid",
-           "normalmap", "generated", "batch", "demo")
+BENCHES = ("rays", "trace", "texture", "envmap", "envmap_eevee", "bump", "shadowmap", "radiosity",
+           "hybrid", "normalmap", "generated", "batch", "demo")
 # The reliability runs (not speed benches; hours, so `make bench` leaves them out): published
 # like the benches, shown in docs/reliability.md.
 RELIABILITY_BENCHES = ("huge", "soak")

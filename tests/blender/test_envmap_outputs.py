@@ -215,20 +215,11 @@ def test_sh_irradiance_agrees_with_the_faces(walls_run):
 
 
 def _object_pixels(snap, resolution, name):
-    """(H, W) bool: pixel-centre camera rays that hit object `name` and whose four neighbours do
-    too (silhouette pixels mix the ball and the walls differently in each renderer's filter)."""
-    from classic_bake.kernels.geometry.bvh import BVH
-    from classic_bake.kernels.geometry.camera import camera_rays
+    """The inner pixels of object `name` (`interior_pixels`)."""
+    from classic_bake.kernels.measure.object_mask import interior_pixels
 
-    origins, dirs = camera_rays(snap.camera, *resolution)
-    hits = BVH.build(snap.triangles).intersect(origins.reshape(-1, 3), dirs.reshape(-1, 3))
     index = next(k for k, o in enumerate(snap.objects) if o.source_name == name)
-    seen = np.where(hits.tri >= 0, snap.object_ids[np.maximum(hits.tri, 0)], -1) == index
-    seen = seen.reshape(resolution[1], resolution[0])
-    inner = seen.copy()
-    for axis in (0, 1):
-        inner &= np.roll(seen, 1, axis) & np.roll(seen, -1, axis)
-    return inner
+    return interior_pixels(snap, resolution, index)
 
 
 @pytest.mark.slow
