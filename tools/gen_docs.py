@@ -73,9 +73,9 @@ BLOCK = re.compile(r"<!-- BEGIN (?P<kind>[a-z]+)(?: (?P<arg>[a-z0-9_-]+))? -->\n
 MARKER = re.compile(r"<!-- (BEGIN|END) ([a-z]+)(?: [a-z0-9_-]+)? -->")
 NO_FIGURES = "No published figures yet: run `make bench` on an idle machine"
 # Columns of a bench's ladder rows worth a table, in this order (the rest stay in the JSON).
-ROW_COLUMNS = ("setting", "mode", "case", "command", "scene", "light", "rung", "samples",
-               "patches", "faces", "outcome", "seconds", "peak_gb", "rel_mse", "rel_mse_mirror",
-               "flip", "cycles_seconds_to_same_error", "ratio")
+ROW_COLUMNS = ("setting", "mode", "case", "command", "commit", "scene", "light", "rung",
+               "samples", "passes", "patches", "faces", "outcome", "seconds", "peak_gb", "rel_mse",
+               "rel_mse_mirror", "flip", "cycles_seconds_to_same_error", "ratio")
 MAX_ROW_COLUMNS = 7
 
 
