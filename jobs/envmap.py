@@ -38,6 +38,7 @@ from ..kernels.envmap.envmap import (
     EnvMapSettings,
     capture_faces_steps,
     capture_plan,
+    face_samples,
     face_tracer_settings,
     object_bounds,
     render_steps,
@@ -186,6 +187,7 @@ def outputs_steps(scene, settings: EnvMapSettings, tracer: TracerSettings, resul
     for probe in probes:
         files.update(probe_files(probe))
         maps[probe.name] = {"face_size": probe.env.size,
+                            "face_samples": face_samples(scene, settings),
                             "centre": [float(c) for c in probe.env.centre],
                             "latlong": list(probe.latlong.shape[1::-1]),
                             "mip_sizes": [int(level.shape[1]) for level in probe.mips],
@@ -288,7 +290,8 @@ def envmap_tile_job(scene, settings: EnvMapSettings, tracer: TracerSettings, til
         k, size = plan[number]
         faces = [f for n, f in mine if n == number]
         captured = yield from scaled(
-            capture_faces_steps(scene, k, size, face_tracer, settings.face_supersample, bvh, faces),
+            capture_faces_steps(scene, k, size, face_tracer, face_samples(scene, settings), bvh,
+                                faces),
             count / len(plan), 1.0 / len(plan))
         for j, face in enumerate(faces):
             files[face_file(number, face)] = _faces_writer(captured, j)
@@ -354,8 +357,9 @@ def envmap_merge(folder: Path, tiles: list[dict]) -> JobSummary:
 OPTIONS = (
     Option("face_size", EnvMapSettings, "Face Size", "Texels per cube-map face side; 0 chooses it "
            "per object from its size on screen", minimum=0, maximum=4096),
-    Option("face_samples", EnvMapSettings, "Face Samples", "N x N rays per face texel, averaged",
-           field="face_supersample", minimum=1, maximum=8),
+    Option("face_samples", EnvMapSettings, "Face Samples", "N x N rays per face texel, averaged "
+           "(0: 2 where area lamps or glowing surfaces light the scene, else 1)",
+           field="face_supersample", minimum=0, maximum=8),
     Option("parallax_steps", EnvMapSettings, "Parallax Steps", "Refinements of the search along "
            "each reflected ray for the surface it meets (0: the lecture's look-up along the "
            "reflected direction alone)", minimum=0, maximum=16),

@@ -67,7 +67,9 @@ def test_cli_envmap_writes_view_faces_and_sizes(tmp_path):
     assert faces.shape == (6 * 24, 24, 3) and np.all(np.isfinite(faces))
     metrics = json.loads((tmp_path / "metrics.json").read_text())
     assert metrics["sizes"]["maps"]["MirrorSphere"]["face_size"] == 24
-    assert metrics["sizes"]["face_rays"] == 6 * 26 * 26  # the faces and their one-texel borders
+    # The room's area lamp: 2 x 2 rays per texel of the faces and their one-texel borders.
+    assert metrics["sizes"]["maps"]["MirrorSphere"]["face_samples"] == 2
+    assert metrics["sizes"]["face_rays"] == 6 * 26 * 26 * 4
     assert metrics["seconds"]["total"] > 0 and metrics["stage_seconds"]["capture"] > 0
 
 

@@ -149,6 +149,43 @@ def test_env_mapped_mirror_shows_an_area_lamp_as_a_traced_mirror_does():
     assert (exact[..., 0] > 5.0).sum() >= 4
 
 
+def _panel(height=1.9, radiance=20.0):
+    return Light(name="Panel", kind="AREA", position=np.array([0.0, 0.0, height]),
+                 direction=np.array([0.0, 0.0, -1.0]), axis_x=np.array([1.0, 0.0, 0.0]),
+                 axis_y=np.array([0.0, 1.0, 0.0]), radiance=np.full(3, radiance), size_x=1.0,
+                 size_y=1.0)
+
+
+def test_face_samples_come_from_the_lights():
+    """Automatic face samples: 2 x 2 where an area lamp or a glowing surface lights the room,
+    1 under point lamps alone; a number asked for is kept."""
+    auto = envmap.EnvMapSettings()
+    point_lit = lit_room_with_sphere()
+    area_lit = build([(room(2.0), GREY), (uv_sphere((0, 0, 0), 0.3, 8, 16), CHROME)],
+                     lights=[_panel()])
+    glowing = build([(room(2.0), emissive(np.full(3, 1.0))),
+                     (uv_sphere((0, 0, 0), 0.3, 8, 16), CHROME)])
+    assert envmap.face_samples(point_lit, auto) == 1
+    assert envmap.face_samples(area_lit, auto) == envmap.AUTO_AREA_FACE_SUPERSAMPLE == 2
+    assert envmap.face_samples(glowing, auto) == 2
+    assert envmap.face_samples(area_lit, envmap.EnvMapSettings(face_supersample=3)) == 3
+
+
+def test_face_sub_samples_share_the_area_lamps_samples():
+    """A room under an area lamp, faces of 8 texels: the 2 x 2 sub-samples of a texel share out
+    the lamp's 4 x 4 shadow samples (each takes a quarter, weighted 4) instead of each casting
+    all 16. The same light in expectation: against the capture where every sub-sample casts all
+    of them (3 x 3 sub-samples, which do not divide 16), the faces' mean within 1% and the median
+    texel within 5% (measured: 0.3% and 1.1%)."""
+    scene = build([(room(2.0), GREY), (uv_sphere((0, 0, 0), 0.3, 8, 16), CHROME)],
+                  lights=[_panel()])
+    settings = TracerSettings(max_depth=0, adaptive=0, area_samples=4)
+    shared = drain(envmap.capture_steps(scene, 1, 8, settings, supersample=2)).face_images()
+    every = drain(envmap.capture_steps(scene, 1, 8, settings, supersample=3)).face_images()
+    assert shared.mean() == pytest.approx(every.mean(), rel=0.01)
+    assert np.median(np.abs(shared / np.maximum(every, 1e-6) - 1.0)) < 0.05
+
+
 def test_env_mapped_mirror_needs_no_ray_depth():
     # The look-up is not a ray: with depth 0 the mirror still shows its environment.
     parts = [(room(2.0), emissive(np.full(3, 1.0))), (uv_sphere((0, 0, 0), 0.5, 24, 48), CHROME)]
@@ -248,6 +285,8 @@ def test_mirror_objects_and_clear_errors():
     with pytest.raises(ValueError, match="face_size"):
         envmap.EnvMapSettings(face_size=4)
     with pytest.raises(ValueError, match="face_supersample"):
-        envmap.EnvMapSettings(face_supersample=0)
+        envmap.EnvMapSettings(face_supersample=-1)
+    with pytest.raises(ValueError, match="face_supersample"):
+        envmap.EnvMapSettings(face_supersample=9)
     with pytest.raises(ValueError, match="parallax_steps"):
         envmap.EnvMapSettings(parallax_steps=-1)
