@@ -344,9 +344,9 @@ def hidden_bvh(scene: Scene, hidden: Sequence[int]) -> BVH:
 # face_supersample 0 (automatic): 2 x 2 rays per texel where area lamps or glowing triangles
 # light the scene, else 1. The sub-samples share out each area emitter's shadow samples
 # (`Tracer._area_direct`), and those shadow rays are most of a face's cost, so there 2 x 2 costs
-# little more than texel centres and removes the faces' aliasing: env_room, 56-texel faces,
-# against six converged Cycles cameras (one run, the machine loaded): 1 x 1 relMSE 1.4e-2 in
-# 3.2 s, 2 x 2 1.8e-3 in 3.3 s. Lit by point, spot or sun lamps alone, 2 x 2 costs 4x the rays.
+# well under four times texel centres and removes the faces' aliasing: env_room, 56-texel
+# faces, against six converged Cycles cameras (bench/envmap.py, idle): 1 x 1 relMSE 1.4e-2 in
+# 0.80 s, 2 x 2 1.8e-3 in 1.39 s. Lit by point, spot or sun lamps alone, 2 x 2 costs 4x the rays.
 AUTO_AREA_FACE_SUPERSAMPLE = 2
 
 
