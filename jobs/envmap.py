@@ -184,10 +184,11 @@ def outputs_steps(scene, settings: EnvMapSettings, tracer: TracerSettings, resul
         probes.append((yield from scaled(probe_steps(scene, env, mips),
                                          start + number * share, share)))
     files, maps = {}, {}
+    samples = face_samples(scene, settings)
     for probe in probes:
         files.update(probe_files(probe))
         maps[probe.name] = {"face_size": probe.env.size,
-                            "face_samples": face_samples(scene, settings),
+                            "face_samples": samples,
                             "centre": [float(c) for c in probe.env.centre],
                             "latlong": list(probe.latlong.shape[1::-1]),
                             "mip_sizes": [int(level.shape[1]) for level in probe.mips],
@@ -284,14 +285,14 @@ def envmap_tile_job(scene, settings: EnvMapSettings, tracer: TracerSettings, til
     first, end = (len(every) * (tile.index - 1)) // tile.count, (len(every) * tile.index) // tile.count
     mine = every[first:end]
     face_tracer = face_tracer_settings(settings, tracer)
+    samples = face_samples(scene, settings)
     bvh = BVH.build(scene.triangles)
     files, names = {}, []
     for count, number in enumerate(sorted({n for n, _ in mine})):
         k, size = plan[number]
         faces = [f for n, f in mine if n == number]
         captured = yield from scaled(
-            capture_faces_steps(scene, k, size, face_tracer, face_samples(scene, settings), bvh,
-                                faces),
+            capture_faces_steps(scene, k, size, face_tracer, samples, bvh, faces),
             count / len(plan), 1.0 / len(plan))
         for j, face in enumerate(faces):
             files[face_file(number, face)] = _faces_writer(captured, j)

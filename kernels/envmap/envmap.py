@@ -508,10 +508,11 @@ def render_steps(scene: Scene, settings: EnvMapSettings, tracer_settings: Tracer
     bvh_seconds = time.perf_counter() - start
     maps, capture = [], 0.0
     share = 0.5 / len(plan)  # half the progress bar for the faces, half for the view
+    samples = face_samples(scene, settings)
     for number, (k, size) in enumerate(plan):
         start = time.perf_counter()
         maps.append((yield from scaled(
-            capture_steps(scene, k, size, face_tracer, face_samples(scene, settings), bvh),
+            capture_steps(scene, k, size, face_tracer, samples, bvh),
             share * number, share)))
         capture += time.perf_counter() - start
     result = yield from scaled(view_steps(scene, settings, tracer_settings, maps, bvh,
@@ -532,7 +533,7 @@ def view_steps(scene: Scene, settings: EnvMapSettings, tracer_settings: TracerSe
     if scene.camera is None:
         raise ValueError("the scene has no camera to render from")
     bvh = bvh or BVH.build(scene.triangles)
-    face_rays = sum(env.faces[..., 0].size * face_samples(scene, settings) ** 2 for env in maps)
+    face_rays = face_samples(scene, settings) ** 2 * sum(env.faces[..., 0].size for env in maps)
     seconds = {"probe": 0.0, "render": 0.0}
     # The probes' rough and diffuse look-ups, from the surfaces the faces hold (the lamps light
     # directly: their highlights on rough surfaces and their light on diffuse ones are the

@@ -26,13 +26,6 @@ def interior_pixels(scene: Scene, resolution: tuple[int, int], object_index: int
     hits = BVH.build(scene.triangles).intersect(origins.reshape(-1, 3), dirs.reshape(-1, 3))
     owner = np.where(hits.tri >= 0, scene.object_ids[np.maximum(hits.tri, 0)], -1)
     seen = (owner == object_index).reshape(height, width)
-    inner = seen.copy()
-    for axis in (0, 1):
-        # A pixel on the image border has no neighbour beyond it: not interior.
-        before, after = np.zeros_like(seen), np.zeros_like(seen)
-        if axis == 0:
-            before[1:], after[:-1] = seen[:-1], seen[1:]
-        else:
-            before[:, 1:], after[:, :-1] = seen[:, :-1], seen[:, 1:]
-        inner &= before & after
-    return inner
+    # A pixel on the image border has no neighbour beyond it: not interior.
+    p = np.pad(seen, 1)
+    return seen & p[:-2, 1:-1] & p[2:, 1:-1] & p[1:-1, :-2] & p[1:-1, 2:]
