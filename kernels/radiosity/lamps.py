@@ -87,6 +87,11 @@ def hard_lamps(scene: Scene) -> list:
     return [light for light in scene.lights if light.kind != "AREA" and light.cast_shadow]
 
 
+def shadowing_lamps(scene: Scene) -> list:
+    """The lamps of every kind (point, spot, sun, area) that cast shadows."""
+    return [light for light in scene.lights if light.cast_shadow]
+
+
 def lamp_irradiance(scene: Scene, points: np.ndarray, normals: np.ndarray, occluded, offset: float,
                     area_samples_per_side: int, lift: np.ndarray | None = None) -> np.ndarray:
     """(M, 3) irradiance W/m^2 of the scene's lamps (point, spot, sun, area) with shadow rays, as

@@ -36,12 +36,11 @@ class RadiositySettings:
     |                             |                     |          | -1 auto: 0 with the final  |
     |                             |                     |          | gather, 1 without it)      |
     | shadow_splits               | >= -1               | -1       | times patches across a     |
-    |                             |                     |          | lamp's hard shadow edge    |
-    |                             |                     |          | split before the solve (-1 |
-    |                             |                     |          | auto:                      |
+    |                             |                     |          | lamp's shadow edge split   |
+    |                             |                     |          | before the solve (-1 auto: |
     |                             |                     |          | AUTO_SHADOW_SPLITS with the|
-    |                             |                     |          | final gather and a point,  |
-    |                             |                     |          | spot or sun lamp, else 0)  |
+    |                             |                     |          | final gather and a lamp    |
+    |                             |                     |          | that casts shadows, else 0)|
     | refine_threshold            | > 0                 | 0.25     | relative corner difference |
     |                             |                     |          | that splits a patch        |
     | max_patches                 | >= 1                | 3000     | refinement stops here      |

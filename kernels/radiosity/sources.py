@@ -18,13 +18,19 @@ import numpy as np
 
 from ..geometry.frames import RAY_OFFSET_REL
 from ..geometry.scene import Scene, triangle_emission
+from ..shading import lights as light_units
 from ..shading.direct_light import diffuse_at, diffuse_weight
 from ..shading.specular_layer import diffuse_factor
 from ..shading.world_light import extract_suns, world_irradiance, world_lit, world_source
 from . import patches as patching
 from .emitters import Emitters, emitter_irradiance, emitters_of, open_backs
 from .form_factors.sampling import sample_patches
-from .lamps import hard_lamps, near_lamp_scale, shadowed_irradiance
+from .lamps import (
+    light_visibility,
+    near_lamp_scale,
+    shadowed_irradiance,
+    shadowing_lamps,
+)
 from .settings import RadiositySettings, gather_settings
 
 
@@ -190,27 +196,42 @@ def world_shot(scene: Scene, patches: patching.Patches, bvh, settings: Radiosity
                             np.random.default_rng(settings.seed + 3))
 
 
+# A patch is split across a shadow edge when a lamp's visible fraction at its samples spans this
+# much: 1 for a point, spot or sun lamp's step; an area lamp's penumbra narrower than the patch
+# also spans most of it, a wide ramp (the lamp large against the occluder's distance) does not.
+SHADOW_STEP = 0.5
+
+
 def hard_shadow_edges(scene: Scene, patches: patching.Patches, occluded,
                       settings: RadiositySettings, scale: float) -> np.ndarray:
-    """(N,) bool: patches across a hard shadow edge, some of their n x n midpoint samples
-    (`light_samples_per_side`) lit by a point, spot or sun lamp and some shadowed from it.
+    """(N,) bool: patches across a shadow edge, the lamp's visible fraction at their n x n
+    midpoint samples (`light_samples_per_side`, among those facing it) spanning SHADOW_STEP or
+    more: a point, spot or sun lamp's samples lit and shadowed, an area lamp's mostly seen and
+    mostly hidden.
 
-    Such a lamp's shadow is a step, and one patch value cannot stand for both sides of it in
-    the light the patch sends on. Area lamps and emissive triangles are left out: their
-    penumbrae are ramps that the patches follow (on the Cornell box, splitting at its ceiling
-    light's shadow edges cost more seconds than the error it removed, at every patch count).
-    occluded: the BVH callback, or None (no shadows, no edges)."""
+    Such a shadow is a step (or a ramp narrower than the patch), and one patch value cannot
+    stand for both sides of it in the light the patch sends on. Emissive triangles are left out:
+    their penumbrae are wide ramps that the patches follow (on the Cornell box, splitting at its
+    ceiling light's shadow edges cost more seconds than the error it removed, at every patch
+    count). occluded: the BVH callback, or None (no shadows, no edges)."""
     edges = np.zeros(len(patches), bool)
-    hard = hard_lamps(scene)
-    if occluded is None or not hard or len(patches) == 0:
+    lamps = shadowing_lamps(scene)
+    if occluded is None or not lamps or len(patches) == 0:
         return edges
     weights, flat, normals, origins = _light_samples(patches, settings, scale)
     count, samples = weights.shape
-    for light in hard:
-        e, vis = shadowed_irradiance(light, flat, normals, origins, occluded, 1)
+    for light in lamps:
+        e = light_units.direct_irradiance(light, flat, normals)
+        facing = (e.max(axis=1) > 0.0).reshape(count, samples)
+        vis = np.ones(len(flat))
+        lit = np.flatnonzero(facing.ravel())
+        if lit.size:
+            vis[lit] = light_visibility(light, origins[lit], occluded,
+                                        settings.area_light_samples_per_side)
         v = vis.reshape(count, samples)
-        lit = (e.max(axis=1) > 0.0).reshape(count, samples)
-        edges |= np.any(lit, axis=1) & np.any(v < 1.0, axis=1)
+        hi = np.where(facing, v, -np.inf).max(axis=1)
+        lo = np.where(facing, v, np.inf).min(axis=1)
+        edges |= hi - lo >= SHADOW_STEP
     return edges
 
 

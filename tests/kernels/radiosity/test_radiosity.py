@@ -37,7 +37,7 @@ from classic_bake.kernels.radiosity.planning import AUTO_SHADOW_SPLITS, resolve_
 from classic_bake.kernels.radiosity.refine import refine_splits
 from classic_bake.kernels.radiosity.settings import RadiositySettings
 from classic_bake.kernels.radiosity.solve import solve_radiosity
-from classic_bake.kernels.radiosity.sources import first_shot
+from classic_bake.kernels.radiosity.sources import first_shot, hard_shadow_edges
 from classic_bake.kernels.radiosity.view import render_steps
 from classic_bake.kernels.shading.lights import direct_irradiance
 from classic_bake.kernels.shading.specular_layer import albedo_curve, diffuse_factor
@@ -49,6 +49,14 @@ def sun_down(strength=1.0):
     return Light(name="Sun", kind="SUN", position=np.zeros(3), direction=np.array([0, 0, -1.0]),
                  axis_x=np.array([1.0, 0, 0]), axis_y=np.array([0, 1.0, 0]),
                  irradiance=np.full(3, strength))
+
+
+def panel_down(height, size, radiance=1.0):
+    """A square area lamp of side `size` m facing down from (0, 0, height)."""
+    return Light(name="Panel", kind="AREA", position=np.array([0.0, 0.0, height]),
+                 direction=np.array([0, 0, -1.0]), axis_x=np.array([1.0, 0, 0]),
+                 axis_y=np.array([0, 1.0, 0]), radiance=np.full(3, radiance), shape="SQUARE",
+                 size_x=size, size_y=size)
 
 
 # --- patches -------------------------------------------------------------------------------------
@@ -578,17 +586,21 @@ def test_with_the_final_gather_refinement_follows_the_indirect_light_only():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("solver", ["gauss_seidel", "hierarchical"])
-def test_shadow_edge_splits_give_the_bounce_under_a_plate(solver):
-    """A sun straight down on a 4 m ground, a 1 m plate 0.5 m above it facing down: the plate's
-    underside sees the dark square of its own shadow and the lit ground around it. With 2 m
-    patches every ground patch straddles the shadow, its mean is far too bright, and so is the
-    light it sends up; split at the shadow's edges before the solve, the few patches there follow
-    the step, and the underside's B comes within 5% of 0.25 m patches' (it was over 20% off),
-    with a tenth of their patches."""
+@pytest.mark.parametrize(("solver", "lamp"), [("gauss_seidel", "sun"), ("hierarchical", "sun"),
+                                              ("hierarchical", "area")])
+def test_shadow_edge_splits_give_the_bounce_under_a_plate(solver, lamp):
+    """A sun straight down on a 4 m ground (or a 0.4 m area lamp 4 m up: a penumbra ~0.1 m
+    wide), a 1 m plate 0.5 m above it facing down: the plate's underside sees the dark square of
+    its own shadow and the lit ground around it. With 2 m patches every ground patch straddles
+    the shadow, its mean is far too bright, and so is the light it sends up; split at the
+    shadow's edges before the solve, the few patches there follow the step, and the underside's
+    B comes within 5% of 0.25 m patches' (it was over 20% off), with a fraction of their
+    patches. (A small sphere on a generated room's floor under an area lamp, before area lamps
+    split: its underside 20x too bright against Cycles.)"""
     ground = floor_quad(lo=-2.0, hi=2.0)
     plate = quad([[-0.5, -0.5, 0.5], [-0.5, 0.5, 0.5], [0.5, 0.5, 0.5], [0.5, -0.5, 0.5]])
-    scene = build([(ground, grey(0.5)), (plate, grey(0.5))], lights=(sun_down(),))
+    light = sun_down() if lamp == "sun" else panel_down(4.0, 0.4, radiance=6.0)
+    scene = build([(ground, grey(0.5)), (plate, grey(0.5))], lights=(light,))
     base = RadiositySettings(solver=solver, refine_levels=0, **FAST)
 
     def underside(settings):
@@ -600,16 +612,38 @@ def test_shadow_edge_splits_give_the_bounce_under_a_plate(solver):
     fine, fine_count = underside(replace(base, patch_size=0.25, shadow_splits=0))
     coarse, _ = underside(replace(base, patch_size=2.0, shadow_splits=0))
     split, split_count = underside(replace(base, patch_size=2.0, shadow_splits=3))
-    assert abs(coarse - fine) > 0.2 * fine  # 24% too bright (Gauss-Seidel)
-    assert abs(split - fine) < 0.05 * fine  # 3% (116 patches against 1130)
+    assert abs(coarse - fine) > 0.2 * fine  # 24% too bright (Gauss-Seidel, sun)
+    assert abs(split - fine) < 0.05 * fine  # 3% (116 patches against 1130, sun)
     assert split_count < fine_count / 4
+
+
+def test_a_wide_penumbra_is_no_shadow_edge():
+    """A 4 m area lamp 1 m above a 0.2 m plate 0.5 m over the ground: the plate's shadow is a
+    ramp wider than the 0.5 m patches, and no patch's samples span SHADOW_STEP of the lamp's
+    visibility, so none splits; a 0.05 m lamp 4 m up casts a step, and the patches at its edge
+    split."""
+    from classic_bake.kernels.geometry.bvh import BVH
+
+    ground = floor_quad(lo=-2.0, hi=2.0)
+    plate = quad([[-0.1, -0.1, 0.5], [-0.1, 0.1, 0.5], [0.1, 0.1, 0.5], [0.1, -0.1, 0.5]])
+    settings = RadiositySettings(**FAST)
+
+    def edges(light):
+        scene = build([(ground, grey(0.5)), (plate, grey(0.5))], lights=(light,))
+        patches = patching.make_patches(scene, 0.5)
+        bvh = BVH.build(scene.triangles)
+        found = hard_shadow_edges(scene, patches, bvh.occluded, settings, 4.0)
+        return found[patches.object_ids == 0]
+
+    assert not edges(panel_down(1.5, 4.0)).any()
+    assert edges(panel_down(4.5, 0.05)).any()
 
 
 def test_auto_settings_follow_the_scene():
     """samples_per_side 0 takes one point per patch for the hierarchy over surfaces that reflect
     at most AUTO_ONE_POINT_RHO, 2 x 2 above it or for the matrix solvers; refine_levels -1 is 0
     with the final gather and 1 without; shadow_splits -1 is AUTO_SHADOW_SPLITS with the gather
-    and a shadowing point, spot or sun lamp, else 0."""
+    and a shadowing lamp (point, spot, sun or area), else 0."""
     auto = RadiositySettings()
     dull = build([(inward_box(), grey(0.5, emission=1.0))])
     bright = build([(inward_box(), grey(0.9, emission=1.0))])
@@ -622,6 +656,8 @@ def test_auto_settings_follow_the_scene():
     sunny = build([(floor_quad(), grey(0.5))], lights=(sun_down(),))
     assert resolve_auto(sunny, auto, hierarchical=True).shadow_splits == AUTO_SHADOW_SPLITS
     assert resolve_auto(sunny, replace(auto, final_gather=False), True).shadow_splits == 0
+    panel = build([(floor_quad(), grey(0.5))], lights=(panel_down(2.0, 0.5),))
+    assert resolve_auto(panel, auto, hierarchical=True).shadow_splits == AUTO_SHADOW_SPLITS
     fixed = RadiositySettings(samples_per_side=3, refine_levels=2, shadow_splits=1)
     assert resolve_auto(bright, fixed, hierarchical=True) == fixed
     result = solve_radiosity(dull, RadiositySettings(solver="hierarchical", patch_budget=60))
