@@ -94,6 +94,9 @@ GATHER_CHUNK = 1 << 14
 # a perpendicular wall would see nothing of that wall; 1e-4 of a triangle is far above the
 # factor's PLANE_EPS (1e-10) and far below any detail a texel or a vertex colour shows.
 RECEIVER_INSET = 1e-4
+# Surfaces an enclosure probe walks through at most (`enclosed`): each solid it passes through
+# whole costs two; beyond this it counts as open (a receiver is lit rather than wrongly dark).
+MAX_CROSSINGS = 8
 # Probe rays at 45 degrees (after the normal ray): their tangent-frame directions.
 _PROBE_TILTS = ((1.0, 0.0), (-1.0, 0.0), (0.0, 1.0), (0.0, -1.0))
 
@@ -148,30 +151,49 @@ class Visibility:
 
 def enclosed(points: np.ndarray, normals: np.ndarray, intersect, triangle_normals: np.ndarray,
              offset: float) -> np.ndarray:
-    """(M,) bool: receivers inside a closed solid, every probe ray hitting a back face.
+    """(M,) bool: receivers inside a closed solid, every probe ray leaving one.
 
-    intersect(origins, directions) -> hits with `.tri` (-1: miss) is the BVH's closest-hit
-    query; triangle_normals (T, 3) the scene's front normals. The normal's ray decides for most
-    receivers (a miss or a front face: open); those it sends into a back face are probed four more
-    times at 45 degrees, so a single-sided sheet above a floor does not enclose it."""
-    def backs(rows: np.ndarray, dirs: np.ndarray) -> np.ndarray:
+    intersect(origins, directions) -> hits with `.tri` (-1: miss) and `.t` is the BVH's
+    closest-hit query; triangle_normals (T, 3) the scene's front normals. A probe walks through
+    the surfaces on its way, counting a back face +1 (it leaves a solid) and a front face -1 (it
+    enters one), and finds an inside when the count reaches +1: a solid it enters and leaves
+    again does not end it, so a point of a block that a second block passes through, looking out
+    through the second, still finds the first one's inside (two interpenetrating boxes on a
+    generated room's floor: the floor under both was lit). A miss, or MAX_CROSSINGS surfaces
+    without reaching +1, is open. The normal's probe decides for most receivers; those it finds
+    inside are probed four more times at 45 degrees, so a single-sided sheet above a floor does
+    not enclose it."""
+    def leaves(rows: np.ndarray, dirs: np.ndarray) -> np.ndarray:
         origins = points[rows] + offset * normals[rows]
-        hits = intersect(np.ascontiguousarray(origins), np.ascontiguousarray(dirs))
-        tri = np.asarray(hits.tri)
-        out = tri >= 0
-        out[out] = np.einsum("ij,ij->i", triangle_normals[tri[out]], dirs[out]) > 0.0
-        return out
+        count = np.zeros(len(rows), np.int64)  # back faces crossed less front faces crossed
+        found = np.zeros(len(rows), bool)
+        live = np.arange(len(rows))
+        for _ in range(MAX_CROSSINGS):
+            hits = intersect(np.ascontiguousarray(origins[live]), np.ascontiguousarray(dirs[live]))
+            tri, t = np.asarray(hits.tri), np.asarray(hits.t)
+            hit = tri >= 0
+            live, tri, t = live[hit], tri[hit], t[hit]
+            back = np.einsum("ij,ij->i", triangle_normals[tri], dirs[live]) > 0.0
+            count[live] += np.where(back, 1, -1)
+            out = count[live] > 0
+            found[live[out]] = True
+            live, t = live[~out], t[~out]
+            if live.size == 0:
+                break
+            # On past the surface (dirs are unit: t is in m).
+            origins[live] += (t + offset)[:, None] * dirs[live]
+        return found
 
     inside = np.zeros(len(points), bool)
     if len(points) == 0:
         return inside
-    rows = np.flatnonzero(backs(np.arange(len(points)), normals))
+    rows = np.flatnonzero(leaves(np.arange(len(points)), normals))
     if rows.size:
         t1, t2 = tangent_frames(normals[rows])
         # The four tilted probes in one BVH call (a call costs ~2 ms besides its rays).
         dirs = np.concatenate([(normals[rows] + a * t1 + b * t2) / np.sqrt(2.0)
                                for a, b in _PROBE_TILTS])
-        keep = backs(np.tile(rows, len(_PROBE_TILTS)), dirs).reshape(len(_PROBE_TILTS), -1)
+        keep = leaves(np.tile(rows, len(_PROBE_TILTS)), dirs).reshape(len(_PROBE_TILTS), -1)
         inside[rows[keep.all(axis=0)]] = True
     return inside
 

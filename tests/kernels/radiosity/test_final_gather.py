@@ -145,6 +145,37 @@ def test_enclosure_probes_find_the_inside_of_solids_only():
     assert inside.tolist() == [True, True, False, False, False]
 
 
+def _cube(lo, hi):
+    """A closed box from corner lo to hi, outward normals."""
+    lo, hi = np.asarray(lo, float), np.asarray(hi, float)
+    v = lo + (hi - lo) * np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0],
+                                   [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]], float)
+    faces = [[0, 3, 2, 1], [4, 5, 6, 7], [0, 1, 5, 4], [1, 2, 6, 5], [2, 3, 7, 6], [3, 0, 4, 7]]
+    return np.concatenate([quad(v[f]) for f in faces])
+
+
+def test_enclosure_probes_see_through_a_second_solid_inside_the_first():
+    """Two boxes that pass through each other on a floor, under a ceiling that faces down (a
+    front face from below) and a closed box hanging in the open: the floor under either box or
+    both is inside (a probe from under one box crosses the other's walls on its way out of the
+    first); the floor beside them and the floor under the hanging box (entered and left, then
+    the ceiling) are open."""
+    a = _cube([0.0, 0.0, 0.0], [0.4, 0.4, 0.4])
+    b = _cube([0.25, 0.1, 0.0], [0.65, 0.3, 0.6])
+    hanging = _cube([1.4, 1.4, 1.0], [1.6, 1.6, 1.2])
+    floor = square(0.0, 3.0, up=True)
+    ceiling = square(2.0, 3.0, up=False)
+    scene = build([(a, grey(0.5)), (b, grey(0.5)), (hanging, grey(0.5)), (floor, grey(0.5)),
+                   (ceiling, grey(0.5))])
+    bvh = BVH.build(scene.triangles)
+    normals_t = geometric_normals(scene.triangles)
+    points = np.array([[0.1, 0.2, 0.0], [0.3, 0.2, 0.0], [0.37, 0.12, 0.0], [0.55, 0.2, 0.0],
+                       [1.0, 0.2, 0.0], [1.5, 1.5, 0.0]])
+    normals = np.tile([0.0, 0.0, 1.0], (len(points), 1))
+    inside = fg.enclosed(points, normals, bvh.intersect, normals_t, 1e-6)
+    assert inside.tolist() == [True, True, True, True, False, False]
+
+
 def test_the_gather_draws_the_shadow_that_coarse_patches_blur():
     """A lamp over a floor with a blocker between them, 16 patches: the patch solution smears
     the blocker's shadow over its patches; the gather's umbra is black (nothing else lights the
