@@ -53,7 +53,7 @@ def resolve_auto(scene: Scene, settings: RadiositySettings, hierarchical: bool
     receiver, so the patches carry only smooth indirect light: a refinement level costs a second
     link-and-solve for ~15% less error on the Cornell box, where twice the patches give ~40%),
     shadow_splits from the final gather and the lamps (AUTO_SHADOW_SPLITS where a lamp of any
-    kind casts shadows: `hard_shadow_edges`)."""
+    kind casts shadows: `shadow_edges`)."""
     changes = {}
     if settings.samples_per_side == 0:
         count = scene.triangle_count
@@ -64,8 +64,8 @@ def resolve_auto(scene: Scene, settings: RadiositySettings, hierarchical: bool
     if settings.refine_levels == -1:
         changes["refine_levels"] = 0 if settings.final_gather else 1
     if settings.shadow_splits == -1:
-        hard = settings.final_gather and shadowing_lamps(scene)
-        changes["shadow_splits"] = AUTO_SHADOW_SPLITS if hard else 0
+        shadowed = settings.final_gather and shadowing_lamps(scene)
+        changes["shadow_splits"] = AUTO_SHADOW_SPLITS if shadowed else 0
     return replace(settings, **changes) if changes else settings
 
 

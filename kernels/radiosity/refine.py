@@ -6,7 +6,7 @@ Patches whose interpolated corner values differ from their own B by more than
 see the light, others do not), are split in four and the system is solved again, up to
 `refine_levels` times and `max_patches` patches. With the final gather, patches across a point,
 spot or sun lamp's shadow edge are instead split before the first solve (`shadow_splits`,
-`sources.hard_shadow_edges`): receivers gather their own direct light, but such a patch still
+`sources.shadow_edges`): receivers gather their own direct light, but such a patch still
 sends one mean to its neighbours.
 """
 
@@ -44,7 +44,7 @@ def refine_mask(patches: patching.Patches, radiosity: np.ndarray, corner: np.nda
 def shadow_edge_splits(edges: np.ndarray, emitted: np.ndarray, areas: np.ndarray,
                        room: int) -> np.ndarray:
     """(N,) bool: the patches a shadow-edge split takes before the solve: those across a hard
-    shadow edge (`hard_shadow_edges`), never an emitter, the largest first when there is
+    shadow edge (`shadow_edges`), never an emitter, the largest first when there is
     room for fewer splits than that (`room`: (max_patches - patches) // 3, each split adding
     three). emitted (N, 3); areas (N,) m^2."""
     mask = edges & ~np.any(emitted > 0.0, axis=1)

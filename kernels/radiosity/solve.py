@@ -58,9 +58,9 @@ from .settings import RadiositySettings
 from .sources import (
     exchanging_triangles,
     gather_settings,
-    hard_shadow_edges,
     layer_factors,
     patch_emission,
+    shadow_edges,
     shot_emitters,
     with_idle,
     with_world_suns,
@@ -142,7 +142,7 @@ def _level_steps(ctx: SolveContext, levels: Levels) -> Steps[Solved]:
     # Patches across a lamp's hard shadow edge split before the first solve (`shadow_splits`).
     for _ in range(settings.shadow_splits):
         tested = levels.untested()
-        mask = shadow_edge_splits(hard_shadow_edges(scene, tested, ctx.occluded, settings, scale),
+        mask = shadow_edge_splits(shadow_edges(scene, tested, ctx.occluded, settings, scale),
                                   patch_emission(scene, tested), tested.areas,
                                   (settings.max_patches - levels.count) // 3)
         if not mask.any():

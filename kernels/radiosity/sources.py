@@ -202,7 +202,7 @@ def world_shot(scene: Scene, patches: patching.Patches, bvh, settings: Radiosity
 SHADOW_STEP = 0.5
 
 
-def hard_shadow_edges(scene: Scene, patches: patching.Patches, occluded,
+def shadow_edges(scene: Scene, patches: patching.Patches, occluded,
                       settings: RadiositySettings, scale: float) -> np.ndarray:
     """(N,) bool: patches across a shadow edge, the lamp's visible fraction at their n x n
     midpoint samples (`light_samples_per_side`, among those facing it) spanning SHADOW_STEP or

@@ -37,7 +37,7 @@ from classic_bake.kernels.radiosity.planning import AUTO_SHADOW_SPLITS, resolve_
 from classic_bake.kernels.radiosity.refine import refine_splits
 from classic_bake.kernels.radiosity.settings import RadiositySettings
 from classic_bake.kernels.radiosity.solve import solve_radiosity
-from classic_bake.kernels.radiosity.sources import first_shot, hard_shadow_edges
+from classic_bake.kernels.radiosity.sources import first_shot, shadow_edges
 from classic_bake.kernels.radiosity.view import render_steps
 from classic_bake.kernels.shading.lights import direct_irradiance
 from classic_bake.kernels.shading.specular_layer import albedo_curve, diffuse_factor
@@ -632,7 +632,7 @@ def test_a_wide_penumbra_is_no_shadow_edge():
         scene = build([(ground, grey(0.5)), (plate, grey(0.5))], lights=(light,))
         patches = patching.make_patches(scene, 0.5)
         bvh = BVH.build(scene.triangles)
-        found = hard_shadow_edges(scene, patches, bvh.occluded, settings, 4.0)
+        found = shadow_edges(scene, patches, bvh.occluded, settings, 4.0)
         return found[patches.object_ids == 0]
 
     assert not edges(panel_down(1.5, 4.0)).any()
