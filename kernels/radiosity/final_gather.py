@@ -52,6 +52,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..geometry import shafts
+from ..geometry.coincident import CoincidentFaces
 from ..geometry.frames import RAY_OFFSET_REL, tangent_frames
 from ..geometry.scene import (
     Scene,
@@ -150,7 +151,7 @@ class Visibility:
 
 
 def enclosed(points: np.ndarray, normals: np.ndarray, intersect, triangle_normals: np.ndarray,
-             offset: float) -> np.ndarray:
+             offset: float, coincident: CoincidentFaces | None = None) -> np.ndarray:
     """(M,) bool: receivers inside a closed solid, every probe ray leaving one.
 
     intersect(origins, directions) -> hits with `.tri` (-1: miss) and `.t` is the BVH's
@@ -160,9 +161,11 @@ def enclosed(points: np.ndarray, normals: np.ndarray, intersect, triangle_normal
     again does not end it, so a point of a block that a second block passes through, looking out
     through the second, still finds the first one's inside (two interpenetrating boxes on a
     generated room's floor: the floor under both was lit). A miss, or MAX_CROSSINGS surfaces
-    without reaching +1, is open. The normal's probe decides for most receivers; those it finds
-    inside are probed four more times at 45 degrees, so a single-sided sheet above a floor does
-    not enclose it."""
+    without reaching +1, is open. A front face with an opposite face in its plane under the hit
+    (`coincident`: a box's bottom on the floor, which the closest-hit query's tie hides) is
+    crossed as that back face first, then the front face. The normal's probe decides for most
+    receivers; those it finds inside are probed four more times at 45 degrees, so a single-sided
+    sheet above a floor does not enclose it."""
     def leaves(rows: np.ndarray, dirs: np.ndarray) -> np.ndarray:
         origins = points[rows] + offset * normals[rows]
         count = np.zeros(len(rows), np.int64)  # back faces crossed less front faces crossed
@@ -174,8 +177,14 @@ def enclosed(points: np.ndarray, normals: np.ndarray, intersect, triangle_normal
             hit = tri >= 0
             live, tri, t = live[hit], tri[hit], t[hit]
             back = np.einsum("ij,ij->i", triangle_normals[tri], dirs[live]) > 0.0
-            count[live] += np.where(back, 1, -1)
-            out = count[live] > 0
+            exits = back.copy()  # a back face here, or a coincident one under a front face
+            if coincident is not None and not back.all():
+                front = np.flatnonzero(~back)
+                at = origins[live[front]] + t[front, None] * dirs[live[front]]
+                exits[front] = coincident.covered(tri[front], at)
+            before = count[live]
+            out = before + np.where(exits, 1, -1) > 0
+            count[live] = before + np.where(back, 1, np.where(exits, 0, -1))
             found[live[out]] = True
             live, t = live[~out], t[~out]
             if live.size == 0:
@@ -211,6 +220,7 @@ class FinalGather:
     element_levels: int  # k: the indirect light is held on 4^k elements per patch (`elements.py`)
     corner_indirect: np.ndarray  # (N 4^k, 3, 3) indirect irradiance at element corners, W/m^2
     triangle_normals: np.ndarray  # (T, 3) float64
+    coincident: CoincidentFaces  # opposite faces sharing a plane (`enclosed`)
     emission: np.ndarray  # (T, 3) float64 pi L_e per scene triangle, W/m^2
     offset: float  # m, ray offset off surfaces
     area_samples_per_side: int
@@ -262,6 +272,7 @@ def prepare(scene: Scene, solution: PatchSolution, emitters: Emitters, bvh, smoo
     scale = float(np.linalg.norm(flat.max(axis=0) - flat.min(axis=0))) if len(flat) else 1.0
     offset = RAY_OFFSET_REL * scale
     tri_normals = geometric_normals(scene.triangles)
+    coincident = CoincidentFaces.find(scene.triangles, tri_normals, offset)
     count = len(patches)
     points, weights = sample_patches(patches.corners, settings.patch_samples, "midpoint")
     samples = points.shape[1]
@@ -287,7 +298,7 @@ def prepare(scene: Scene, solution: PatchSolution, emitters: Emitters, bvh, smoo
         if probed.size:
             rows = (probed[:, None] * samples + np.arange(samples)).ravel()
             inside[probed] = enclosed(pts[rows], nrm[rows], bvh.intersect, tri_normals,
-                                      offset).reshape(-1, samples)
+                                      offset, coincident).reshape(-1, samples)
         open_fraction = np.where(inside.any(axis=1), np.einsum("ns,ns->n", weights, ~inside), 1.0)
         # The solver averaged each patch over its enclosed part too, which receives nothing.
         indirect /= np.maximum(open_fraction, MIN_OPEN_FRACTION)[:, None]
@@ -329,7 +340,7 @@ def prepare(scene: Scene, solution: PatchSolution, emitters: Emitters, bvh, smoo
              "enclosed_patches": int((open_fraction == 0.0).sum()),
              "straddling_patches": int(((open_fraction > 0.0) & (open_fraction < 1.0)).sum())}
     return FinalGather(scene, bvh, emitters, clear, unroofed, patches, levels, corner, tri_normals,
-                       np.pi * triangle_emission(scene), offset, area_samples_per_side,
+                       coincident, np.pi * triangle_emission(scene), offset, area_samples_per_side,
                        settings, stats)
 
 
@@ -487,7 +498,7 @@ def _irradiance(gather: FinalGather, t: np.ndarray, b: np.ndarray, known: Visibi
             found.inside[probed] = known.inside[probed]
             probed = probed[found.inside[probed] < 0]
         found.inside[probed] = enclosed(points[probed], geometric[probed], gather.bvh.intersect,
-                                        gather.triangle_normals, gather.offset)
+                                        gather.triangle_normals, gather.offset, gather.coincident)
     inside = found.inside == 1
     found.emitters[inside] = HIDDEN  # nothing of any emitter reaches inside
     outside = np.flatnonzero(~inside)

@@ -10,6 +10,7 @@ from scene_builder import build, quad
 from classic_bake.kernels.geometry.bvh import BVH
 from classic_bake.kernels.geometry.scene import Material, geometric_normals
 from classic_bake.kernels.radiosity import emitters as em
+from classic_bake.kernels.geometry.coincident import CoincidentFaces
 from classic_bake.kernels.radiosity import final_gather as fg
 from classic_bake.kernels.radiosity.settings import FinalGatherSettings, RadiositySettings
 from classic_bake.kernels.radiosity.solve import solve_radiosity
@@ -482,3 +483,26 @@ def test_a_back_side_takes_one_bounce_of_the_solution():
     # The front, lit by the sun alone (nothing above it), is unchanged by the back's rays.
     assert result.radiance_at(tri, bary) == pytest.approx(np.full((3, 3), 0.8 * 3.0 / np.pi),
                                                           rel=1e-6)
+
+
+def test_enclosure_probes_count_a_box_bottom_lying_on_the_floor():
+    """A box standing on the floor, its bottom in the floor's plane (the floor first, so a ray
+    crossing there hits the floor: the lower triangle index wins a tie), a second box through
+    its side: a point on that side inside the second box, near the floor, probes down and out
+    through the floor where the second box's bottom lies too. It is inside (the coincident
+    bottom is crossed first); a point on the floor beside the boxes stays open."""
+    floor = square(0.0, 3.0, up=True)
+    a = _cube([0.0, 0.0, 0.0], [0.4, 0.4, 0.4])
+    b = _cube([0.1, 0.3, 0.0], [0.3, 0.7, 0.3])
+    ceiling = square(2.0, 3.0, up=False)
+    scene = build([(floor, grey(0.5)), (a, grey(0.5)), (b, grey(0.5)), (ceiling, grey(0.5))])
+    bvh = BVH.build(scene.triangles)
+    normals_t = geometric_normals(scene.triangles)
+    offset = 1e-6
+    coincident = CoincidentFaces.find(scene.triangles, normals_t, offset)
+    points = np.array([[0.2, 0.4, 0.03], [0.2, 0.4, 0.2], [1.0, 1.0, 0.0]])
+    normals = np.array([[0.0, 1.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+    with_pairs = fg.enclosed(points, normals, bvh.intersect, normals_t, offset, coincident)
+    assert with_pairs.tolist() == [True, True, False]
+    without = fg.enclosed(points, normals, bvh.intersect, normals_t, offset)
+    assert without.tolist() == [False, True, False]  # the tie hid box b's bottom
