@@ -55,11 +55,10 @@ class CoincidentFaces:
         """(R,) bool: an opposite face of triangle tri[r] lies under points[r] (R, 3) (on tri[r])."""
         out = np.zeros(len(tri), bool)
         planes = self.opposite[tri]
-        for plane in np.unique(planes):
+        paired = np.flatnonzero(self.starts[planes + 1] > self.starts[planes])  # most hit none
+        for plane in np.unique(planes[paired]):
             members = self.order[self.starts[plane]:self.starts[plane + 1]]
-            if members.size == 0:
-                continue
-            rows = np.flatnonzero(planes == plane)
+            rows = paired[planes[paired] == plane]
             out[rows] = _inside_any(points[rows], self.triangles[members])
         return out
 
