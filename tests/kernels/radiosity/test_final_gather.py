@@ -8,9 +8,9 @@ import pytest
 from scene_builder import build, quad
 
 from classic_bake.kernels.geometry.bvh import BVH
+from classic_bake.kernels.geometry.coincident import CoincidentFaces
 from classic_bake.kernels.geometry.scene import Material, geometric_normals
 from classic_bake.kernels.radiosity import emitters as em
-from classic_bake.kernels.geometry.coincident import CoincidentFaces
 from classic_bake.kernels.radiosity import final_gather as fg
 from classic_bake.kernels.radiosity.settings import FinalGatherSettings, RadiositySettings
 from classic_bake.kernels.radiosity.solve import solve_radiosity
