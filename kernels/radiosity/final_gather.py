@@ -220,7 +220,7 @@ class FinalGather:
     element_levels: int  # k: the indirect light is held on 4^k elements per patch (`elements.py`)
     corner_indirect: np.ndarray  # (N 4^k, 3, 3) indirect irradiance at element corners, W/m^2
     triangle_normals: np.ndarray  # (T, 3) float64
-    coincident: CoincidentFaces  # opposite faces sharing a plane (`enclosed`)
+    coincident: CoincidentFaces | None  # opposite faces in one plane (`enclosed`); None: no probes
     emission: np.ndarray  # (T, 3) float64 pi L_e per scene triangle, W/m^2
     offset: float  # m, ray offset off surfaces
     area_samples_per_side: int
@@ -272,7 +272,7 @@ def prepare(scene: Scene, solution: PatchSolution, emitters: Emitters, bvh, smoo
     scale = float(np.linalg.norm(flat.max(axis=0) - flat.min(axis=0))) if len(flat) else 1.0
     offset = RAY_OFFSET_REL * scale
     tri_normals = geometric_normals(scene.triangles)
-    coincident = CoincidentFaces.find(scene.triangles, tri_normals, offset)
+    coincident = None
     count = len(patches)
     points, weights = sample_patches(patches.corners, settings.patch_samples, "midpoint")
     samples = points.shape[1]
@@ -290,6 +290,7 @@ def prepare(scene: Scene, solution: PatchSolution, emitters: Emitters, bvh, smoo
     open_fraction = np.ones(count)
     unroofed = np.ones(count, bool)  # without probes nothing counts as enclosed
     if settings.enclosure_probes:
+        coincident = CoincidentFaces.find(scene.triangles, tri_normals, offset)
         # Patches no back face hangs over cannot be enclosed: their receivers cast no probe.
         unroofed[reflects] = shafts.open_above(patches.corners[reflects], patches.normals[reflects],
                                                scale, bvh, offset)

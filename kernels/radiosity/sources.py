@@ -18,19 +18,13 @@ import numpy as np
 
 from ..geometry.frames import RAY_OFFSET_REL
 from ..geometry.scene import Scene, triangle_emission
-from ..shading import lights as light_units
 from ..shading.direct_light import diffuse_at, diffuse_weight
 from ..shading.specular_layer import diffuse_factor
 from ..shading.world_light import extract_suns, world_irradiance, world_lit, world_source
 from . import patches as patching
 from .emitters import Emitters, emitter_irradiance, emitters_of, open_backs
 from .form_factors.sampling import sample_patches
-from .lamps import (
-    light_visibility,
-    near_lamp_scale,
-    shadowed_irradiance,
-    shadowing_lamps,
-)
+from .lamps import near_lamp_scale, shadowed_irradiance, shadowing_lamps
 from .settings import RadiositySettings, gather_settings
 
 
@@ -203,7 +197,7 @@ SHADOW_STEP = 0.5
 
 
 def shadow_edges(scene: Scene, patches: patching.Patches, occluded,
-                      settings: RadiositySettings, scale: float) -> np.ndarray:
+                 settings: RadiositySettings, scale: float) -> np.ndarray:
     """(N,) bool: patches across a shadow edge, the lamp's visible fraction at their n x n
     midpoint samples (`light_samples_per_side`, among those facing it) spanning SHADOW_STEP or
     more: a point, spot or sun lamp's samples lit and shadowed, an area lamp's mostly seen and
@@ -221,17 +215,13 @@ def shadow_edges(scene: Scene, patches: patching.Patches, occluded,
     weights, flat, normals, origins = _light_samples(patches, settings, scale)
     count, samples = weights.shape
     for light in lamps:
-        e = light_units.direct_irradiance(light, flat, normals)
-        facing = (e.max(axis=1) > 0.0).reshape(count, samples)
-        vis = np.ones(len(flat))
-        lit = np.flatnonzero(facing.ravel())
-        if lit.size:
-            vis[lit] = light_visibility(light, origins[lit], occluded,
-                                        settings.area_light_samples_per_side)
-        v = vis.reshape(count, samples)
-        hi = np.where(facing, v, -np.inf).max(axis=1)
-        lo = np.where(facing, v, np.inf).min(axis=1)
-        edges |= hi - lo >= SHADOW_STEP
+        e, vis = shadowed_irradiance(light, flat, normals, origins, occluded,
+                                     settings.area_light_samples_per_side)
+        v = vis.reshape(count, samples)  # 1 where the sample faces away
+        # The most seen of the lit samples against the least seen of all (those facing away
+        # are 1, never below a facing one's).
+        hi = np.where((e.max(axis=1) > 0.0).reshape(count, samples), v, 0.0).max(axis=1)
+        edges |= hi - v.min(axis=1) >= SHADOW_STEP
     return edges
 
 
