@@ -161,9 +161,10 @@ def enclosed(points: np.ndarray, normals: np.ndarray, intersect, triangle_normal
     again does not end it, so a point of a block that a second block passes through, looking out
     through the second, still finds the first one's inside (two interpenetrating boxes on a
     generated room's floor: the floor under both was lit). A miss, or MAX_CROSSINGS surfaces
-    without reaching +1, is open. A front face with an opposite face in its plane under the hit
-    (`coincident`: a box's bottom on the floor, which the closest-hit query's tie hides) is
-    crossed as that back face first, then the front face. The normal's probe decides for most
+    without reaching +1, is open. A face with an opposite face in its plane under the hit
+    (`coincident`: a box's bottom on the floor, which the closest-hit query's tie hides; a sheet
+    modelled double-sided) is crossed as the pair's back face first, an exit where a solid lies
+    behind it, then its front face. The normal's probe decides for most
     receivers; those it finds inside are probed four more times at 45 degrees, so a single-sided
     sheet above a floor does not enclose it."""
     def leaves(rows: np.ndarray, dirs: np.ndarray) -> np.ndarray:
@@ -177,14 +178,19 @@ def enclosed(points: np.ndarray, normals: np.ndarray, intersect, triangle_normal
             hit = tri >= 0
             live, tri, t = live[hit], tri[hit], t[hit]
             back = np.einsum("ij,ij->i", triangle_normals[tri], dirs[live]) > 0.0
-            exits = back.copy()  # a back face here, or a coincident one under a front face
-            if coincident is not None and not back.all():
-                front = np.flatnonzero(~back)
-                at = origins[live[front]] + t[front, None] * dirs[live[front]]
-                exits[front] = coincident.covered(tri[front], at)
+            # A pair of opposite faces in one plane is crossed as both: its back member first
+            # (+1: an exit where a solid lies behind it, else nothing to leave), then the front.
+            paired = np.zeros(len(live), bool)
+            exits = back.copy()
+            if coincident is not None:
+                at = origins[live] + t[:, None] * dirs[live]
+                paired = coincident.covered(tri, at)
+                rows = np.flatnonzero(paired)
+                exits[rows] = np.where(back[rows], coincident.solid[tri[rows]],
+                                       coincident.covered(tri[rows], at[rows], solid=True))
             before = count[live]
-            out = before + np.where(exits, 1, -1) > 0
-            count[live] = before + np.where(back, 1, np.where(exits, 0, -1))
+            out = before + np.where(exits, 1, np.where(paired, 0, -1)) > 0
+            count[live] = before + np.where(paired, 0, np.where(back, 1, -1))
             found[live[out]] = True
             live, t = live[~out], t[~out]
             if live.size == 0:
@@ -290,7 +296,8 @@ def prepare(scene: Scene, solution: PatchSolution, emitters: Emitters, bvh, smoo
     open_fraction = np.ones(count)
     unroofed = np.ones(count, bool)  # without probes nothing counts as enclosed
     if settings.enclosure_probes:
-        coincident = CoincidentFaces.find(scene.triangles, tri_normals, offset)
+        coincident = CoincidentFaces.find(scene.triangles, tri_normals, scene.object_ids,
+                                           offset)
         # Patches no back face hangs over cannot be enclosed: their receivers cast no probe.
         unroofed[reflects] = shafts.open_above(patches.corners[reflects], patches.normals[reflects],
                                                scale, bvh, offset)

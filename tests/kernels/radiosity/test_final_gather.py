@@ -499,10 +499,26 @@ def test_enclosure_probes_count_a_box_bottom_lying_on_the_floor():
     bvh = BVH.build(scene.triangles)
     normals_t = geometric_normals(scene.triangles)
     offset = 1e-6
-    coincident = CoincidentFaces.find(scene.triangles, normals_t, offset)
+    coincident = CoincidentFaces.find(scene.triangles, normals_t, scene.object_ids, offset)
     points = np.array([[0.2, 0.4, 0.03], [0.2, 0.4, 0.2], [1.0, 1.0, 0.0]])
     normals = np.array([[0.0, 1.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
     with_pairs = fg.enclosed(points, normals, bvh.intersect, normals_t, offset, coincident)
     assert with_pairs.tolist() == [True, True, False]
     without = fg.enclosed(points, normals, bvh.intersect, normals_t, offset)
     assert without.tolist() == [False, True, False]  # the tie hid box b's bottom
+
+
+def test_a_sheet_modelled_double_sided_encloses_nothing():
+    """A 1 m sheet of two opposite faces in one plane (one object), 0.16 m over a floor: the
+    floor's probes meet the sheet, whose faces share a plane, and leave no solid there; the
+    floor under it is open, as it is with the sheet single-sided."""
+    floor = square(0.0, 2.0, up=True)
+    sheet = np.concatenate([square(0.16, 0.5, up=True), square(0.16, 0.5, up=False)])
+    scene = build([(floor, grey(0.5)), (sheet, grey(0.5))])
+    bvh = BVH.build(scene.triangles)
+    normals_t = geometric_normals(scene.triangles)
+    offset = 1e-6
+    coincident = CoincidentFaces.find(scene.triangles, normals_t, scene.object_ids, offset)
+    points = np.array([[0.0, 0.0, 0.0], [0.3, -0.2, 0.0], [1.5, 1.5, 0.0]])
+    normals = np.tile([0.0, 0.0, 1.0], (3, 1))
+    assert not fg.enclosed(points, normals, bvh.intersect, normals_t, offset, coincident).any()
