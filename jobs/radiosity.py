@@ -175,6 +175,9 @@ OPTIONS = (
     Option("shadow_splits", RadiositySettings, "Shadow Splits", "Times patches across a point, "
            "spot or sun lamp's shadow edge are split before the solve; -1: auto, 2 with the final "
            "gather when such a lamp casts shadows, else 0", minimum=-1, maximum=4),
+    Option("near_splits", RadiositySettings, "Near Splits", "Times patches that another surface "
+           "faces nearer than their own size are split before the solve (a box by a wall); -1: "
+           "auto, 1 with the final gather, else 0", minimum=-1, maximum=4),
     Option("final_gather", RadiositySettings, "Final Gather", "Read the solution out with exact "
            "direct light (and its shadows) at every texel, pixel and corner; the patches carry "
            "only the indirect light"),
@@ -195,6 +198,7 @@ def settings(values: dict, scene=None) -> RadiositySettings:
                              patch_size=float(values["patch_size"]),
                              refine_levels=int(values["refine"]),
                              shadow_splits=int(values["shadow_splits"]),
+                             near_splits=int(values["near_splits"]),
                              final_gather=bool(values["final_gather"]),
                              gather_rays=int(values["gather_rays"]),
                              world_rays=int(values["world_rays"]))

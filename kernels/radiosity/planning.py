@@ -42,6 +42,9 @@ AUTO_ONE_POINT_RHO = 0.8
 # sphere on its floor, defaults against a 1024-sample Cycles bake: relMSE 0.0128 -> 0.0016 (the
 # sphere's underside had been 20x too bright), 8.4 -> 9.8 s.
 AUTO_SHADOW_SPLITS = 2
+# Near-field splits before the solve with the final gather (`near_field.py`): the gather places
+# each receiver's light but not a source patch's own variation, which a surface close to it sees.
+AUTO_NEAR_SPLITS = 1
 
 
 def resolve_auto(scene: Scene, settings: RadiositySettings, hierarchical: bool
@@ -53,7 +56,8 @@ def resolve_auto(scene: Scene, settings: RadiositySettings, hierarchical: bool
     receiver, so the patches carry only smooth indirect light: a refinement level costs a second
     link-and-solve for ~15% less error on the Cornell box, where twice the patches give ~40%),
     shadow_splits from the final gather and the lamps (AUTO_SHADOW_SPLITS where a lamp of any
-    kind casts shadows: `shadow_edges`)."""
+    kind casts shadows: `shadow_edges`), near_splits from the final gather
+    (AUTO_NEAR_SPLITS: `near_field`)."""
     changes = {}
     if settings.samples_per_side == 0:
         count = scene.triangle_count
@@ -66,6 +70,8 @@ def resolve_auto(scene: Scene, settings: RadiositySettings, hierarchical: bool
     if settings.shadow_splits == -1:
         shadowed = settings.final_gather and shadowing_lamps(scene)
         changes["shadow_splits"] = AUTO_SHADOW_SPLITS if shadowed else 0
+    if settings.near_splits == -1:
+        changes["near_splits"] = AUTO_NEAR_SPLITS if settings.final_gather else 0
     return replace(settings, **changes) if changes else settings
 
 
@@ -146,7 +152,7 @@ def patch_groups(patches: patching.Patches, size: float, settings: RadiositySett
 def split_levels(settings: RadiositySettings) -> int:
     """Levels of leaf splits the hierarchy may make below its first leaves (refinement and
     shadow-edge splits), for its memory bound."""
-    return max(settings.refine_levels, 0) + max(settings.shadow_splits, 0)
+    return max(settings.refine_levels, 0) + max(settings.shadow_splits, settings.near_splits, 0)
 
 
 def hierarchical_memory(scene: Scene, roots: patching.Patches, depth: int, bvh,

@@ -41,6 +41,12 @@ class RadiositySettings:
     |                             |                     |          | AUTO_SHADOW_SPLITS with the|
     |                             |                     |          | final gather and a lamp    |
     |                             |                     |          | that casts shadows, else 0)|
+    | near_splits                 | >= -1               | -1       | times patches that surfaces|
+    |                             |                     |          | face nearer than their own |
+    |                             |                     |          | size split before the solve|
+    |                             |                     |          | (near_field.py; -1 auto:   |
+    |                             |                     |          | AUTO_NEAR_SPLITS with the  |
+    |                             |                     |          | final gather, else 0)      |
     | refine_threshold            | > 0                 | 0.25     | relative corner difference |
     |                             |                     |          | that splits a patch        |
     | max_patches                 | >= 1                | 3000     | refinement stops here      |
@@ -104,6 +110,7 @@ class RadiositySettings:
     patch_budget: int = 400
     refine_levels: int = -1
     shadow_splits: int = -1
+    near_splits: int = -1
     refine_threshold: float = 0.25
     max_patches: int = 3000
     tolerance: float = 1e-4
@@ -139,8 +146,9 @@ class RadiositySettings:
             raise ValueError("patch_size must be >= 0, patch_budget and max_patches >= 1")
         if self.refine_levels < -1 or not self.refine_threshold > 0.0:
             raise ValueError("refine_levels must be >= -1 (auto) and refine_threshold > 0")
-        if self.shadow_splits < -1:
-            raise ValueError(f"shadow_splits must be >= -1 (auto), got {self.shadow_splits}")
+        if self.shadow_splits < -1 or self.near_splits < -1:
+            raise ValueError("shadow_splits and near_splits must be >= -1 (auto), got "
+                             f"{self.shadow_splits} and {self.near_splits}")
         if not 0.0 < self.tolerance < 1.0:
             raise ValueError(f"tolerance must be in (0, 1), got {self.tolerance}")
         if min(self.visibility_samples_per_side, self.light_samples_per_side,

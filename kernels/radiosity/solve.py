@@ -50,6 +50,7 @@ from . import patches as patching
 from .final_gather import FinalGather, PatchSolution
 from .hierarchical import TreeLevels
 from .levels import LevelLight, Levels, SolveContext, level_light
+from .near_field import near_field
 from .patch_levels import PatchLevels
 from .planning import clustering_pays, hierarchical_plan, patch_groups, resolve_auto
 from .refine import refine_splits, shadow_edge_splits
@@ -118,7 +119,11 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
             settings = replace(settings, solver="clustered")
         ctx = SolveContext(scene, settings, bvh, size, scale,
                            shot_emitters(scene, settings, bvh, RAY_OFFSET_REL * scale))
-        levels = PatchLevels(ctx, patches, groups)
+        # Not grouped on the first patches, never grouped: split children (shadow edges, the
+        # near field, refinement) are there to hold variation that a group's one value would
+        # flatten (a wall 16 cm behind a plate, its 0.25 m children grouped: the light on it
+        # flat where it falls off fourfold).
+        levels = PatchLevels(ctx, patches, groups if settings.solver == "clustered" else None)
     yield 0.02
     solved = yield from _level_steps(ctx, levels)
     light = solved.light
@@ -139,11 +144,17 @@ def _level_steps(ctx: SolveContext, levels: Levels) -> Steps[Solved]:
     """The level loop every solver shares: shadow-edge splits before the first solve, then solve
     and refine up to `refine_levels` times; yields progress in [0.02, 0.98]."""
     scene, settings, scale = ctx.scene, ctx.settings, ctx.scale
-    # Patches across a lamp's hard shadow edge split before the first solve (`shadow_splits`).
-    for _ in range(settings.shadow_splits):
+    # Patches across a lamp's hard shadow edge (`shadow_splits`) and patches that a surface faces
+    # closer than their own size (`near_splits`) split before the first solve; each pass tests
+    # the children of the last.
+    for split in range(max(settings.shadow_splits, settings.near_splits)):
         tested = levels.untested()
-        mask = shadow_edge_splits(shadow_edges(scene, tested, ctx.occluded, settings, scale),
-                                  patch_emission(scene, tested), tested.areas,
+        wanted = np.zeros(len(tested), bool)
+        if split < settings.shadow_splits:
+            wanted |= shadow_edges(scene, tested, ctx.occluded, settings, scale)
+        if split < settings.near_splits:
+            wanted |= near_field(tested, ctx.occluded, scale)
+        mask = shadow_edge_splits(wanted, patch_emission(scene, tested), tested.areas,
                                   (settings.max_patches - levels.count) // 3)
         if not mask.any():
             break
@@ -180,7 +191,7 @@ def _result(ctx: SolveContext, solution: PatchSolution, stats: dict, t0: float
     corner_b, corner_e = corners[..., :3], corners[..., 3:]
     # What "auto" chose, for metrics.json.
     stats.update(samples_per_side=settings.samples_per_side, refine_levels=settings.refine_levels,
-                 shadow_splits=settings.shadow_splits)
+                 shadow_splits=settings.shadow_splits, near_splits=settings.near_splits)
     # The world as a light: its rays per patch (0: black or off) and the suns taken from its map.
     lit_by_world = settings.world_rays if world_lit(scene) else 0
     stats["world"] = {"rays_per_patch": int(lit_by_world),

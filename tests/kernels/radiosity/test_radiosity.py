@@ -33,7 +33,11 @@ from classic_bake.kernels.radiosity import patches as patching
 from classic_bake.kernels.radiosity.form_factors.closed_forms import parallel_rectangles
 from classic_bake.kernels.radiosity.form_factors.sampling import sample_patches
 from classic_bake.kernels.radiosity.lightmap import _lattice_radiance, bake_steps
-from classic_bake.kernels.radiosity.planning import AUTO_SHADOW_SPLITS, resolve_auto
+from classic_bake.kernels.radiosity.planning import (
+    AUTO_NEAR_SPLITS,
+    AUTO_SHADOW_SPLITS,
+    resolve_auto,
+)
 from classic_bake.kernels.radiosity.refine import refine_splits
 from classic_bake.kernels.radiosity.settings import RadiositySettings
 from classic_bake.kernels.radiosity.solve import solve_radiosity
@@ -414,13 +418,13 @@ def test_auto_solver_goes_hierarchical_beyond_small_scenes_within_its_bound():
     from classic_bake.kernels.radiosity.planning import AUTO_DENSE_PATCHES
 
     scene = build([(inward_box(), grey(0.3, emission=1.0))])
-    settings = RadiositySettings(patch_budget=2 * AUTO_DENSE_PATCHES, refine_levels=0, **FAST)
+    settings = RadiositySettings(patch_budget=2 * AUTO_DENSE_PATCHES, refine_levels=0,
+                                 near_splits=0, **FAST)
     result = solve_radiosity(scene, settings)
     assert result.stats["solver"] == "hierarchical" and result.stats["patches"] > AUTO_DENSE_PATCHES
     np.testing.assert_allclose(result.radiosity, np.pi / 0.7, rtol=0.01)
     bound = result.stats["memory_estimate"]["total"]
-    tight = RadiositySettings(patch_budget=2 * AUTO_DENSE_PATCHES, refine_levels=0,
-                              dense_memory_limit=bound - 1, **FAST)
+    tight = replace(settings, dense_memory_limit=bound - 1)
     assert solve_radiosity(scene, tight).stats["solver"] in ("gauss_seidel", "progressive")
     small = RadiositySettings(patch_budget=AUTO_DENSE_PATCHES // 4, refine_levels=0, **FAST)
     assert solve_radiosity(scene, small).stats["solver"] == "gauss_seidel"
@@ -513,7 +517,7 @@ def test_hierarchical_memory_is_bounded_before_linking(refine_levels):
 
     scene = build([(inward_box(), grey(0.3, emission=1.0))])
     settings = RadiositySettings(solver="hierarchical", patch_budget=400,
-                                 refine_levels=refine_levels, **FAST)
+                                 refine_levels=refine_levels, near_splits=0, **FAST)
     tracemalloc.start()
     try:
         result = solve_radiosity(scene, settings)
@@ -601,7 +605,7 @@ def test_shadow_edge_splits_give_the_bounce_under_a_plate(solver, lamp):
     plate = quad([[-0.5, -0.5, 0.5], [-0.5, 0.5, 0.5], [0.5, 0.5, 0.5], [0.5, -0.5, 0.5]])
     light = sun_down() if lamp == "sun" else panel_down(4.0, 0.4, radiance=6.0)
     scene = build([(ground, grey(0.5)), (plate, grey(0.5))], lights=(light,))
-    base = RadiositySettings(solver=solver, refine_levels=0, **FAST)
+    base = RadiositySettings(solver=solver, refine_levels=0, near_splits=0, **FAST)
 
     def underside(settings):
         result = solve_radiosity(scene, settings)
@@ -643,7 +647,8 @@ def test_auto_settings_follow_the_scene():
     """samples_per_side 0 takes one point per patch for the hierarchy over surfaces that reflect
     at most AUTO_ONE_POINT_RHO, 2 x 2 above it or for the matrix solvers; refine_levels -1 is 0
     with the final gather and 1 without; shadow_splits -1 is AUTO_SHADOW_SPLITS with the gather
-    and a shadowing lamp (point, spot, sun or area), else 0."""
+    and a shadowing lamp (point, spot, sun or area), else 0; near_splits -1 is AUTO_NEAR_SPLITS
+    with the gather, else 0."""
     auto = RadiositySettings()
     dull = build([(inward_box(), grey(0.5, emission=1.0))])
     bright = build([(inward_box(), grey(0.9, emission=1.0))])
@@ -658,7 +663,9 @@ def test_auto_settings_follow_the_scene():
     assert resolve_auto(sunny, replace(auto, final_gather=False), True).shadow_splits == 0
     panel = build([(floor_quad(), grey(0.5))], lights=(panel_down(2.0, 0.5),))
     assert resolve_auto(panel, auto, hierarchical=True).shadow_splits == AUTO_SHADOW_SPLITS
-    fixed = RadiositySettings(samples_per_side=3, refine_levels=2, shadow_splits=1)
+    assert resolve_auto(dull, auto, hierarchical=True).near_splits == AUTO_NEAR_SPLITS
+    assert resolve_auto(dull, replace(auto, final_gather=False), True).near_splits == 0
+    fixed = RadiositySettings(samples_per_side=3, refine_levels=2, shadow_splits=1, near_splits=2)
     assert resolve_auto(bright, fixed, hierarchical=True) == fixed
     result = solve_radiosity(dull, RadiositySettings(solver="hierarchical", patch_budget=60))
     assert (result.stats["samples_per_side"], result.stats["refine_levels"]) == (1, 0)
