@@ -14,7 +14,8 @@ Elements. The roots are `patches.make_patches` at 2^max_depth times the patch si
 max_depth times into midpoint children (`patches.split`'s rule), and the leaves, about the patch
 size, are the patches of the result (`TreeLevels`). The level loop of `solve.py` splits them as
 it splits the matrix solvers' patches: before any link, leaves across a lamp's shadow edge
-`shadow_splits` times (`sources.shadow_edges`, `refine.shadow_edge_splits`); after a
+`shadow_splits` times and leaves in a near field `near_splits` times (`sources.shadow_edges`,
+`near_field.near_field`, `refine.first_splits`); after a
 solve, where a corner value is far from the leaf's own (`refine.refine_mask`), up to
 `refine_levels` times, and everything is linked and solved again.
 

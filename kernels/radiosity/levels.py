@@ -95,7 +95,7 @@ class Levels(Protocol):
         ...
 
     def untested(self) -> patching.Patches:
-        """The patches no shadow-edge test has seen yet."""
+        """The patches no split test before the solve (shadow edges, near field) has seen yet."""
         ...
 
     def split_untested(self, mask: np.ndarray) -> None:

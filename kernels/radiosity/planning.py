@@ -44,6 +44,11 @@ AUTO_ONE_POINT_RHO = 0.8
 AUTO_SHADOW_SPLITS = 2
 # Near-field splits before the solve with the final gather (`near_field.py`): the gather places
 # each receiver's light but not a source patch's own variation, which a surface close to it sees.
+# Defaults against 1024-sample Cycles bakes (texel relMSE, solve + bake seconds): a generated room
+# with a box 16 cm from a wall 0.0072 -> 0.0030 (7.2 -> 10.2 s; a budget of 700 patches without
+# splits: 0.0047), one with a ball on the floor under an area lamp 0.0016 -> 0.00095 (6.2 ->
+# 9.1 s), the Cornell box 0.0017 -> 0.0013 (3.2 -> 3.7 s). Two passes left the first room as it
+# was and made the ball's underside in the second too bright (0.0026).
 AUTO_NEAR_SPLITS = 1
 
 
@@ -150,8 +155,8 @@ def patch_groups(patches: patching.Patches, size: float, settings: RadiositySett
 
 
 def split_levels(settings: RadiositySettings) -> int:
-    """Levels of leaf splits the hierarchy may make below its first leaves (refinement and
-    shadow-edge splits), for its memory bound."""
+    """Levels of leaf splits the hierarchy may make below its first leaves (refinement, and the
+    shadow-edge and near-field splits, which share passes), for its memory bound."""
     return max(settings.refine_levels, 0) + max(settings.shadow_splits, settings.near_splits, 0)
 
 

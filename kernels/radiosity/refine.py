@@ -41,13 +41,13 @@ def refine_mask(patches: patching.Patches, radiosity: np.ndarray, corner: np.nda
     return ((deviation > threshold) | boundary) & ~np.any(emitted > 0.0, axis=1)
 
 
-def shadow_edge_splits(edges: np.ndarray, emitted: np.ndarray, areas: np.ndarray,
-                       room: int) -> np.ndarray:
-    """(N,) bool: the patches a shadow-edge split takes before the solve: those across a hard
-    shadow edge (`shadow_edges`), never an emitter, the largest first when there is
-    room for fewer splits than that (`room`: (max_patches - patches) // 3, each split adding
-    three). emitted (N, 3); areas (N,) m^2."""
-    mask = edges & ~np.any(emitted > 0.0, axis=1)
+def first_splits(wanted: np.ndarray, emitted: np.ndarray, areas: np.ndarray,
+                 room: int) -> np.ndarray:
+    """(N,) bool: the patches split before the solve: those `wanted` (across a hard shadow edge,
+    `shadow_edges`; in a near field, `near_field.near_field`), never an emitter, the largest
+    first when there is room for fewer splits than that (`room`: (max_patches - patches) // 3,
+    each split adding three). emitted (N, 3); areas (N,) m^2."""
+    mask = wanted & ~np.any(emitted > 0.0, axis=1)
     room = max(room, 0)
     if room >= mask.sum():
         return mask

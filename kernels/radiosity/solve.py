@@ -10,11 +10,11 @@ Pipeline (`radiosity_steps`):
    (`hierarchical.py`: its own linking and solve over the leaves of a hierarchy) takes scenes of
    more than AUTO_DENSE_PATCHES patches when its up-front memory bound fits the limit; else the
    matrix solvers (`patch_levels.py`) take the patches themselves.
-3. Levels, one loop for every solver: patches across a lamp's hard shadow edge are split first
-   (`refine.shadow_edge_splits`); then each level takes its sources (`levels.level_light`:
-   emission, the lights' and shot emitters' first shot, the world's light, `sources.py`), is
-   solved, and splits where refinement asks (`refine.refine_splits`), up to `refine_levels`
-   times and `max_patches` patches.
+3. Levels, one loop for every solver: patches across a lamp's hard shadow edge and patches in
+   another surface's near field are split first (`refine.first_splits`); then each level takes
+   its sources (`levels.level_light`: emission, the lights' and shot emitters' first shot, the
+   world's light, `sources.py`), is solved, and splits where refinement asks
+   (`refine.refine_splits`), up to `refine_levels` times and `max_patches` patches.
 4. Result (`result.py`): B at the patches, fitted corner values, and the final gather's
    patch-level half (`final_gather.py`) when the settings ask for it.
 
@@ -53,7 +53,7 @@ from .levels import LevelLight, Levels, SolveContext, level_light
 from .near_field import near_field
 from .patch_levels import PatchLevels
 from .planning import clustering_pays, hierarchical_plan, patch_groups, resolve_auto
-from .refine import refine_splits, shadow_edge_splits
+from .refine import first_splits, refine_splits
 from .result import RadiosityResult
 from .settings import RadiositySettings
 from .sources import (
@@ -141,8 +141,8 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
 
 
 def _level_steps(ctx: SolveContext, levels: Levels) -> Steps[Solved]:
-    """The level loop every solver shares: shadow-edge splits before the first solve, then solve
-    and refine up to `refine_levels` times; yields progress in [0.02, 0.98]."""
+    """The level loop every solver shares: shadow-edge and near-field splits before the first
+    solve, then solve and refine up to `refine_levels` times; yields progress in [0.02, 0.98]."""
     scene, settings, scale = ctx.scene, ctx.settings, ctx.scale
     # Patches across a lamp's hard shadow edge (`shadow_splits`) and patches that a surface faces
     # closer than their own size (`near_splits`) split before the first solve; each pass tests
@@ -154,8 +154,8 @@ def _level_steps(ctx: SolveContext, levels: Levels) -> Steps[Solved]:
             wanted |= shadow_edges(scene, tested, ctx.occluded, settings, scale)
         if split < settings.near_splits:
             wanted |= near_field(tested, ctx.occluded, scale)
-        mask = shadow_edge_splits(wanted, patch_emission(scene, tested), tested.areas,
-                                  (settings.max_patches - levels.count) // 3)
+        mask = first_splits(wanted, patch_emission(scene, tested), tested.areas,
+                            (settings.max_patches - levels.count) // 3)
         if not mask.any():
             break
         levels.split_untested(mask)
