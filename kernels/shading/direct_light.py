@@ -126,19 +126,23 @@ def light_visibility_steps(scene: Scene, points, geo_normals, spacing: float,
                            settings: DirectLightSettings, out: np.ndarray) -> Steps[np.ndarray]:
     """Fill out (L, N) float32 with each light's shadow-map visibility; yields progress, returns
     `out`."""
-    maps = yield from shadow_maps_steps(scene, points, geo_normals, spacing, settings)
-    return maps_visibility(maps, points, geo_normals, out)
+    receivers = Receivers.of(points, geo_normals)  # once for planning and looking up
+    maps = yield from shadow_maps_steps(scene, points, geo_normals, spacing, settings, receivers)
+    return maps_visibility(maps, points, geo_normals, out, receivers)
 
 
 def shadow_maps_steps(scene: Scene, points, geo_normals, spacing: float,
-                      settings: DirectLightSettings) -> Steps[list[ShadowMap | None]]:
+                      settings: DirectLightSettings, receivers: Receivers | None = None
+                      ) -> Steps[list[ShadowMap | None]]:
     """Each light's shadow map, planned for and rendered over the receivers (points (N, 3),
-    geometric normals (N, 3), `spacing` m apart): yields progress, returns the list (None for a
-    light that casts no shadow)."""
+    geometric normals (N, 3), `spacing` m apart; `receivers`: `Receivers.of` them when the
+    caller has it): yields progress, returns the list (None for a light that casts no
+    shadow)."""
     lights = scene.lights
     # Prepared once for every light. Culling and planning read the receivers only through their
     # bounding box (the sun's fit reads them all): its two corners stand in for them there.
-    receivers = Receivers.of(points, geo_normals)
+    if receivers is None:
+        receivers = Receivers.of(points, geo_normals)
     box = receivers.box if len(receivers) else np.zeros((0, 3))
     maps = []
     for k, light in enumerate(lights):
@@ -168,10 +172,13 @@ def _cutout(scene: Scene, caster_ids: np.ndarray) -> Cutout | None:
     return Cutout(cut, lambda tri, bary: surface_alpha(scene, caster_ids[tri], bary))
 
 
-def maps_visibility(maps: list, points, geo_normals, out: np.ndarray) -> np.ndarray:
+def maps_visibility(maps: list, points, geo_normals, out: np.ndarray,
+                    receivers: Receivers | None = None) -> np.ndarray:
     """Fill out (L, N) float32 with each light's visibility at receivers (points, geometric
-    normals (N, 3)) read from its shadow map (`shadow_maps_steps`; None: 1)."""
-    receivers = Receivers.of(points, geo_normals)
+    normals (N, 3); `receivers`: `Receivers.of` them when the caller has it) read from its
+    shadow map (`shadow_maps_steps`; None: 1)."""
+    if receivers is None:
+        receivers = Receivers.of(points, geo_normals)
     for k, shadow_map in enumerate(maps):
         if shadow_map is None:
             out[k] = 1.0
