@@ -87,14 +87,15 @@ def _reach_behind(triangles: np.ndarray, normals: np.ndarray, offsets: np.ndarra
     """(len(rows),) m: how far behind the plane of each triangle of `rows` its object reaches,
     offsets[r] - min over the object's vertices v of normals[r] . v (0 for a flat object)."""
     out = np.zeros(len(rows))
-    for obj in np.unique(objects[rows]):
-        mine = rows[objects[rows] == obj]
+    owner = objects[rows]
+    for obj in np.unique(owner):
+        mine = rows[owner == obj]
         vertices = triangles[objects == obj].reshape(-1, 3)
         lowest = np.full(len(mine), np.inf)
         for start in range(0, len(vertices), SUPPORT_CHUNK):
             heights = normals[mine] @ vertices[start:start + SUPPORT_CHUNK].T  # (P, chunk)
             lowest = np.minimum(lowest, heights.min(axis=1))
-        out[objects[rows] == obj] = offsets[mine] - lowest
+        out[owner == obj] = offsets[mine] - lowest
     return out
 
 

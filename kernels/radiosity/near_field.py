@@ -19,10 +19,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..geometry.frames import RAY_OFFSET_REL
 from ..shading.world_light import cosine_directions
 from . import patches as patching
-from .form_factors.sampling import sample_patches
+from .sources import lifted_samples
 
 # A surface counts as near within this many times the patch's longest edge: there the form factor
 # 1/r^2 changes by a factor of about four across the patch, which one mean cannot stand for.
@@ -43,20 +42,16 @@ def near_shares(patches: patching.Patches, occluded, scale: float) -> np.ndarray
     """(N,) the cosine-weighted share of each patch's hemisphere met by a surface within
     NEAR_DISTANCE x its longest edge. occluded(origins, directions, t_min, t_max) -> (R,) bool:
     the BVH's shadow-ray query (None: nothing is near). scale: the scene's diagonal, m (rays
-    leave RAY_OFFSET_REL x scale above the surface)."""
+    leave `lifted_samples`' origins)."""
     count = len(patches)
     if occluded is None or count == 0:
         return np.zeros(count)
-    points, _ = sample_patches(patches.corners, NEAR_POINTS_PER_SIDE, "midpoint")  # (N, S, 3)
-    samples = points.shape[1]
-    normals = np.repeat(patches.normals, samples, axis=0)  # (N S, 3)
+    weights, _, normals, origins = lifted_samples(patches, NEAR_POINTS_PER_SIDE, scale)
+    samples = weights.shape[1]
     directions = cosine_directions(normals, NEAR_RAYS_PER_POINT,
                                    np.random.default_rng(NEAR_SEED))  # (N S, k, 3)
     k = directions.shape[1]
-    origins = points.reshape(-1, 3) + RAY_OFFSET_REL * scale * normals
-    edges = np.linalg.norm(patches.corners - np.roll(patches.corners, -1, axis=1),
-                           axis=2).max(axis=1)  # (N,) m
-    reach = np.repeat(NEAR_DISTANCE * edges, samples * k)  # (N S k,)
+    reach = np.repeat(NEAR_DISTANCE * patching.longest_edges(patches.corners), samples * k)
     hit = occluded(np.repeat(origins, k, axis=0), directions.reshape(-1, 3),
                    np.zeros(len(reach)), reach)
     return np.asarray(hit, np.float64).reshape(count, samples * k).mean(axis=1)

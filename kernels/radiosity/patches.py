@@ -118,6 +118,11 @@ def _template(n: int) -> np.ndarray:
     return np.concatenate([1.0 - ab.sum(axis=2, keepdims=True), ab], axis=2)
 
 
+def longest_edges(corners: np.ndarray) -> np.ndarray:
+    """(N,) m: the longest edge of each triangle, corners (N, 3, 3) world m."""
+    return np.linalg.norm(corners - np.roll(corners, -1, axis=1), axis=2).max(axis=1)
+
+
 def make_patches(scene: Scene, target_size: float, triangles: np.ndarray | None = None
                  ) -> Patches:
     """Uniform meshing: each non-degenerate scene triangle (of `triangles`, (T,) bool, when
@@ -126,7 +131,7 @@ def make_patches(scene: Scene, target_size: float, triangles: np.ndarray | None 
     if not target_size > 0.0:
         raise ValueError(f"patch size must be > 0 m, got {target_size}")
     tris = scene.triangles.astype(np.float64)
-    edges = np.linalg.norm(tris - np.roll(tris, -1, axis=1), axis=2).max(axis=1)  # (T,)
+    edges = longest_edges(tris)
     keep = triangle_areas(tris) > 0.0
     if triangles is not None:
         keep &= np.asarray(triangles, bool)

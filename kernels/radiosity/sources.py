@@ -135,7 +135,8 @@ def first_shot(scene: Scene, patches: patching.Patches, occluded, settings: Radi
     shooting = emitters is not None and len(emitters.triangles) > 0
     if not (scene.lights or shooting) or count == 0:
         return irradiance, boundary
-    weights, flat, normals, origins = _light_samples(patches, settings, scale)
+    weights, flat, normals, origins = lifted_samples(patches, settings.light_samples_per_side,
+                                                     scale)
     samples = weights.shape[1]
     offset = RAY_OFFSET_REL * scale
 
@@ -212,7 +213,8 @@ def shadow_edges(scene: Scene, patches: patching.Patches, occluded,
     lamps = shadowing_lamps(scene)
     if occluded is None or not lamps or len(patches) == 0:
         return edges
-    weights, flat, normals, origins = _light_samples(patches, settings, scale)
+    weights, flat, normals, origins = lifted_samples(patches, settings.light_samples_per_side,
+                                                     scale)
     count, samples = weights.shape
     for light in lamps:
         e, vis = shadowed_irradiance(light, flat, normals, origins, occluded,
@@ -225,12 +227,12 @@ def shadow_edges(scene: Scene, patches: patching.Patches, occluded,
     return edges
 
 
-def _light_samples(patches: patching.Patches, settings: RadiositySettings, scale: float
+def lifted_samples(patches: patching.Patches, per_side: int, scale: float
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The lights' n x n midpoint samples of every patch (`light_samples_per_side`): weights
-    (N, S), points (N S, 3) world m, their normals (N S, 3) and the shadow rays' origins, lifted
-    RAY_OFFSET_REL x scale off the surface (N S, 3)."""
-    points, weights = sample_patches(patches.corners, settings.light_samples_per_side, "midpoint")
+    """n x n midpoint samples of every patch (n = `per_side`; the lights' first shot takes
+    `light_samples_per_side`): weights (N, S), points (N S, 3) world m, their normals (N S, 3)
+    and the shadow rays' origins, lifted RAY_OFFSET_REL x scale (m) off the surface (N S, 3)."""
+    points, weights = sample_patches(patches.corners, per_side, "midpoint")
     flat = points.reshape(-1, 3)
     normals = np.repeat(patches.normals, points.shape[1], axis=0)
     return weights, flat, normals, flat + RAY_OFFSET_REL * scale * normals
