@@ -97,6 +97,9 @@ FACING_EPS_SHARE = 0.5
 FACING_BLOCK = 1 << 20
 # Shadow rays per chunk of links (side^2 each): ~40 MB of pairs, and BVH calls at full rate.
 VISIBILITY_RAYS = 1 << 17
+# Exact links from this share of link_epsilon up cast all side^2 visibility rays, fainter ones
+# fewer in proportion (at least one): they carry little of any receiver's light.
+FULL_RAYS_SHARE = 1.0
 
 
 def hierarchy_roots(scene: Scene, patch_size: float, max_depth: int,
@@ -275,11 +278,14 @@ def refine_links(tree: _Tree, p: np.ndarray, q: np.ndarray, epsilon: float, side
 
 
 def _visible_share_steps(tree: _Tree, p: np.ndarray, q: np.ndarray, side: int,
-                         ray_offset: float, shift: np.ndarray):
+                         ray_offset: float, shift: np.ndarray, first: np.ndarray,
+                         rays: np.ndarray):
     """Generator (asks for shadow rays, see form_factors.rays.RayRequest): (L,) the visible share of
     q's projected solid angle seen from leaf p, from one ray per point of p's side x side points
     to a point of q's: point s of p to point (s + shift) mod side^2 of q, `shift` (L,) int drawn
-    at random per link.
+    at random per link. Only `rays` (L,) int in [1, side^2] of each link's points cast theirs:
+    points first, first + 1, ... (mod side^2), `first` (L,) drawn at random too, so the subset
+    is unbiased over p as the pairing is over q.
 
     Each ray counts with the point-to-point kernel w_x w_y cos_x cos_y / d^2, as the matrix
     solvers' estimator weights its rays (form_factors.raycast.RayCastSettings): a target behind the
@@ -297,9 +303,10 @@ def _visible_share_steps(tree: _Tree, p: np.ndarray, q: np.ndarray, side: int,
     pick = (np.arange(count)[None, :] + shift[:, None]) % count  # (L, S): each point's target
     targets = np.take_along_axis(targets, pick[:, :, None], axis=1)
     target_weights = np.take_along_axis(target_weights, pick, axis=1)
+    cast = (np.arange(count)[None, :] - first[:, None]) % count < rays[:, None]  # (L, S)
     return (yield from paired_share_steps(points, tree.normals[p][:, None, :], targets,
-                                          tree.normals[q][:, None, :], weights * target_weights,
-                                          ray_offset))
+                                          tree.normals[q][:, None, :],
+                                          weights * target_weights * cast, ray_offset))
 
 
 def _pull(tree: _Tree, b: np.ndarray, levels: list) -> None:
@@ -490,13 +497,18 @@ def _link(tree: _Tree, root_count: int, leaves: np.ndarray, occluded, settings: 
     root = np.concatenate([g[3] for g in far] + [none[1]])
     far_factor = np.concatenate([g[4] for g in far] + [none[2]])
     if occluded is not None:  # a chunk of links at a time: side^2 rays and kernels per link
-        shift = np.random.default_rng(settings.seed).integers(0, side * side, len(p))
+        draw = np.random.default_rng(settings.seed)
+        shift = draw.integers(0, side * side, len(p))
+        first = draw.integers(0, side * side, len(p))
+        full = FULL_RAYS_SHARE * eps
+        rays = np.clip(np.ceil(side * side * factor / full), 1, side * side).astype(np.int64)
         chunk = max(1, VISIBILITY_RAYS // side**2)
         total = len(p) + len(group_p)
         for a in range(0, len(p), chunk):
             b = a + chunk
             factor[a:b] *= answer_rays(_visible_share_steps(tree, p[a:b], q[a:b], side,
-                                                            RAY_OFFSET_REL * scale, shift[a:b]),
+                                                            RAY_OFFSET_REL * scale, shift[a:b],
+                                                            first[a:b], rays[a:b]),
                                        occluded, RAYS_PER_CALL)
             yield 0.5 + 0.5 * min(b, len(p)) / total
         # One visible share per far group, for all its roots (sorted by group), from as many
