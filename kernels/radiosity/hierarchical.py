@@ -24,8 +24,9 @@ it. A link is refined while it carries more than `link_epsilon`, F_pq > epsilon,
 q's four children instead; leaf sources stay. F_pq is exact over q's polygon from n x n midpoint
 points of p (`point_to_polygon`), times the visible share of q seen from p: shadow rays from those
 points to randomly paired points of q, each weighted by the point-to-point kernel (see
-`_visible_share_steps`). Pairs that share an edge (still above the bound at the leaves) take
-NEAR_FIELD_SIDE times the points per side.
+`_visible_share_steps`); a link at the bound casts one ray per point, a fainter one fewer, in
+proportion to its factor (at least one, FULL_RAYS_SHARE). Pairs that share an edge (still above
+the bound at the leaves) take NEAR_FIELD_SIDE times the points per side.
 
 Source clusters. Over more than `source_clusters.MIN_ROOTS` roots (a finely tessellated object,
 whose every triangle is a root), roots far from a leaf are reached through a tree over the roots:
