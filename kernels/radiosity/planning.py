@@ -44,12 +44,22 @@ AUTO_ONE_POINT_RHO = 0.8
 AUTO_SHADOW_SPLITS = 2
 # Near-field splits before the solve with the final gather (`near_field.py`): the gather places
 # each receiver's light but not a source patch's own variation, which a surface close to it sees.
-# Defaults against 1024-sample Cycles bakes (texel relMSE, solve + bake seconds): a generated room
-# with a box 16 cm from a wall 0.0072 -> 0.0030 (7.2 -> 10.2 s; a budget of 700 patches without
-# splits: 0.0047), one with a ball on the floor under an area lamp 0.0016 -> 0.00095 (6.2 ->
-# 9.1 s), the Cornell box 0.0017 -> 0.0013 (3.2 -> 3.7 s). Two passes left the first room as it
-# was and made the ball's underside in the second too bright (0.0026).
-AUTO_NEAR_SPLITS = 1
+# Defaults against 1024-sample Cycles bakes (texel relMSE as measured, the references' own noise
+# 3-4e-4 included; solve + bake seconds): one pass took a generated room with a box 16 cm from a
+# wall from 0.0072 to 0.0030 (7.2 -> 10.2 s), one with a ball on the floor under an area lamp
+# from 0.0016 to 0.00095, the Cornell box from 0.0017 to 0.0013. A second pass, with room for it
+# (AUTO_MAX_PATCHES): 0.0030 -> 0.00097 (the floor under a ball and the ball's underside, whose
+# contact one pass left 10x too bright), 0.00098 -> 0.00069, 0.00127 -> 0.00111, shadows.blend
+# 0.00020 -> 0.00016, for 1.3-2.1x the seconds. The matrix solvers take one pass: their factors
+# cost O(N^2).
+AUTO_NEAR_SPLITS = 2
+AUTO_MATRIX_NEAR_SPLITS = 1
+# Patches the splits and refinement may reach (max_patches 0). The hierarchy's links grow about
+# as leaves x roots: the rooms above at 5712 and 4290 leaves made 2.8M and 2.0M links (peak
+# memory 740 MB with Blender's own), 2.5-4x under their bound. The matrix solvers' O(N^2)
+# factors keep them at the cap they had.
+AUTO_MAX_PATCHES = 6000
+AUTO_MATRIX_MAX_PATCHES = 3000
 
 
 def resolve_auto(scene: Scene, settings: RadiositySettings, hierarchical: bool
@@ -61,8 +71,9 @@ def resolve_auto(scene: Scene, settings: RadiositySettings, hierarchical: bool
     receiver, so the patches carry only smooth indirect light: a refinement level costs a second
     link-and-solve for ~15% less error on the Cornell box, where twice the patches give ~40%),
     shadow_splits from the final gather and the lamps (AUTO_SHADOW_SPLITS where a lamp of any
-    kind casts shadows: `shadow_edges`), near_splits from the final gather
-    (AUTO_NEAR_SPLITS: `near_field`)."""
+    kind casts shadows: `shadow_edges`), near_splits from the final gather and the solver
+    (AUTO_NEAR_SPLITS, AUTO_MATRIX_NEAR_SPLITS: `near_field`), max_patches from the solver
+    (AUTO_MAX_PATCHES, AUTO_MATRIX_MAX_PATCHES)."""
     changes = {}
     if settings.samples_per_side == 0:
         count = scene.triangle_count
@@ -76,7 +87,10 @@ def resolve_auto(scene: Scene, settings: RadiositySettings, hierarchical: bool
         shadowed = settings.final_gather and shadowing_lamps(scene)
         changes["shadow_splits"] = AUTO_SHADOW_SPLITS if shadowed else 0
     if settings.near_splits == -1:
-        changes["near_splits"] = AUTO_NEAR_SPLITS if settings.final_gather else 0
+        passes = AUTO_NEAR_SPLITS if hierarchical else AUTO_MATRIX_NEAR_SPLITS
+        changes["near_splits"] = passes if settings.final_gather else 0
+    if settings.max_patches == 0:
+        changes["max_patches"] = AUTO_MAX_PATCHES if hierarchical else AUTO_MATRIX_MAX_PATCHES
     return replace(settings, **changes) if changes else settings
 
 
@@ -183,7 +197,7 @@ def hierarchical_memory(scene: Scene, roots: patching.Patches, depth: int, bvh,
     if facing is not None:
         return memory(facing)
     found = memory()
-    if found["total"] > settings.dense_memory_limit and len(roots) ** 2 <= FACING_COUNT_PAIRS:
+    if found["total"] > settings.hierarchy_memory_limit and len(roots) ** 2 <= FACING_COUNT_PAIRS:
         # Many roots (a room of many small triangles): count the root pairs that can exchange
         # light at all, which only then costs more than a few ms (0.4 s at 3k roots).
         found = memory(facing_roots(roots))
@@ -205,7 +219,7 @@ def hierarchical_plan(scene: Scene, size: float, bvh, settings: RadiositySetting
                       groups: clusters.Groups | None) -> HierarchyPlan | None:
     """The hierarchical solver's plan when it is the one to run, else None. auto picks it for all
     but small scenes (more than AUTO_DENSE_PATCHES patches) when its bound fits
-    `dense_memory_limit` and factors are ray-cast; where only refinement breaks the bound, auto
+    `hierarchy_memory_limit` and factors are ray-cast; where only refinement breaks the bound, auto
     lowers `max_patches` (the refined leaves' cap) until it fits (`capped_refinement`) rather
     than hand the scene to a matrix solver. exchanging: `exchanging_triangles`; patches: theirs
     at `size`, what the other solvers would start from; groups: their `patch_groups`."""
@@ -221,10 +235,10 @@ def hierarchical_plan(scene: Scene, size: float, bvh, settings: RadiositySetting
     roots, depth, wanted = hierarchy_roots(scene, size, settings.max_depth, exchanging,
                                            wanted=len(patches))
     memory = hierarchical_memory(scene, roots, depth, bvh, settings)
-    if settings.solver == "auto" and memory["total"] > settings.dense_memory_limit:
+    if settings.solver == "auto" and memory["total"] > settings.hierarchy_memory_limit:
         settings, memory = capped_refinement(scene, roots, depth, bvh, settings, memory)
     if settings.solver == "auto" and (wanted <= AUTO_DENSE_PATCHES
-                                      or memory["total"] > settings.dense_memory_limit):
+                                      or memory["total"] > settings.hierarchy_memory_limit):
         return None
     return HierarchyPlan(settings, roots, depth, memory)
 
@@ -232,7 +246,7 @@ def hierarchical_plan(scene: Scene, size: float, bvh, settings: RadiositySetting
 def capped_refinement(scene: Scene, roots: patching.Patches, depth: int, bvh,
                       settings: RadiositySettings, memory: dict) -> tuple[RadiositySettings, dict]:
     """`settings` with the largest `max_patches` (refined leaves) whose hierarchical bound fits
-    `dense_memory_limit`, and that bound; `settings` and `memory` as they are when refinement
+    `hierarchy_memory_limit`, and that bound; `settings` and `memory` as they are when refinement
     is off or the unrefined leaves alone break it. The fallback would be Gauss-Seidel over the
     refined patches' dense matrix, O(N^2) ray-cast factors: shadows.blend with refine_levels 2
     took 671 s there against 10 s hierarchical."""
@@ -247,11 +261,11 @@ def capped_refinement(scene: Scene, roots: patching.Patches, depth: int, bvh,
                                    facing)
 
     low, high = first, settings.max_patches  # bound(low) may fit, bound(high) does not
-    if bound(low)["total"] > settings.dense_memory_limit:
+    if bound(low)["total"] > settings.hierarchy_memory_limit:
         return settings, memory
     while high - low > max(1, first // 100):  # the bound grows with the cap: bisect
         mid = (low + high) // 2
-        if bound(mid)["total"] <= settings.dense_memory_limit:
+        if bound(mid)["total"] <= settings.hierarchy_memory_limit:
             low = mid
         else:
             high = mid

@@ -46,15 +46,26 @@ class RadiositySettings:
     |                             |                     |          | size split before the solve|
     |                             |                     |          | (near_field.py; -1 auto:   |
     |                             |                     |          | AUTO_NEAR_SPLITS with the  |
-    |                             |                     |          | final gather, else 0)      |
+    |                             |                     |          | final gather, for matrix   |
+    |                             |                     |          | solvers AUTO_MATRIX_NEAR_  |
+    |                             |                     |          | SPLITS, else 0)            |
     | refine_threshold            | > 0                 | 0.25     | relative corner difference |
     |                             |                     |          | that splits a patch        |
-    | max_patches                 | >= 1                | 3000     | refinement stops here      |
-    |                             |                     |          | (auto lowers it where the  |
-    |                             |                     |          | hierarchy's bound would    |
-    |                             |                     |          | not fit the memory limit)  |
+    | max_patches                 | >= 0                | 0        | splits and refinement stop |
+    |                             |                     |          | here (0 auto: planning's   |
+    |                             |                     |          | AUTO_MAX_PATCHES for the   |
+    |                             |                     |          | hierarchy, lowered where   |
+    |                             |                     |          | its bound would not fit    |
+    |                             |                     |          | hierarchy_memory_limit;    |
+    |                             |                     |          | AUTO_MATRIX_MAX_PATCHES for|
+    |                             |                     |          | the matrix solvers)        |
     | tolerance                   | (0, 1)              | 1e-4     | solver stop (see solvers)  |
     | dense_memory_limit          | >= 0                | 512 MiB  | bytes for the dense F      |
+    | hierarchy_memory_limit      | >= 0                | 2 GiB    | bytes the hierarchical     |
+    |                             |                     |          | solver's worst-case bound  |
+    |                             |                     |          | (links, elements, work) may|
+    |                             |                     |          | reach (a worst case: rooms |
+    |                             |                     |          | made 2.5-4x fewer links)   |
     | samples_per_side            | >= 0                | 0        | n x n points per patch     |
     |                             |                     |          | (ray-cast sources, hemicube|
     |                             |                     |          | positions); 0 auto: 1 when |
@@ -112,9 +123,10 @@ class RadiositySettings:
     shadow_splits: int = -1
     near_splits: int = -1
     refine_threshold: float = 0.25
-    max_patches: int = 3000
+    max_patches: int = 0
     tolerance: float = 1e-4
     dense_memory_limit: int = 512 << 20
+    hierarchy_memory_limit: int = 2 << 30
     samples_per_side: int = 0
     visibility_samples_per_side: int = 2
     hemicube_resolution: int = 32
@@ -142,8 +154,8 @@ class RadiositySettings:
                              "use method 'raycast'")
         if not self.link_epsilon > 0.0 or self.max_depth < 0:
             raise ValueError("link_epsilon must be > 0 and max_depth >= 0")
-        if self.patch_size < 0.0 or self.patch_budget < 1 or self.max_patches < 1:
-            raise ValueError("patch_size must be >= 0, patch_budget and max_patches >= 1")
+        if self.patch_size < 0.0 or self.patch_budget < 1 or self.max_patches < 0:
+            raise ValueError("patch_size must be >= 0, patch_budget >= 1 and max_patches >= 0")
         if self.refine_levels < -1 or not self.refine_threshold > 0.0:
             raise ValueError("refine_levels must be >= -1 (auto) and refine_threshold > 0")
         if self.shadow_splits < -1 or self.near_splits < -1:
