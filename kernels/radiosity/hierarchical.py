@@ -533,6 +533,20 @@ def _link(tree: _Tree, root_count: int, leaves: np.ndarray, occluded, settings: 
             yield 0.5 + 0.5 * (len(p) + b) / total
             a = b
         far_factor = far_factor * share[group]
-    return Links(np.concatenate([p, group_p[group]]), np.concatenate([q, root]),
-                 np.concatenate([factor, far_factor]),
+    p, q = np.concatenate([p, group_p[group]]), np.concatenate([q, root])
+    factor = np.concatenate([factor, far_factor])
+    return Links(p, q, capped_rows(p, factor, len(tree)),
                  np.concatenate([near, np.zeros(len(root), bool)]), int(len(root)), int(len(group_p)))
+
+
+def capped_rows(p: np.ndarray, factor: np.ndarray, count: int) -> np.ndarray:
+    """(L,) the links' factors with each receiver's sum scaled down to 1 where it exceeds it.
+
+    A receiver's exact factors to the surfaces around it sum to at most 1 (its hemisphere, seen
+    once). The estimates can overshoot where a few rays stand for a link's visibility at close
+    range: a 5 mm patch of a ball 2 mm from a box's side and 36 mm over a floor patch that runs
+    under the box saw the side at 0.58 and the floor at 0.55 (the rays all met the floor's open
+    part), and rho 0.86 times that sum left the solve no contraction. Scaling the row keeps the
+    shares between its links."""
+    sums = np.bincount(p, factor, minlength=count)
+    return factor / np.maximum(sums[p], 1.0)
