@@ -17,8 +17,9 @@ with no weights. Each patch casts `rays` of them from points spread over its tri
 points stratified on an m x m grid (jittered, a random rotation per patch), so a patch's s
 carries little noise: under a plate (0.1 m patches, against 16384 rays each) 16, 64 and 256 rays
 give s to 0.057, 0.024 and 0.0077 rms. Where the sky shows through an opening only, a patch that
-saw it in part casts again with the rays its share needs (`world_irradiance`). Under a map, each escaping ray brings the map's radiance
-in its own direction (`world_radiance`), and pi times their mean is the irradiance. Rays start
+saw it in part casts again with the rays its share needs (`world_irradiance`). Under a map, each
+escaping ray brings the map's radiance in its own direction (`world_radiance`), and pi times
+their mean is the irradiance. Rays start
 a hair behind the surface and pass through its own triangle (`BVH.occluded(skip=)`), so a face
 lying flat on another, a box's base on the floor, meets it at once as in Cycles, whose rays start
 on the surface (lifted in front, they slipped past the floor into the sky below it).
@@ -274,12 +275,9 @@ def sky_factors(corners: np.ndarray, normals: np.ndarray, parents: np.ndarray, o
     | rays      | >= 1 (WORLD_RAYS) |         | rays per patch, rounded up to a square m x m    |
     | rng       |                   |         | jitter, rotations and points                    |
     """
-    out = np.zeros(len(corners))
-    for rows, _, escaped in _sky_rays(np.asarray(corners, np.float64),
-                                      np.asarray(normals, np.float64), parents, occluded, scale,
-                                      rays, rng):
-        out[rows] = escaped.mean(axis=1)
-    return out
+    return _world_estimate(np.ones(3), np.asarray(corners, np.float64),
+                           np.asarray(normals, np.float64), parents, occluded, scale, rays,
+                           rng)[1]
 
 
 def _world_estimate(world, corners: np.ndarray, normals: np.ndarray, parents: np.ndarray,
