@@ -11,6 +11,11 @@ from ..addon.bridge.request import SnapshotRequest
 from ..addon.bridge.snapshot import snapshot
 from ..kernels.progress import Steps, scaled
 from ..kernels.radiosity.lightmap import bake_steps, gather_groups
+from ..kernels.radiosity.planning import (
+    AUTO_MATRIX_NEAR_SPLITS,
+    AUTO_NEAR_SPLITS,
+    AUTO_SHADOW_SPLITS,
+)
 from ..kernels.radiosity.settings import RadiositySettings
 from ..kernels.radiosity.solve import radiosity_steps
 from ..kernels.radiosity.view import render_steps
@@ -173,11 +178,13 @@ OPTIONS = (
            "where the solution varies strongly or a shadow boundary crosses); -1: auto, none with "
            "the final gather, one level without it", field="refine_levels", minimum=-1, maximum=4),
     Option("shadow_splits", RadiositySettings, "Shadow Splits", "Times patches across a point, "
-           "spot or sun lamp's shadow edge are split before the solve; -1: auto, 2 with the final "
-           "gather when such a lamp casts shadows, else 0", minimum=-1, maximum=4),
+           f"spot or sun lamp's shadow edge are split before the solve; -1: auto, "
+           f"{AUTO_SHADOW_SPLITS} with the final gather when such a lamp casts shadows, else 0",
+           minimum=-1, maximum=4),
     Option("near_splits", RadiositySettings, "Near Splits", "Times patches that another surface "
            "faces nearer than their own size are split before the solve (a box by a wall); -1: "
-           "auto, 1 with the final gather, else 0", minimum=-1, maximum=4),
+           f"auto, {AUTO_NEAR_SPLITS} with the final gather ({AUTO_MATRIX_NEAR_SPLITS} for the "
+           "matrix solvers), else 0", minimum=-1, maximum=4),
     Option("final_gather", RadiositySettings, "Final Gather", "Read the solution out with exact "
            "direct light (and its shadows) at every texel, pixel and corner; the patches carry "
            "only the indirect light"),
