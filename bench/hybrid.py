@@ -77,7 +77,7 @@ def main() -> int:
 
     from classic_bake.addon import bridge
     from classic_bake.addon import cycles as cr
-    from classic_bake.kernels.hybrid.two_pass import HybridSettings, hybrid_steps
+    from classic_bake.kernels.hybrid.two_pass import HybridSettings, hybrid_steps, pass_one_settings
     from classic_bake.kernels.measure.metrics import compare, rel_mse
     from classic_bake.kernels.progress import drain
     from classic_bake.kernels.radiosity.settings import RadiositySettings
@@ -118,7 +118,7 @@ def main() -> int:
     for step in range(max(len(ladder), len(cycles_counts))):  # alternate the two sides
         if step < len(ladder):
             budget, edges, samples = ladder[step]
-            settings = HybridSettings(radiosity=RadiositySettings(patch_budget=budget),
+            settings = HybridSettings(radiosity=pass_one_settings(patch_budget=budget),
                                       tracer=auto_settings(snap, adaptive=edges,
                                                            supersample=samples))
             start = time.perf_counter()
@@ -159,12 +159,12 @@ def main() -> int:
     sweep = {"patches": budgets, "rel_mse": [], "gather_rays": rays, "rays_rel_mse": []}
     bpy.ops.wm.open_mainfile(filepath=str(SCENE), load_ui=False, use_scripts=False)
     for budget in budgets:
-        settings = HybridSettings(radiosity=RadiositySettings(patch_budget=budget),
+        settings = HybridSettings(radiosity=pass_one_settings(patch_budget=budget),
                                   tracer=auto_settings(snap, adaptive=0))
         sweep["rel_mse"].append(rel_mse(drain(hybrid_steps(snap, settings, resolution)).image,
                                         reference))
     for count in rays:
-        settings = HybridSettings(radiosity=RadiositySettings(gather_rays=count),
+        settings = HybridSettings(radiosity=pass_one_settings(gather_rays=count),
                                   tracer=auto_settings(snap, adaptive=0))
         sweep["rays_rel_mse"].append(rel_mse(drain(hybrid_steps(snap, settings, resolution)).image,
                                              reference))

@@ -11,7 +11,7 @@ import bpy
 from ..addon.bridge import write_back
 from ..addon.bridge.request import SnapshotRequest
 from ..addon.bridge.snapshot import snapshot
-from ..kernels.hybrid.two_pass import HybridSettings, hybrid_steps
+from ..kernels.hybrid.two_pass import HybridSettings, hybrid_steps, pass_one_settings
 from ..kernels.progress import Steps, scaled
 from ..kernels.radiosity.settings import RadiositySettings
 from ..kernels.trace.settings import TracerSettings, auto_settings
@@ -37,7 +37,7 @@ OPTIONS = (
 
 def settings(values: dict, scene) -> HybridSettings:
     """HybridSettings from option values (depth -1: from the scene's mirrors and glass)."""
-    solve = RadiositySettings(patch_budget=int(values["patches"]),
+    solve = pass_one_settings(patch_budget=int(values["patches"]),
                               final_gather=bool(values["final_gather"]),
                               gather_rays=int(values["gather_rays"]))
     overrides = {"supersample": int(values["supersample"]), "adaptive": int(values["adaptive"])}

@@ -66,9 +66,12 @@ EDGE_WAVEFRONT = 1 << 18
 # -> (N, 3) irradiance W/m^2 from the mapped surroundings, reflected as albedo / pi times it.
 EnvironmentLookup = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
 # Diffuse light from elsewhere (the two-pass renderer's radiosity solution): (N,) triangles,
-# (N, 3) barycentrics, (N, 3) unit ray directions towards the points, (N,) bool front side ->
-# (N, 3) radiance W/(m^2 sr) the points reflect diffusely toward the ray, shadows included.
-DiffuseLookup = Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], np.ndarray]
+# (N, 3) barycentrics, (N, 3) unit ray directions towards the points, (N,) bool front side,
+# (N,) bool seen from the camera's side (the ray came from the camera through no refraction and
+# off front faces only, so no solid's surface lies between them) -> (N, 3) radiance
+# W/(m^2 sr) the points reflect diffusely toward the ray, shadows included.
+DiffuseLookup = Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+                         np.ndarray]
 # Rays that are sub-samples of pixels: (stratum of each ray (N,) int, number of strata m).
 Strata = tuple[np.ndarray, int]
 
@@ -428,6 +431,8 @@ class Tracer:
         # it: a mirror's sharp image of a lamp would be a hot spot that Cycles' lobe blurs over
         # the surface.
         sharp = np.ones(len(origins), bool)
+        # Whether a ray reached its hit from the camera's side (`DiffuseLookup`).
+        camera_side = np.ones(len(origins), bool)
         self.stats.camera_rays += len(origins)
         for depth in range(s.max_depth + 1):
             if len(origins) == 0:
@@ -465,7 +470,7 @@ class Tracer:
                 _scatter_add(flat, pixel[miss], weight[miss] * background)
             keep = ~miss
             origins, dirs, pixel, weight = origins[keep], dirs[keep], pixel[keep], weight[keep]
-            sharp = sharp[keep]
+            sharp, camera_side = sharp[keep], camera_side[keep]
             hits = type(hits)(t=hits.t[keep], tri=hits.tri[keep], u=hits.u[keep], v=hits.v[keep])
             if len(origins) == 0:
                 break
@@ -525,7 +530,7 @@ class Tracer:
                 u, v = hits.u.astype(np.float64), hits.v.astype(np.float64)
                 bary = np.stack([1.0 - u - v, u, v], axis=1)
                 with self.clock("diffuse lookup"):
-                    reflected = self.diffuse(hits.tri, bary, dirs, h.front)
+                    reflected = self.diffuse(hits.tri, bary, dirs, h.front, camera_side)
                 lit = lit + reflected
                 # A white base's share, for edge detection (the `untextured` image).
                 lambert = reflected / np.maximum(h.albedo, ALBEDO_FLOOR)
@@ -570,7 +575,7 @@ class Tracer:
             wrong = ~tir & (np.einsum("ij,ij->i", t_dir, h.ng) >= 0.0)
             if wrong.any():
                 t_dir[wrong], tir[wrong] = refract(dirs[wrong], h.ng[wrong], eta[wrong])
-            children = []  # (origins, dirs, pixel, weight, sharp)
+            children = []  # (origins, dirs, pixel, weight, sharp, camera_side)
             # glass: Fresnel split between the reflected and the refracted ray
             glass = smooth & (trans > 0) & (metallic < 1)
             f_g = fresnel_dielectric(cos_o, eta)
@@ -581,7 +586,9 @@ class Tracer:
                                   refl_w - mirror_w, refl_w)
             refr_w = np.where((glass & ~tir)[:, None], glass_w * (1.0 - f_g)[:, None] * h.albedo, 0.0)
             sees = sharp & smooth
-            for w_new, d_new, side in ((refl_w, r_dir, 1.0), (refr_w, t_dir, -1.0)):
+            reflected_side = camera_side & h.front
+            for w_new, d_new, side, seen in ((refl_w, r_dir, 1.0, reflected_side),
+                                             (refr_w, t_dir, -1.0, np.zeros_like(h.front))):
                 w_total = weight * w_new
                 alive = np.max(w_total, axis=1) > 0.0
                 strong = alive & (np.max(w_total, axis=1) >= s.min_weight)
@@ -589,7 +596,7 @@ class Tracer:
                 if strong.any():
                     o_new = h.p[strong] + side * h.ng[strong] * self.offset
                     children.append((o_new, d_new[strong], pixel[strong], w_total[strong],
-                                     sees[strong]))
+                                     sees[strong], seen[strong]))
             if not children:
                 break
             origins = np.concatenate([c[0] for c in children])
@@ -597,6 +604,7 @@ class Tracer:
             pixel = np.concatenate([c[2] for c in children])
             weight = np.concatenate([c[3] for c in children])
             sharp = np.concatenate([c[4] for c in children])
+            camera_side = np.concatenate([c[5] for c in children])
             t_min = np.zeros(len(origins))
         return result
 

@@ -6,12 +6,22 @@ radiosity solution, at the camera's hits and behind the mirror alike."""
 
 import numpy as np
 import pytest
-from scene_builder import build, grey, inward_box, persp_camera, uv_sphere
+from scene_builder import build, grey, inward_box, persp_camera, quad, tessellated_box, uv_sphere
 
+from classic_bake.kernels.geometry.bvh import BVH
+from classic_bake.kernels.geometry.camera import camera_rays
 from classic_bake.kernels.geometry.scene import Material
-from classic_bake.kernels.hybrid.two_pass import HybridSettings, hybrid_steps
+from classic_bake.kernels.hybrid.two_pass import (
+    HybridSettings,
+    _camera_enclosed,
+    diffuse_lookup,
+    hybrid_steps,
+    pass_one_settings,
+)
 from classic_bake.kernels.progress import drain
+from classic_bake.kernels.radiosity.patches import locate
 from classic_bake.kernels.radiosity.settings import RadiositySettings
+from classic_bake.kernels.radiosity.solve import radiosity_steps
 from classic_bake.kernels.trace.settings import TracerSettings
 from classic_bake.kernels.trace.tracer import trace
 
@@ -63,3 +73,52 @@ def test_a_scene_without_a_camera_is_refused():
     scene = build([(inward_box(2.0), grey(RHO, EMISSION))])
     with pytest.raises(ValueError, match="no camera"):
         drain(hybrid_steps(scene))
+
+
+def _room_with_a_block(camera_at):
+    """A grey room with an emissive square under its ceiling and a closed block standing on its
+    floor (outward normals; the floor runs on under it, so floor points there need probes),
+    seen from `camera_at` towards the block."""
+    room = tessellated_box(1)
+    lamp = quad([[0.4, 0.4, 0.99], [0.4, 0.6, 0.99], [0.6, 0.6, 0.99], [0.6, 0.4, 0.99]])
+    block = (0.35 + 0.3 * inward_box(1.0)) * np.array([1.0, 1.0, 0.5]) + np.array(
+        [0.0, 0.0, -0.175])
+    block = block[:, ::-1]  # outward
+    camera = persp_camera(camera_at, np.array([0.5, 0.5, 0.1]) - camera_at, (0.0, 0.0, 1.0),
+                          np.radians(60.0), (16, 16))
+    return build([(room, grey(0.6)), (lamp, grey(0.0, emission=20.0, name="lamp")),
+                  (block, grey(0.5, name="block"))], camera=camera)
+
+
+def test_what_the_camera_sees_is_looked_up_without_enclosure_probes():
+    """Points the camera reaches lie inside no solid: the look-up that skips their probes gives
+    what the probes would (the floor under the block, which they find inside, is out of view)."""
+    scene = _room_with_a_block(np.array([0.9, 0.1, 0.8]))
+    bvh = BVH.build(scene.triangles)
+    solution = drain(radiosity_steps(scene, pass_one_settings(patch_budget=60), bvh))
+    origins, dirs = (a.reshape(-1, 3) for a in camera_rays(scene.camera))
+    hits = bvh.intersect(origins, dirs)
+    seen = np.flatnonzero(hits.tri >= 0)
+    tri = np.asarray(hits.tri[seen], np.int64)
+    u, v = hits.u[seen].astype(np.float64), hits.v[seen].astype(np.float64)
+    bary = np.stack([1.0 - u - v, u, v], axis=1)
+    front = np.einsum("ij,ij->i", solution.gather.triangle_normals[tri], dirs[seen]) < 0.0
+    assert front.all() and "block" in {scene.materials[m].name for m in scene.material_ids[tri]}
+    # Some of them lie under the block's top (a back face from below): those the gather probes.
+    patch, _ = locate(solution.gather.patches, tri, bary)
+    assert (~solution.gather.open_above[patch]).sum() >= 10
+    lookup = diffuse_lookup(scene, solution)
+    probed = lookup(tri, bary, dirs[seen], front, np.zeros(len(tri), bool))
+    skipped = lookup(tri, bary, dirs[seen], front, np.ones(len(tri), bool))
+    np.testing.assert_array_equal(skipped, probed)
+    assert probed.max() > 0.0
+
+
+def test_a_camera_inside_a_solid_keeps_the_probes():
+    """A camera inside the closed block (facing its wall's back) is enclosed; one in the room is
+    not, so only the latter's views skip the probes."""
+    for at, expected in (((0.45, 0.45, 0.1), True), ((0.9, 0.1, 0.8), False)):
+        scene = _room_with_a_block(np.array(at))
+        solution = drain(radiosity_steps(scene, pass_one_settings(patch_budget=30),
+                                         BVH.build(scene.triangles)))
+        assert _camera_enclosed(solution.gather, scene.camera) is expected
