@@ -27,7 +27,7 @@ import numpy as np
 from ..geometry.bvh import BVH
 from ..geometry.scene import Scene, interpolated_normals, triangle_emission
 from ..progress import Steps, scaled
-from ..radiosity.final_gather import FinalGather, Visibility, enclosed
+from ..radiosity.final_gather import camera_enclosed
 from ..radiosity.result import RadiosityResult
 from ..radiosity.settings import RadiositySettings
 from ..radiosity.solve import radiosity_steps
@@ -84,8 +84,7 @@ def diffuse_lookup(scene: Scene, result: RadiosityResult):
     tables = view_tables(scene.materials)
     layered = bool((tables < 1.0).any())
     emission = triangle_emission(scene)
-    open_camera = result.gather is not None and not _camera_enclosed(result.gather,
-                                                                     scene.camera)
+    open_camera = result.gather is not None and not camera_enclosed(result.gather, scene.camera)
 
     def lookup(tri: np.ndarray, bary: np.ndarray, dirs: np.ndarray, front: np.ndarray,
                camera_side: np.ndarray) -> np.ndarray:
@@ -93,10 +92,7 @@ def diffuse_lookup(scene: Scene, result: RadiosityResult):
         out = np.zeros((len(tri), 3))
         if front.any():
             t, b = tri[front], bary[front]
-            known = None
-            if open_camera:
-                known = Visibility.unknown(len(t), len(result.gather.emitters.triangles))
-                known.inside[camera_side[front]] = 0
+            known = result.gather.opened(camera_side[front]) if open_camera else None
             reflected = result.radiance_at(t, b, reflected_only=True, known=known)
             if layered:
                 mids = scene.material_ids[t]
@@ -111,17 +107,6 @@ def diffuse_lookup(scene: Scene, result: RadiosityResult):
         return out
 
     return lookup
-
-
-def _camera_enclosed(gather: FinalGather, camera) -> bool:
-    """Whether the camera's central ray starts inside a closed solid (`enclosed`)."""
-    if camera is None:
-        return False
-    to_world = np.asarray(camera.matrix_world, np.float64)
-    forward = -to_world[:3, 2] / np.linalg.norm(to_world[:3, 2])
-    start = to_world[:3, 3] + camera.clip_start * forward
-    return bool(enclosed(start[None], forward[None], gather.bvh.intersect,
-                         gather.triangle_normals, gather.offset, gather.coincident)[0])
 
 
 def hybrid_steps(scene: Scene, settings: HybridSettings = HybridSettings(),  # noqa: B008

@@ -233,11 +233,31 @@ class FinalGather:
     settings: FinalGatherSettings
     stats: dict
 
+    def opened(self, open_: np.ndarray) -> Visibility:
+        """What M receivers are known to be (open_ (M,) bool: inside no solid, which their
+        probes would find), the rest unknown."""
+        known = Visibility.unknown(len(open_), len(self.emitters.triangles))
+        known.inside[open_] = 0
+        return known
+
     def thinned(self, k: int) -> FinalGather:
         """This gather for receivers averaged k x k to one value: ceil(n / k) shadow points per
         side where it had n, emitters' (`Emitters.thinned`) and area lights' alike."""
         return replace(self, emitters=self.emitters.thinned(k),
                        area_samples_per_side=thinned_side(self.area_samples_per_side, k))
+
+
+def camera_enclosed(gather: FinalGather, camera) -> bool:
+    """Whether the camera's central ray starts inside a closed solid (`enclosed`). Where it does
+    not, every point it sees without refraction, on a front face, lies inside none either: no
+    solid's surface lies between them."""
+    if camera is None:
+        return False
+    to_world = np.asarray(camera.matrix_world, np.float64)
+    forward = -to_world[:3, 2] / np.linalg.norm(to_world[:3, 2])
+    start = to_world[:3, 3] + camera.clip_start * forward
+    return bool(enclosed(start[None], forward[None], gather.bvh.intersect,
+                         gather.triangle_normals, gather.offset, gather.coincident)[0])
 
 
 def _occluded(bvh):

@@ -22,6 +22,7 @@ from ..shading.specular_layer import (
     view_tables,
 )
 from ..shading.world_light import world_lit, world_radiance
+from .final_gather import camera_enclosed
 from .lamps import light_visibility, shadowed_irradiance
 from .result import RadiosityResult
 from .sources import with_world_suns
@@ -40,6 +41,8 @@ def render_steps(scene: Scene, result: RadiosityResult, resolution=None,
     yield 0.3
     # As the solve lit it: a world map's suns are lamps there, and gone from its map.
     lit = result.gather.scene if result.gather is not None else with_world_suns(scene)
+    # What the camera sees lies inside no solid when the camera does not: no enclosure probes.
+    open_camera = result.gather is not None and not camera_enclosed(result.gather, scene.camera)
 
     def shade(f) -> np.ndarray:
         values = np.empty((len(f), 3))
@@ -48,7 +51,9 @@ def render_steps(scene: Scene, result: RadiosityResult, resolution=None,
         if front.any():
             t, b = f.tri[front], f.bary[front]
             frame = _front_frame(scene, result, t, b)
-            values[front] = _at_view(scene, t, b, f.dirs[front], result.radiance_at(t, b))
+            known = result.gather.opened(np.ones(len(t), bool)) if open_camera else None
+            values[front] = _at_view(scene, t, b, f.dirs[front],
+                                     result.radiance_at(t, b, known=known))
             values[front] += _lamp_highlights(lit, result, t, b, f.points[front], f.dirs[front],
                                               frame)
             values[front] += _world_highlights(lit, t, b, f.points[front], f.dirs[front], frame)

@@ -13,12 +13,12 @@ from classic_bake.kernels.geometry.camera import camera_rays
 from classic_bake.kernels.geometry.scene import Material
 from classic_bake.kernels.hybrid.two_pass import (
     HybridSettings,
-    _camera_enclosed,
     diffuse_lookup,
     hybrid_steps,
     pass_one_settings,
 )
 from classic_bake.kernels.progress import drain
+from classic_bake.kernels.radiosity.final_gather import camera_enclosed
 from classic_bake.kernels.radiosity.patches import locate
 from classic_bake.kernels.radiosity.settings import RadiositySettings
 from classic_bake.kernels.radiosity.solve import radiosity_steps
@@ -121,4 +121,4 @@ def test_a_camera_inside_a_solid_keeps_the_probes():
         scene = _room_with_a_block(np.array(at))
         solution = drain(radiosity_steps(scene, pass_one_settings(patch_budget=30),
                                          BVH.build(scene.triangles)))
-        assert _camera_enclosed(solution.gather, scene.camera) is expected
+        assert camera_enclosed(solution.gather, scene.camera) is expected
