@@ -21,7 +21,7 @@ from .form_factors.hemicube import HemicubeFormFactors, HemicubeSettings
 from .form_factors.raycast import RayCastFormFactors, RayCastSettings
 from .form_factors.rows import enforce_reciprocity, iter_matrix
 from .levels import LevelLight, LevelSolution, SolveContext
-from .planning import QUICK_TEST_BYTES, choose_solver, memory_estimate, patch_groups, quick_test_bytes
+from .planning import choose_solver, memory_estimate, patch_groups, quick_test_pays
 from .settings import RadiositySettings
 from .solvers import GaussSeidelSettings, GaussSeidelSolver, ProgressiveSettings, ProgressiveSolver
 
@@ -85,7 +85,7 @@ def _rows(scene: Scene, patches: patching.Patches, bvh, settings: RadiositySetti
     ray = RayCastSettings(samples_per_side=settings.samples_per_side,
                           visibility_samples_per_side=settings.visibility_samples_per_side,
                           seed=settings.seed)
-    quick = quick_test_bytes(len(patches), scene.triangle_count) <= QUICK_TEST_BYTES
+    quick = quick_test_pays(len(patches), scene.triangle_count)
     return RayCastFormFactors(
         corners, lambda o, d, t0, t1: bvh.occluded(o, d, t0, t1),
         triangles=scene.triangles if quick else None, settings=ray)

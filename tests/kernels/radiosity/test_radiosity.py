@@ -787,3 +787,20 @@ def test_a_receivers_estimated_factors_are_capped_at_one_in_sum():
     np.testing.assert_allclose(capped[:2], factor[:2] / 1.13)
     np.testing.assert_allclose(capped[2:], factor[2:])
     assert np.bincount(p, capped, minlength=4).max() <= 1.0 + 1e-12
+
+
+def test_the_quick_pair_test_runs_on_small_scenes_only():
+    """Method B's quick unoccluded-pair test costs every triangle per pair: a room of 12 triangles
+    takes it, the same room around a 256-triangle ball does not (the test would cost more than
+    the rays it saves), and the furnace holds either way."""
+    from classic_bake.kernels.radiosity.planning import QUICK_TEST_TRIANGLES
+
+    room = (inward_box(), grey(0.3, emission=1.0))
+    ball = (uv_sphere((0.5, 0.5, 0.5), 0.1, rings=8, segments=16), grey(0.3, emission=1.0))
+    settings = RadiositySettings(solver="gauss_seidel", patch_budget=60, refine_levels=0, **FAST)
+    for parts, quick in (([room], True), ([room, ball], False)):
+        scene = build(parts)
+        assert (scene.triangle_count <= QUICK_TEST_TRIANGLES) is quick
+        result = solve_radiosity(scene, settings)
+        assert (result.stats["memory_estimate"]["quick_test"] > 0) is quick
+        np.testing.assert_allclose(result.radiosity, np.pi / 0.7, rtol=0.02)
