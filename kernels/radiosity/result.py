@@ -26,6 +26,8 @@ class RadiosityResult:
     corner_e    (N, 3, 3)       the same for `emitted`
     stats       dict            patch counts per level, solver, memory estimate, seconds
     gather      FinalGather     what the final gather reads at receivers; None: interpolate B
+    back_of     (T,) int64      the turned-over copy of each sheet triangle the solve added
+                                (`sheets.py`), -1 for none; None: no copies
     """
 
     patches: patching.Patches
@@ -37,6 +39,7 @@ class RadiosityResult:
     corner_e: np.ndarray
     stats: dict = field(default_factory=dict)
     gather: FinalGather | None = None
+    back_of: np.ndarray | None = None
 
     def exitance_at(self, tri: np.ndarray, bary: np.ndarray, reflected_only: bool = False,
                     interpolated: bool = False, known: final_gather.Visibility | None = None,
@@ -66,8 +69,21 @@ class RadiosityResult:
         (triangles, barycentrics): the emission and, with the final gather, the direct light
         that reaches the back and one bounce of this solution's light off the surfaces the back
         faces (`final_gather.back_exitance`). The solution itself is one-sided: without the
-        gather a back side shows its emission only."""
+        gather a back side shows its emission only. A sheet's back that the solve gave a copy
+        of its own (`back_of`) shows that copy's front."""
+        tri = np.asarray(tri, np.int64)
+        copy = self.back_of[tri] if self.back_of is not None else np.full(len(tri), -1)
+        out = np.empty((len(tri), 3))
+        sheets = copy >= 0  # a sheet's back: its copy's front, corners in reverse order
+        if sheets.any():
+            out[sheets] = self.radiance_at(copy[sheets], np.asarray(bary)[sheets][:, ::-1])
+        rest = ~sheets
+        if not rest.any():
+            return out
         if self.gather is not None:
-            return final_gather.back_exitance(self.gather, tri, bary, lambda t, b: self.exitance_at(
-                t, b, reflected_only=True, interpolated=True)) / np.pi
-        return triangle_emission(scene)[np.asarray(tri, np.int64)]
+            out[rest] = final_gather.back_exitance(
+                self.gather, tri[rest], np.asarray(bary)[rest], lambda t, b: self.exitance_at(
+                    t, b, reflected_only=True, interpolated=True)) / np.pi
+        else:
+            out[rest] = triangle_emission(scene)[tri[rest]]
+        return out

@@ -56,6 +56,7 @@ from .planning import clustering_pays, hierarchical_plan, patch_groups, resolve_
 from .refine import first_splits, refine_splits
 from .result import RadiosityResult
 from .settings import RadiositySettings
+from .sheets import sheet_backs, with_sheet_backs
 from .sources import (
     exchanging_triangles,
     gather_settings,
@@ -93,6 +94,14 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
     scale = float(np.linalg.norm(flat.max(axis=0) - flat.min(axis=0)))
     size = settings.patch_size or patching.auto_patch_size(scene, settings.patch_budget)
     if bvh is None:
+        bvh = BVH.build(scene.triangles)
+    # Sheets whose back faces the scene take part with both sides (`sheets.py`).
+    backs = sheet_backs(scene, bvh, RAY_OFFSET_REL * scale)
+    back_of = None
+    if backs.any():
+        back_of = np.full(scene.triangle_count, -1, np.int64)
+        back_of[backs] = scene.triangle_count + np.arange(int(backs.sum()))
+        scene = with_sheet_backs(scene, backs, RAY_OFFSET_REL * scale)
         bvh = BVH.build(scene.triangles)
     # Leaf cards and fences: visibility rays pass alpha surfaces with probability 1 - alpha.
     bvh = alpha_aware(bvh, scene, RAY_OFFSET_REL * scale, settings.seed)
@@ -135,7 +144,7 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
     stats = {"patch_size_m": size, "patches": len(patches),
              "idle_patches": len(patches) - len(solved.patches),
              "per_level": patches.level_counts(), **levels.stats(solved.levels)}
-    result = _result(ctx, solution, stats, t0)
+    result = replace(_result(ctx, solution, stats, t0), back_of=back_of)
     yield 1.0
     return result
 

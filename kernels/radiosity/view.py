@@ -65,9 +65,10 @@ def render_steps(scene: Scene, result: RadiosityResult, resolution=None,
         image[f.rows, f.cols] = shade(f)
     yield 0.6
     if edge_samples > 1 and len(f):
-        bvh = result.gather.bvh if result.gather is not None else None
-        if bvh is None:
-            bvh = BVH.build(scene.triangles)
+        # The gather's BVH holds the sheets' turned-over copies too (`sheets.py`) when the solve
+        # made any: the camera's rays then need one over the scene's own triangles.
+        own = result.gather is not None and result.back_of is None
+        bvh = result.gather.bvh if own else BVH.build(scene.triangles)
         supersample_edges(scene, image, f, shade, bvh, edge_samples)
     return image
 

@@ -460,27 +460,34 @@ def test_a_back_side_takes_one_bounce_of_the_solution():
     """An inside-out plate: a 0.2 m square 1 m above a 60 m floor (rho 0.5), its front facing up
     into the empty sky, its back facing the floor; a sun straight down (3 W/m^2) lights the floor
     and the front, never the back. A camera looking up at the back sees rho_plate B_floor / pi,
-    B_floor = rho_floor E = 1.5 W/m^2, as Cycles shades the side it sees: the back's own rays
-    (`final_gather.back_bounce`) meet the floor nearly everywhere (1 - F = 0.1% lies beyond its
-    edge), and read the floor patches' B, whose means lose the plate's 0.04 m^2 shadow (1.3% of
-    the cosine-weighted view, which Cycles would see): 0.5%. Without those rays the back shows
-    nothing."""
+    B_floor = rho_floor E = 1.5 W/m^2, as Cycles shades the side it sees. Folded a little (not a
+    flat sheet, `sheets.py`), the back's own rays (`final_gather.back_bounce`) meet the floor
+    nearly everywhere (1 - F = 0.1% lies beyond its edge), and read the floor patches' B, whose
+    means lose the plate's 0.04 m^2 shadow (1.3% of the cosine-weighted view, which Cycles would
+    see): 0.5%; without those rays that back shows nothing. Flat, the plate's back is a copy in
+    the solve, which gathers the floor's light whatever the rays."""
     from classic_bake.kernels.geometry.scene import Light
 
     sun = Light(name="Sun", kind="SUN", position=np.zeros(3), direction=np.array([0, 0, -1.0]),
                 axis_x=np.array([1.0, 0, 0]), axis_y=np.array([0, 1.0, 0]),
                 irradiance=np.full(3, 3.0))
-    scene = build([(square(0.0, 30.0, up=True), grey(0.5)), (square(1.0, 0.1, up=True), grey(0.8))],
-                  lights=(sun,))
+    flat = square(1.0, 0.1, up=True)
+    folded = flat.copy()
+    folded[0, 1, 2] += 0.002  # a corner of the first triangle only: a 0.8-degree crease
     tri = np.array([2, 3, 2])
     bary = np.array([[0.6, 0.2, 0.2], [0.2, 0.3, 0.5], [1 / 3, 1 / 3, 1 / 3]])
     expected = 0.8 * 0.5 * 3.0 / np.pi
-    for rays, want, tolerance in ((64, expected, 0.005), (0, 0.0, 0.0)):
-        result = solve_radiosity(scene, RadiositySettings(patch_budget=8, world_rays=rays),
-                                 BVH.build(scene.triangles))
-        back = result.back_radiance_at(scene, tri, bary)
-        np.testing.assert_allclose(back, want, rtol=tolerance, atol=1e-12)
-    # The front, lit by the sun alone (nothing above it), is unchanged by the back's rays.
+    for plate, copied in ((folded, False), (flat, True)):
+        scene = build([(square(0.0, 30.0, up=True), grey(0.5)), (plate, grey(0.8))],
+                      lights=(sun,))
+        for rays in (64, 0):
+            result = solve_radiosity(scene, RadiositySettings(patch_budget=8, world_rays=rays),
+                                     BVH.build(scene.triangles))
+            assert (result.back_of is not None) is copied
+            want, tolerance = (expected, 0.005) if rays or copied else (0.0, 0.0)
+            back = result.back_radiance_at(scene, tri, bary)
+            np.testing.assert_allclose(back, want, rtol=tolerance, atol=1e-12)
+    # The front, lit by the sun alone (nothing above it), is unchanged by the back.
     assert result.radiance_at(tri, bary) == pytest.approx(np.full((3, 3), 0.8 * 3.0 / np.pi),
                                                           rel=1e-6)
 

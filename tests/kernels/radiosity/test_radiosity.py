@@ -370,9 +370,9 @@ def test_lattice_keeps_texture_detail_between_lattice_texels():
 
 
 def test_hard_lamp_shadows_get_more_points_per_edge_texel():
-    """A sun straight down over a floor and a plate at z = 0.5 over [0.3, 0.7]^2 (seen from below
-    it is a back face: the floor gets the sun alone). Its lit fraction in a texel one shadow edge
-    crosses is what Cycles' bake converges to; auto's texel filter takes HARD_EDGE_SAMPLES^2
+    """A sun straight down over a floor and a black plate at z = 0.5 over [0.3, 0.7]^2 (it
+    reflects nothing on either side: the floor gets the sun alone). Its lit fraction in a texel
+    one shadow edge crosses is what Cycles' bake converges to; auto's texel filter takes HARD_EDGE_SAMPLES^2
     rook points there (a lamp's shadow is a step), which find it to half of one of their
     HARD_EDGE_SAMPLES^2 columns, 1 / 72, where SOFT_EDGE_SAMPLES^2 points are off by up to 1 / 8."""
     from classic_bake.kernels.bake.bake_targets import HARD_EDGE_SAMPLES, SOFT_EDGE_SAMPLES
@@ -383,7 +383,7 @@ def test_hard_lamp_shadows_get_more_points_per_edge_texel():
     assert explicit.resolved(hard_edges=True) is explicit
     size, lo, hi = 16, 0.3, 0.7  # edges 80% and 20% into a texel: on no (sub-)texel boundary
     plate = floor_quad(z=0.5, lo=lo, hi=hi)
-    scene = build([(floor_quad(), grey(0.5)), (plate, grey(0.5))], lights=(sun_down(),))
+    scene = build([(floor_quad(), grey(0.5)), (plate, grey(0.0))], lights=(sun_down(),))
     scene = replace(scene, lightmap_uv=scene.uv.copy(),
                     objects=[replace(o, has_lightmap_uv=True) for o in scene.objects])
     result = solve_radiosity(scene, RadiositySettings(patch_budget=16, **FAST))

@@ -189,9 +189,12 @@ def test_a_mapped_world_lights_a_floor_with_its_upper_half_only():
     scene = replace(scene, world_texture=_sky_map(2.0, 0.0))
     result = solve_radiosity(scene, RadiositySettings(patch_budget=16, final_gather=False,
                                                       world_rays=256, **FAST))
-    up = result.patches.normals[:, 2] > 0.5
+    # The floor's and the plate's own patches (the solve adds turned-over copies of both sheets,
+    # `radiosity/sheets.py`: the plate's back faces up into the sky around the floor).
+    up, down = result.patches.parent < 2, (result.patches.parent >= 2) & (
+        result.patches.parent < 4)
     np.testing.assert_allclose(result.radiosity[up], 0.5 * np.pi * 2.0, rtol=0.02)
-    assert result.radiosity[~up].max() < 0.01 * result.radiosity[up].min()
+    assert result.radiosity[down].max() < 0.01 * result.radiosity[up].min()
 
 
 def _sunny_map(height=64, width=128, sky=0.2, sun=500.0, row=16, col=40):
