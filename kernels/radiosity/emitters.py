@@ -23,6 +23,7 @@ from . import patches as patching
 from .form_factors.point_polygon import point_to_polygon
 from .form_factors.visibility import pair_kernel
 from .settings import FinalGatherSettings
+from .sheets import back_probes
 
 # Shadow rays to points ON an emitter stop this fraction short of it; the target itself is lifted
 # off the emitter by the ray offset along its normal (the BVH's float32 hit distances differ from
@@ -77,18 +78,13 @@ def open_backs(scene: Scene, bvh, offset: float) -> np.ndarray:
     emissive = np.flatnonzero(np.any(triangle_emission(scene) > 0.0, axis=1))
     if not len(emissive):
         return out
-    tris = scene.triangles[emissive].astype(np.float64)
-    back = -geometric_normals(scene.triangles[emissive])
-    origins = tris.mean(axis=1) + offset * back
-    hits = bvh.intersect(np.ascontiguousarray(origins), np.ascontiguousarray(back))
-    tri = np.asarray(hits.tri, np.int64)
+    tri, t = back_probes(scene, emissive, bvh, offset)
     objects = scene.object_ids[emissive]
     area = np.bincount(objects, weights=triangle_areas(scene.triangles[emissive]),
                        minlength=len(scene.objects))
     size = np.sqrt(area[objects])
     missed = tri < 0
-    far = ~missed & (scene.object_ids[np.maximum(tri, 0)] != objects) & (
-        np.asarray(hits.t, np.float64) > OPEN_BACK_GAP * size)
+    far = ~missed & (scene.object_ids[np.maximum(tri, 0)] != objects) & (t > OPEN_BACK_GAP * size)
     out[emissive] = missed | far
     return out
 

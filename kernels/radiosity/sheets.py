@@ -66,15 +66,23 @@ def sheet_backs(scene: Scene, bvh, offset: float) -> np.ndarray:
     rows = rows[rho.max(axis=1) > 0.0]
     if not rows.size:
         return out
+    tri, t = back_probes(scene, rows, bvh, offset)
+    met = tri >= 0
+    far = t > MIN_GAP_OFFSETS * offset
+    out[rows[met]] = (scene.object_ids[tri[met]] != scene.object_ids[rows[met]]) & far[met]
+    return out
+
+
+def back_probes(scene: Scene, rows: np.ndarray, bvh, offset: float
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """What one probe ray from the centroid of each triangle `rows` (R,) along its back normal,
+    leaving `offset` m off the surface, meets: the triangle (R,) int64 (-1: nothing) and its
+    distance (R,) float64, m."""
     tris = scene.triangles[rows].astype(np.float64)
     back = -geometric_normals(scene.triangles[rows])
     origins = tris.mean(axis=1) + offset * back
     hits = bvh.intersect(np.ascontiguousarray(origins), np.ascontiguousarray(back))
-    tri = np.asarray(hits.tri, np.int64)
-    met = tri >= 0
-    far = np.asarray(hits.t, np.float64) > MIN_GAP_OFFSETS * offset
-    out[rows[met]] = (scene.object_ids[tri[met]] != scene.object_ids[rows[met]]) & far[met]
-    return out
+    return np.asarray(hits.tri, np.int64), np.asarray(hits.t, np.float64)
 
 
 def with_sheet_backs(scene: Scene, backs: np.ndarray, offset: float) -> Scene:
