@@ -4,8 +4,8 @@ reflect nothing: the ceiling over a 0.84 m emissive panel hanging 41 cm under it
 too dark in a generated room's camera view (room brightness 0.964 of Cycles'; the same panel made
 5 mm thick, whose top is then a face of its own, 0.996). `with_sheet_backs` gives the solve a
 turned-over copy of each such triangle, lifted a little off it, so the back takes part as any
-surface does. Triangles of closed meshes (their back probe meets their own object) and faces
-whose back looks out of the scene (a room's walls, a ground plane) are left as they are.
+surface does. Only flat sheets qualify (`flat_sheets`); faces whose back looks out of the scene
+(a room's walls, a ground plane) are left as they are.
 """
 
 from __future__ import annotations
@@ -85,17 +85,22 @@ def back_probes(scene: Scene, rows: np.ndarray, bvh, offset: float
     return np.asarray(hits.tri, np.int64), np.asarray(hits.t, np.float64)
 
 
-def with_sheet_backs(scene: Scene, backs: np.ndarray, offset: float) -> Scene:
+def with_sheet_backs(scene: Scene, backs: np.ndarray, offset: float
+                     ) -> tuple[Scene, np.ndarray | None]:
     """`scene` with a turned-over copy of each triangle `backs` (T,) bool appended (corners in
     reverse order, normals negated, LIFT_OFFSETS x `offset` m behind the original), of its object
-    and material. An emissive sheet's copy emits as Cycles' emission does on the back side; the
-    sheet's own back then meets its copy and stays dark (`emitters.open_backs`). Triangles
+    and material, and each triangle's copy (T,) int64 (-1: none; None and `scene` as it is when
+    there are none). An emissive sheet's copy emits as Cycles' emission does on the back side;
+    the sheet's own back then meets its copy and stays dark (`emitters.open_backs`). Triangles
     0..T-1 are unchanged."""
     rows = np.flatnonzero(backs)
     if not rows.size:
-        return scene
+        return scene, None
+    back_of = np.full(scene.triangle_count, -1, np.int64)
+    back_of[rows] = scene.triangle_count + np.arange(len(rows))
     lift = -geometric_normals(scene.triangles[rows]) * (LIFT_OFFSETS * offset)
     triangles = scene.triangles[rows][:, ::-1] + lift[:, None, :].astype(np.float32)
+
     def corners(a):  # per-corner arrays: the copies' corners in reverse order
         return None if a is None else np.concatenate([a, a[rows][:, ::-1]])
 
@@ -114,4 +119,4 @@ def with_sheet_backs(scene: Scene, backs: np.ndarray, offset: float) -> Scene:
         corner_verts=corners(scene.corner_verts),
         generated=corners(scene.generated), triangle_radiance=rowwise(scene.triangle_radiance),
         corner_tangents=tangents, corner_signs=corners(scene.corner_signs),
-        normal_map_uv=corners(scene.normal_map_uv))
+        normal_map_uv=corners(scene.normal_map_uv)), back_of

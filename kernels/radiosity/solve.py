@@ -96,12 +96,9 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
     if bvh is None:
         bvh = BVH.build(scene.triangles)
     # Sheets whose back faces the scene take part with both sides (`sheets.py`).
-    backs = sheet_backs(scene, bvh, RAY_OFFSET_REL * scale)
-    back_of = None
-    if backs.any():
-        back_of = np.full(scene.triangle_count, -1, np.int64)
-        back_of[backs] = scene.triangle_count + np.arange(int(backs.sum()))
-        scene = with_sheet_backs(scene, backs, RAY_OFFSET_REL * scale)
+    scene, back_of = with_sheet_backs(scene, sheet_backs(scene, bvh, RAY_OFFSET_REL * scale),
+                                      RAY_OFFSET_REL * scale)
+    if back_of is not None:
         bvh = BVH.build(scene.triangles)
     # Leaf cards and fences: visibility rays pass alpha surfaces with probability 1 - alpha.
     bvh = alpha_aware(bvh, scene, RAY_OFFSET_REL * scale, settings.seed)
