@@ -192,8 +192,9 @@ def view_part(args) -> tuple[dict, dict]:
 
 
 # --- the six faces against six Cycles cameras ------------------------------------------------------
-# Kernel rungs of the capture: rays per face texel (n x n, box-filtered like Cycles' 1-px box).
-FACE_SUPERSAMPLES = (1, 2, 3)
+# Kernel rungs of the capture: (n, a): n x n rays per face texel, a x a again at edges (1: no
+# edge pass), box-filtered like Cycles' 1-px box.
+FACE_RUNGS = ((1, 1), (2, 1), (1, 2), (1, 3), (1, 4), (3, 1))
 # Cycles' ladder of samples per face pixel, and its converged reference (two seeds of half each,
 # whose difference estimates the reference's own noise).
 FACE_CYCLES_COUNTS = (1, 2, 4, 8, 16, 32, 64, 128)
@@ -258,7 +259,8 @@ def faces_part(quick: bool) -> tuple[dict, dict]:
     tracer = auto_settings(snap)
     mirror = next(k for k, o in enumerate(snap.objects) if o.source_name == MIRROR)
     size = QUICK_FACE_SIZE if quick else envmap.auto_face_size(snap, mirror, resolution)
-    default_n = envmap.face_samples(snap, envmap.EnvMapSettings())  # the automatic rays per texel
+    defaults = envmap.EnvMapSettings()
+    default_rung = (defaults.face_supersample, defaults.face_edge_samples)
     centre, _ = envmap.object_bounds(snap, mirror)
     # What the capture leaves out, Cycles leaves out too: the mirror from every ray that sees
     # (it still casts shadows), the area lamps from camera rays (the kernels' view adds a lamp a
@@ -277,17 +279,19 @@ def faces_part(quick: bool) -> tuple[dict, dict]:
     # The two halves differ by twice the noise of their mean (independent): a quarter of that.
     noise = 0.25 * faces_rel_mse(ref_a, ref_b)
     counts = QUICK_FACE_COUNTS if quick else FACE_CYCLES_COUNTS
-    supersamples = (default_n,) if quick else FACE_SUPERSAMPLES
+    rungs = (default_rung,) if quick else FACE_RUNGS
     kernel_rows, cycles_rows, faces = [], [], None
-    for step in range(max(len(counts), len(supersamples))):  # alternate the two sides
-        if step < len(supersamples):
-            n = supersamples[step]
+    for step in range(max(len(counts), len(rungs))):  # alternate the two sides
+        if step < len(rungs):
+            n, a = rungs[step]
             start = time.perf_counter()
-            env = drain(envmap.capture_steps(snap, mirror, size, tracer, supersample=n))
+            env = drain(envmap.capture_steps(snap, mirror, size, tracer, supersample=n,
+                                             edge_samples=a))
             seconds = time.perf_counter() - start
             faces = env.face_images() if faces is None else faces
-            kernel_rows.append({"setting": f"{n} x {n} rays per texel", "supersample": n,
-                                "seconds": seconds, "rays": 6 * (size + 2) ** 2 * n * n,
+            setting = f"{n} x {n} rays per texel" + (f" + edges {a} x {a}" if a > n else "")
+            kernel_rows.append({"setting": setting, "supersample": n, "edge_samples": a,
+                                "seconds": seconds, "rays": env.rays,
                                 "rel_mse": faces_rel_mse(env.face_images(), reference)})
         if step < len(counts):
             image, seconds = cycles_faces(bpy, cr, model, centre, size, counts[step])
@@ -297,7 +301,8 @@ def faces_part(quick: bool) -> tuple[dict, dict]:
     reached = [r["ratio"] for r in kernel_rows if r["ratio"] is not None]
     ratios = {"cycles_vs_envmap_faces_seconds_to_same_rel_mse": max(reached) if reached else None,
               "cycles_vs_envmap_faces_seconds_to_same_rel_mse_default_settings":
-                  next(r["ratio"] for r in kernel_rows if r["supersample"] == default_n)}
+                  next(r["ratio"] for r in kernel_rows
+                       if (r["supersample"], r["edge_samples"]) == default_rung)}
     OUT_DIR.mkdir(parents=True, exist_ok=True)
     write_preview_strip(OUT_DIR / "envmap_faces_cycles.png", faces, reference)
     print(f"\nsix faces of {size} x {size} texels; reference {2 * half} samples, noise relMSE "
@@ -311,7 +316,7 @@ def faces_part(quick: bool) -> tuple[dict, dict]:
     figures = {"face_size": size, "centre": [float(c) for c in centre],
                "reference": {"samples": 2 * half, "noise_rel_mse": noise,
                              "seconds": ref_seconds_a + ref_seconds_b},
-               "kernel": kernel_rows, "cycles": cycles_rows, "default_supersample": default_n,
+               "kernel": kernel_rows, "cycles": cycles_rows, "default_rung": list(default_rung),
                "goal": "Cycles' six cameras at least 10x the capture's seconds at equal error"}
     return ratios, figures
 

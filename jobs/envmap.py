@@ -38,7 +38,6 @@ from ..kernels.envmap.envmap import (
     EnvMapSettings,
     capture_faces_steps,
     capture_plan,
-    face_samples,
     face_tracer_settings,
     object_bounds,
     render_steps,
@@ -184,11 +183,12 @@ def outputs_steps(scene, settings: EnvMapSettings, tracer: TracerSettings, resul
         probes.append((yield from scaled(probe_steps(scene, env, mips),
                                          start + number * share, share)))
     files, maps = {}, {}
-    samples = face_samples(scene, settings)
     for probe in probes:
         files.update(probe_files(probe))
         maps[probe.name] = {"face_size": probe.env.size,
-                            "face_samples": samples,
+                            "face_samples": [settings.face_supersample,
+                                             settings.face_edge_samples],
+                            "face_rays": probe.env.rays,
                             "centre": [float(c) for c in probe.env.centre],
                             "latlong": list(probe.latlong.shape[1::-1]),
                             "mip_sizes": [int(level.shape[1]) for level in probe.mips],
@@ -262,7 +262,8 @@ def face_file(number: int, face: int) -> str:
 
 def _faces_writer(captured: CapturedFaces, k: int):
     """A writer of face `k` of `captured` (exact float32 arrays, read back without pickle)."""
-    arrays = {"radiance": captured.radiance[k], "inverse_distance": captured.inverse_distance[k]}
+    arrays = {"radiance": captured.radiance[k], "inverse_distance": captured.inverse_distance[k],
+              "rays": captured.rays[k]}
     if captured.emission is not None:
         arrays["emission"] = captured.emission[k]
     return lambda path: np.savez(path, **arrays)
@@ -285,14 +286,14 @@ def envmap_tile_job(scene, settings: EnvMapSettings, tracer: TracerSettings, til
     first, end = (len(every) * (tile.index - 1)) // tile.count, (len(every) * tile.index) // tile.count
     mine = every[first:end]
     face_tracer = face_tracer_settings(settings, tracer)
-    samples = face_samples(scene, settings)
     bvh = BVH.build(scene.triangles)
     files, names = {}, []
     for count, number in enumerate(sorted({n for n, _ in mine})):
         k, size = plan[number]
         faces = [f for n, f in mine if n == number]
         captured = yield from scaled(
-            capture_faces_steps(scene, k, size, face_tracer, samples, bvh, faces),
+            capture_faces_steps(scene, k, size, face_tracer, settings.face_supersample, bvh,
+                                faces, settings.face_edge_samples),
             count / len(plan), 1.0 / len(plan))
         for j, face in enumerate(faces):
             files[face_file(number, face)] = _faces_writer(captured, j)
@@ -342,7 +343,8 @@ def envmap_merge(folder: Path, tiles: list[dict]) -> JobSummary:
         maps.append(CapturedFaces(k, centre, tuple(range(6)),
                                   np.stack([p["radiance"] for p in parts]),
                                   np.stack([p["inverse_distance"] for p in parts]),
-                                  emission).environment_map())
+                                  emission, np.array([p["rays"] for p in parts])
+                                  ).environment_map())
         if maps[-1].size != size:
             raise ValueError(f"{folder}: the faces of map {number} are not {size} texels wide")
     result = drain(view_steps(scene, settings, tracer, maps, resolution=view["resolution"]))
@@ -358,9 +360,11 @@ def envmap_merge(folder: Path, tiles: list[dict]) -> JobSummary:
 OPTIONS = (
     Option("face_size", EnvMapSettings, "Face Size", "Texels per cube-map face side; 0 chooses it "
            "per object from its size on screen", minimum=0, maximum=4096),
-    Option("face_samples", EnvMapSettings, "Face Samples", "N x N rays per face texel, averaged "
-           "(0: 2 where area lamps or glowing surfaces light the scene, else 1)",
-           field="face_supersample", minimum=0, maximum=8),
+    Option("face_samples", EnvMapSettings, "Face Samples", "N x N rays per face texel, averaged",
+           field="face_supersample", minimum=1, maximum=8),
+    Option("face_edge_samples", EnvMapSettings, "Face Edge Samples", "N x N rays again in face "
+           "texels at edges (silhouettes, shadow edges), replacing them (1: off)", minimum=1,
+           maximum=8),
     Option("parallax_steps", EnvMapSettings, "Parallax Steps", "Refinements of the search along "
            "each reflected ray for the surface it meets (0: the lecture's look-up along the "
            "reflected direction alone)", minimum=0, maximum=16),
@@ -393,7 +397,10 @@ OPTIONS = (
 def settings(values: dict, scene=None) -> EnvMapSettings:
     objects = tuple(values.get("objects") or ())
     return EnvMapSettings(face_size=int(values["face_size"]),
-                          face_supersample=int(values["face_samples"]), objects=objects,
+                          face_supersample=int(values["face_samples"]),
+                          face_edge_samples=int(values.get("face_edge_samples",
+                                                           EnvMapSettings.face_edge_samples)),
+                          objects=objects,
                           face_depth=int(values["face_depth"]),
                           parallax_steps=int(values["parallax_steps"]),
                           rough_mips=int(values.get("rough_mips", EnvMapSettings.rough_mips)),

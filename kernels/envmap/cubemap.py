@@ -156,18 +156,26 @@ def sample_cubemap(
 
 def bordered_directions(size: int, border: int = BORDER, offset: tuple[float, float] = (0.5, 0.5)
                         ) -> np.ndarray:
-    """(6, S + 2B, S + 2B, 3) float64 unit directions through every texel, borders included.
+    """(6, S + 2B, S + 2B, 3) float64 unit directions through every texel, borders included, at
+    `offset` (x, y) within each texel ((0.5, 0.5): its centre; `bordered_texel_directions`)."""
+    side = size + 2 * border
+    face, i, j = np.meshgrid(np.arange(6), np.arange(side), np.arange(side), indexing="ij")
+    return bordered_texel_directions(size, border, face, i, j, offset).reshape(6, side, side, 3)
 
-    Texel (i, j), i and j counted from -B, at `offset` (x, y) within it ((0.5, 0.5): its centre)
-    has sc = 2 (j + x) / S - 1 and tc = 1 - 2 (i + y) / S: inside the face |sc|, |tc| < 1; the
-    border continues the same 90-degree camera's image plane.
+
+def bordered_texel_directions(size: int, border: int, face: np.ndarray, i: np.ndarray,
+                              j: np.ndarray, offset: tuple[float, float] = (0.5, 0.5)
+                              ) -> np.ndarray:
+    """(N, 3) float64 unit directions through texels (face, i, j) of bordered faces, (N,) int
+    each (row i and column j of the bordered image, 0..S + 2B - 1), at `offset` (x, y) in them.
+
+    Texel (i, j) at (x, y) has sc = 2 (j - B + x) / S - 1 and tc = 1 - 2 (i - B + y) / S: inside
+    the face |sc|, |tc| < 1; the border continues the same 90-degree camera's image plane.
     """
-    k = np.arange(-border, size + border)
-    sc = 2.0 * (k + offset[0]) / size - 1.0
-    tc = 1.0 - 2.0 * (k + offset[1]) / size  # rows run downwards: t falls as i grows
-    dirs = (FACE_FORWARD[:, None, None, :]
-            + sc[None, None, :, None] * FACE_U[:, None, None, :]
-            + tc[None, :, None, None] * FACE_V[:, None, None, :])
+    face = np.ravel(face)
+    sc = 2.0 * (np.ravel(j) - border + offset[0]) / size - 1.0
+    tc = 1.0 - 2.0 * (np.ravel(i) - border + offset[1]) / size  # rows run downwards: t falls
+    dirs = FACE_FORWARD[face] + sc[:, None] * FACE_U[face] + tc[:, None] * FACE_V[face]
     return dirs / np.linalg.norm(dirs, axis=-1, keepdims=True)
 
 

@@ -34,12 +34,19 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..bake.camera_view import edge_pixels, stratified_offsets
 from ..geometry.bvh import BVH
 from ..geometry.scene import Scene, triangle_areas, triangle_emission
 from ..progress import Steps, drain, scaled
 from ..trace.settings import TraceResult, TracerSettings
 from ..trace.tracer import Tracer, trace_steps
-from .cubemap import BORDER, bordered_directions, sample_bordered, texel_directions  # noqa: F401 (re-exported)
+from .cubemap import (  # noqa: F401 (sample_bordered re-exported)
+    BORDER,
+    bordered_directions,
+    bordered_texel_directions,
+    sample_bordered,
+    texel_directions,
+)
 from .prefilter import PrefilterSettings, prefilter_steps
 from .probe_lookup import GlossyMips
 from .sh_irradiance import irradiance, sh_coefficients
@@ -64,6 +71,14 @@ SEARCH_OCTAVES = 12
 # chosen for that magnification (on the sample room the mirror's error falls steadily from 32 to
 # 128 texels per face).
 PARALLAX_MAGNIFICATION = 2.0
+# Face texels at edges are traced again along 2 x 2 directions (1 x 1 elsewhere): the texel
+# centres alone alias silhouettes and shadow edges. Six 56-texel faces of env_room against six
+# converged Cycles cameras (relMSE, seconds, idle), area lamp / the lamp made a point:
+# 1 x 1 1.4e-2 0.44 s / 8.5e-3 0.18 s; 2 x 2 everywhere 1.8e-3 0.73 s / 8.2e-4 0.46 s;
+# 1 x 1 + edges 2 x 2 1.8e-3 0.68 s / 8.2e-4 0.30 s; + edges 3 x 3 4.1e-4 1.79 s / 2.0e-4
+# 0.49 s. Finer faces than that serve no view: a mirror's error in the view is the map's
+# parallax and resolution (relMSE ~0.05 on env_room).
+FACE_EDGE_SAMPLES = 2
 # The automatic face size renders at most this many face texels per camera pixel, all six faces
 # together: a map of several times the view's own rays is more than one view can show.
 VIEW_TEXEL_SHARE = 4.0
@@ -75,8 +90,10 @@ class EnvMapSettings:
     |-----------------|--------------|---------|--------------------------------------------------|
     | face_size       | 0, 8..4096   | 0       | texels per face side; 0: from the object's size  |
     |                 |              |         | on screen (`auto_face_size`)                     |
-    | face_supersample| 0..8         | 0       | n x n rays per face texel, averaged (box filter);|
-    |                 |              |         | 0: from the scene (`face_samples`)               |
+    | face_supersample| 1..8         | 1       | n x n rays per face texel, averaged (box filter) |
+    | face_edge_samples| 1..8        | 2       | a x a rays again in face texels at edges (where  |
+    |                 |              |         | a texel's neighbours see another object or a     |
+    |                 |              |         | contrast), replacing them; 1: off                |
     | objects         | names        | ()      | objects to environment-map; empty: every mirror  |
     |                 |              |         | (smooth metal or specular) object               |
     | face_depth      | -1, 0..64    | -1      | ray-tree depth of the face renders (-1: the      |
@@ -97,7 +114,8 @@ class EnvMapSettings:
     """
 
     face_size: int = 0
-    face_supersample: int = 0
+    face_supersample: int = 1
+    face_edge_samples: int = FACE_EDGE_SAMPLES
     objects: tuple[str, ...] = ()
     face_depth: int = -1
     parallax_steps: int = PARALLAX_STEPS
@@ -107,9 +125,10 @@ class EnvMapSettings:
     def __post_init__(self):
         if self.face_size != 0 and not 8 <= self.face_size <= 4096:
             raise ValueError(f"face_size must be 0 (automatic) or in [8, 4096], got {self.face_size}")
-        if not 0 <= self.face_supersample <= 8:
-            raise ValueError(f"face_supersample must be 0 (automatic) or in [1, 8], got "
-                             f"{self.face_supersample}")
+        if not 1 <= self.face_supersample <= 8:
+            raise ValueError(f"face_supersample must be in [1, 8], got {self.face_supersample}")
+        if not 1 <= self.face_edge_samples <= 8:
+            raise ValueError(f"face_edge_samples must be in [1, 8], got {self.face_edge_samples}")
         if not -1 <= self.face_depth <= 64:
             raise ValueError(f"face_depth must be -1 (automatic) or in [0, 64], got {self.face_depth}")
         if not 0 <= self.parallax_steps <= 16:
@@ -133,6 +152,7 @@ class EnvironmentMap:
     # meshes send, which the tracer lights with directly; texel centres), None when nothing in
     # the scene glows.
     emission: np.ndarray | None = None
+    rays: int = 0  # rays traced from the centre to render the faces
 
     def reflected_light(self) -> np.ndarray:
         """(6, S, S, 3) float32: the faces without borders less what emitters send (the light the
@@ -341,34 +361,21 @@ def hidden_bvh(scene: Scene, hidden: Sequence[int]) -> BVH:
     return BVH.build(triangles)
 
 
-# face_supersample 0 (automatic): 2 x 2 rays per texel where area lamps or glowing triangles
-# light the scene, else 1. The sub-samples share out each area emitter's shadow samples
-# (`Tracer._area_direct`), and those shadow rays are most of a face's cost, so there 2 x 2 costs
-# well under four times texel centres and removes the faces' aliasing: env_room, 56-texel
-# faces, against six converged Cycles cameras (bench/envmap.py, idle): 1 x 1 relMSE 1.4e-2 in
-# 0.80 s, 2 x 2 1.8e-3 in 1.39 s. Lit by point, spot or sun lamps alone, 2 x 2 costs 4x the rays.
-AUTO_AREA_FACE_SUPERSAMPLE = 2
-
-
-def face_samples(scene: Scene, settings: EnvMapSettings) -> int:
-    """The n of the n x n rays per face texel `settings` asks for on `scene`."""
-    if settings.face_supersample > 0:
-        return settings.face_supersample
-    area = any(light.kind == "AREA" for light in scene.lights)
-    return AUTO_AREA_FACE_SUPERSAMPLE if area or np.any(triangle_emission(scene) > 0.0) else 1
-
-
 def capture_steps(scene: Scene, index: int, size: int, tracer_settings: TracerSettings,
-                  supersample: int = 1, bvh: BVH | None = None
+                  supersample: int = 1, bvh: BVH | None = None, edge_samples: int = 1
                   ) -> Steps[EnvironmentMap]:
     """Render the six bordered faces from the centre of object `index`, the object hidden.
 
     Yields progress in [0, 1], returns the `EnvironmentMap`. Each texel is the Whitted tracer's
-    radiance along n x n directions spread over it (n = supersample), averaged. The object is
-    hidden from the rays that see, not from shadow rays: its shadow on the floor under it is part
-    of what it reflects. `bvh`: the whole scene's (built when omitted).
+    radiance along n x n directions spread over it (n = supersample), averaged; then, as the
+    camera view does (`trace_steps`), each texel whose 4-neighbours on its face see another
+    object or a visible contrast is traced again along a x a directions (a = edge_samples, when
+    above n), their mean replacing it. The object is hidden from the rays that see, not from
+    shadow rays: its shadow on the floor under it is part of what it reflects. `bvh`: the whole
+    scene's (built when omitted).
     """
-    faces = yield from capture_faces_steps(scene, index, size, tracer_settings, supersample, bvh)
+    faces = yield from capture_faces_steps(scene, index, size, tracer_settings, supersample, bvh,
+                                           edge_samples=edge_samples)
     return faces.environment_map()
 
 
@@ -383,6 +390,7 @@ class CapturedFaces:
     radiance: np.ndarray  # (F, S + 2B, S + 2B, 3) float32
     inverse_distance: np.ndarray  # (F, S + 2B, S + 2B, 1) float32
     emission: np.ndarray | None  # (F, S, S, 3) float32, None when nothing glows
+    rays: np.ndarray  # (F,) int64: rays traced from the centre for each face
 
     def environment_map(self) -> EnvironmentMap:
         """The map, when these are the six faces in order."""
@@ -390,52 +398,85 @@ class CapturedFaces:
             raise ValueError(f"a cube map needs the six faces in order, not {self.faces}")
         return EnvironmentMap(object_index=self.object_index, centre=self.centre,
                               faces=self.radiance, inverse_distance=self.inverse_distance,
-                              emission=self.emission)
+                              emission=self.emission, rays=int(self.rays.sum()))
 
 
 def capture_faces_steps(scene: Scene, index: int, size: int, tracer_settings: TracerSettings,
                         supersample: int = 1, bvh: BVH | None = None,
-                        faces: Sequence[int] = tuple(range(6))) -> Steps[CapturedFaces]:
+                        faces: Sequence[int] = tuple(range(6)), edge_samples: int = 1
+                        ) -> Steps[CapturedFaces]:
     """`capture_steps` for the cube faces `faces` alone (a tile's share, jobs/tiles.py): each
-    texel traced as the whole cube traces it (every ray on its own), so faces captured apart and
-    stacked equal the six captured together, bit for bit."""
+    texel traced as the whole cube traces it (every ray on its own, edges found within each
+    face), so faces captured apart and stacked equal the six captured together, bit for bit."""
     faces = tuple(int(f) for f in faces)
     centre, _ = object_bounds(scene, index)
     bvh = bvh or BVH.build(scene.triangles)
     hidden = hidden_bvh(scene, [index])
     tracer = Tracer(scene, hidden, tracer_settings, shadow_bvh=bvh)
     side = size + 2 * BORDER
-    n = supersample
-    radiance = np.zeros((len(faces), side, side, 3), np.float64)
-    inverse = np.zeros((len(faces), side, side, 1), np.float64)
-    total = max(len(faces) * side * side * n * n, 1)
+    n, a = supersample, edge_samples
+    texels = len(faces) * side * side
+    # Progress: the edge pass is counted as a quarter of the texels again until its size is known.
+    total = max(texels * (n * n + (a * a // 4 if a > n else 0)), 1)
     done = 0
-    flat, flat_q = radiance.reshape(-1, 3), inverse.reshape(-1)
-    chosen = list(faces)
-    for oy in range(n):
-        for ox in range(n):
-            # n x n stratified positions in each texel of the face plane.
-            dirs = bordered_directions(size, BORDER, ((ox + 0.5) / n, (oy + 0.5) / n))
-            dirs = dirs[chosen].reshape(-1, 3)
-            for first in range(0, len(dirs), FACE_WAVEFRONT):
-                chunk = dirs[first:first + FACE_WAVEFRONT]
-                origins = np.broadcast_to(centre, chunk.shape).copy()
-                t = np.empty(len(chunk))
-                # The surfaces only: the mirror meets area lamps exactly (`Tracer._environment`).
-                # The n x n sub-samples of a texel share out each area lamp's samples, as the
-                # camera view's sub-samples of a pixel do (`Tracer._area_direct`).
-                strata = (np.full(len(chunk), oy * n + ox), n * n) if n > 1 else None
-                flat[first:first + len(chunk)] += tracer.radiance(origins, chunk, primary_t=t,
-                                                                  strata=strata)
-                flat_q[first:first + len(chunk)] += np.where(np.isfinite(t), 1.0 / np.maximum(
-                    t, 1e-12), 0.0)
-                done += len(chunk)
-                yield done / total
+
+    def trace(dirs: np.ndarray, stratum: int | np.ndarray, strata: int, radiance: np.ndarray,
+              inverse: np.ndarray, first_ids: np.ndarray | None = None):
+        """Fills radiance (N, 3), inverse (N,) and first_ids (N,) along dirs (N, 3) from the
+        centre, in wavefronts; yields progress."""
+        nonlocal done
+        for first in range(0, len(dirs), FACE_WAVEFRONT):
+            last = first + FACE_WAVEFRONT
+            chunk = dirs[first:last]
+            origins = np.broadcast_to(centre, chunk.shape).copy()
+            t = np.empty(len(chunk))
+            # The surfaces only: the mirror meets area lamps exactly (`Tracer._environment`).
+            # The sub-samples of a texel share out each area lamp's samples, as the camera
+            # view's sub-samples of a pixel do (`Tracer._area_direct`).
+            share = None if strata == 1 else (
+                np.broadcast_to(stratum, len(dirs))[first:last], strata)
+            ids = None if first_ids is None else first_ids[first:last]
+            radiance[first:last] = tracer.radiance(origins, chunk, ids, primary_t=t, strata=share)
+            inverse[first:last] = np.where(np.isfinite(t), 1.0 / np.maximum(t, 1e-12), 0.0)
+            done += len(chunk)
+            yield min(done / total, 1.0)
+
+    # --- pass 1: n x n stratified positions in every texel of the face planes --------------------
+    radiance = np.zeros((texels, 3))
+    inverse = np.zeros(texels)
+    ids = np.empty(texels, np.int64)
+    one, one_q = np.empty((texels, 3)), np.empty(texels)
+    for k, (ox, oy) in enumerate(stratified_offsets(n)):
+        dirs = bordered_directions(size, BORDER, (ox, oy))[list(faces)].reshape(-1, 3)
+        yield from trace(dirs, k, n * n, one, one_q, ids if k == 0 else None)
+        radiance += one
+        inverse += one_q
     radiance /= n * n
     inverse /= n * n
-    return CapturedFaces(index, centre, faces, radiance.astype(np.float32),
-                         inverse.astype(np.float32),
-                         seen_emission(scene, hidden, centre, size, faces))
+    rays = np.full(len(faces), side * side * n * n, np.int64)
+    # --- pass 2: a x a where a texel's 4-neighbours see another object or a contrast -------------
+    if a > n:
+        mark = np.concatenate([edge_pixels(image, face_ids).ravel() for image, face_ids in zip(
+            radiance.reshape(len(faces), side, side, 3), ids.reshape(len(faces), side, side), strict=True)])
+        sel = np.nonzero(mark)[0]
+        grid = stratified_offsets(a)
+        total = done + len(sel) * len(grid)
+        if len(sel):
+            local, rest = np.divmod(sel, side * side)  # the face's place in `faces`
+            i, j = np.divmod(rest, side)
+            face = np.asarray(faces)[local]
+            dirs = np.concatenate([bordered_texel_directions(size, BORDER, face, i, j, offset)
+                                   for offset in grid])
+            rays += len(grid) * np.bincount(local, minlength=len(faces))
+            sub, sub_q = np.empty((len(dirs), 3)), np.empty(len(dirs))
+            yield from trace(dirs, np.repeat(np.arange(len(grid)), len(sel)), len(grid), sub,
+                             sub_q)
+            radiance[sel] = sub.reshape(len(grid), len(sel), 3).mean(axis=0)
+            inverse[sel] = sub_q.reshape(len(grid), len(sel)).mean(axis=0)
+    return CapturedFaces(index, centre, faces,
+                         radiance.reshape(len(faces), side, side, 3).astype(np.float32),
+                         inverse.reshape(len(faces), side, side, 1).astype(np.float32),
+                         seen_emission(scene, hidden, centre, size, faces), rays)
 
 
 def seen_emission(scene: Scene, bvh: BVH, centre: np.ndarray, size: int,
@@ -508,11 +549,11 @@ def render_steps(scene: Scene, settings: EnvMapSettings, tracer_settings: Tracer
     bvh_seconds = time.perf_counter() - start
     maps, capture = [], 0.0
     share = 0.5 / len(plan)  # half the progress bar for the faces, half for the view
-    samples = face_samples(scene, settings)
     for number, (k, size) in enumerate(plan):
         start = time.perf_counter()
         maps.append((yield from scaled(
-            capture_steps(scene, k, size, face_tracer, samples, bvh),
+            capture_steps(scene, k, size, face_tracer, settings.face_supersample, bvh,
+                          settings.face_edge_samples),
             share * number, share)))
         capture += time.perf_counter() - start
     result = yield from scaled(view_steps(scene, settings, tracer_settings, maps, bvh,
@@ -527,13 +568,13 @@ def view_steps(scene: Scene, settings: EnvMapSettings, tracer_settings: TracerSe
                ) -> Steps[EnvMapResult]:
     """The second half of `render_steps`: the camera's view with the captured `maps` (also what
     `merge` runs on the maps the tiles captured). Yields progress, returns the `EnvMapResult`
-    (seconds: probe, render; face_rays: the maps' texels times the rays per texel)."""
+    (seconds: probe, render; face_rays: the rays the maps' faces were traced with)."""
     import time
 
     if scene.camera is None:
         raise ValueError("the scene has no camera to render from")
     bvh = bvh or BVH.build(scene.triangles)
-    face_rays = face_samples(scene, settings) ** 2 * sum(env.faces[..., 0].size for env in maps)
+    face_rays = sum(env.rays for env in maps)
     seconds = {"probe": 0.0, "render": 0.0}
     # The probes' rough and diffuse look-ups, from the surfaces the faces hold (the lamps light
     # directly: their highlights on rough surfaces and their light on diffuse ones are the
