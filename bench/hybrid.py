@@ -30,7 +30,7 @@ SCENE = OUT_DIR / "hybrid_cornell_spheres.blend"
 # (patch budget, edge samples, n x n samples per pixel), the final gather on: from a coarse solve
 # at pixel centres to the defaults and beyond. (Without the gather the solve refines the spheres'
 # fine triangles into thousands of patches: minutes, not seconds, on this scene.)
-LADDER = [(100, 0, 1), (400, 0, 1), (400, 4, 1), (1200, 4, 1), (1200, 4, 2)]
+LADDER = [(100, 0, 1), (400, 0, 1), (200, 4, 1), (400, 4, 1), (400, 8, 1), (1200, 4, 1)]
 
 
 def build_scene(path: Path) -> None:

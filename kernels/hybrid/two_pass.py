@@ -87,13 +87,14 @@ def diffuse_lookup(scene: Scene, result: RadiosityResult):
     open_camera = result.gather is not None and not camera_enclosed(result.gather, scene.camera)
 
     def lookup(tri: np.ndarray, bary: np.ndarray, dirs: np.ndarray, front: np.ndarray,
-               camera_side: np.ndarray) -> np.ndarray:
+               camera_side: np.ndarray, strata=None) -> np.ndarray:
         tri = np.asarray(tri, np.int64)
         out = np.zeros((len(tri), 3))
         if front.any():
             t, b = tri[front], bary[front]
             known = result.gather.opened(camera_side[front]) if open_camera else None
-            reflected = result.radiance_at(t, b, reflected_only=True, known=known)
+            shared = None if strata is None else (strata[0][front], strata[1])
+            reflected = result.radiance_at(t, b, reflected_only=True, known=known, strata=shared)
             if layered:
                 mids = scene.material_ids[t]
                 normals = interpolated_normals(scene, t, b)

@@ -12,6 +12,7 @@ whole, whose receivers cast no shadow ray to it.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -134,15 +135,18 @@ def stratified_triangle_points(poly: np.ndarray, m: int, n: int, rng: np.random.
 def _kernel_sums(jobs: list, occluded, offset: float, rng: np.random.Generator
                  ) -> list[tuple[np.ndarray, np.ndarray]]:
     """For each job (points (m, 3), normals (m, 3), lift (m, 3), triangle `poly` (3, 3), its
-    normal nj, n), rays leaving `offset` m along `lift` (the geometric normals; `normals` may be
-    shading normals):
+    normal nj, n, and None or a (m, n^2) bool mask of the points each receiver takes), rays
+    leaving `offset` m along `lift` (the geometric normals; `normals` may be shading normals):
     (seen, total) (m,), the sums of the point-to-point kernel k_s over n x n stratified points s
-    of the triangle, over the visible ones and over all, for each receiver. Every job's shadow
-    rays go to the BVH in one call (a call costs ~2 ms besides its rays)."""
+    of the triangle (those the mask keeps), over the visible ones and over all, for each
+    receiver. Every job's shadow rays go to the BVH in one call (a call costs ~2 ms besides its
+    rays)."""
     starts, ends, lengths, found = [], [], [], []
-    for points, normals, lift, poly, nj, n in jobs:
+    for points, normals, lift, poly, nj, n, mask in jobs:
         y = stratified_triangle_points(poly, len(points), n, rng)
         kernel = pair_kernel(y - points[:, None, :], normals[:, None, :], nj)  # (m, S)
+        if mask is not None:
+            kernel *= mask
         rays = kernel > 0.0
         origins = points + offset * lift
         seg = ((y + offset * nj) - origins[:, None, :])[rays]  # (R, 3)
@@ -178,8 +182,8 @@ def emitter_irradiance(emitters: Emitters, points: np.ndarray, normals: np.ndarr
                        offset: float, rng: np.random.Generator,
                        share_out: np.ndarray | None = None,
                        clear: np.ndarray | None = None, known: np.ndarray | None = None,
-                       states_out: np.ndarray | None = None, lift: np.ndarray | None = None
-                       ) -> np.ndarray:
+                       states_out: np.ndarray | None = None, lift: np.ndarray | None = None,
+                       strata: tuple[np.ndarray, int] | None = None) -> np.ndarray:
     """(M, 3) irradiance W/m^2 at points (M, 3) m with unit normals (M, 3) from the emitters,
     shadowed: pi L_j F(x -> j) V_j(x) summed over j (module docstring). share_out (M,), when
     given, receives the visible share of the unshadowed irradiance (luminance; 1 where none
@@ -198,6 +202,13 @@ def emitter_irradiance(emitters: Emitters, points: np.ndarray, normals: np.ndarr
     states_out (M, K) int8, when given, receives what was found (CLEAR, HIDDEN, AWAY, UNKNOWN for
     a penumbra). lift (M, 3), when given: the unit directions the rays leave the points along
     (the faces' geometric normals where `normals` are shading normals); `normals` otherwise.
+
+    strata (stratum (M,) int, m = a^2): the receivers are a x a sub-samples of pixels (a camera
+    view's edge pass), which share out each triangle's points: its n x n grid grows to the next
+    multiple of a, n' = a ceil(n / a), and a receiver in stratum k takes the points s = k (mod m),
+    n'^2 / m of them and no pilot, so a pixel's m sub-samples together cast about one receiver's
+    rays (as `Tracer._area_direct` shares an area lamp's). A receiver's own estimate is coarser;
+    the pixel's mean holds all n'^2 >= n^2 points.
     """
     lift = normals if lift is None else lift
     out = np.zeros((len(points), 3))
@@ -223,28 +234,42 @@ def emitter_irradiance(emitters: Emitters, points: np.ndarray, normals: np.ndarr
         if live.size:
             todo.append((j, live))
     # The pilot of every triangle in one BVH call, then the penumbrae's full sets in another.
-    pilots = [(points[live], normals[live], lift[live], emitters.triangles[j], emitters.normals[j],
-               _pilot_side(int(emitters.per_side[j]))) for j, live in todo]
+    side = 0 if strata is None else math.isqrt(int(strata[1]))  # a of the a x a sub-samples
+    if side < 2 or side * side != strata[1]:
+        side = 0
+    pilots = []
+    for j, live in todo:
+        n = int(emitters.per_side[j])
+        if side:  # shared out: n' x n' points, n' a multiple of a; no pilot
+            n = side * -(-n // side)
+            mask = np.arange(n * n)[None, :] % strata[1] == strata[0][live, None] % strata[1]
+            pilots.append((points[live], normals[live], lift[live], emitters.triangles[j],
+                           emitters.normals[j], n, mask))
+        else:
+            pilots.append((points[live], normals[live], lift[live], emitters.triangles[j],
+                           emitters.normals[j], _pilot_side(n), None))
     sums = _kernel_sums(pilots, occluded, offset, rng)
     more, mixed_of = [], []
-    for (j, live), (seen, total) in zip(todo, sums, strict=True):
+    for (j, live), (seen, total), pilot in zip(todo, sums, pilots, strict=True):
         n = int(emitters.per_side[j])
-        mixed = np.flatnonzero((seen > 0.0) & (seen < total)) if _pilot_side(n) < n else \
-            np.zeros(0, np.int64)
+        mixed = np.flatnonzero((seen > 0.0) & (seen < total)) if pilot[6] is None and \
+            pilot[5] < n else np.zeros(0, np.int64)
         mixed_of.append(mixed)
         if mixed.size:
             more.append((points[live[mixed]], normals[live[mixed]], lift[live[mixed]],
-                         emitters.triangles[j], emitters.normals[j], n))
+                         emitters.triangles[j], emitters.normals[j], n, None))
     extra = iter(_kernel_sums(more, occluded, offset, rng))
-    for (j, live), (seen, total), mixed in zip(todo, sums, mixed_of, strict=True):
+    for (j, live), (seen, total), mixed, pilot in zip(todo, sums, mixed_of, pilots, strict=True):
         if mixed.size:
             more_seen, more_total = next(extra)
             seen[mixed] += more_seen
             total[mixed] += more_total
         share = np.divide(seen, total, out=np.zeros_like(total), where=total > 0.0)
         out[live] += (np.pi * factors[j][live] * share)[:, None] * emitters.radiance[j]
-        states[live, j] = np.where(total <= 0.0, UNKNOWN, np.where(
-            seen >= total, CLEAR, np.where(seen <= 0.0, HIDDEN, UNKNOWN)))
+        # A shared-out subset of the points tells no neighbour the triangle's whole visibility.
+        states[live, j] = UNKNOWN if pilot[6] is not None else np.where(
+            total <= 0.0, UNKNOWN, np.where(seen >= total, CLEAR,
+                                            np.where(seen <= 0.0, HIDDEN, UNKNOWN)))
     if states_out is not None:
         states_out[...] = states
     if share_out is not None:

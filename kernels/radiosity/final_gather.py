@@ -374,14 +374,17 @@ def prepare(scene: Scene, solution: PatchSolution, emitters: Emitters, bvh, smoo
 
 def exitance(gather: FinalGather, tri: np.ndarray, bary: np.ndarray,
              reflected_only: bool = False, known: Visibility | None = None,
-             visibility_out: Visibility | None = None) -> np.ndarray:
+             visibility_out: Visibility | None = None,
+             strata: tuple[np.ndarray, int] | None = None) -> np.ndarray:
     """(M, 3) exitance B(x) W/m^2 at receivers given as scene triangles (M,) and barycentric
     coordinates (M, 3): E + rho (H_direct + H_indirect), or without E (`reflected_only`).
 
     known: what neighbouring receivers' rays agree on (`Visibility.agreed`), taken without rays
     of its own; visibility_out (M receivers) receives what this call found, for later neighbours.
     The lamps' shadow rays are cast every time. A receiver that reflects nothing diffusely
-    (`direct_light.diffuse_at`: black, metal, glass) casts no ray and stays UNKNOWN."""
+    (`direct_light.diffuse_at`: black, metal, glass) casts no ray and stays UNKNOWN.
+    strata (stratum (M,), m): the receivers are m sub-samples of pixels, which share out the
+    emitters' points (`emitters.emitter_irradiance`)."""
     scene = gather.scene
     tri = np.asarray(tri, np.int64)
     bary = np.asarray(bary, np.float64)
@@ -393,7 +396,8 @@ def exitance(gather: FinalGather, tri: np.ndarray, bary: np.ndarray,
         rho = diffuse_at(scene, t, b)
         lit = np.flatnonzero(rho.max(axis=1) > 0.0)
         given = None if known is None else known.take(a + lit)
-        h, found = _irradiance(gather, t[lit], b[lit], given, rng)
+        shared = None if strata is None else (strata[0][a:a + GATHER_CHUNK][lit], strata[1])
+        h, found = _irradiance(gather, t[lit], b[lit], given, rng, shared)
         if visibility_out is not None:
             visibility_out.put(a + lit, found)
         value = np.zeros((len(t), 3))
@@ -503,7 +507,8 @@ def shading_normals(scene: Scene, tri: np.ndarray, bary: np.ndarray, geometric: 
 
 
 def _irradiance(gather: FinalGather, t: np.ndarray, b: np.ndarray, known: Visibility | None,
-                rng: np.random.Generator) -> tuple[np.ndarray, Visibility]:
+                rng: np.random.Generator, strata: tuple[np.ndarray, int] | None = None
+                ) -> tuple[np.ndarray, Visibility]:
     """(M, 3) irradiance H_direct + H_indirect W/m^2 at receivers (triangles t, barycentrics b)
     and what its rays found (`exitance`)."""
     scene = gather.scene
@@ -532,15 +537,17 @@ def _irradiance(gather: FinalGather, t: np.ndarray, b: np.ndarray, known: Visibi
     outside = np.flatnonzero(~inside)
     h = np.zeros((len(t), 3))
     states = np.full((outside.size, found.emitters.shape[1]), UNKNOWN, np.int8)
+    shared = None if strata is None else (strata[0][outside], strata[1])
     h[outside] = emitter_irradiance(gather.emitters, points[outside], normals[outside],
                                     occluded, gather.offset, rng,
                                     clear=gather.clear[patch[outside]],
                                     known=None if known is None else known.emitters[outside],
-                                    states_out=states, lift=geometric[outside])
+                                    states_out=states, lift=geometric[outside],
+                                    strata=shared)
     found.emitters[outside] = states
     h[outside] += lamp_irradiance(scene, points[outside], normals[outside], occluded,
                                   gather.offset, gather.area_samples_per_side,
-                                  lift=geometric[outside])
+                                  lift=geometric[outside], strata=shared)
     h[outside] += patching.interpolate(gather.corner_indirect, element[outside], local[outside])
     np.maximum(h, 0.0, out=h)
     return h, found

@@ -13,23 +13,32 @@ LIGHT_END_REL = 1e-6
 
 
 def shadowed_irradiance(light, points: np.ndarray, normals: np.ndarray, origins: np.ndarray,
-                        occluded, area_samples_per_side: int) -> tuple[np.ndarray, np.ndarray]:
+                        occluded, area_samples_per_side: int,
+                        strata: tuple[np.ndarray, int] | None = None
+                        ) -> tuple[np.ndarray, np.ndarray]:
     """(M, 3) direct irradiance W/m^2 of `light` at points with unit normals, times its visible
     fraction from `origins` (the points lifted off their surface), and that fraction (M,): 1 where
-    the light does not reach, casts no shadow, or `occluded` is None (no shadows)."""
+    the light does not reach, casts no shadow, or `occluded` is None (no shadows). strata: as
+    `light_visibility`'s."""
     e = light_units.direct_irradiance(light, points, normals)
     lit = np.flatnonzero(e.max(axis=1) > 0.0)
     vis = np.ones(len(points))
     if occluded is not None and light.cast_shadow and lit.size:
-        vis[lit] = light_visibility(light, origins[lit], occluded, area_samples_per_side)
+        vis[lit] = light_visibility(light, origins[lit], occluded, area_samples_per_side,
+                                    strata=None if strata is None else (strata[0][lit], strata[1]))
     e *= vis[:, None]
     return e, vis
 
 
 def light_visibility(light, origins: np.ndarray, occluded, area_samples_per_side: int,
-                     per_target: bool = False) -> np.ndarray:
+                     per_target: bool = False, strata: tuple[np.ndarray, int] | None = None
+                     ) -> np.ndarray:
     """(R,) visible fraction of `light` from `origins` (area lights: over an n x n emitter grid);
-    with `per_target`, (K, R) float: each grid point's own (`area_light_samples` order)."""
+    with `per_target`, (K, R) float: each grid point's own (`area_light_samples` order).
+
+    strata (stratum (R,), m): the origins are m sub-samples of pixels, which share out an area
+    light's grid as the tracer's do (`Tracer._area_direct`): where m divides n^2, an origin in
+    stratum k sees the points j = k (mod m) only, and the pixel's m sub-samples all of them."""
     if light.kind == "SUN":
         dirs = np.broadcast_to(-np.asarray(light.direction, np.float64), origins.shape)
         return 1.0 - np.asarray(occluded(origins, np.ascontiguousarray(dirs), 0.0, np.inf), float)
@@ -37,9 +46,15 @@ def light_visibility(light, origins: np.ndarray, occluded, area_samples_per_side
         targets = light_units.area_light_samples(light, area_samples_per_side)
     else:
         targets = np.asarray(light.position, np.float64)[None]
+    if (strata is not None and not per_target and light.kind == "AREA"
+            and len(targets) % strata[1] == 0):
+        m = int(strata[1])  # each origin's own K / m targets, (K / m, R) rows
+        targets = targets[strata[0] % m + m * np.arange(len(targets) // m)[:, None]]
+    else:
+        targets = np.broadcast_to(targets[:, None, :], (len(targets),) + origins.shape)
     # Every (target, origin) ray in one BVH call: a call costs ~2 ms besides its rays, and an
     # area light has n^2 targets.
-    delta = (targets[:, None, :] - origins[None, :, :]).reshape(-1, 3)  # (K R, 3), target-major
+    delta = (targets - origins[None, :, :]).reshape(-1, 3)  # (K R, 3), target-major
     dist = np.linalg.norm(delta, axis=1)
     dirs = delta / np.maximum(dist, 1e-300)[:, None]
     starts = np.ascontiguousarray(np.broadcast_to(origins, (len(targets),) + origins.shape)
@@ -93,13 +108,15 @@ def shadowing_lamps(scene: Scene) -> list:
 
 
 def lamp_irradiance(scene: Scene, points: np.ndarray, normals: np.ndarray, occluded, offset: float,
-                    area_samples_per_side: int, lift: np.ndarray | None = None) -> np.ndarray:
+                    area_samples_per_side: int, lift: np.ndarray | None = None,
+                    strata: tuple[np.ndarray, int] | None = None) -> np.ndarray:
     """(M, 3) irradiance W/m^2 of the scene's lamps (point, spot, sun, area) with shadow rays, as
     the radiosity first shot computes it for patch points; rays leave along `lift` (M, 3) when
-    given (`emitters.emitter_irradiance`)."""
+    given (`emitters.emitter_irradiance`); strata: pixels' sub-samples that share out the area
+    lamps' points (`light_visibility`)."""
     out = np.zeros((len(points), 3))
     origins = points + offset * (normals if lift is None else lift)
     for light in scene.lights:
         out += shadowed_irradiance(light, points, normals, origins, occluded,
-                                   area_samples_per_side)[0]
+                                   area_samples_per_side, strata)[0]
     return out

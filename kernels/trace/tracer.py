@@ -65,15 +65,17 @@ EDGE_WAVEFRONT = 1 << 18
 # None (envmap.py's `MapLookup`) also lights the diffuse part: (N, 3) points, (N, 3) unit normals
 # -> (N, 3) irradiance W/m^2 from the mapped surroundings, reflected as albedo / pi times it.
 EnvironmentLookup = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
+# Rays that are sub-samples of pixels: (stratum of each ray (N,) int, number of strata m).
+Strata = tuple[np.ndarray, int]
 # Diffuse light from elsewhere (the two-pass renderer's radiosity solution): (N,) triangles,
 # (N, 3) barycentrics, (N, 3) unit ray directions towards the points, (N,) bool front side,
 # (N,) bool seen from the camera's side (the ray came from the camera through no refraction and
-# off front faces only, so no solid's surface lies between them) -> (N, 3) radiance
-# W/(m^2 sr) the points reflect diffusely toward the ray, shadows included.
-DiffuseLookup = Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray],
-                         np.ndarray]
-# Rays that are sub-samples of pixels: (stratum of each ray (N,) int, number of strata m).
-Strata = tuple[np.ndarray, int]
+# off front faces only, so no solid's surface lies between them), and the hits' strata (None, or
+# (stratum (N,), m) when they are m sub-samples of pixels, which may share out light samples as
+# `Tracer._area_direct` does) -> (N, 3) radiance W/(m^2 sr) the points reflect diffusely toward
+# the ray, shadows included.
+DiffuseLookup = Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                          Strata | None], np.ndarray]
 
 
 def _scene_scale(scene: Scene) -> float:
@@ -530,7 +532,8 @@ class Tracer:
                 u, v = hits.u.astype(np.float64), hits.v.astype(np.float64)
                 bary = np.stack([1.0 - u - v, u, v], axis=1)
                 with self.clock("diffuse lookup"):
-                    reflected = self.diffuse(hits.tri, bary, dirs, h.front, camera_side)
+                    reflected = self.diffuse(hits.tri, bary, dirs, h.front, camera_side,
+                                             hit_strata)
                 lit = lit + reflected
                 # A white base's share, for edge detection (the `untextured` image).
                 lambert = reflected / np.maximum(h.albedo, ALBEDO_FLOOR)
