@@ -78,7 +78,8 @@ def diffuse_lookup(scene: Scene, result: RadiosityResult):
     """The tracer's `DiffuseLookup` reading the solution: the reflected part of B / pi at each
     point, on the side the ray meets, rescaled from the view along the normal (what the texels
     hold under the specular layer) to the ray's view angle. A point seen from the camera's side
-    lies inside no solid when the camera does not, so the gather's enclosure probes are left
+    (directly, in mirrors, or through closed glass it left again) lies inside no solid when the
+    camera does not, so the gather's enclosure probes are left
     out there (`final_gather.enclosed`: about 40% of the look-up's time behind the edge pass
     on the Cornell box with two balls)."""
     tables = view_tables(scene.materials)

@@ -69,8 +69,9 @@ EnvironmentLookup = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
 Strata = tuple[np.ndarray, int]
 # Diffuse light from elsewhere (the two-pass renderer's radiosity solution): (N,) triangles,
 # (N, 3) barycentrics, (N, 3) unit ray directions towards the points, (N,) bool front side,
-# (N,) bool seen from the camera's side (the ray came from the camera through no refraction and
-# off front faces only, so no solid's surface lies between them), and the hits' strata (None, or
+# (N,) bool seen from the camera's side (the ray left every solid it refracted into, through
+# its back faces, and met no back face from outside: no closed mesh's surface lies between the
+# point and the camera), and the hits' strata (None, or
 # (stratum (N,), m) when they are m sub-samples of pixels, which may share out light samples as
 # `Tracer._area_direct` does) -> (N, 3) radiance W/(m^2 sr) the points reflect diffusely toward
 # the ray, shadows included.
@@ -433,8 +434,10 @@ class Tracer:
         # it: a mirror's sharp image of a lamp would be a hot spot that Cycles' lobe blurs over
         # the surface.
         sharp = np.ones(len(origins), bool)
-        # Whether a ray reached its hit from the camera's side (`DiffuseLookup`).
-        camera_side = np.ones(len(origins), bool)
+        # Solids a ray is inside of: +1 through a front face's refraction, -1 through a back
+        # face's; -1 for "unknown" (a back face met from outside: an open or inverted mesh).
+        # At 0 the ray is on the camera's side (`DiffuseLookup`), closed meshes assumed.
+        entered = np.zeros(len(origins), np.int32)
         self.stats.camera_rays += len(origins)
         for depth in range(s.max_depth + 1):
             if len(origins) == 0:
@@ -472,7 +475,7 @@ class Tracer:
                 _scatter_add(flat, pixel[miss], weight[miss] * background)
             keep = ~miss
             origins, dirs, pixel, weight = origins[keep], dirs[keep], pixel[keep], weight[keep]
-            sharp, camera_side = sharp[keep], camera_side[keep]
+            sharp, entered = sharp[keep], entered[keep]
             hits = type(hits)(t=hits.t[keep], tri=hits.tri[keep], u=hits.u[keep], v=hits.v[keep])
             if len(origins) == 0:
                 break
@@ -532,7 +535,7 @@ class Tracer:
                 u, v = hits.u.astype(np.float64), hits.v.astype(np.float64)
                 bary = np.stack([1.0 - u - v, u, v], axis=1)
                 with self.clock("diffuse lookup"):
-                    reflected = self.diffuse(hits.tri, bary, dirs, h.front, camera_side,
+                    reflected = self.diffuse(hits.tri, bary, dirs, h.front, entered == 0,
                                              hit_strata)
                 lit = lit + reflected
                 # A white base's share, for edge detection (the `untextured` image).
@@ -578,7 +581,7 @@ class Tracer:
             wrong = ~tir & (np.einsum("ij,ij->i", t_dir, h.ng) >= 0.0)
             if wrong.any():
                 t_dir[wrong], tir[wrong] = refract(dirs[wrong], h.ng[wrong], eta[wrong])
-            children = []  # (origins, dirs, pixel, weight, sharp, camera_side)
+            children = []  # (origins, dirs, pixel, weight, sharp, entered)
             # glass: Fresnel split between the reflected and the refracted ray
             glass = smooth & (trans > 0) & (metallic < 1)
             f_g = fresnel_dielectric(cos_o, eta)
@@ -589,9 +592,13 @@ class Tracer:
                                   refl_w - mirror_w, refl_w)
             refr_w = np.where((glass & ~tir)[:, None], glass_w * (1.0 - f_g)[:, None] * h.albedo, 0.0)
             sees = sharp & smooth
-            reflected_side = camera_side & h.front
-            for w_new, d_new, side, seen in ((refl_w, r_dir, 1.0, reflected_side),
-                                             (refr_w, t_dir, -1.0, np.zeros_like(h.front))):
+            known = entered >= 0
+            # A back face met from outside every solid: the mesh is open or inverted.
+            after_reflection = np.where(known & (h.front | (entered > 0)), entered, -1)
+            after_refraction = np.where(known & h.front, entered + 1,
+                                        np.where(entered > 0, entered - 1, -1))
+            for w_new, d_new, side, seen in ((refl_w, r_dir, 1.0, after_reflection),
+                                             (refr_w, t_dir, -1.0, after_refraction)):
                 w_total = weight * w_new
                 alive = np.max(w_total, axis=1) > 0.0
                 strong = alive & (np.max(w_total, axis=1) >= s.min_weight)
@@ -607,7 +614,7 @@ class Tracer:
             pixel = np.concatenate([c[2] for c in children])
             weight = np.concatenate([c[3] for c in children])
             sharp = np.concatenate([c[4] for c in children])
-            camera_side = np.concatenate([c[5] for c in children])
+            entered = np.concatenate([c[5] for c in children])
             t_min = np.zeros(len(origins))
         return result
 

@@ -122,3 +122,34 @@ def test_a_camera_inside_a_solid_keeps_the_probes():
         solution = drain(radiosity_steps(scene, pass_one_settings(patch_budget=30),
                                          BVH.build(scene.triangles)))
         assert camera_enclosed(solution.gather, scene.camera) is expected
+
+
+def _flags_seen_through(glass_part):
+    """The camera-side flags the tracer gives the look-up at the front of the back wall of a
+    grey room, seen through `glass_part` (smooth glass) in front of the camera."""
+    glass = Material(name="glass", base_color=np.ones(3, np.float32), transmission=1.0,
+                     roughness=0.0, ior=1.5)
+    camera = persp_camera((1.0, 0.3, 1.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0), np.radians(40.0),
+                          (16, 16))
+    scene = build([(inward_box(2.0), grey(0.5, name="room")), (glass_part, glass)], camera=camera)
+    flags = []
+
+    def lookup(tri, bary, dirs, front, camera_side, strata=None):
+        wall = front & (scene.object_ids[tri] == 0)
+        flags.append(camera_side[wall])
+        return np.zeros((len(tri), 3))
+
+    trace(scene, TracerSettings(max_depth=4, adaptive=0), diffuse=lookup)
+    return np.concatenate(flags)
+
+
+def test_points_seen_through_closed_glass_are_on_the_camera_side():
+    """A ray that refracts into a closed glass ball and out through its back faces is outside
+    every solid again: the room's walls seen through the ball are on the camera's side (no
+    enclosure probes). Through an open sheet of glass (one face: entered, never left) the tracer
+    cannot tell, and the points keep their probes."""
+    through_ball = _flags_seen_through(uv_sphere((1.0, 0.8, 1.0), 0.3, rings=12, segments=24))
+    assert through_ball.size > 200 and through_ball.all()
+    sheet = quad([[0.6, 0.6, 0.6], [1.4, 0.6, 0.6], [1.4, 0.6, 1.4], [0.6, 0.6, 1.4]])  # faces -y
+    through_sheet = _flags_seen_through(sheet)
+    assert (~through_sheet).sum() > 50 and through_sheet.sum() > 50
