@@ -7,8 +7,9 @@ One run measures, against a converged Cycles render of the `global_illumination`
 glossy and transmission bounces, no caustics; cached in out/cache): the Whitted tracer alone, the
 radiosity view alone and the hybrid's quality ladder, each with its time; Cycles' sample ladder in
 the same run, so that the time Cycles needs to reach each hybrid rung's error is interpolated
-(log-log). The hybrid's time counts the radiosity pass in full (one view) and, separately, the
-trace pass alone (the solve amortised over many views). The caustics' share: a Cycles render with
+(log-log); a run of either side under 2 s is repeated, three in all, and its median taken. The
+hybrid's time counts the radiosity pass in full (one view) and, separately, the trace pass alone
+(the solve amortised over many views). The caustics' share: a Cycles render with
 reflective and refractive caustics against one without, relMSE and the change in mean radiance.
 Stability: the patch budget and the final gather's rays swept, error charted.
 Writes out/bench/hybrid.json and out/bench/hybrid_*.png/svg.
@@ -22,7 +23,14 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _report import OUT_DIR, add_cycles_ratios, versions, write_report  # noqa: E402
+from _report import (  # noqa: E402
+    OUT_DIR,
+    add_cycles_ratios,
+    median_of,
+    repeated,
+    versions,
+    write_report,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 BASE_SCENE = ROOT / "sample_blends" / "cornell_box.blend"
@@ -63,6 +71,16 @@ def build_scene(path: Path) -> None:
         ball.data.materials.append(mat)
     path.parent.mkdir(parents=True, exist_ok=True)
     bpy.ops.wm.save_as_mainfile(filepath=str(path))
+
+
+def timed_hybrid(snap, settings, resolution) -> tuple[float, object]:
+    """(seconds, HybridResult) of one two-pass render of the camera's view."""
+    from classic_bake.kernels.hybrid.two_pass import hybrid_steps
+    from classic_bake.kernels.progress import drain
+
+    start = time.perf_counter()
+    result = drain(hybrid_steps(snap, settings, resolution))
+    return time.perf_counter() - start, result
 
 
 def main() -> int:
@@ -121,20 +139,21 @@ def main() -> int:
             settings = HybridSettings(radiosity=pass_one_settings(patch_budget=budget),
                                       tracer=auto_settings(snap, adaptive=edges,
                                                            supersample=samples))
-            start = time.perf_counter()
-            result = drain(hybrid_steps(snap, settings, resolution))
-            seconds = time.perf_counter() - start
+            runs, (seconds, result) = repeated(lambda r: r[0], timed_hybrid, snap, settings,
+                                               resolution)
             m = compare(result.image, reference)
             kernel_rows.append({
                 "setting": f"{budget} patches, {samples}x{samples} + edges {edges}",
-                "seconds": seconds, "trace_seconds": result.seconds["trace"],
-                "radiosity_seconds": result.seconds["radiosity"], "rel_mse": m.rel_mse,
-                "flip": m.flip})
+                "seconds": median_of(runs, lambda r: r[0]),
+                "trace_seconds": median_of(runs, lambda r: r[1].seconds["trace"]),
+                "radiosity_seconds": median_of(runs, lambda r: r[1].seconds["radiosity"]),
+                "rel_mse": m.rel_mse, "flip": m.flip})
             if step == len(ladder) - 1:
                 write_preview_png(OUT_DIR / "hybrid.png", result.image)
         if step < len(cycles_counts):
-            image, seconds = cr.render_camera(bpy.context.scene, model, cycles_counts[step],
-                                              resolution=resolution)
+            renders, (image, _) = repeated(lambda r: r[1], cr.render_camera, bpy.context.scene,
+                                           model, cycles_counts[step], resolution)
+            seconds = median_of(renders, lambda r: r[1])
             cycles_rows.append({"samples": cycles_counts[step], "seconds": seconds,
                                 "rel_mse": rel_mse(image, reference)})
     add_cycles_ratios(kernel_rows, cycles_rows)

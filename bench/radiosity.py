@@ -30,34 +30,20 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _lightmaps import cycles_lightmaps, radiosity_lightmaps, texel_rel_mse  # noqa: E402
-from _report import OUT_DIR, format_table, versions, write_report  # noqa: E402
+from _report import (  # noqa: E402
+    OUT_DIR,
+    format_table,
+    median_of,
+    repeated,
+    versions,
+    write_report,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "sample_blends" / "cornell_box.blend"
 UV_NAME = "Lightmap"
 EMITTER = "Light"
 RENDER_SIZE = (80, 60)
-# A run of either side shorter than this is repeated, REPEATS runs in all, and its median taken:
-# one 0.2 s run on the shared 2-core machine varies by +-30% from one moment to the next
-# (measured: the same 74-patch bake 0.15-0.29 s within minutes).
-SHORT_RUN_S = 2.0
-REPEATS = 3
-
-
-def repeated(seconds_of, run, *args) -> tuple[list, object]:
-    """Calls run(*args) once, and REPEATS times in all when seconds_of(its result) is under
-    SHORT_RUN_S. Returns (every result, the last): each run gives the same values (fixed seeds),
-    only their seconds differ."""
-    runs = [run(*args)]
-    while len(runs) < REPEATS and seconds_of(runs[0]) < SHORT_RUN_S:
-        runs.append(run(*args))
-    return runs, runs[-1]
-
-
-def median_of(runs: list, seconds_of) -> float:
-    return float(np.median([seconds_of(r) for r in runs]))
-
-
 def seconds_to_reach(ladder: list[dict], error: float) -> tuple[float, bool]:
     """Cycles seconds to reach `error` (log-log interpolation); (top rung's seconds, False) when
     the ladder never gets there."""
