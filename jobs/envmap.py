@@ -343,7 +343,7 @@ def envmap_merge(folder: Path, tiles: list[dict]) -> JobSummary:
         maps.append(CapturedFaces(k, centre, tuple(range(6)),
                                   np.stack([p["radiance"] for p in parts]),
                                   np.stack([p["inverse_distance"] for p in parts]),
-                                  emission, np.array([p["rays"] for p in parts])
+                                  emission, np.array([p.get("rays", 0) for p in parts])
                                   ).environment_map())
         if maps[-1].size != size:
             raise ValueError(f"{folder}: the faces of map {number} are not {size} texels wide")

@@ -250,16 +250,16 @@ def emitter_irradiance(emitters: Emitters, points: np.ndarray, normals: np.ndarr
                            emitters.normals[j], _pilot_side(n), None))
     sums = _kernel_sums(pilots, occluded, offset, rng)
     more, mixed_of = [], []
-    for (j, live), (seen, total), pilot in zip(todo, sums, pilots, strict=True):
+    for (j, live), (seen, total) in zip(todo, sums, strict=True):
         n = int(emitters.per_side[j])
-        mixed = np.flatnonzero((seen > 0.0) & (seen < total)) if pilot[6] is None and \
-            pilot[5] < n else np.zeros(0, np.int64)
+        mixed = np.flatnonzero((seen > 0.0) & (seen < total)) if not side and \
+            _pilot_side(n) < n else np.zeros(0, np.int64)
         mixed_of.append(mixed)
         if mixed.size:
             more.append((points[live[mixed]], normals[live[mixed]], lift[live[mixed]],
                          emitters.triangles[j], emitters.normals[j], n, None))
     extra = iter(_kernel_sums(more, occluded, offset, rng))
-    for (j, live), (seen, total), mixed, pilot in zip(todo, sums, mixed_of, pilots, strict=True):
+    for (j, live), (seen, total), mixed in zip(todo, sums, mixed_of, strict=True):
         if mixed.size:
             more_seen, more_total = next(extra)
             seen[mixed] += more_seen
@@ -267,7 +267,7 @@ def emitter_irradiance(emitters: Emitters, points: np.ndarray, normals: np.ndarr
         share = np.divide(seen, total, out=np.zeros_like(total), where=total > 0.0)
         out[live] += (np.pi * factors[j][live] * share)[:, None] * emitters.radiance[j]
         # A shared-out subset of the points tells no neighbour the triangle's whole visibility.
-        states[live, j] = UNKNOWN if pilot[6] is not None else np.where(
+        states[live, j] = UNKNOWN if side else np.where(
             total <= 0.0, UNKNOWN, np.where(seen >= total, CLEAR,
                                             np.where(seen <= 0.0, HIDDEN, UNKNOWN)))
     if states_out is not None:

@@ -71,10 +71,9 @@ Strata = tuple[np.ndarray, int]
 # (N, 3) barycentrics, (N, 3) unit ray directions towards the points, (N,) bool front side,
 # (N,) bool seen from the camera's side (the ray left every solid it refracted into, through
 # its back faces, and met no back face from outside: no closed mesh's surface lies between the
-# point and the camera), and the hits' strata (None, or
-# (stratum (N,), m) when they are m sub-samples of pixels, which may share out light samples as
-# `Tracer._area_direct` does) -> (N, 3) radiance W/(m^2 sr) the points reflect diffusely toward
-# the ray, shadows included.
+# point and the camera), and the hits' strata (None, or (stratum (N,), m) when they are m
+# sub-samples of pixels, which may share out light samples as `Tracer._area_direct` does)
+# -> (N, 3) radiance W/(m^2 sr) the points reflect diffusely toward the ray, shadows included.
 DiffuseLookup = Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
                           Strata | None], np.ndarray]
 
