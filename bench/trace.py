@@ -120,10 +120,9 @@ def main() -> int:
                 if step < len(ladder):
                     n, a = ladder[step]
                     settings = auto_settings(snap, supersample=n, adaptive=a)
-                    runs, result = repeated(lambda r: r[0], timed_trace, snap, settings, bvh,
-                                            resolution)
+                    runs, (_, result) = repeated(lambda r: r[0], timed_trace, snap, settings,
+                                                 bvh, resolution)
                     seconds = median_of(runs, lambda r: r[0]) + build_s
-                    result = result[1]
                     m = compare(result.image, reference)
                     kernel_rows.append({"setting": f"{n}x{n} + edges {a}x{a}", "seconds": seconds,
                                         "rel_mse": m.rel_mse, "flip": m.flip,

@@ -11,6 +11,16 @@ import numpy as np
 
 from .scene import Camera
 
+# Rays that are sub-samples of pixels: (stratum of each ray (N,) int, number of strata m). A
+# pixel's m sub-samples may share out a light's samples among them (`Tracer._area_direct`,
+# `emitters.emitter_irradiance`, `lamps.light_visibility`).
+Strata = tuple[np.ndarray, int]
+
+
+def strata_rows(strata: Strata | None, rows) -> Strata | None:
+    """The strata of the rays `rows` (an index or mask into the N rays), None for None."""
+    return None if strata is None else (strata[0][rows], strata[1])
+
 
 def image_plane(
     kind: str,

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..geometry.bvh import BVH
+from ..geometry.camera import strata_rows
 from ..geometry.scene import Scene, interpolated_normals, triangle_emission
 from ..progress import Steps, scaled
 from ..radiosity.final_gather import camera_enclosed
@@ -94,8 +95,8 @@ def diffuse_lookup(scene: Scene, result: RadiosityResult):
         if front.any():
             t, b = tri[front], bary[front]
             known = result.gather.opened(camera_side[front]) if open_camera else None
-            shared = None if strata is None else (strata[0][front], strata[1])
-            reflected = result.radiance_at(t, b, reflected_only=True, known=known, strata=shared)
+            reflected = result.radiance_at(t, b, reflected_only=True, known=known,
+                                           strata=strata_rows(strata, front))
             if layered:
                 mids = scene.material_ids[t]
                 normals = interpolated_normals(scene, t, b)

@@ -18,6 +18,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..geometry import shafts
+from ..geometry.camera import Strata
 from ..geometry.scene import Scene, geometric_normals, triangle_areas, triangle_emission
 from ..measure.metrics import REC709_LUMINANCE
 from . import patches as patching
@@ -183,7 +184,7 @@ def emitter_irradiance(emitters: Emitters, points: np.ndarray, normals: np.ndarr
                        share_out: np.ndarray | None = None,
                        clear: np.ndarray | None = None, known: np.ndarray | None = None,
                        states_out: np.ndarray | None = None, lift: np.ndarray | None = None,
-                       strata: tuple[np.ndarray, int] | None = None) -> np.ndarray:
+                       strata: Strata | None = None) -> np.ndarray:
     """(M, 3) irradiance W/m^2 at points (M, 3) m with unit normals (M, 3) from the emitters,
     shadowed: pi L_j F(x -> j) V_j(x) summed over j (module docstring). share_out (M,), when
     given, receives the visible share of the unshadowed irradiance (luminance; 1 where none

@@ -52,6 +52,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..geometry import shafts
+from ..geometry.camera import Strata, strata_rows
 from ..geometry.coincident import CoincidentFaces
 from ..geometry.frames import RAY_OFFSET_REL, tangent_frames
 from ..geometry.scene import (
@@ -375,7 +376,7 @@ def prepare(scene: Scene, solution: PatchSolution, emitters: Emitters, bvh, smoo
 def exitance(gather: FinalGather, tri: np.ndarray, bary: np.ndarray,
              reflected_only: bool = False, known: Visibility | None = None,
              visibility_out: Visibility | None = None,
-             strata: tuple[np.ndarray, int] | None = None) -> np.ndarray:
+             strata: Strata | None = None) -> np.ndarray:
     """(M, 3) exitance B(x) W/m^2 at receivers given as scene triangles (M,) and barycentric
     coordinates (M, 3): E + rho (H_direct + H_indirect), or without E (`reflected_only`).
 
@@ -396,8 +397,7 @@ def exitance(gather: FinalGather, tri: np.ndarray, bary: np.ndarray,
         rho = diffuse_at(scene, t, b)
         lit = np.flatnonzero(rho.max(axis=1) > 0.0)
         given = None if known is None else known.take(a + lit)
-        shared = None if strata is None else (strata[0][a:a + GATHER_CHUNK][lit], strata[1])
-        h, found = _irradiance(gather, t[lit], b[lit], given, rng, shared)
+        h, found = _irradiance(gather, t[lit], b[lit], given, rng, strata_rows(strata, a + lit))
         if visibility_out is not None:
             visibility_out.put(a + lit, found)
         value = np.zeros((len(t), 3))
@@ -507,7 +507,7 @@ def shading_normals(scene: Scene, tri: np.ndarray, bary: np.ndarray, geometric: 
 
 
 def _irradiance(gather: FinalGather, t: np.ndarray, b: np.ndarray, known: Visibility | None,
-                rng: np.random.Generator, strata: tuple[np.ndarray, int] | None = None
+                rng: np.random.Generator, strata: Strata | None = None
                 ) -> tuple[np.ndarray, Visibility]:
     """(M, 3) irradiance H_direct + H_indirect W/m^2 at receivers (triangles t, barycentrics b)
     and what its rays found (`exitance`)."""
@@ -537,7 +537,7 @@ def _irradiance(gather: FinalGather, t: np.ndarray, b: np.ndarray, known: Visibi
     outside = np.flatnonzero(~inside)
     h = np.zeros((len(t), 3))
     states = np.full((outside.size, found.emitters.shape[1]), UNKNOWN, np.int8)
-    shared = None if strata is None else (strata[0][outside], strata[1])
+    shared = strata_rows(strata, outside)
     h[outside] = emitter_irradiance(gather.emitters, points[outside], normals[outside],
                                     occluded, gather.offset, rng,
                                     clear=gather.clear[patch[outside]],

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..geometry.camera import Strata, strata_rows
 from ..geometry.scene import Scene
 from ..shading import lights as light_units
 
@@ -14,7 +15,7 @@ LIGHT_END_REL = 1e-6
 
 def shadowed_irradiance(light, points: np.ndarray, normals: np.ndarray, origins: np.ndarray,
                         occluded, area_samples_per_side: int,
-                        strata: tuple[np.ndarray, int] | None = None
+                        strata: Strata | None = None
                         ) -> tuple[np.ndarray, np.ndarray]:
     """(M, 3) direct irradiance W/m^2 of `light` at points with unit normals, times its visible
     fraction from `origins` (the points lifted off their surface), and that fraction (M,): 1 where
@@ -25,13 +26,13 @@ def shadowed_irradiance(light, points: np.ndarray, normals: np.ndarray, origins:
     vis = np.ones(len(points))
     if occluded is not None and light.cast_shadow and lit.size:
         vis[lit] = light_visibility(light, origins[lit], occluded, area_samples_per_side,
-                                    strata=None if strata is None else (strata[0][lit], strata[1]))
+                                    strata=strata_rows(strata, lit))
     e *= vis[:, None]
     return e, vis
 
 
 def light_visibility(light, origins: np.ndarray, occluded, area_samples_per_side: int,
-                     per_target: bool = False, strata: tuple[np.ndarray, int] | None = None
+                     per_target: bool = False, strata: Strata | None = None
                      ) -> np.ndarray:
     """(R,) visible fraction of `light` from `origins` (area lights: over an n x n emitter grid);
     with `per_target`, (K, R) float: each grid point's own (`area_light_samples` order).
@@ -109,7 +110,7 @@ def shadowing_lamps(scene: Scene) -> list:
 
 def lamp_irradiance(scene: Scene, points: np.ndarray, normals: np.ndarray, occluded, offset: float,
                     area_samples_per_side: int, lift: np.ndarray | None = None,
-                    strata: tuple[np.ndarray, int] | None = None) -> np.ndarray:
+                    strata: Strata | None = None) -> np.ndarray:
     """(M, 3) irradiance W/m^2 of the scene's lamps (point, spot, sun, area) with shadow rays, as
     the radiosity first shot computes it for patch points; rays leave along `lift` (M, 3) when
     given (`emitters.emitter_irradiance`); strata: pixels' sub-samples that share out the area

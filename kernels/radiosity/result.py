@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..geometry.camera import Strata
 from ..geometry.scene import Scene, triangle_emission
 from . import final_gather
 from . import patches as patching
@@ -44,7 +45,7 @@ class RadiosityResult:
     def exitance_at(self, tri: np.ndarray, bary: np.ndarray, reflected_only: bool = False,
                     interpolated: bool = False, known: final_gather.Visibility | None = None,
                     visibility_out: final_gather.Visibility | None = None,
-                    strata: tuple[np.ndarray, int] | None = None) -> np.ndarray:
+                    strata: Strata | None = None) -> np.ndarray:
         """(M, 3) B at points given as scene triangles (M,) and barycentrics (M, 3): the final
         gather's when the result has one (`final_gather.py`, which also takes `known` and fills
         `visibility_out`, and `strata`: pixels' sub-samples that share out the emitters'
@@ -62,7 +63,7 @@ class RadiosityResult:
     def radiance_at(self, tri: np.ndarray, bary: np.ndarray, reflected_only: bool = False,
                     interpolated: bool = False, known: final_gather.Visibility | None = None,
                     visibility_out: final_gather.Visibility | None = None,
-                    strata: tuple[np.ndarray, int] | None = None) -> np.ndarray:
+                    strata: Strata | None = None) -> np.ndarray:
         """(M, 3) outgoing radiance B / pi, W/(m^2 sr) (see `exitance_at`)."""
         return self.exitance_at(tri, bary, reflected_only, interpolated, known,
                                 visibility_out, strata) / np.pi

@@ -37,7 +37,7 @@ import numpy as np
 from ..bake.camera_view import edge_pixels, stratified_offsets
 from ..geometry.alpha_occlusion import clipped_hits, transmittance
 from ..geometry.bvh import BVH
-from ..geometry.camera import camera_rays, pixel_rays
+from ..geometry.camera import Strata, camera_rays, pixel_rays, strata_rows
 from ..geometry.scene import Scene, geometric_normals
 from ..measure.phase_clock import PhaseClock
 from ..progress import Steps, drain
@@ -65,8 +65,6 @@ EDGE_WAVEFRONT = 1 << 18
 # None (envmap.py's `MapLookup`) also lights the diffuse part: (N, 3) points, (N, 3) unit normals
 # -> (N, 3) irradiance W/m^2 from the mapped surroundings, reflected as albedo / pi times it.
 EnvironmentLookup = Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]
-# Rays that are sub-samples of pixels: (stratum of each ray (N,) int, number of strata m).
-Strata = tuple[np.ndarray, int]
 # Diffuse light from elsewhere (the two-pass renderer's radiosity solution): (N,) triangles,
 # (N, 3) barycentrics, (N, 3) unit ray directions towards the points, (N,) bool front side,
 # (N,) bool seen from the camera's side (the ray left every solid it refracted into, through
@@ -231,7 +229,7 @@ class Tracer:
                 shine = ggx_highlight(ns[sub], to_l[sub], wo[rows], rough[rows], f0[rows])
                 out[rows] += shine * e[sub] * (weight[rows] * vis / cos_i)[:, None]
         if len(self.emitters.area_points):
-            sub_strata = None if strata is None else (strata[0][idx], strata[1])
+            sub_strata = strata_rows(strata, idx)
             area_lobes = [(f0[idx], weight[idx]) for f0, weight in lobes]
             diffuse, shine = self._area_direct(origin, ns, brdf_w, sub_strata, wo[idx], area_lobes,
                                                rough[idx], smooth)
@@ -514,7 +512,7 @@ class Tracer:
             f0_metal = np.where(self.tinted[m][:, None], self.metal_color[m], h.albedo)
             if rough_metal.any():
                 lobes.append((f0_metal, np.where(rough_metal, metallic, 0.0)))
-            hit_strata = None if strata is None else (strata[0][pixel], strata[1])
+            hit_strata = strata_rows(strata, pixel)
             # A black base reflects nothing diffusely: no shadow rays for it. A dark texel of a
             # coloured or textured material keeps them at the camera hits when the white-base
             # image (edge detection) needs their light; a black material never does.
