@@ -34,6 +34,10 @@ TINY = np.float32(1e-30)  # guards divisions by cos(theta) = 0: far below any re
 #                          the quotient is capped at TAN_THETA_MAX anyway
 UNIT_LENGTH2_TOL = 1e-6  # |n|^2 this close to 1 is unit for the tolerance's slopes: a relative
 #                          error of 5e-7 in cos(theta), below float32 rounding of the products
+# Receivers converted per step of `Receivers.of`: its (3, C) float64 buffer (384 KiB) stays in
+# cache, and no (3, N) float64 copy or (N,) temporaries are made (those cost more in fresh pages
+# than in arithmetic: 7.0 against 2.6 ms for 263k receivers).
+RECEIVER_STEP = 1 << 14
 
 
 @dataclass(frozen=True)
@@ -119,8 +123,8 @@ class Receivers:
     bake instead of once per light.
     """
 
-    positions: np.ndarray  # (3, N) float64, world m (planning)
-    local: np.ndarray  # (3, N) float32, world position - centre, m (the lookup)
+    positions: np.ndarray  # (N, 3) world m as given (not copied; the sun's fit)
+    local: np.ndarray  # (3, N) float32, world position - centre, m
     centre: np.ndarray  # (3,) float64, the bounding box's centre, world m
     normals: np.ndarray  # (3, N) float32, world unit; zero where unknown
     no_normal: np.ndarray | None  # (N,) bool, the zero normals; None when there are none
@@ -132,25 +136,32 @@ class Receivers:
         """From (N, 3) world points (m) and normals (any length; zero: unknown)."""
         points = np.asarray(points).reshape(-1, 3)
         normals = np.asarray(normals).reshape(-1, 3)
-        pts = np.empty((3, len(points)), np.float64)
-        np.copyto(pts, points.T)  # into a fresh C array: faster than astype(order="C")
-        if pts.shape[1]:
-            lo, hi = pts.min(axis=1), pts.max(axis=1)  # contiguous rows: fast reductions
-        else:
-            lo = hi = np.zeros(3)
+        count = len(points)
+        lo, hi = np.zeros(3), np.zeros(3)
+        buffer = np.empty((3, min(count, RECEIVER_STEP)))
+        for a in range(0, count, RECEIVER_STEP):  # the box first: the centre precedes `local`
+            rows = buffer[:, : min(count - a, RECEIVER_STEP)]
+            np.copyto(rows, points[a : a + RECEIVER_STEP].T)  # contiguous rows: fast reductions
+            step_lo, step_hi = rows.min(axis=1), rows.max(axis=1)
+            lo, hi = (step_lo, step_hi) if a == 0 else (np.minimum(lo, step_lo), np.maximum(hi, step_hi))
         centre = 0.5 * (lo + hi)
-        local = np.empty(pts.shape, np.float32)
-        np.subtract(pts, centre[:, None], out=local, casting="same_kind")
-        nrm = np.empty((3, len(normals)), np.float32)
-        np.copyto(nrm, normals.T, casting="same_kind")
-        length2 = nrm[0] * nrm[0] + nrm[1] * nrm[1] + nrm[2] * nrm[2]
-        shortest = float(length2.min(initial=1.0))
-        zero = length2 == 0.0 if shortest == 0.0 else None
+        local = np.empty((3, count), np.float32)
+        nrm = np.empty((3, count), np.float32)
+        shortest = longest = 1.0
+        for a in range(0, count, RECEIVER_STEP):
+            b = min(a + RECEIVER_STEP, count)
+            np.subtract(points[a:b].T, centre[:, None], out=local[:, a:b], casting="same_kind")
+            np.copyto(nrm[:, a:b], normals[a:b].T, casting="same_kind")
+            length2 = np.einsum("ij,ij->j", nrm[:, a:b], nrm[:, a:b])
+            shortest = min(shortest, float(length2.min()))
+            longest = max(longest, float(length2.max()))
         # Bake targets pass unit normals: rescaling them would change nothing but cost 0.5 ms.
-        longest = float(length2.max(initial=1.0))
+        zero = None
         if not 1.0 - UNIT_LENGTH2_TOL <= shortest <= longest <= 1.0 + UNIT_LENGTH2_TOL:
+            length2 = np.einsum("ij,ij->j", nrm, nrm)
+            zero = length2 == 0.0 if shortest == 0.0 else None
             nrm *= 1.0 / np.sqrt(np.maximum(length2, TINY))  # zero normals stay zero
-        return cls(pts, local, centre, nrm, zero, lo, hi)
+        return cls(points, local, centre, nrm, zero, lo, hi)
 
     def __len__(self) -> int:
         return self.local.shape[1]

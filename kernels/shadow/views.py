@@ -97,11 +97,8 @@ def _fit_sun(tris: np.ndarray, receivers: np.ndarray | Receivers, light: Light) 
     right = cross3(forward, up)
     basis = np.stack([right, up, forward])  # rows: light-space x, y, depth
     verts = tris.reshape(-1, 3).astype(np.float64) @ basis.T  # (3T, 3) light space, m
-    if isinstance(receivers, Receivers):  # light space of (3, N) columns: contiguous reductions
-        recv = basis @ receivers.positions
-        r_lo, r_hi = recv.min(axis=1), recv.max(axis=1)
-    else:
-        r_lo, r_hi = bounds(receivers @ basis.T)  # (N, 3) light space, m
+    points = receivers.positions if isinstance(receivers, Receivers) else receivers
+    r_lo, r_hi = bounds(points @ basis.T)  # (N, 3) light space, m
     if len(verts):
         v_lo, v_hi = bounds(verts)
         scene_size = float((np.maximum(r_hi, v_hi) - np.minimum(r_lo, v_lo)).max())
