@@ -23,7 +23,7 @@ EDGE_CONTRAST = 1.0 / 16.0
 # Added to the luminance sum in the contrast test so that near-black pixels do not all count as edges.
 CONTRAST_FLOOR = 1e-2
 # Rays per side through each edge pixel of a camera view (`supersample_edges`): 3 x 3 takes a
-# silhouette's coverage to 1/9 of a pixel.
+# silhouette's coverage to 1/9 of a pixel (`pixel_offsets`).
 EDGE_SAMPLES = 3
 
 
@@ -138,19 +138,78 @@ def edge_pixels(image: np.ndarray, ids: np.ndarray) -> np.ndarray:
 
 
 def stratified_offsets(n: int) -> np.ndarray:
-    """(n^2, 2) sub-pixel offsets in [0, 1)^2: the centres of an n x n grid of cells."""
+    """(n^2, 2) offsets in [0, 1)^2: the centres of an n x n grid of cells."""
     g = (np.arange(n) + 0.5) / n
     gx, gy = np.meshgrid(g, g, indexing="xy")
     return np.stack([gx.ravel(), gy.ravel()], 1)
+
+
+def pixel_offsets(n: int, k: int, pixels: np.ndarray) -> np.ndarray:
+    """(P, 2) offsets in [0, 1)^2 of sample k (in cell k of an n x n grid, row by row as
+    `stratified_offsets`) in each of the pixels `pixels` (P,) int (the image's flat indices).
+
+    Every pixel's n^2 samples take one cell each, and no two share a column or a row of the
+    n^2 x n^2 grid of finer cells, so an edge along the pixel grid is resolved to 1/n^2 of a pixel,
+    not 1/n. Cell centres alone give every pixel along a straight edge the same rounding: a
+    glowing ceiling panel's near side, covering 82% of a row of pixels, showed as 67% (3 x 3), its
+    far side's 89% as 100%, and the room's view came out 1.4% darker than Cycles'. n a power of
+    two: the Hammersley points (x = (i + 1/2) / n^2, y the bits of i reversed), a (0, 2h, 2)-net
+    in base 2 (one point in every box of area 1/n^2 whose sides are powers of two); other n: the
+    "n-rooks" pattern of multi-jittered sampling. Each pixel's pattern is scrambled by a hash of
+    its index (the net's bits XOR-ed, a digital shift that keeps the net; the rooks' sub-columns
+    and sub-rows permuted), so that one pattern does not round the same way in every pixel along
+    an edge: what is left is noise, as in Cycles' pixel sampling. n = 1: the pixel centre."""
+    pixels = np.asarray(pixels, np.uint64)
+    if n == 1:
+        return np.full((len(pixels), 2), 0.5)
+    cx, cy = k % n, k // n  # the cell
+    m = n * n
+    if n & (n - 1) == 0:
+        h = n.bit_length() - 1  # bits per cell coordinate; a fine index has 2h bits
+        shift_x = _pixel_hash(pixels, 1) & np.uint64(m - 1)
+        shift_y = _pixel_hash(pixels, 2) & np.uint64(m - 1)
+        # The point i of the pixel's net in cell (cx, cy): x's top h bits are i's top h bits
+        # XOR the shift's, y's top h bits are i's low h bits reversed XOR the shift's.
+        high = np.uint64(cx) ^ (shift_x >> np.uint64(h))
+        low = _reversed_bits(np.uint64(cy) ^ (shift_y >> np.uint64(h)), h)
+        i = (high << np.uint64(h)) | low
+        fine_x, fine_y = i ^ shift_x, _reversed_bits(i, 2 * h) ^ shift_y
+    else:
+        # Per pixel, a permutation of the sub-columns within each column and of the sub-rows
+        # within each row: fine column cx n + P(cy), fine row cy n + Q(cx).
+        keys = _pixel_hash(pixels[:, None], np.arange(1, 2 * n + 1, dtype=np.uint64)[None])
+        sub_column = np.argsort(keys[:, :n], axis=1)[:, cy]
+        sub_row = np.argsort(keys[:, n:], axis=1)[:, cx]
+        fine_x, fine_y = cx * n + sub_column, cy * n + sub_row
+    return (np.stack([fine_x, fine_y], 1).astype(np.float64) + 0.5) / m
+
+
+def _pixel_hash(pixels: np.ndarray, salt) -> np.ndarray:
+    """A 64-bit mix (splitmix64's finaliser) of pixel indices and a salt, uint64."""
+    with np.errstate(over="ignore"):
+        z = (np.asarray(pixels, np.uint64) + np.uint64(0x9E3779B97F4A7C15) * np.asarray(
+            salt, np.uint64))
+        z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+        z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+        return z ^ (z >> np.uint64(31))
+
+
+def _reversed_bits(values: np.ndarray, bits: int) -> np.ndarray:
+    """The low `bits` bits of `values` (uint64) in reverse order."""
+    values = np.asarray(values, np.uint64)
+    out = np.zeros_like(values)
+    for b in range(bits):
+        out |= ((values >> np.uint64(b)) & np.uint64(1)) << np.uint64(bits - 1 - b)
+    return out
 
 
 def supersample_edges(scene: Scene, image: np.ndarray, fragments: Fragments, shade, bvh,
                       samples: int = EDGE_SAMPLES) -> int:
     """In place: every edge pixel of `image` (H, W, 3) shaded at its centre (`fragments`, the
     covered pixels; `edge_pixels` of the image and of the objects the centres see) becomes the
-    mean of `samples` x `samples` stratified rays through it, the box filter Cycles' 1-px BOX
-    pixel filter is (the pixel centres alone alias silhouettes, folds and hard shadow edges). A
-    ray that hits a triangle of `bvh` (built over scene.triangles) is shaded by
+    mean of `samples` x `samples` stratified rays through it (`pixel_offsets`), the box filter
+    Cycles' 1-px BOX pixel filter is (the pixel centres alone alias silhouettes, folds and hard
+    shadow edges). A ray that hits a triangle of `bvh` (built over scene.triangles) is shaded by
     shade(Fragments) -> (M, 3); one that escapes sees the world (its map along the ray, else its
     colour). Returns the number of pixels supersampled."""
     from ..shading.world_light import world_radiance
@@ -161,13 +220,14 @@ def supersample_edges(scene: Scene, image: np.ndarray, fragments: Fragments, sha
     rows, cols = np.nonzero(edge_pixels(image, ids))
     if rows.size == 0 or samples < 2:
         return 0
-    offsets = stratified_offsets(samples)
+    flat = rows * width + cols
+    offsets = np.concatenate([pixel_offsets(samples, k, flat) for k in range(samples * samples)])
     # Every sub-pixel ray of every edge pixel in one BVH call and one shading call: `shade` may
     # cost a few ms per call besides its points (the radiosity view's final gather).
-    sub_rows = np.tile(rows, len(offsets))
-    sub_cols = np.tile(cols, len(offsets))
-    o, d = pixel_rays(scene.camera, width, height, sub_cols + np.repeat(offsets[:, 0], rows.size),
-                      sub_rows + np.repeat(offsets[:, 1], rows.size))
+    sub_rows = np.tile(rows, samples * samples)
+    sub_cols = np.tile(cols, samples * samples)
+    o, d = pixel_rays(scene.camera, width, height, sub_cols + offsets[:, 0],
+                      sub_rows + offsets[:, 1])
     hits = bvh.intersect(o, d)
     tri = np.asarray(hits.tri, np.int64)
     hit = tri >= 0
@@ -185,5 +245,5 @@ def supersample_edges(scene: Scene, image: np.ndarray, fragments: Fragments, sha
             rows=sub_rows[hit], cols=sub_cols[hit], tri=t, bary=np.stack([1.0 - u - v, u, v], 1),
             points=o[hit] + d[hit] * depth[:, None], dirs=d[hit], depth=depth,
             geometric=geometric, back=np.einsum("ij,ij->i", geometric, d[hit]) > 0.0))
-    image[rows, cols] = value.reshape(len(offsets), rows.size, 3).mean(axis=0)
+    image[rows, cols] = value.reshape(samples * samples, rows.size, 3).mean(axis=0)
     return int(rows.size)

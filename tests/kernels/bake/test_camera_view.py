@@ -1,11 +1,13 @@
 """The camera views' edge pass (`camera_view.supersample_edges`): pixel coverage of silhouettes."""
 
 import numpy as np
+import pytest
 from scene_builder import build, ortho_camera, quad
 
 from classic_bake.kernels.bake.camera_view import (
     background_and_fragments,
     edge_pixels,
+    pixel_offsets,
     stratified_offsets,
     supersample_edges,
 )
@@ -17,6 +19,33 @@ def test_stratified_offsets_are_cell_centres():
     np.testing.assert_allclose(stratified_offsets(2), [[0.25, 0.25], [0.75, 0.25], [0.25, 0.75],
                                                        [0.75, 0.75]])
     assert stratified_offsets(3).shape == (9, 2)
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 4, 8])
+def test_pixel_offsets_take_one_cell_each_and_distinct_rows_and_columns(n):
+    """In every pixel, sample k in cell k of the n x n grid, and no two in one row or column of
+    the n^2 x n^2 grid: a horizontal edge at any height between two of those rows changes the
+    pixel's coverage; n a power of two, one in every box of area 1/n^2 whose sides are powers of
+    two (Hammersley's net, digitally shifted). Pixels differ in their patterns."""
+    pixels = np.arange(0, 4000, 37)
+    patterns = np.stack([pixel_offsets(n, k, pixels) for k in range(n * n)], axis=1)  # (P, m, 2)
+    cells = np.floor(stratified_offsets(n) * n)
+    m = n * n
+    for offsets in patterns:
+        np.testing.assert_array_equal(np.floor(offsets * n), cells)
+        for axis in (0, 1):
+            assert sorted(np.floor(offsets[:, axis] * m).astype(int)) == list(range(m))
+        if n & (n - 1) == 0:
+            for a in (2 ** e for e in range(int(np.log2(m)) + 1)):
+                boxes = np.floor(offsets[:, 0] * a) * (m // a) + np.floor(offsets[:, 1] * m / a)
+                assert len(np.unique(boxes)) == m
+        # Coverage of a band y >= 1 - c (an edge along the pixel grid) to 1/n^2, not 1/n.
+        for c in np.linspace(0.0, 1.0, 23):
+            assert abs(np.mean(offsets[:, 1] >= 1.0 - c) - c) <= 1.0 / m + 1e-9
+    if n == 1:
+        np.testing.assert_allclose(patterns[:, 0], 0.5)
+    else:
+        assert len({p.tobytes() for p in patterns}) >= 4
 
 
 def test_edge_pixels_mark_both_sides_of_an_id_or_contrast_step():
