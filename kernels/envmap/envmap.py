@@ -34,7 +34,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..bake.camera_view import edge_pixels, stratified_offsets
+from ..bake.camera_view import edge_pixels, pixel_offsets
 from ..geometry.bvh import BVH
 from ..geometry.scene import Scene, triangle_areas, triangle_emission
 from ..progress import Steps, drain, scaled
@@ -446,8 +446,18 @@ def capture_faces_steps(scene: Scene, index: int, size: int, tracer_settings: Tr
     inverse = np.zeros(texels)
     ids = np.empty(texels, np.int64)
     one, one_q = np.empty((texels, 3)), np.empty(texels)
-    for k, (ox, oy) in enumerate(stratified_offsets(n)):
-        dirs = bordered_directions(size, BORDER, (ox, oy))[list(faces)].reshape(-1, 3)
+    # A texel's index over all six bordered faces picks its pattern (`pixel_offsets`): the same
+    # in a tile as in the whole capture.
+    every = np.repeat(np.asarray(faces), side * side) * (side * side) + np.tile(
+        np.arange(side * side), len(faces))
+    face_of, (row_of, col_of) = every // (side * side), np.divmod(every % (side * side), side)
+    for k in range(n * n):
+        if n == 1:
+            dirs = bordered_directions(size, BORDER)[list(faces)].reshape(-1, 3)
+        else:
+            offset = pixel_offsets(n, k, every)
+            dirs = bordered_texel_directions(size, BORDER, face_of, row_of, col_of,
+                                             (offset[:, 0], offset[:, 1]))
         yield from trace(dirs, k, n * n, one, one_q, ids if k == 0 else None)
         radiance += one
         inverse += one_q
@@ -459,20 +469,20 @@ def capture_faces_steps(scene: Scene, index: int, size: int, tracer_settings: Tr
         mark = np.concatenate([edge_pixels(image, face_ids).ravel() for image, face_ids in zip(
             radiance.reshape(len(faces), side, side, 3), ids.reshape(len(faces), side, side), strict=True)])
         sel = np.nonzero(mark)[0]
-        grid = stratified_offsets(a)
-        total = done + len(sel) * len(grid)
+        count = a * a  # sub-samples per texel, one in each cell of an a x a grid
+        total = done + len(sel) * count
         if len(sel):
             local, rest = np.divmod(sel, side * side)  # the face's place in `faces`
             i, j = np.divmod(rest, side)
             face = np.asarray(faces)[local]
-            dirs = np.concatenate([bordered_texel_directions(size, BORDER, face, i, j, offset)
-                                   for offset in grid])
-            rays += len(grid) * np.bincount(local, minlength=len(faces))
+            dirs = np.concatenate([
+                bordered_texel_directions(size, BORDER, face, i, j, (offset[:, 0], offset[:, 1]))
+                for offset in (pixel_offsets(a, k, every[sel]) for k in range(count))])
+            rays += count * np.bincount(local, minlength=len(faces))
             sub, sub_q = np.empty((len(dirs), 3)), np.empty(len(dirs))
-            yield from trace(dirs, np.repeat(np.arange(len(grid)), len(sel)), len(grid), sub,
-                             sub_q)
-            radiance[sel] = sub.reshape(len(grid), len(sel), 3).mean(axis=0)
-            inverse[sel] = sub_q.reshape(len(grid), len(sel)).mean(axis=0)
+            yield from trace(dirs, np.repeat(np.arange(count), len(sel)), count, sub, sub_q)
+            radiance[sel] = sub.reshape(count, len(sel), 3).mean(axis=0)
+            inverse[sel] = sub_q.reshape(count, len(sel)).mean(axis=0)
     return CapturedFaces(index, centre, faces,
                          radiance.reshape(len(faces), side, side, 3).astype(np.float32),
                          inverse.reshape(len(faces), side, side, 1).astype(np.float32),
