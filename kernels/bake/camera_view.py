@@ -158,7 +158,9 @@ def pixel_offsets(n: int, k: int, pixels: np.ndarray) -> np.ndarray:
     "n-rooks" pattern of multi-jittered sampling. Each pixel's pattern is scrambled by a hash of
     its index (the net's bits XOR-ed, a digital shift that keeps the net; the rooks' sub-columns
     and sub-rows permuted), so that one pattern does not round the same way in every pixel along
-    an edge: what is left is noise, as in Cycles' pixel sampling. n = 1: the pixel centre."""
+    a slanted edge: what is left is noise, as in Cycles' pixel sampling (an edge along the rows
+    meets every pixel's n^2 fine rows alike and rounds to the same 1/n^2). n = 1: the pixel
+    centre."""
     pixels = np.asarray(pixels, np.uint64)
     if n == 1:
         return np.full((len(pixels), 2), 0.5)

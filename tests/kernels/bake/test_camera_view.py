@@ -77,3 +77,24 @@ def test_a_silhouette_pixel_takes_the_share_of_it_the_surface_covers():
     np.testing.assert_allclose(image[:, 2], 0.6, atol=1e-12)
     np.testing.assert_array_equal(image[:, 1], 0.0)
     np.testing.assert_array_equal(image[:, 3:], 1.0)
+
+
+def test_an_edge_along_the_pixel_rows_is_resolved_to_a_ninth_of_a_pixel():
+    """A white sheet over a black world, its top edge at y = 0.1025 m under an orthographic camera
+    of 8 pixels across 1 m: row 3 (y from 0 to 0.125 m) is 82% covered. Its 3 x 3 rays per pixel
+    sit in 9 different rows of a 9 x 9 grid (`pixel_offsets`), so every pixel of the row reads
+    7/9, within a ninth of 0.82; rays at the cell centres would read 2/3 in every pixel."""
+    white = Material(name="w", base_color=np.ones(3, np.float32), specular=0.0)
+    sheet = quad([(-2, -2, 0), (2, -2, 0), (2, 0.1025, 0), (-2, 0.1025, 0)])
+    camera = ortho_camera((0.5, 0.0, 1.0), (0, 0, -1), (0, 1, 0), 1.0, resolution=(8, 8))
+    scene = build([(sheet, white)], camera=camera)
+    image, f = background_and_fragments(scene)
+    image[f.rows, f.cols] = 1.0
+    np.testing.assert_array_equal(image[3], 1.0)  # the row's centres (y = 0.0625) are covered
+    count = supersample_edges(scene, image, f, lambda g: np.ones((len(g), 3)),
+                              BVH.build(scene.triangles), 3)
+    assert count == 16  # rows 2 and 3, 8 pixels each
+    np.testing.assert_allclose(image[3], 7.0 / 9.0, atol=1e-12)
+    assert np.abs(image[3] - 0.82).max() < 1.0 / 9.0 < abs(2.0 / 3.0 - 0.82)
+    np.testing.assert_array_equal(image[2], 0.0)
+    np.testing.assert_array_equal(image[4:], 1.0)
