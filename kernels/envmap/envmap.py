@@ -40,7 +40,7 @@ from ..geometry.scene import Scene, triangle_areas, triangle_emission
 from ..progress import Steps, drain, scaled
 from ..trace.settings import TraceResult, TracerSettings
 from ..trace.tracer import Tracer, trace_steps
-from .cubemap import (  # noqa: F401 (sample_bordered re-exported)
+from .cubemap import (  # noqa: F401 (sample_bordered, bordered_directions re-exported)
     BORDER,
     bordered_directions,
     bordered_texel_directions,
@@ -451,13 +451,10 @@ def capture_faces_steps(scene: Scene, index: int, size: int, tracer_settings: Tr
     every = np.repeat(np.asarray(faces), side * side) * (side * side) + np.tile(
         np.arange(side * side), len(faces))
     face_of, (row_of, col_of) = every // (side * side), np.divmod(every % (side * side), side)
-    for k in range(n * n):
-        if n == 1:
-            dirs = bordered_directions(size, BORDER)[list(faces)].reshape(-1, 3)
-        else:
-            offset = pixel_offsets(n, k, every)
-            dirs = bordered_texel_directions(size, BORDER, face_of, row_of, col_of,
-                                             (offset[:, 0], offset[:, 1]))
+    for k in range(n * n):  # n = 1: the centres
+        offset = pixel_offsets(n, k, every)
+        dirs = bordered_texel_directions(size, BORDER, face_of, row_of, col_of,
+                                         (offset[:, 0], offset[:, 1]))
         yield from trace(dirs, k, n * n, one, one_q, ids if k == 0 else None)
         radiance += one
         inverse += one_q

@@ -34,7 +34,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..bake.camera_view import edge_pixels, pixel_offsets, stratified_offsets
+from ..bake.camera_view import edge_pixels, stratified_offsets
 from ..geometry.alpha_occlusion import clipped_hits, transmittance
 from ..geometry.bvh import BVH
 from ..geometry.camera import Strata, camera_rays, pixel_rays, strata_rows
@@ -655,19 +655,11 @@ def trace_steps(scene: Scene, settings: TracerSettings, bvh: BVH | None = None,
     # Each sample stands for a 1/n cell of its pixel; its textures are averaged over that cell.
     grid = max(1, settings.texture_filter // n)
     tracer.pass_name = "pixels"
-    pixel = row * width + col  # the view's flat pixel index: each pixel's own pattern
-    # Sample k goes through its point in cell k of its pixel (`pixel_offsets`); its texture box is
-    # that cell.
     for k, (ox, oy) in enumerate(stratified_offsets(n)):
         tracer.clock.label = "camera"
         with tracer.clock("camera rays"):
-            if n == 1:
-                o, d = camera_rays(scene.camera, width, height)
-                o, d = o[first_row:last_row], d[first_row:last_row]  # the whole view's floats
-            else:
-                offset = pixel_offsets(n, k, pixel)
-                o, d = pixel_rays(scene.camera, width, height, col + offset[:, 0],
-                                  row + offset[:, 1])
+            o, d = camera_rays(scene.camera, width, height, offsets=(ox, oy))
+            o, d = o[first_row:last_row], d[first_row:last_row]  # the whole view's floats
         footprint = None if settings.texture_filter == 1 else Footprint(
             scene.camera, width, height, col + ox, row + oy, 1.0 / n, grid)
         acc += tracer.radiance(o.reshape(-1, 3), d.reshape(-1, 3), first_ids if k == 0 else None,
@@ -690,13 +682,12 @@ def trace_steps(scene: Scene, settings: TracerSettings, bvh: BVH | None = None,
         tracer.stats.edge_pixels = int(mark.sum())
         if mark.any():
             sel = np.nonzero(mark)[0]
-            grid = stratified_offsets(a)  # the cells; sub-sample k lies in cell k
+            grid = stratified_offsets(a)
             tracer.pass_name = "edges"
             # All sub-samples of all edge pixels go out as few large wavefronts: per-call costs
             # (BVH pool set-up, one pass per depth) are paid once, not once per sub-sample.
-            rays = [pixel_rays(scene.camera, width, height, col[sel] + offset[:, 0],
-                               row[sel] + offset[:, 1])
-                    for offset in (pixel_offsets(a, k, pixel[sel]) for k in range(len(grid)))]
+            rays = [pixel_rays(scene.camera, width, height, col[sel] + ox, row[sel] + oy)
+                    for ox, oy in grid]
             origins = np.concatenate([o for o, _ in rays])  # (a*a*E, 3)
             dirs = np.concatenate([d for _, d in rays])
             del rays

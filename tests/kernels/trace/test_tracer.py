@@ -9,9 +9,9 @@ import pytest
 from reference_data import reference
 from scene_builder import build, ortho_camera, persp_camera, quad, uv_sphere
 
-from classic_bake.kernels.bake.camera_view import pixel_offsets
+from classic_bake.kernels.bake.camera_view import stratified_offsets
 from classic_bake.kernels.geometry.bvh import BVH
-from classic_bake.kernels.geometry.camera import pixel_rays
+from classic_bake.kernels.geometry.camera import camera_rays
 from classic_bake.kernels.geometry.scene import Light, Material, Texture
 from classic_bake.kernels.measure.metrics import rel_mse
 from classic_bake.kernels.shading.specular_layer import schlick_grazing_curve
@@ -270,11 +270,9 @@ def test_edge_sub_samples_share_out_an_area_lights_samples():
     assert changed.sum() == count  # the edge pixels, resampled
     tracer = Tracer(scene, BVH.build(scene.triangles), settings)
     full = np.zeros((16, 16, 3))
-    row, col = np.divmod(np.arange(256), 16)
-    for k in range(16):  # every sub-sample against every light sample
-        offset = pixel_offsets(4, k, np.arange(256))
-        o, d = pixel_rays(cam, 16, 16, col + offset[:, 0], row + offset[:, 1])
-        full += tracer.radiance(o, d).reshape(16, 16, 3) / 16
+    for ox, oy in stratified_offsets(4):  # every sub-sample against every light sample
+        o, d = camera_rays(cam, 16, 16, offsets=(ox, oy))
+        full += tracer.radiance(o.reshape(-1, 3), d.reshape(-1, 3)).reshape(16, 16, 3) / 16
     np.testing.assert_allclose(edges.image[changed], full[changed], rtol=5e-3)
 
 
