@@ -469,13 +469,12 @@ def capture_faces_steps(scene: Scene, index: int, size: int, tracer_settings: Tr
         count = a * a  # sub-samples per texel, one in each cell of an a x a grid
         total = done + len(sel) * count
         if len(sel):
-            local, rest = np.divmod(sel, side * side)  # the face's place in `faces`
-            i, j = np.divmod(rest, side)
-            face = np.asarray(faces)[local]
+            face, i, j = face_of[sel], row_of[sel], col_of[sel]
             dirs = np.concatenate([
                 bordered_texel_directions(size, BORDER, face, i, j, (offset[:, 0], offset[:, 1]))
                 for offset in (pixel_offsets(a, k, every[sel]) for k in range(count))])
-            rays += count * np.bincount(local, minlength=len(faces))
+            # sel // side^2: the face's place in `faces`
+            rays += count * np.bincount(sel // (side * side), minlength=len(faces))
             sub, sub_q = np.empty((len(dirs), 3)), np.empty(len(dirs))
             yield from trace(dirs, np.repeat(np.arange(count), len(sel)), count, sub, sub_q)
             radiance[sel] = sub.reshape(count, len(sel), 3).mean(axis=0)
