@@ -32,15 +32,17 @@ UV_NAME = "Lightmap"
 def kernel_visibility(scene, targets, light, settings):
     """(seconds, {object: (N,) visibility}) of one light over every object's texels."""
     from classic_bake.kernels.shading import direct_light as dl
+    from classic_bake.kernels.shadow.shadowmap import Receivers
 
     one = replace(scene, lights=(light,))
     start = time.perf_counter()
     sets = list(targets.items())
-    points = np.concatenate([t.points for _, (t, _, _) in sets])
-    geo = np.concatenate([t.geo_normals for _, (t, _, _) in sets])
+    # As the shadowmap job does: every object's texels together, read in place.
+    receivers = Receivers.of_parts([t.points for _, (t, _, _) in sets],
+                                   [t.geo_normals for _, (t, _, _) in sets])
     spacing = dl.median_spacing([sp for _, (_, sp, _) in sets], [len(t) for _, (t, _, _) in sets])
-    vis = np.ones((1, len(points)), np.float32)
-    for _ in dl.light_visibility_steps(one, points, geo, spacing, settings, vis):
+    vis = np.ones((1, len(receivers)), np.float32)
+    for _ in dl.light_visibility_steps(one, receivers, spacing, settings, vis):
         pass
     seconds = time.perf_counter() - start
     out, first = {}, 0

@@ -122,28 +122,24 @@ def median_spacing(spacings, counts) -> float:
     return 0.5 * float(pick[np.searchsorted(ends, low, "right")] + pick[np.searchsorted(ends, high, "right")])
 
 
-def light_visibility_steps(scene: Scene, points, geo_normals, spacing: float,
+def light_visibility_steps(scene: Scene, receivers: Receivers, spacing: float,
                            settings: DirectLightSettings, out: np.ndarray) -> Steps[np.ndarray]:
-    """Fill out (L, N) float32 with each light's shadow-map visibility; yields progress, returns
-    `out`."""
-    receivers = Receivers.of(points, geo_normals)  # once for planning and looking up
-    maps = yield from shadow_maps_steps(scene, points, geo_normals, spacing, settings, receivers)
-    return maps_visibility(maps, points, geo_normals, out, receivers)
+    """Fill out (L, N) float32 with each light's shadow-map visibility at the receivers (points
+    and geometric normals, `Receivers.of` or `of_parts`); yields progress, returns `out`."""
+    maps = yield from shadow_maps_steps(scene, receivers, spacing, settings)
+    return maps_visibility(maps, receivers, out)
 
 
-def shadow_maps_steps(scene: Scene, points, geo_normals, spacing: float,
-                      settings: DirectLightSettings, receivers: Receivers | None = None
-                      ) -> Steps[list[ShadowMap | None]]:
-    """Each light's shadow map, planned for and rendered over the receivers (points (N, 3),
-    geometric normals (N, 3), `spacing` m apart; `receivers`: `Receivers.of` them when the
-    caller has it): yields progress, returns the list (None for a light that casts no
-    shadow)."""
+def shadow_maps_steps(scene: Scene, receivers: Receivers, spacing: float,
+                      settings: DirectLightSettings) -> Steps[list[ShadowMap | None]]:
+    """Each light's shadow map, planned for and rendered over the receivers (points and
+    geometric normals, prepared once for every light: `Receivers.of`), `spacing` m apart: yields
+    progress, returns the list (None for a light that casts no shadow)."""
     lights = scene.lights
-    # Prepared once for every light. Culling and planning read the receivers only through their
-    # bounding box (the sun's fit reads them all): its two corners stand in for them there.
-    if receivers is None:
-        receivers = Receivers.of(points, geo_normals)
+    # Culling and planning read the receivers only through their bounding box (the sun's fit
+    # reads them all, the map size an even sample): its two corners stand in for them there.
     box = receivers.box if len(receivers) else np.zeros((0, 3))
+    sample = receivers.sample(DISTANCE_SAMPLES)
     maps = []
     for k, light in enumerate(lights):
         if not light.cast_shadow or scene.triangle_count == 0:
@@ -155,7 +151,7 @@ def shadow_maps_steps(scene: Scene, points, geo_normals, spacing: float,
         fit = fit_sun(casters, light, receivers) if light.kind == "SUN" else None
         if settings.auto_resolution:
             shadow = replace(shadow, resolution=map_resolution(
-                light, points, spacing, fit.span if fit is not None else None))
+                light, sample, spacing, fit.span if fit is not None else None))
         shadow_map = plan_shadow_map(casters, light, shadow, box, fit)  # casters: culled above
         drain(render_shadow_map_steps(shadow_map, casters, _cutout(scene, caster_ids)))
         maps.append(shadow_map)
@@ -172,13 +168,9 @@ def _cutout(scene: Scene, caster_ids: np.ndarray) -> Cutout | None:
     return Cutout(cut, lambda tri, bary: surface_alpha(scene, caster_ids[tri], bary))
 
 
-def maps_visibility(maps: list, points, geo_normals, out: np.ndarray,
-                    receivers: Receivers | None = None) -> np.ndarray:
-    """Fill out (L, N) float32 with each light's visibility at receivers (points, geometric
-    normals (N, 3); `receivers`: `Receivers.of` them when the caller has it) read from its
-    shadow map (`shadow_maps_steps`; None: 1)."""
-    if receivers is None:
-        receivers = Receivers.of(points, geo_normals)
+def maps_visibility(maps: list, receivers: Receivers, out: np.ndarray) -> np.ndarray:
+    """Fill out (L, N) float32 with each light's visibility at the receivers (points and
+    geometric normals, `Receivers.of`) read from its shadow map (`shadow_maps_steps`; None: 1)."""
     for k, shadow_map in enumerate(maps):
         if shadow_map is None:
             out[k] = 1.0
@@ -264,7 +256,8 @@ def render_steps(scene: Scene, settings: DirectLightSettings, resolution=None,
     spacing = texel * (float(np.median(f.depth)) if camera.kind == "PERSP" else 1.0)
     geo = f.geometric.copy()
     geo[f.back] *= -1  # seen from behind: shade the side we see
-    maps = yield from scaled(shadow_maps_steps(scene, f.points, geo, spacing, settings), 0.2, 0.6)
+    maps = yield from scaled(shadow_maps_steps(scene, Receivers.of(f.points, geo), spacing, settings),
+                             0.2, 0.6)
     image[f.rows, f.cols] = _shade(scene, maps, f)
     yield 0.8
     if edge_samples > 1:
@@ -285,7 +278,8 @@ def _shade(scene: Scene, maps: list, f) -> np.ndarray:
     geo = f.geometric.copy()
     geo[f.back] *= -1  # seen from behind: shade the side we see
     normals[np.einsum("ij,ij->i", normals, d) > 0] *= -1
-    vis = maps_visibility(maps, points, geo, np.ones((len(scene.lights), len(points)), np.float32))
+    vis = maps_visibility(maps, Receivers.of(points, geo),
+                          np.ones((len(scene.lights), len(points)), np.float32))
     e = irradiance_per_light(scene, points, normals)
     # What reflects diffusely toward the eye: no metal or glass, and the base under the specular
     # layer darkened at this view (`specular_layer.py`), as Cycles' diffuse lobe.
@@ -339,19 +333,18 @@ def shadow_bake_steps(scene: Scene, objects, lightmap_sizes: dict, padding: int,
             sets.append((k, "lightmap", lightmap_targets(scene, k, lightmap_sizes[k])))
         sets.append((k, "corners", corner_targets(scene, k)))
         yield 0.1 * (len(sets) / (2 * max(len(objects), 1)))
-    points = np.concatenate([t.points for _, _, t in sets]) if sets else np.zeros((0, 3))
-    geo = np.concatenate([t.geo_normals for _, _, t in sets]) if sets else np.zeros((0, 3))
-    normals = np.concatenate([t.normals for _, _, t in sets]) if sets else np.zeros((0, 3))
+    # The parts are read in place: concatenating them cost more than preparing them.
+    receivers = Receivers.of_parts([t.points for _, _, t in sets], [t.geo_normals for _, _, t in sets])
     spacing = median_spacing([receiver_spacing(t, float(areas[scene.object_slice(k)].sum()))
                               for k, _, t in sets], [len(t) for _, _, t in sets])
-    vis = np.ones((len(scene.lights), len(points)), np.float32)
-    yield from scaled(light_visibility_steps(scene, points, geo, spacing, settings, vis), 0.1, 0.85)
-    mask = shadow_mask(irradiance_per_light(scene, points, normals), vis)
+    vis = np.ones((len(scene.lights), len(receivers)), np.float32)
+    yield from scaled(light_visibility_steps(scene, receivers, spacing, settings, vis), 0.1, 0.85)
     results, start = {}, 0
     parts: dict = {}
     for k, kind, t in sets:
         stop = start + len(t)
-        parts.setdefault(k, {})[kind] = (t, mask[start:stop], vis[:, start:stop])
+        mask = shadow_mask(irradiance_per_light(scene, t.points, t.normals), vis[:, start:stop])
+        parts.setdefault(k, {})[kind] = (t, mask, vis[:, start:stop])
         start = stop
     for k in objects:
         out = parts[k]

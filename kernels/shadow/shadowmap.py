@@ -19,6 +19,7 @@ failure measures (acne, peter-panning) `measures.py`.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Literal
 
@@ -26,6 +27,7 @@ import numpy as np
 
 from ..geometry.raster import Projection
 from ..geometry.threads import core_count
+from ..geometry.vec import bounds_of_parts
 
 EpsMode = Literal["fixed", "auto"]
 MapKind = Literal["ORTHO", "PERSP", "CUBE"]
@@ -34,9 +36,9 @@ TINY = np.float32(1e-30)  # guards divisions by cos(theta) = 0: far below any re
 #                          the quotient is capped at TAN_THETA_MAX anyway
 UNIT_LENGTH2_TOL = 1e-6  # |n|^2 this close to 1 is unit for the tolerance's slopes: a relative
 #                          error of 5e-7 in cos(theta), below float32 rounding of the products
-# Receivers converted per step of `Receivers.of`: its (3, C) float64 buffer (384 KiB) stays in
-# cache, and no (3, N) float64 copy or (N,) temporaries are made (those cost more in fresh pages
-# than in arithmetic: 7.0 against 2.6 ms for 263k receivers).
+# Receivers converted per step of `Receivers.of`: its temporaries stay in cache, and no (3, N)
+# float64 copy or (N,) temporaries are made (those cost more in fresh pages than in arithmetic:
+# 7.0 against 2.6 ms for 263k receivers).
 RECEIVER_STEP = 1 << 14
 
 
@@ -120,10 +122,11 @@ class Receivers:
 
     The lookup works on (3, N) float32 columns relative to the receivers' centre (see
     `depth_test._look_up`); transposing, centring, normalising and bounding them is paid once per
-    bake instead of once per light.
+    bake instead of once per light. A bake's receivers come in parts (an object's lightmap
+    texels, its corners): `of_parts` reads them in place, as if concatenated, without the copy.
     """
 
-    positions: np.ndarray  # (N, 3) world m as given (not copied; the sun's fit)
+    positions: tuple[np.ndarray, ...]  # (N_k, 3) world m, the parts as given (not copied)
     local: np.ndarray  # (3, N) float32, world position - centre, m
     centre: np.ndarray  # (3,) float64, the bounding box's centre, world m
     normals: np.ndarray  # (3, N) float32, world unit; zero where unknown
@@ -134,27 +137,34 @@ class Receivers:
     @classmethod
     def of(cls, points: np.ndarray, normals: np.ndarray) -> Receivers:
         """From (N, 3) world points (m) and normals (any length; zero: unknown)."""
-        points = np.asarray(points).reshape(-1, 3)
-        normals = np.asarray(normals).reshape(-1, 3)
-        count = len(points)
-        lo, hi = np.zeros(3), np.zeros(3)
-        buffer = np.empty((3, min(count, RECEIVER_STEP)))
-        for a in range(0, count, RECEIVER_STEP):  # the box first: the centre precedes `local`
-            rows = buffer[:, : min(count - a, RECEIVER_STEP)]
-            np.copyto(rows, points[a : a + RECEIVER_STEP].T)  # contiguous rows: fast reductions
-            step_lo, step_hi = rows.min(axis=1), rows.max(axis=1)
-            lo, hi = (step_lo, step_hi) if a == 0 else (np.minimum(lo, step_lo), np.maximum(hi, step_hi))
+        return cls.of_parts((points,), (normals,))
+
+    @classmethod
+    def of_parts(cls, points: Sequence[np.ndarray], normals: Sequence[np.ndarray]) -> Receivers:
+        """From parts of (N_k, 3) world points (m) and their normals (any length; zero: unknown),
+        in order: the receivers of `of(concatenated points, concatenated normals)`."""
+        points = tuple(np.asarray(p).reshape(-1, 3) for p in points)
+        normals = tuple(np.asarray(n).reshape(-1, 3) for n in normals)
+        if [len(p) for p in points] != [len(n) for n in normals]:
+            raise ValueError("every part needs one normal per point")
+        count = sum(len(p) for p in points)
+        # The box first: the centre precedes `local`.
+        lo, hi = bounds_of_parts(points) if count else (np.zeros(3), np.zeros(3))
         centre = 0.5 * (lo + hi)
         local = np.empty((3, count), np.float32)
         nrm = np.empty((3, count), np.float32)
         shortest = longest = 1.0
-        for a in range(0, count, RECEIVER_STEP):
-            b = min(a + RECEIVER_STEP, count)
-            np.subtract(points[a:b].T, centre[:, None], out=local[:, a:b], casting="same_kind")
-            np.copyto(nrm[:, a:b], normals[a:b].T, casting="same_kind")
-            length2 = np.einsum("ij,ij->j", nrm[:, a:b], nrm[:, a:b])
-            shortest = min(shortest, float(length2.min()))
-            longest = max(longest, float(length2.max()))
+        first = 0
+        for part, part_normals in zip(points, normals, strict=True):
+            for a in range(0, len(part), RECEIVER_STEP):
+                b = min(a + RECEIVER_STEP, len(part))
+                cols = slice(first + a, first + b)
+                np.subtract(part[a:b].T, centre[:, None], out=local[:, cols], casting="same_kind")
+                np.copyto(nrm[:, cols], part_normals[a:b].T, casting="same_kind")
+                length2 = np.einsum("ij,ij->j", nrm[:, cols], nrm[:, cols])
+                shortest = min(shortest, float(length2.min()))
+                longest = max(longest, float(length2.max()))
+            first += len(part)
         # Bake targets pass unit normals: rescaling them would change nothing but cost 0.5 ms.
         zero = None
         if not 1.0 - UNIT_LENGTH2_TOL <= shortest <= longest <= 1.0 + UNIT_LENGTH2_TOL:
@@ -162,6 +172,16 @@ class Receivers:
             zero = length2 == 0.0 if shortest == 0.0 else None
             nrm *= 1.0 / np.sqrt(np.maximum(length2, TINY))  # zero normals stay zero
         return cls(points, local, centre, nrm, zero, lo, hi)
+
+    def sample(self, count: int) -> np.ndarray:
+        """(M, 3) float64 world m: every max(1, N // count)-th receiver from the first, the rows
+        `np.concatenate(positions)[::step]` would give (an even stride for planning)."""
+        step = max(1, len(self) // max(count, 1))
+        picks, start = [], 0
+        for part in self.positions:
+            picks.append(np.asarray(part[(-start) % step :: step], np.float64))
+            start += len(part)
+        return np.concatenate(picks) if picks else np.zeros((0, 3))
 
     def __len__(self) -> int:
         return self.local.shape[1]

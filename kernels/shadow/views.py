@@ -24,7 +24,7 @@ import numpy as np
 from ..envmap import cubemap
 from ..geometry.raster import Projection, look_at
 from ..geometry.scene import Light
-from ..geometry.vec import bounds, cross3, max_of_three, min_of_three, row_norms
+from ..geometry.vec import bounds, bounds_of_parts, cross3, max_of_three, min_of_three, row_norms
 from .shadowmap import Receivers, ShadowMap, ShadowMapSettings, ShadowView
 
 SPOT_CUBE_ANGLE = np.radians(120.0)  # wider spot cones use the six-face cube map
@@ -97,8 +97,8 @@ def _fit_sun(tris: np.ndarray, receivers: np.ndarray | Receivers, light: Light) 
     right = cross3(forward, up)
     basis = np.stack([right, up, forward])  # rows: light-space x, y, depth
     verts = tris.reshape(-1, 3).astype(np.float64) @ basis.T  # (3T, 3) light space, m
-    points = receivers.positions if isinstance(receivers, Receivers) else receivers
-    r_lo, r_hi = bounds(points @ basis.T)  # (N, 3) light space, m
+    parts = receivers.positions if isinstance(receivers, Receivers) else (receivers,)
+    r_lo, r_hi = bounds_of_parts(parts, basis)  # the receivers' box in light space, m
     if len(verts):
         v_lo, v_hi = bounds(verts)
         scene_size = float((np.maximum(r_hi, v_hi) - np.minimum(r_lo, v_lo)).max())

@@ -17,6 +17,7 @@ from classic_bake.kernels.bake.bake_targets import (
 from classic_bake.kernels.geometry.scene import Light, Material
 from classic_bake.kernels.progress import drain
 from classic_bake.kernels.shading import direct_light as dl
+from classic_bake.kernels.shadow.shadowmap import Receivers
 
 WHITE = Material(name="white", base_color=np.full(3, 0.8, np.float32), specular=0.0)
 
@@ -140,7 +141,8 @@ def test_square_occluder_shadow_mask_matches_geometry():
     t = lightmap_targets(both, 0, 128)
     vis = np.ones((1, len(t)), np.float32)
     spacing = 4.0 / (128 * 0.8)
-    list(dl.light_visibility_steps(both, t.points, t.geo_normals, spacing, dl.DirectLightSettings(), vis))
+    list(dl.light_visibility_steps(both, Receivers.of(t.points, t.geo_normals), spacing,
+                                   dl.DirectLightSettings(), vis))
     mask = dl.shadow_mask(dl.irradiance_per_light(both, t.points, t.normals), vis)
     shadowed_area = np.count_nonzero(mask < 0.5) * spacing**2
     assert shadowed_area == pytest.approx(1.0, abs=4 * spacing)  # a texel ring along the border
@@ -159,7 +161,7 @@ def test_tilted_spot_has_no_acne_off_its_axis():
     normals = np.tile([0, 0, 1.0], (len(pts), 1))
     e = dl.irradiance_per_light(scene, pts, normals)
     vis = np.ones((1, len(pts)), np.float32)
-    list(dl.light_visibility_steps(scene, pts, normals, 0.05, dl.DirectLightSettings(), vis))
+    list(dl.light_visibility_steps(scene, Receivers.of(pts, normals), 0.05, dl.DirectLightSettings(), vis))
     lit = e[0, :, 0] > 0
     assert lit.sum() > 1000 and np.all(vis[0, lit] == 1.0)
 

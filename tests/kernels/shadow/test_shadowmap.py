@@ -488,6 +488,32 @@ def test_prepared_receivers_plan_and_look_up_as_the_arrays_do():
         assert 0.0 < vis.mean() < 1.0  # a shadow falls
 
 
+def test_receivers_from_parts_are_the_concatenated_receivers():
+    """Parts read in place (a bake's objects, with an empty one among them) give the columns,
+    normals, box and plan sample of their concatenation bit for bit; the sun's fit to them too."""
+    from classic_bake.kernels.shadow.shadowmap import RECEIVER_STEP, Receivers
+    from classic_bake.kernels.shadow.views import fit_sun
+
+    rng = np.random.default_rng(11)
+    sizes = (RECEIVER_STEP + 5, 0, 37, 2 * RECEIVER_STEP)  # parts across the conversion steps
+    points = [rng.normal(size=(n, 3)) * [4.0, 2.0, 1.0] + [1.0, -3.0, 2.0] for n in sizes]
+    normals = [rng.normal(size=(n, 3)) for n in sizes]
+    normals[3][::5] = 0.0  # unknown normals
+    parts = Receivers.of_parts(points, normals)
+    whole = Receivers.of(np.concatenate(points), np.concatenate(normals))
+    for name in ("local", "centre", "normals", "no_normal", "lo", "hi"):
+        assert np.array_equal(getattr(parts, name), getattr(whole, name)), name
+    for count in (1, 100, 4096, 10**6):
+        assert np.array_equal(parts.sample(count), np.concatenate(points)[:: max(1, len(whole) // count)])
+    tris = _quad((-2, -2, 3), (4, 0, 0), (0, 4, 0))
+    sun = _sun(25.0, 40.0)
+    a, b = fit_sun(tris, sun, parts), fit_sun(tris, sun, np.concatenate(points))
+    assert [a.x0, a.x1, a.y0, a.y1, a.d0, a.d1] == pytest.approx([b.x0, b.x1, b.y0, b.y1, b.d0, b.d1],
+                                                                abs=1e-12)
+    with pytest.raises(ValueError, match="one normal per point"):
+        Receivers.of_parts(points, normals[:3] + [normals[3][1:]])
+
+
 def test_prepared_normals_are_unit_or_zero():
     """Receivers.of rescales normals of any length to unit, keeps unit normals bit for bit (they
     are not rescaled) and zero normals zero (flagged as unknown)."""
