@@ -61,6 +61,7 @@ def bake_case(name: str, size: int, args) -> dict:
         texture_bake_steps,
     )
     from classic_bake.kernels.measure.metrics import rel_mse
+    from classic_bake.kernels.progress import drain
 
     bpy.ops.wm.open_mainfile(filepath=str(ROOT / "sample_blends" / f"{name}.blend"),
                              load_ui=False, use_scripts=False)
@@ -93,10 +94,8 @@ def bake_case(name: str, size: int, args) -> dict:
             scene = bridge.snapshot(request=bridge.SnapshotRequest(lightmap_uv=UV_NAME))
             objects = [k for k, o in enumerate(scene.objects) if not o.is_instance]
             sizes = {k: plan[scene.objects[k].source_name] for k in objects}
-            bakes = None
-            for item in texture_bake_steps(scene, objects, sizes, 2,
-                                           TextureBakeSettings(samples_per_side=cells)):
-                bakes = item
+            bakes = drain(texture_bake_steps(scene, objects, sizes, 2,
+                                             TextureBakeSettings(samples_per_side=cells)))
             seconds = time.perf_counter() - start
             images = {scene.objects[k].source_name: b.lightmap for k, b in bakes.items()}
             masks = {n: ref_masks[n] & bakes_mask for n, bakes_mask in
@@ -132,6 +131,7 @@ def view_case(name: str, args) -> dict:
     from classic_bake.addon import cycles as cr
     from classic_bake.kernels.bake.texture_bake import render_steps
     from classic_bake.kernels.measure.metrics import rel_mse
+    from classic_bake.kernels.progress import drain
 
     path = ROOT / "sample_blends" / f"{name}.blend"
     bpy.ops.wm.open_mainfile(filepath=str(path), load_ui=False, use_scripts=False)
@@ -149,10 +149,8 @@ def view_case(name: str, args) -> dict:
             label, texture_filter, adaptive = VIEW_LADDER[step]
             start = time.perf_counter()
             scene = bridge.snapshot(resolution=resolution)
-            image = None
-            for item in render_steps(scene, resolution, texture_filter=texture_filter,
-                                     adaptive=adaptive):
-                image = item
+            image = drain(render_steps(scene, resolution, texture_filter=texture_filter,
+                                       adaptive=adaptive))
             seconds = time.perf_counter() - start
             kernel_rows.append({"setting": label, "seconds": seconds,
                                 "rel_mse": rel_mse(image, ref.image)})
