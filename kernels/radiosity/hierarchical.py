@@ -80,11 +80,11 @@ NEAR_FIELD_SIDE = 2
 # A link also splits while F_pq times the range of the first shot's reflected light rho H over q
 # exceeds this share of what receiver p reflects of it (at least the scene's area-weighted mean):
 # a coarse source gives its receivers its parts' mean B, which is wrong where its light is uneven
-# and the receiver has little light of its own. Generated rooms (bench/scenes.py), view
-# brightness against Cycles / bake seconds, without -> with: a spot's pool on the floor 0.9897 ->
-# 0.9941 / 15.5 -> 14.7 s; an emissive panel 0.9917 -> 0.9927 / 15.8 -> 17.1 s; a point lamp
-# 0.9914 -> 0.9929 / 18.7 -> 19.3 s. Measured against the brightest leaf instead of the
-# receiver's own light, 1e-4 split as well on the spot but cost the point room 25% more time.
+# and the receiver has little light of its own (the walls around a spot's pool on a floor: 1.8%
+# dark against Cycles on a generated room, 0.6% with the split, at the same bake time). Relative
+# to the receiver's own light, not the brightest leaf's: directly lit receivers, which a source's
+# unevenness barely changes, then keep their links (measured against the brightest leaf, a
+# point-lit room split them all and baked 25% longer for no gain).
 LIGHT_SPLIT_SHARE = 2e-3
 # Rays per shadow-ray call (the BVH reaches its full rate from about 50k).
 RAYS_PER_CALL = 1 << 18
