@@ -254,11 +254,9 @@ def render_steps(scene: Scene, settings: DirectLightSettings, resolution=None,
     # Pixel footprint at the receivers: the image plane's texel at distance t (PERSP) or in m.
     texel = (camera.plane_max[0] - camera.plane_min[0]) / width
     spacing = texel * (float(np.median(f.depth)) if camera.kind == "PERSP" else 1.0)
-    geo = f.geometric.copy()
-    geo[f.back] *= -1  # seen from behind: shade the side we see
-    maps = yield from scaled(shadow_maps_steps(scene, Receivers.of(f.points, geo), spacing, settings),
-                             0.2, 0.6)
-    image[f.rows, f.cols] = _shade(scene, maps, f)
+    receivers = _seen_receivers(f)  # plans the maps and reads them at the pixel centres
+    maps = yield from scaled(shadow_maps_steps(scene, receivers, spacing, settings), 0.2, 0.6)
+    image[f.rows, f.cols] = _shade(scene, maps, f, receivers)
     yield 0.8
     if edge_samples > 1:
         from ..geometry.bvh import BVH
@@ -269,17 +267,24 @@ def render_steps(scene: Scene, settings: DirectLightSettings, resolution=None,
     return image
 
 
-def _shade(scene: Scene, maps: list, f) -> np.ndarray:
-    """(M, 3) radiance of fragments f (`Fragments`): emission plus each light's diffuse light
-    times its shadow-map visibility (`maps`, `shadow_maps_steps`) and the rough lobes'
-    highlights."""
+def _seen_receivers(f) -> Receivers:
+    """Fragments f as shadow-map receivers, their geometric normals turned to the side the eye
+    sees (seen from behind: shade the side we see)."""
+    geo = f.geometric.copy()
+    geo[f.back] *= -1
+    return Receivers.of(f.points, geo)
+
+
+def _shade(scene: Scene, maps: list, f, receivers: Receivers | None = None) -> np.ndarray:
+    """(M, 3) radiance of fragments f (`Fragments`; `receivers`: `_seen_receivers(f)` when the
+    caller has it): emission plus each light's diffuse light times its shadow-map visibility
+    (`maps`, `shadow_maps_steps`) and the rough lobes' highlights."""
     tri, bary, points, d = f.tri, f.bary, f.points, f.dirs
     normals = scene_normals(scene, tri, bary, interpolated_normals(scene, tri, bary))
-    geo = f.geometric.copy()
-    geo[f.back] *= -1  # seen from behind: shade the side we see
     normals[np.einsum("ij,ij->i", normals, d) > 0] *= -1
-    vis = maps_visibility(maps, Receivers.of(points, geo),
-                          np.ones((len(scene.lights), len(points)), np.float32))
+    if receivers is None:
+        receivers = _seen_receivers(f)
+    vis = maps_visibility(maps, receivers, np.ones((len(scene.lights), len(points)), np.float32))
     e = irradiance_per_light(scene, points, normals)
     # What reflects diffusely toward the eye: no metal or glass, and the base under the specular
     # layer darkened at this view (`specular_layer.py`), as Cycles' diffuse lobe.
