@@ -310,8 +310,8 @@ def light_spread(tree: _Tree, leaves: np.ndarray, reflected: np.ndarray
     hi = np.full(len(tree), -np.inf)
     lo = np.full(len(tree), np.inf)
     hi[leaves] = lo[leaves] = lit
-    for level in range(int(tree.level.max()) - 1, -1, -1):  # bottom-up, as `_pull`
-        e = np.flatnonzero((tree.level == level) & (tree.child >= 0))
+    for e in _levels(tree)[-2::-1]:  # bottom-up, as `_pull`
+        e = e[tree.child[e] >= 0]
         kids = tree.child[e][:, None] + np.arange(4)
         hi[e], lo[e] = hi[kids].max(axis=1), lo[kids].min(axis=1)
     allowed = np.full(len(tree), np.inf)
@@ -351,6 +351,11 @@ def _visible_share_steps(tree: _Tree, p: np.ndarray, q: np.ndarray, side: int,
                                           weights * target_weights * cast, ray_offset))
 
 
+def _levels(tree: _Tree) -> list[np.ndarray]:
+    """The elements of each level of `tree`, roots first (refined leaves sit on any level)."""
+    return [np.flatnonzero(tree.level == k) for k in range(int(tree.level.max()) + 1)]
+
+
 def _pull(tree: _Tree, b: np.ndarray, levels: list) -> None:
     """Inner elements' B as the area-weighted mean of their four children's, bottom-up, in place
     (a parent's area is its children's sum: midpoint splits tile it)."""
@@ -373,7 +378,7 @@ def solve_links(tree: _Tree, leaves: np.ndarray, p: np.ndarray, q: np.ndarray, f
     max |B - source|: measured against an emitter's B instead (30x brighter in the Cornell box),
     the walls stopped 1-2% short.
     """
-    levels = [np.flatnonzero(tree.level == k) for k in range(int(tree.level.max()) + 1)]
+    levels = _levels(tree)
     b = np.zeros((len(tree), 3))
     b[leaves] = source[leaves]
     _pull(tree, b, levels)
