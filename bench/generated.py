@@ -10,8 +10,9 @@ Cycles' cached references bake the same texels. Per room:
 
 * **radiosity bake**: the radiosity solve and lightmap bake at the defaults (and, unless --quick,
   a finer setting for the error floor) against Cycles' DIFFUSE bake of the same texels at a ladder
-  of samples (1, 4, 16, then x4 while it has not reached our error, up to 256), both against a
-  converged Cycles DIFFUSE bake (cached in out/cache); emitters left out (bench/_lightmaps.py).
+  of samples (1, 4, 16, then x4 while it has not reached our error, up to --bake-cap: 1024),
+  both against a converged Cycles DIFFUSE bake (cached in out/cache); emitters left out
+  (bench/_lightmaps.py).
   Errors are net of the reference's own noise (estimated from its two halves, subtracted from
   every error measured against it; `rel_mse_raw` keeps the measured one). The ratio: Cycles'
   seconds to the defaults' texel relMSE over ours; where its ladder stops short of that error,
@@ -136,7 +137,7 @@ def radiosity_room(args, path: Path, drawn: dict, plan: dict) -> dict:
     view_counts = [4, 16, 64] if args.quick else [4, 8, 16, 32, 64, 128, 256]
     # Cycles' bake ladder: these, then four times the samples while it has not reached the
     # radiosity bake's error, up to the cap.
-    bake_counts, bake_cap = ([1, 4], 16) if args.quick else ([1, 4, 16], 256)
+    bake_counts, bake_cap = ([1, 4], 16) if args.quick else ([1, 4, 16], args.bake_cap)
     model = cr.radiosity(world_lighting=not drawn["closed"])
     names = [n for n in plan if n not in drawn["emitters"]]
     ref_view = cr.reference(path, model, "render", resolution=resolution,
@@ -223,7 +224,7 @@ def shadow_room(args, path: Path, drawn: dict, plan: dict) -> dict:
     from classic_bake.kernels.geometry.scene import triangle_areas
     from classic_bake.kernels.shading import direct_light as dl
 
-    repeats = 1 if args.quick else 3
+    repeats = 1 if args.quick else 5  # the least of each side's repeats: both sides alike
     counts = [1, 4] if args.quick else [1, 4, 16]
     snap = bridge.snapshot(request=bridge.SnapshotRequest(lightmap_uv=UV_NAME, textures=False,
                                                           camera=False))
@@ -275,6 +276,10 @@ def main() -> int:
                         help="cap of the converged Cycles references (default 2048)")
     parser.add_argument("--max-ref-bake-samples", type=int, default=1024,
                         help="cap of the converged Cycles lightmap bakes (default 1024)")
+    parser.add_argument("--bake-cap", type=int, default=1024,
+                        help="the most samples Cycles' bake ladder climbs to while it has not "
+                             "reached the radiosity bake's error (default 1024; past it the "
+                             "ratio is a lower bound)")
     parser.add_argument("--bake-target-rel-mse", type=float, default=4e-4,
                         help="the converged bake reference's halves agree to this relMSE "
                              "(its own error a quarter of it; default 4e-4)")
