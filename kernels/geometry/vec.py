@@ -18,24 +18,26 @@ def bounds(points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return lo, hi
 
 
-# Rows per block of `bounds_along`: 16k x 3 float64 columns (384 KiB) stay in L2.
-BOUNDS_STEP = 1 << 14
+# Rows per block of a pass that streams (N, 3) rows through a reused (3, rows) column buffer
+# (`bounds_along`, `shadowmap.Receivers.of_parts`): 16k x 3 float64 columns (384 KiB) stay in L2,
+# where whole (3, N) copies cost more in fresh pages than in arithmetic.
+COLUMN_BLOCK = 1 << 14
 
 
 def bounds_along(points: np.ndarray, axes: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(lo (3,), hi (3,)) of (N, 3) points (N >= 1) expressed in `axes` ((3, 3) rows, or None:
     the world axes), i.e. `bounds(points @ axes.T)` without its (N, 3) temporary.
 
-    A block of rows at a time goes into a reused (3, BOUNDS_STEP) column buffer (contiguous
+    A block of rows at a time goes into a reused (3, COLUMN_BLOCK) column buffer (contiguous
     rows reduce fast), and the product is a BLAS call on columns: 410k receivers took 1.7 ms
     against 4.3 ms for the whole product and `bounds`."""
     count = len(points)
-    block = min(count, BOUNDS_STEP)
+    block = min(count, COLUMN_BLOCK)
     columns = np.empty((3, block))
     turned = np.empty((3, block)) if axes is not None else columns
     lo = hi = None
-    for a in range(0, count, BOUNDS_STEP):
-        m = min(count - a, BOUNDS_STEP)
+    for a in range(0, count, COLUMN_BLOCK):
+        m = min(count - a, COLUMN_BLOCK)
         np.copyto(columns[:, :m], points[a : a + m].T)
         if axes is not None:
             np.matmul(axes, columns[:, :m], out=turned[:, :m])

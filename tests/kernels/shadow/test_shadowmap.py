@@ -491,11 +491,12 @@ def test_prepared_receivers_plan_and_look_up_as_the_arrays_do():
 def test_receivers_from_parts_are_the_concatenated_receivers():
     """Parts read in place (a bake's objects, with an empty one among them) give the columns,
     normals, box and plan sample of their concatenation bit for bit; the sun's fit to them too."""
-    from classic_bake.kernels.shadow.shadowmap import RECEIVER_STEP, Receivers
+    from classic_bake.kernels.geometry.vec import COLUMN_BLOCK
+    from classic_bake.kernels.shadow.shadowmap import Receivers
     from classic_bake.kernels.shadow.views import fit_sun
 
     rng = np.random.default_rng(11)
-    sizes = (RECEIVER_STEP + 5, 0, 37, 2 * RECEIVER_STEP)  # parts across the conversion steps
+    sizes = (COLUMN_BLOCK + 5, 0, 37, 2 * COLUMN_BLOCK)  # parts across the conversion steps
     points = [rng.normal(size=(n, 3)) * [4.0, 2.0, 1.0] + [1.0, -3.0, 2.0] for n in sizes]
     normals = [rng.normal(size=(n, 3)) for n in sizes]
     normals[3][::5] = 0.0  # unknown normals
