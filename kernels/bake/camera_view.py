@@ -23,7 +23,7 @@ EDGE_CONTRAST = 1.0 / 16.0
 # Added to the luminance sum in the contrast test so that near-black pixels do not all count as edges.
 CONTRAST_FLOOR = 1e-2
 # Rays per side through each edge pixel of a camera view (`supersample_edges`): 3 x 3 takes a
-# silhouette's coverage to 1/9 of a pixel (`pixel_offsets`).
+# silhouette's coverage to 1/9 of a pixel (`pixel_patterns`).
 EDGE_SAMPLES = 3
 
 
@@ -144,9 +144,9 @@ def stratified_offsets(n: int) -> np.ndarray:
     return np.stack([gx.ravel(), gy.ravel()], 1)
 
 
-def pixel_offsets(n: int, k: int, pixels: np.ndarray) -> np.ndarray:
-    """(P, 2) offsets in [0, 1)^2 of sample k (in cell k of an n x n grid, row by row as
-    `stratified_offsets`) in each of the pixels `pixels` (P,) int (the image's flat indices).
+def pixel_patterns(n: int, pixels: np.ndarray) -> np.ndarray:
+    """(n^2, P, 2) offsets in [0, 1)^2: [k, p] is sample k (in cell k of an n x n grid, row by row
+    as `stratified_offsets`) in pixel pixels[p] (P,) int (the image's flat indices).
 
     Every pixel's n^2 samples take one cell each, and no two share a column or a row of the
     n^2 x n^2 grid of finer cells, so an edge along the pixel grid is resolved to 1/n^2 of a pixel,
@@ -163,27 +163,27 @@ def pixel_offsets(n: int, k: int, pixels: np.ndarray) -> np.ndarray:
     centre."""
     pixels = np.asarray(pixels, np.uint64)
     if n == 1:
-        return np.full((len(pixels), 2), 0.5)
-    cx, cy = k % n, k // n  # the cell
+        return np.full((1, len(pixels), 2), 0.5)
     m = n * n
+    cx, cy = np.arange(m) % n, np.arange(m) // n  # each sample's cell
     if n & (n - 1) == 0:
         h = n.bit_length() - 1  # bits per cell coordinate; a fine index has 2h bits
         shift_x = _pixel_hash(pixels, 1) & np.uint64(m - 1)
         shift_y = _pixel_hash(pixels, 2) & np.uint64(m - 1)
         # The point i of the pixel's net in cell (cx, cy): x's top h bits are i's top h bits
         # XOR the shift's, y's top h bits are i's low h bits reversed XOR the shift's.
-        high = np.uint64(cx) ^ (shift_x >> np.uint64(h))
-        low = _reversed_bits(np.uint64(cy) ^ (shift_y >> np.uint64(h)), h)
+        high = cx.astype(np.uint64)[:, None] ^ (shift_x >> np.uint64(h))  # (m, P)
+        low = _reversed_bits(cy.astype(np.uint64)[:, None] ^ (shift_y >> np.uint64(h)), h)
         i = (high << np.uint64(h)) | low
         fine_x, fine_y = i ^ shift_x, _reversed_bits(i, 2 * h) ^ shift_y
     else:
         # Per pixel, a permutation of the sub-columns within each column and of the sub-rows
         # within each row: fine column cx n + P(cy), fine row cy n + Q(cx).
         keys = _pixel_hash(pixels[:, None], np.arange(1, 2 * n + 1, dtype=np.uint64)[None])
-        sub_column = np.argsort(keys[:, :n], axis=1)[:, cy]
-        sub_row = np.argsort(keys[:, n:], axis=1)[:, cx]
-        fine_x, fine_y = cx * n + sub_column, cy * n + sub_row
-    return (np.stack([fine_x, fine_y], 1).astype(np.float64) + 0.5) / m
+        sub_column = np.argsort(keys[:, :n], axis=1)[:, cy].T  # (m, P)
+        sub_row = np.argsort(keys[:, n:], axis=1)[:, cx].T
+        fine_x, fine_y = (cx * n)[:, None] + sub_column, (cy * n)[:, None] + sub_row
+    return (np.stack([fine_x, fine_y], 2).astype(np.float64) + 0.5) / m
 
 
 def _pixel_hash(pixels: np.ndarray, salt) -> np.ndarray:
@@ -209,7 +209,7 @@ def supersample_edges(scene: Scene, image: np.ndarray, fragments: Fragments, sha
                       samples: int = EDGE_SAMPLES) -> int:
     """In place: every edge pixel of `image` (H, W, 3) shaded at its centre (`fragments`, the
     covered pixels; `edge_pixels` of the image and of the objects the centres see) becomes the
-    mean of `samples` x `samples` stratified rays through it (`pixel_offsets`), the box filter
+    mean of `samples` x `samples` stratified rays through it (`pixel_patterns`), the box filter
     Cycles' 1-px BOX pixel filter is (the pixel centres alone alias silhouettes, folds and hard
     shadow edges). A ray that hits a triangle of `bvh` (built over scene.triangles) is shaded by
     shade(Fragments) -> (M, 3); one that escapes sees the world (its map along the ray, else its
@@ -223,7 +223,7 @@ def supersample_edges(scene: Scene, image: np.ndarray, fragments: Fragments, sha
     if rows.size == 0 or samples < 2:
         return 0
     flat = rows * width + cols
-    offsets = np.concatenate([pixel_offsets(samples, k, flat) for k in range(samples * samples)])
+    offsets = pixel_patterns(samples, flat).reshape(-1, 2)  # sample-major, as the tiles below
     # Every sub-pixel ray of every edge pixel in one BVH call and one shading call: `shade` may
     # cost a few ms per call besides its points (the radiosity view's final gather).
     sub_rows = np.tile(rows, samples * samples)

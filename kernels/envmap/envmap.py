@@ -34,7 +34,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..bake.camera_view import edge_pixels, pixel_offsets
+from ..bake.camera_view import edge_pixels, pixel_patterns
 from ..geometry.bvh import BVH
 from ..geometry.scene import Scene, triangle_areas, triangle_emission
 from ..progress import Steps, drain, scaled
@@ -446,13 +446,12 @@ def capture_faces_steps(scene: Scene, index: int, size: int, tracer_settings: Tr
     inverse = np.zeros(texels)
     ids = np.empty(texels, np.int64)
     one, one_q = np.empty((texels, 3)), np.empty(texels)
-    # A texel's index over all six bordered faces picks its pattern (`pixel_offsets`): the same
+    # A texel's index over all six bordered faces picks its pattern (`pixel_patterns`): the same
     # in a tile as in the whole capture.
     every = np.repeat(np.asarray(faces), side * side) * (side * side) + np.tile(
         np.arange(side * side), len(faces))
     face_of, (row_of, col_of) = every // (side * side), np.divmod(every % (side * side), side)
-    for k in range(n * n):  # n = 1: the centres
-        offset = pixel_offsets(n, k, every)
+    for k, offset in enumerate(pixel_patterns(n, every)):  # n = 1: the centres
         dirs = bordered_texel_directions(size, BORDER, face_of, row_of, col_of,
                                          (offset[:, 0], offset[:, 1]))
         yield from trace(dirs, k, n * n, one, one_q, ids if k == 0 else None)
@@ -472,7 +471,7 @@ def capture_faces_steps(scene: Scene, index: int, size: int, tracer_settings: Tr
             face, i, j = face_of[sel], row_of[sel], col_of[sel]
             dirs = np.concatenate([
                 bordered_texel_directions(size, BORDER, face, i, j, (offset[:, 0], offset[:, 1]))
-                for offset in (pixel_offsets(a, k, every[sel]) for k in range(count))])
+                for offset in pixel_patterns(a, every[sel])])
             # sel // side^2: the face's place in `faces`
             rays += count * np.bincount(sel // (side * side), minlength=len(faces))
             sub, sub_q = np.empty((len(dirs), 3)), np.empty(len(dirs))

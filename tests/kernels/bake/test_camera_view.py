@@ -7,7 +7,7 @@ from scene_builder import build, ortho_camera, quad
 from classic_bake.kernels.bake.camera_view import (
     background_and_fragments,
     edge_pixels,
-    pixel_offsets,
+    pixel_patterns,
     stratified_offsets,
     supersample_edges,
 )
@@ -22,13 +22,13 @@ def test_stratified_offsets_are_cell_centres():
 
 
 @pytest.mark.parametrize("n", [1, 2, 3, 4, 8])
-def test_pixel_offsets_take_one_cell_each_and_distinct_rows_and_columns(n):
+def test_pixel_patterns_take_one_cell_each_and_distinct_rows_and_columns(n):
     """In every pixel, sample k in cell k of the n x n grid, and no two in one row or column of
     the n^2 x n^2 grid: a horizontal edge at any height between two of those rows changes the
     pixel's coverage; n a power of two, one in every box of area 1/n^2 whose sides are powers of
     two (Hammersley's net, digitally shifted). Pixels differ in their patterns."""
     pixels = np.arange(0, 4000, 37)
-    patterns = np.stack([pixel_offsets(n, k, pixels) for k in range(n * n)], axis=1)  # (P, m, 2)
+    patterns = pixel_patterns(n, pixels).transpose(1, 0, 2)  # (P, m, 2)
     cells = np.floor(stratified_offsets(n) * n)
     m = n * n
     for offsets in patterns:
@@ -82,7 +82,7 @@ def test_a_silhouette_pixel_takes_the_share_of_it_the_surface_covers():
 def test_an_edge_along_the_pixel_rows_is_resolved_to_a_ninth_of_a_pixel():
     """A white sheet over a black world, its top edge at y = 0.1025 m under an orthographic camera
     of 8 pixels across 1 m: row 3 (y from 0 to 0.125 m) is 82% covered. Its 3 x 3 rays per pixel
-    sit in 9 different rows of a 9 x 9 grid (`pixel_offsets`), so every pixel of the row reads
+    sit in 9 different rows of a 9 x 9 grid (`pixel_patterns`), so every pixel of the row reads
     7/9, within a ninth of 0.82; rays at the cell centres would read 2/3 in every pixel."""
     white = Material(name="w", base_color=np.ones(3, np.float32), specular=0.0)
     sheet = quad([(-2, -2, 0), (2, -2, 0), (2, 0.1025, 0), (-2, 0.1025, 0)])
