@@ -10,9 +10,9 @@ Cycles' cached references bake the same texels. Per room:
 
 * **radiosity bake**: the radiosity solve and lightmap bake at the defaults (and, unless --quick,
   a finer setting for the error floor) against Cycles' DIFFUSE bake of the same texels at a ladder
-  of samples (1, 4, 16, then x4 while it has not reached our error, up to --bake-cap: 1024),
-  both against a converged Cycles DIFFUSE bake (cached in out/cache); emitters left out
-  (bench/_lightmaps.py).
+  of samples (1, 4, 16, then x4 up to 256 and x2 past it while it has not reached our error, up
+  to --bake-cap, 512), both against a converged Cycles DIFFUSE bake (cached in out/cache);
+  emitters left out (bench/_lightmaps.py).
   Errors are net of the reference's own noise (estimated from its two halves, subtracted from
   every error measured against it; `rel_mse_raw` keeps the measured one). The ratio: Cycles'
   seconds to the defaults' texel relMSE over ours; where its ladder stops short of that error,
@@ -63,6 +63,9 @@ ROOM_SOURCES = (ROOT / "bench" / "scenes.py", ROOT / "kernels" / "bake" / "light
 BAKE_TARGET_REL_MSE = 0.005  # the issue's target for the defaults on every closed room
 SHADOW_TARGET_DISAGREE = 0.005  # fraction of texels
 BRIGHTNESS_TOLERANCE = 0.01
+# Cycles' bake ladder climbs by 4x up to here, then by 2x (a 256-sample bake of a room takes
+# 1.5-3.5 minutes).
+LADDER_X4_TOP = 256
 # A metric of 0 (a Cycles rung that disagrees nowhere) would break log-log interpolation.
 FLOOR = 1e-6
 
@@ -135,8 +138,8 @@ def radiosity_room(args, path: Path, drawn: dict, plan: dict) -> dict:
 
     resolution = (40, 30) if args.quick else (80, 60)
     view_counts = [4, 16, 64] if args.quick else [4, 8, 16, 32, 64, 128, 256]
-    # Cycles' bake ladder: these, then four times the samples while it has not reached the
-    # radiosity bake's error, up to the cap.
+    # Cycles' bake ladder: these, then four times the samples (twice past LADDER_X4_TOP, where a
+    # rung costs minutes) while it has not reached the radiosity bake's error, up to the cap.
     bake_counts, bake_cap = ([1, 4], 16) if args.quick else ([1, 4, 16], args.bake_cap)
     model = cr.radiosity(world_lighting=not drawn["closed"])
     names = [n for n in plan if n not in drawn["emitters"]]
@@ -184,8 +187,9 @@ def radiosity_room(args, path: Path, drawn: dict, plan: dict) -> dict:
         error = texel_rel_mse(images, masks, ref_images, ref_masks, names)
         cycles_bake.append({"samples": n, "seconds": seconds, "rel_mse_raw": error,
                             "rel_mse": net(error)})
-        if not bake_counts and net(error) > best and 4 * n <= bake_cap:
-            bake_counts.append(4 * n)
+        step = 4 * n if 4 * n <= LADDER_X4_TOP else 2 * n
+        if not bake_counts and net(error) > best and step <= bake_cap:
+            bake_counts.append(step)
     for n in view_counts:
         image, seconds = cr.render_camera(bpy.context.scene, model, n, resolution=resolution,
                                           seed=LADDER_SEED)
@@ -276,9 +280,9 @@ def main() -> int:
                         help="cap of the converged Cycles references (default 2048)")
     parser.add_argument("--max-ref-bake-samples", type=int, default=1024,
                         help="cap of the converged Cycles lightmap bakes (default 1024)")
-    parser.add_argument("--bake-cap", type=int, default=1024,
+    parser.add_argument("--bake-cap", type=int, default=512,
                         help="the most samples Cycles' bake ladder climbs to while it has not "
-                             "reached the radiosity bake's error (default 1024; past it the "
+                             "reached the radiosity bake's error (default 512; past it the "
                              "ratio is a lower bound)")
     parser.add_argument("--bake-target-rel-mse", type=float, default=4e-4,
                         help="the converged bake reference's halves agree to this relMSE "
