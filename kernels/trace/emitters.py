@@ -31,6 +31,11 @@ class Emitters:
     area_two_sided: np.ndarray  # (S,) bool: emissive meshes emit from both sides in Cycles
     area_local: np.ndarray  # (S,) int: the sample's index among its emitter's samples
     area_count: np.ndarray  # (S,) int: how many samples its emitter has
+    area_emitter: np.ndarray  # (S,) int: the sample's light, an index into `hulls`
+    # Per light: triangles (K, 3, 3) world m whose convex hull holds every sample of it (an area
+    # lamp's rectangle, or the bounding one of a disk; a small emissive mesh's triangles), or
+    # None where that would cost more shaft tests than it saves (`shadow_shafts.py`).
+    hulls: list
 
 
 def mesh_light_samples(scene: Scene, tri_ids: np.ndarray, n: int
@@ -75,8 +80,18 @@ def mesh_light_samples(scene: Scene, tri_ids: np.ndarray, n: int
     return pts, ng[t], radiance[t] * (area.sum() / total), np.arange(total), total
 
 
+def lamp_rectangle(light: Light) -> np.ndarray:
+    """(2, 3, 3) world m: the two triangles of an area lamp's rectangle (a disk's or an
+    ellipse's bounding one), which hold all of its emitting surface."""
+    hx = 0.5 * light.size_x * np.asarray(light.axis_x, np.float64)
+    hy = 0.5 * light.size_y * np.asarray(light.axis_y, np.float64)
+    c = np.asarray(light.position, np.float64)
+    quad = np.array([c - hx - hy, c + hx - hy, c + hx + hy, c - hx + hy])
+    return quad[[[0, 1, 2], [0, 2, 3]]]
+
+
 def scene_emitters(scene: Scene, settings: TracerSettings) -> Emitters:
-    points, normals, power, two_sided, local, count = [], [], [], [], [], []
+    points, normals, power, two_sided, local, count, hulls = [], [], [], [], [], [], []
     n = settings.area_samples
     for light in scene.lights:
         if light.kind != "AREA":
@@ -92,6 +107,7 @@ def scene_emitters(scene: Scene, settings: TracerSettings) -> Emitters:
         two_sided.append(np.zeros(len(samples), bool))
         local.append(np.arange(len(samples)))
         count.append(np.full(len(samples), len(samples)))
+        hulls.append(lamp_rectangle(light))
     # Emissive triangles (an emission texture's black parts are not lights).
     tri_ids = np.flatnonzero(np.any(triangle_emission(scene) > 0.0, axis=1))
     if len(tri_ids):
@@ -104,13 +120,16 @@ def scene_emitters(scene: Scene, settings: TracerSettings) -> Emitters:
             two_sided.append(np.ones(len(pts), bool))
             local.append(index)
             count.append(np.full(len(pts), per_emitter))
+            hulls.append(scene.triangles[own].astype(np.float64)
+                         if len(own) <= MESH_LIGHT_TRIANGLES else None)
     if points:
+        emitter = np.repeat(np.arange(len(points)), [len(p) for p in points])
         return Emitters([li for li in scene.lights if li.kind != "AREA"], np.concatenate(points),
                          np.concatenate(normals), np.concatenate(power), np.concatenate(two_sided),
-                         np.concatenate(local), np.concatenate(count))
+                         np.concatenate(local), np.concatenate(count), emitter, hulls)
     z = np.zeros((0, 3))
     none = np.zeros(0, np.int64)
-    return Emitters(list(scene.lights), z, z, z, np.zeros(0, bool), none, none)
+    return Emitters(list(scene.lights), z, z, z, np.zeros(0, bool), none, none, none, [])
 
 
 def point_light(name: str, position, intensity) -> Light:

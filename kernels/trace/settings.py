@@ -117,6 +117,7 @@ class TraceStats:
     camera_rays: int = 0
     secondary_rays: int = 0
     shadow_rays: int = 0
+    clear_shadow_rays: int = 0  # shadow rays not cast: their triangle sees the light whole
     pruned_branches: int = 0  # reflected/refracted rays not traced because their weight was small
     depth_limited: int = 0  # rays alive at max_depth (their energy is lost)
     edge_pixels: int = 0

@@ -49,6 +49,7 @@ from ..shading.specular_layer import ggx_highlight, metal_tables, view_factors, 
 from ..shading.world_light import extract_suns, world_radiance
 from .emitters import scene_emitters
 from .settings import TraceResult, TracerSettings, TraceStats, auto_settings
+from .shadow_shafts import ClearShafts
 from .surface import MIN_NORMAL_LENGTH, Footprint, SurfaceHits, filtered_albedo, surface_at
 
 # Emitter samples handled together in area lighting: B x hits arrays stay a few MB per block for
@@ -122,6 +123,9 @@ class Tracer:
         self.alpha = scene_alpha(scene)
         self.tri_normals = geometric_normals(scene.triangles)
         self.emitters = scene_emitters(scene, settings)
+        # Hit triangles that see an area emitter whole cast no shadow rays to it.
+        self.shafts = ClearShafts(scene.triangles, self.emitters.hulls, self.shadow_bvh,
+                                  self.offset)
         self.area_lamps = [li for li in scene.lights if li.kind == "AREA"]
         # A world map's suns (`world_light.extract_suns`): highlights of the rough lobes, and
         # the map without them for those lobes' rays (sky_scene).
@@ -168,7 +172,8 @@ class Tracer:
                             self.alpha.opaque)
 
     def direct(self, h: SurfaceHits, wo: np.ndarray, diffuse_w: np.ndarray, lobes: list, rough,
-               strata: Strata | None = None) -> tuple[np.ndarray, np.ndarray]:
+               strata: Strata | None = None, where: tuple | None = None
+               ) -> tuple[np.ndarray, np.ndarray]:
         """Light from every light at the hits, shadow rays included: (radiance, lambert), each (N, 3).
 
         radiance = albedo * lambert + highlights; lambert is the diffuse part for a white base
@@ -176,7 +181,9 @@ class Tracer:
         lit directly, [(F0 (N, 3), weight (N,))] (a specular layer's, a metal's), GGX of each
         hit's roughness (N,): lamps' and area lights' highlights (emissive meshes are met by the
         lobe's mirror ray instead). strata: each hit's stratum and their count m, for area
-        lights (`_area_direct`).
+        lights (`_area_direct`). where: each hit's triangle (N,) and barycentrics (N, 3), when
+        known: a hit whose part of its triangle sees an area light whole casts no shadow rays to
+        it (`shadow_shafts.py`).
         """
         out = np.zeros_like(h.p)
         lambert = np.zeros_like(h.p)
@@ -232,7 +239,8 @@ class Tracer:
             sub_strata = strata_rows(strata, idx)
             area_lobes = [(f0[idx], weight[idx]) for f0, weight in lobes]
             diffuse, shine = self._area_direct(origin, ns, brdf_w, sub_strata, wo[idx], area_lobes,
-                                               rough[idx], smooth)
+                                               rough[idx], smooth,
+                                               None if where is None else (where[0][idx], where[1][idx]))
             lambert[idx] += diffuse
             out[idx] += shine
         out += h.albedo * lambert
@@ -258,13 +266,14 @@ class Tracer:
             wo = eye - p
             wo /= np.maximum(np.linalg.norm(wo, axis=1, keepdims=True), 1e-12)
             corner = SurfaceHits(p, h.ng, n, h.front, h.material, h.albedo, h.emission)
-            lit_k, lambert_k = self.direct(corner, wo, diffuse_w, lobes, rough, strata)
+            lit_k, lambert_k = self.direct(corner, wo, diffuse_w, lobes, rough, strata,
+                                           (hits.tri, np.broadcast_to(np.eye(3)[k], (len(p), 3))))
             lit += w[:, None] * lit_k
             lambert += w[:, None] * lambert_k
         return lit, lambert
 
     def _area_direct(self, origin, ns, brdf_d, strata: Strata | None = None, wo=None,
-                     lobes: tuple | list = (), rough=None, smooth=None
+                     lobes: tuple | list = (), rough=None, smooth=None, where=None
                      ) -> tuple[np.ndarray, np.ndarray]:
         """Light from area lights and emissive triangles: every emitter sample against every hit,
         EMITTER_BLOCK samples at a time, with one batch of shadow rays per block. Returns the
@@ -276,7 +285,9 @@ class Tracer:
         stratum k takes only its emitters' samples j with j = k (mod m), weighted m: the pixel's
         m sub-samples share out each emitter's stratified samples instead of each casting all
         of them (m times fewer shadow rays for the same samples per pixel). Emitters whose
-        sample count m does not divide keep every sample for every hit.
+        sample count m does not divide keep every sample for every hit. where: the hits'
+        triangles (N,) and barycentrics (N, 3), when known: a hit that sees an emitter whole
+        (`shadow_shafts.py`) casts no shadow rays to it.
         """
         em = self.emitters
         out = np.zeros_like(origin)
@@ -288,6 +299,10 @@ class Tracer:
             scale = np.where(shared, float(m), 1.0)  # (S,)
         else:
             keep, scale = None, None
+        whole = None  # (N, E) bool: the hit's triangle sees emitter e whole (a clear shaft)
+        if where is not None and em.hulls:
+            with self.clock("shafts"):
+                whole = self.shafts.clear(*where)
         for first in range(0, len(em.area_points), EMITTER_BLOCK):
             block = slice(first, first + EMITTER_BLOCK)
             delta = em.area_points[block][:, None, :] - origin[None, :, :]  # (B, N, 3)
@@ -303,8 +318,14 @@ class Tracer:
             b_idx, n_idx = np.nonzero(g > 0)
             if len(n_idx) == 0:
                 continue
-            vis = self._visible(origin[n_idx], to_l[b_idx, n_idx],
-                                dist[b_idx, n_idx] * (1.0 - 1e-4) - self.offset)
+            vis = np.ones(len(n_idx))
+            cast = np.arange(len(n_idx)) if whole is None else np.flatnonzero(
+                ~whole[n_idx, em.area_emitter[block][b_idx]])
+            self.stats.clear_shadow_rays += len(n_idx) - len(cast)
+            if len(cast):
+                b_c, n_c = b_idx[cast], n_idx[cast]
+                vis[cast] = self._visible(origin[n_c], to_l[b_c, n_c],
+                                          dist[b_c, n_c] * (1.0 - 1e-4) - self.offset)
             weight = em.area_radiance_da[block][b_idx] * (g[b_idx, n_idx] * vis)[:, None]
             relief = 1.0 if smooth is None else bump_shadowing(
                 smooth[n_idx], ns[n_idx], to_l[b_idx, n_idx])[:, None]
@@ -522,15 +543,16 @@ class Tracer:
             lit_w = np.where(dark, 0.0, diffuse_w)
             if self.diffuse is not None:
                 lit_w = np.zeros_like(lit_w)  # the solution's diffuse light replaces it below
+            u, v = hits.u.astype(np.float64), hits.v.astype(np.float64)
+            bary = np.stack([1.0 - u - v, u, v], axis=1)
             with self.clock("light sampling"):
                 if s.shading == "gouraud":
                     lit, lambert = self.gouraud_direct(h, hits, origins, lit_w, lobes, rough,
                                                        hit_strata)
                 else:
-                    lit, lambert = self.direct(h, wo, lit_w, lobes, rough, hit_strata)
+                    lit, lambert = self.direct(h, wo, lit_w, lobes, rough, hit_strata,
+                                               (hits.tri, bary))
             if self.diffuse is not None:
-                u, v = hits.u.astype(np.float64), hits.v.astype(np.float64)
-                bary = np.stack([1.0 - u - v, u, v], axis=1)
                 with self.clock("diffuse lookup"):
                     reflected = self.diffuse(hits.tri, bary, dirs, h.front, entered == 0,
                                              hit_strata)
