@@ -72,7 +72,7 @@ extension: $(VENV)/.stamp
 	$(PY) tools/build_extension.py --out dist
 
 # Every benchmark (bench/_report.py and bench/meshes.py are their shared helpers).
-BENCHES := rays trace texture envmap envmap_eevee bump shadowmap radiosity hybrid normalmap generated batch demo
+BENCHES := rays rays_loaded trace texture envmap envmap_eevee bump shadowmap radiosity hybrid normalmap generated batch demo
 
 # Every bench, then their reports published into bench/results/ and the documents regenerated.
 # Run it on an idle machine: a second busy process halves NumPy's speed on two cores.

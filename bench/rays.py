@@ -14,13 +14,19 @@ every camera ray and on the first `--bvhtree-rays` random rays (a random sample:
 depend on the count; a block of camera rays would be a block of image rows). It also checks
 that the three agree on which rays hit (Embree is not watertight, so a handful may differ).
 
-Usage:  .venv/bin/python bench/rays.py [--quick] [--rays N] [--repeats K]
-Writes out/bench/rays.json; `ratios` hold bvh_vs_bvhtree_rays_per_s/..., bvh_vs_embree_rays_per_s/...
+With --loaded (bench/rays_loaded.py) every contender runs beside a second process that keeps
+one core busy (`BUSY`, NumPy arithmetic on a cache-sized array), as on a machine shared with
+other work: the BVH's threads then share a core with it, and `thread_choice.py` has to notice.
+
+Usage:  .venv/bin/python bench/rays.py [--quick] [--rays N] [--repeats K] [--loaded]
+Writes out/bench/rays.json (rays_loaded.json with --loaded); `ratios` hold
+bvh_vs_bvhtree_rays_per_s/..., bvh_vs_embree_rays_per_s/...
 """
 
 from __future__ import annotations
 
 import argparse
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -35,6 +41,13 @@ from _report import format_table, timed, versions, write_report  # noqa: E402
 from classic_bake.kernels.geometry.bvh import BVH, BVHSettings  # noqa: E402
 
 CAMERA_FOV_DEG = 39.3  # the Cornell box camera's field of view; used for every scene
+# The second process of --loaded: one core kept busy by NumPy arithmetic on 512 KB (in the core's
+# L2 cache, so it takes a core, not the memory bus), until the bench stops it.
+BUSY = ("import numpy as np\n"
+        "x = np.random.default_rng(0).random(1 << 16)\n"
+        "while True:\n"
+        "    np.sqrt(x, out=x)\n"
+        "    x += 1.0\n")
 
 
 def camera_rays(eye, target, up, size: int) -> tuple[np.ndarray, np.ndarray]:
@@ -123,9 +136,24 @@ def main(argv: list[str] | None = None) -> int:
                         help="random rays given to the BVHTree loop (camera rays: all)")
     parser.add_argument("--repeats", type=int, default=2)
     parser.add_argument("--threads", type=int, default=0, help="BVH threads (0: one per core)")
+    parser.add_argument("--loaded", action="store_true",
+                        help="run beside a CPU-bound process; writes rays_loaded.json")
     args = parser.parse_args(argv)
     if args.quick:
         args.rays, args.image, args.bvhtree_rays, args.repeats = 50_000, 128, 10_000, 1
+    if not args.loaded:
+        return measure(args)
+    busy = subprocess.Popen([sys.executable, "-c", BUSY])
+    try:
+        time.sleep(1.0)  # the second process running before the first measurement
+        return measure(args)
+    finally:
+        busy.kill()
+        busy.wait()
+
+
+def measure(args: argparse.Namespace) -> int:
+    """Every scene and ray set against every contender; writes the report."""
 
     try:
         import bpy  # noqa: F401  (makes mathutils importable)
@@ -220,8 +248,10 @@ def main(argv: list[str] | None = None) -> int:
         "incoherent_rays": args.rays,
         "camera_image": args.image,
         "bvhtree_rays": args.bvhtree_rays,
+        "beside": "a CPU-bound process (bench/rays.py BUSY)" if args.loaded else "nothing",
     }
-    path = write_report("rays", ratios, figures, versions("bpy", "embreex"))
+    name = "rays_loaded" if args.loaded else "rays"
+    path = write_report(name, ratios, figures, versions("bpy", "embreex"))
     print(f"wrote {path}")
     return 0
 

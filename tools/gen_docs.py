@@ -53,15 +53,15 @@ TECHNIQUES: dict[str, dict[str, tuple[str, ...]]] = {
     "bump": {"settings": ("TracerSettings",), "benches": ("bump",)},
     "shadowmap": {"settings": ("ShadowMapSettings", "DirectLightSettings"),
                   "benches": ("shadowmap",)},
-    "trace": {"settings": ("TracerSettings",), "benches": ("trace", "rays")},
+    "trace": {"settings": ("TracerSettings",), "benches": ("trace", "rays", "rays_loaded")},
     "radiosity": {"settings": ("RadiositySettings",), "benches": ("radiosity",)},
     "hybrid": {"settings": ("HybridSettings",), "benches": ("hybrid",)},
     "normalmap": {"settings": ("NormalMapSettings", "HighToLowSettings"),
                   "benches": ("normalmap",)},
 }
 # Every bench, in the order bench/README.md describes them (the Makefile's BENCHES).
-BENCHES = ("rays", "trace", "texture", "envmap", "envmap_eevee", "bump", "shadowmap", "radiosity",
-           "hybrid", "normalmap", "generated", "batch", "demo")
+BENCHES = ("rays", "rays_loaded", "trace", "texture", "envmap", "envmap_eevee", "bump", "shadowmap",
+           "radiosity", "hybrid", "normalmap", "generated", "batch", "demo")
 # The reliability runs (not speed benches; hours, so `make bench` leaves them out): published
 # like the benches, shown in docs/reliability.md.
 RELIABILITY_BENCHES = ("huge", "soak")
