@@ -90,6 +90,15 @@ def lamp_rectangle(light: Light) -> np.ndarray:
     return quad[[[0, 1, 2], [0, 2, 3]]]
 
 
+def lamp_point(light: Light) -> np.ndarray | None:
+    """(1, 3, 3) world m: a point or spot lamp's position as a triangle of three equal corners,
+    whose shaft with a receiver is the tetrahedron of the two (`shadow_shafts.py`); None for
+    other lamps (a sun's shafts run to infinity)."""
+    if light.kind not in ("POINT", "SPOT"):
+        return None
+    return np.broadcast_to(np.asarray(light.position, np.float64), (1, 3, 3)).copy()
+
+
 def scene_emitters(scene: Scene, settings: TracerSettings) -> Emitters:
     points, normals, power, two_sided, local, count, hulls = [], [], [], [], [], [], []
     n = settings.area_samples

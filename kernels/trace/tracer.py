@@ -47,7 +47,7 @@ from ..shading.bump import bump_shadowing
 from ..shading.optics import fresnel_dielectric, reflect, refract
 from ..shading.specular_layer import ggx_highlight, metal_tables, view_factors, view_tables
 from ..shading.world_light import extract_suns, world_radiance
-from .emitters import scene_emitters
+from .emitters import lamp_point, scene_emitters
 from .settings import TraceResult, TracerSettings, TraceStats, auto_settings
 from .shadow_shafts import ClearShafts
 from .surface import MIN_NORMAL_LENGTH, Footprint, SurfaceHits, filtered_albedo, surface_at
@@ -123,9 +123,13 @@ class Tracer:
         self.alpha = scene_alpha(scene)
         self.tri_normals = geometric_normals(scene.triangles)
         self.emitters = scene_emitters(scene, settings)
-        # Hit triangles that see an area emitter whole cast no shadow rays to it.
+        # Hits whose triangle (or part of it) sees an area emitter or a point or spot lamp whole
+        # cast no shadow rays to it.
         self.shafts = ClearShafts(scene.triangles, self.emitters.hulls, self.shadow_bvh,
                                   self.offset)
+        self.lamp_shafts = ClearShafts(scene.triangles, [lamp_point(li) for li in
+                                                         self.emitters.lights],
+                                       self.shadow_bvh, self.offset)
         self.area_lamps = [li for li in scene.lights if li.kind == "AREA"]
         # A world map's suns (`world_light.extract_suns`): highlights of the rough lobes, and
         # the map without them for those lobes' rays (sky_scene).
@@ -199,32 +203,37 @@ class Tracer:
         # world is hidden from diffuse rays in this model, but glossy ones see it).
         lamps = [(light, True) for light in self.emitters.lights]
         lamps += [(sun, False) for sun in self.map_suns] if lobes else []
+        whole = None  # (n, L) bool: the hit sees scene lamp k whole (a clear shaft)
+        if where is not None and self.emitters.lights:
+            with self.clock("shafts"):
+                whole = self.lamp_shafts.clear(where[0][idx], where[1][idx])
         # Every lamp's lit hits first, then all their shadow rays in one BVH call: a call's
         # fixed cost (pool set-up, the traversal's steps) is paid once per depth, not per lamp.
-        lit_sets = []  # (light, diffuse, sub (k,), to_l (n, 3), e (n, 3))
+        lit_sets = []  # (diffuse, sub (k,), cast (k,) bool, to_l (n, 3), e (n, 3))
         shadow_o, shadow_d, shadow_t = [], [], []
-        for light, diffuse in lamps:
+        for k, (light, diffuse) in enumerate(lamps):
             to_l, dist = light_units.light_vectors(light, p)
             e = light_units.direct_irradiance(light, p, ns)  # (n, 3), includes cos and falloff
             sub = np.flatnonzero(np.any(e > 0, axis=1))
             if not len(sub):
                 continue
-            lit_sets.append((light, diffuse, sub, to_l, e))
-            if light.cast_shadow:
-                shadow_o.append(origin[sub])
-                shadow_d.append(to_l[sub])
-                shadow_t.append(np.where(np.isinf(dist[sub]), np.inf, dist[sub] - self.offset))
-        if shadow_o:
+            cast = np.full(len(sub), light.cast_shadow)
+            if light.cast_shadow and whole is not None and k < whole.shape[1]:
+                cast &= ~whole[sub, k]
+                self.stats.clear_shadow_rays += int(len(sub) - cast.sum())
+            lit_sets.append((diffuse, sub, cast, to_l, e))
+            rays = sub[cast]
+            shadow_o.append(origin[rays])
+            shadow_d.append(to_l[rays])
+            shadow_t.append(np.where(np.isinf(dist[rays]), np.inf, dist[rays] - self.offset))
+        if sum(len(o) for o in shadow_o):
             seen = self._visible(np.concatenate(shadow_o), np.concatenate(shadow_d),
                                  np.concatenate(shadow_t))
             seen_at = np.cumsum([0] + [len(o) for o in shadow_o])
-        shadowed = 0
-        for light, diffuse, sub, to_l, e in lit_sets:
-            if light.cast_shadow:
-                vis = seen[seen_at[shadowed]:seen_at[shadowed + 1]]
-                shadowed += 1
-            else:
-                vis = np.ones(len(sub), bool)
+        for k, (diffuse, sub, cast, to_l, e) in enumerate(lit_sets):
+            vis = np.ones(len(sub))
+            if cast.any():
+                vis[cast] = seen[seen_at[k]:seen_at[k + 1]]
             if diffuse:
                 # The relief's facets hide part of a low light from the diffuse base (Cycles).
                 relief = 1.0 if smooth is None else bump_shadowing(smooth[sub], ns[sub],

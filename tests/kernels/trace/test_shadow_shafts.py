@@ -2,12 +2,13 @@
 (kernels/trace/shadow_shafts.py): the same image as casting every ray, fewer rays."""
 
 import numpy as np
+import pytest
 from scene_builder import build, ortho_camera, quad
 
 from classic_bake.kernels.geometry.bvh import BVH
 from classic_bake.kernels.geometry.scene import Light, Material
 from classic_bake.kernels.trace import shadow_shafts
-from classic_bake.kernels.trace.emitters import lamp_rectangle
+from classic_bake.kernels.trace.emitters import lamp_rectangle, point_light
 from classic_bake.kernels.trace.settings import TracerSettings
 from classic_bake.kernels.trace.shadow_shafts import ClearShafts, child_of, children
 from classic_bake.kernels.trace.tracer import trace
@@ -80,10 +81,12 @@ def test_a_blocked_floor_triangle_is_split_down_to_the_parts_that_see_the_lamp()
     assert shafts.tested_pairs == again  # the answers are kept
 
 
-def test_skipping_clear_shadow_rays_leaves_the_image_as_casting_them(monkeypatch):
-    # The floor and cube under a lamp, seen from above with edges sampled: every pixel as
-    # when every shadow ray is cast, and most rays never cast.
-    lamp = panel(size=1.5, height=2.5)
+@pytest.mark.parametrize("kind", ["AREA", "POINT"])
+def test_skipping_clear_shadow_rays_leaves_the_image_as_casting_them(monkeypatch, kind):
+    # The floor and cube under a lamp (a square panel or a point), seen from above with edges
+    # sampled: every pixel as when every shadow ray is cast, and most rays never cast.
+    lamp = panel(size=1.5, height=2.5) if kind == "AREA" else point_light(
+        "P", (0.1, -0.2, 2.5), np.full(3, 20.0))
     cube = box((0.3, 0.2, 0.0), (0.9, 0.8, 0.6))
     floor = quad([(-2, -2, 0), (2, -2, 0), (2, 2, 0), (-2, 2, 0)])
     cam = ortho_camera((0, 0, 4), (0, 0, -1), (0, 1, 0), 4.0, (48, 48))

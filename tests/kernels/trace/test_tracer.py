@@ -379,4 +379,6 @@ def test_two_lamps_shadow_rays_in_one_call_and_the_profile():
     phases = result.stats.phases
     assert {"traversal", "shadow traversal", "surface", "light sampling"} <= set(phases["seconds"])
     assert "pixels depth 0" in phases["by_label"]
-    assert result.stats.shadow_rays == 2 * 16 * 16
+    # Rays asked of both lamps; the hidden one's shafts are blocked, so its rays are cast.
+    assert result.stats.shadow_rays + result.stats.clear_shadow_rays == 2 * 16 * 16
+    assert result.stats.shadow_rays >= 16 * 16
