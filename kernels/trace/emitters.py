@@ -90,10 +90,13 @@ def lamp_rectangle(light: Light) -> np.ndarray:
     return quad[[[0, 1, 2], [0, 2, 3]]]
 
 
-def lamp_point(light: Light) -> np.ndarray | None:
-    """(1, 3, 3) world m: a point or spot lamp's position as a triangle of three equal corners,
-    whose shaft with a receiver is the tetrahedron of the two (`shadow_shafts.py`); None for
-    other lamps (a sun's shafts run to infinity)."""
+def lamp_hull(light: Light, reach: float) -> np.ndarray | None:
+    """What a lamp's shafts are built on (`shadow_shafts.py`): a point or spot lamp's position as a
+    triangle of three equal corners (1, 3, 3) world m, whose shaft with a receiver is the
+    tetrahedron of the two; for a sun, the (3,) translation by `reach` m towards it (the receiver
+    swept that far: a prism past everything in the scene); None for other lamps."""
+    if light.kind == "SUN":
+        return -np.asarray(light.direction, np.float64) * reach
     if light.kind not in ("POINT", "SPOT"):
         return None
     return np.broadcast_to(np.asarray(light.position, np.float64), (1, 3, 3)).copy()

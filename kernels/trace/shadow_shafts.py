@@ -83,7 +83,8 @@ class ClearShafts:
     """The shafts between a scene's triangles and its area emitters, tested as hits ask for them.
 
     triangles (T, 3, 3) world m: the receivers (the triangles rays hit); hulls: per emitter
-    (K, 3, 3) world m triangles holding all of it, or None (never tested: always cast rays);
+    (K, 3, 3) world m triangles holding all of it, or a (3,) translation m (a sun: the shaft is
+    the receiver swept along it), or None (never tested: always cast rays);
     bvh: the geometry that may block shadow rays; slack m: the rays' offset off surfaces."""
 
     def __init__(self, triangles: np.ndarray, hulls: list, bvh, slack: float):
@@ -159,8 +160,12 @@ class ClearShafts:
         return corners
 
     def _test(self, receivers: np.ndarray, e: int) -> np.ndarray:
-        """(R,) bool: receivers (R, 3, 3) see every triangle of emitter e's hull whole."""
+        """(R,) bool: receivers (R, 3, 3) see every triangle of emitter e's hull whole (or, for
+        a translation, nothing lies on their way along it)."""
         hull = self.hulls[e]
+        if hull.ndim == 1:
+            self.tested_pairs += len(receivers)
+            return shafts.clear_pairs(receivers, receivers + hull, self.bvh, self.slack)
         k = len(hull)
         self.tested_pairs += len(receivers) * k
         pairs = shafts.clear_pairs(np.repeat(receivers, k, axis=0),

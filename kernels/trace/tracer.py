@@ -47,7 +47,7 @@ from ..shading.bump import bump_shadowing
 from ..shading.optics import fresnel_dielectric, reflect, refract
 from ..shading.specular_layer import ggx_highlight, metal_tables, view_factors, view_tables
 from ..shading.world_light import extract_suns, world_radiance
-from .emitters import lamp_point, scene_emitters
+from .emitters import lamp_hull, scene_emitters
 from .settings import TraceResult, TracerSettings, TraceStats, auto_settings
 from .shadow_shafts import ClearShafts
 from .surface import MIN_NORMAL_LENGTH, Footprint, SurfaceHits, filtered_albedo, surface_at
@@ -123,11 +123,12 @@ class Tracer:
         self.alpha = scene_alpha(scene)
         self.tri_normals = geometric_normals(scene.triangles)
         self.emitters = scene_emitters(scene, settings)
-        # Hits whose triangle (or part of it) sees an area emitter or a point or spot lamp whole
-        # cast no shadow rays to it.
+        # Hits whose triangle (or part of it) sees an area emitter or a lamp whole cast no shadow
+        # rays to it (a sun's shafts reach twice the scene's size: past all of it).
         self.shafts = ClearShafts(scene.triangles, self.emitters.hulls, self.shadow_bvh,
                                   self.offset)
-        self.lamp_shafts = ClearShafts(scene.triangles, [lamp_point(li) for li in
+        reach = 2.0 * _scene_scale(scene)
+        self.lamp_shafts = ClearShafts(scene.triangles, [lamp_hull(li, reach) for li in
                                                          self.emitters.lights],
                                        self.shadow_bvh, self.offset)
         self.area_lamps = [li for li in scene.lights if li.kind == "AREA"]

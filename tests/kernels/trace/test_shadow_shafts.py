@@ -81,12 +81,23 @@ def test_a_blocked_floor_triangle_is_split_down_to_the_parts_that_see_the_lamp()
     assert shafts.tested_pairs == again  # the answers are kept
 
 
-@pytest.mark.parametrize("kind", ["AREA", "POINT"])
+def lamp_of(kind: str) -> Light:
+    """A square panel, a point lamp or a sun over the floor."""
+    if kind == "AREA":
+        return panel(size=1.5, height=2.5)
+    if kind == "POINT":
+        return point_light("P", (0.1, -0.2, 2.5), np.full(3, 20.0))
+    d = np.array([0.3, 0.2, -1.0]) / np.linalg.norm([0.3, 0.2, -1.0])
+    return Light(name="Sun", kind="SUN", position=np.zeros(3), direction=d,
+                 axis_x=np.array([1.0, 0.0, 0.0]), axis_y=np.array([0.0, 1.0, 0.0]),
+                 irradiance=np.full(3, 3.0))
+
+
+@pytest.mark.parametrize("kind", ["AREA", "POINT", "SUN"])
 def test_skipping_clear_shadow_rays_leaves_the_image_as_casting_them(monkeypatch, kind):
-    # The floor and cube under a lamp (a square panel or a point), seen from above with edges
-    # sampled: every pixel as when every shadow ray is cast, and most rays never cast.
-    lamp = panel(size=1.5, height=2.5) if kind == "AREA" else point_light(
-        "P", (0.1, -0.2, 2.5), np.full(3, 20.0))
+    # The floor and cube under a lamp, seen from above with edges sampled: every pixel as when
+    # every shadow ray is cast, and most rays never cast.
+    lamp = lamp_of(kind)
     cube = box((0.3, 0.2, 0.0), (0.9, 0.8, 0.6))
     floor = quad([(-2, -2, 0), (2, -2, 0), (2, 2, 0), (-2, 2, 0)])
     cam = ortho_camera((0, 0, 4), (0, 0, -1), (0, 1, 0), 4.0, (48, 48))
