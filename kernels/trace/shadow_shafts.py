@@ -1,10 +1,11 @@
-"""Which hits see an area light whole: their shadow rays to it need not be cast.
+"""Which hits see a light whole: their shadow rays to it need not be cast.
 
 If no scene triangle enters the convex hull of a receiver triangle and an emitter (the shaft of
-`geometry/shafts.py`), every point of the receiver sees every point of the emitter, so a shadow
-ray from a hit there to any of the emitter's samples is unblocked: visibility exactly 1, the
-answer the ray would give. With 16 samples a hit, an area light's shadow rays are most of a lit
-room's work, and most of them are unblocked (a furnished room's cube-map capture: 80%).
+`geometry/shafts.py`: an area light's rectangle, a point lamp's position, or the receiver swept
+towards a sun), every point of the receiver sees every point of the emitter, so a shadow ray
+from a hit there to any of the emitter's samples is unblocked: visibility exactly 1, the answer
+the ray would give. With 16 samples a hit, an area light's shadow rays are most of a lit room's
+work, and most of them are unblocked (a furnished room's cube-map capture: 80%).
 
 A shaft test costs about as much as a hundred shadow rays, so only large receivers are tested:
 those holding at least SHAFT_SHARE of the scene's surface area, where many hits land in any view
@@ -80,7 +81,7 @@ def child_of(bary: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 class ClearShafts:
-    """The shafts between a scene's triangles and its area emitters, tested as hits ask for them.
+    """The shafts between a scene's triangles and its lights, tested as hits ask for them.
 
     triangles (T, 3, 3) world m: the receivers (the triangles rays hit); hulls: per emitter
     (K, 3, 3) world m triangles holding all of it, or a (3,) translation m (a sun: the shaft is

@@ -124,13 +124,11 @@ class Tracer:
         self.tri_normals = geometric_normals(scene.triangles)
         self.emitters = scene_emitters(scene, settings)
         # Hits whose triangle (or part of it) sees an area emitter or a lamp whole cast no shadow
-        # rays to it (a sun's shafts reach twice the scene's size: past all of it).
-        self.shafts = ClearShafts(scene.triangles, self.emitters.hulls, self.shadow_bvh,
-                                  self.offset)
+        # rays to it: the area emitters' shafts, then the lamps' (a sun's reach twice the scene's
+        # size: past all of it).
         reach = 2.0 * _scene_scale(scene)
-        self.lamp_shafts = ClearShafts(scene.triangles, [lamp_hull(li, reach) for li in
-                                                         self.emitters.lights],
-                                       self.shadow_bvh, self.offset)
+        self.shafts = ClearShafts(scene.triangles, self.emitters.hulls + [
+            lamp_hull(li, reach) for li in self.emitters.lights], self.shadow_bvh, self.offset)
         self.area_lamps = [li for li in scene.lights if li.kind == "AREA"]
         # A world map's suns (`world_light.extract_suns`): highlights of the rough lobes, and
         # the map without them for those lobes' rays (sky_scene).
@@ -187,8 +185,8 @@ class Tracer:
         hit's roughness (N,): lamps' and area lights' highlights (emissive meshes are met by the
         lobe's mirror ray instead). strata: each hit's stratum and their count m, for area
         lights (`_area_direct`). where: each hit's triangle (N,) and barycentrics (N, 3), when
-        known: a hit whose part of its triangle sees an area light whole casts no shadow rays to
-        it (`shadow_shafts.py`).
+        known: a hit whose part of its triangle sees a light whole casts no shadow rays to it
+        (`shadow_shafts.py`).
         """
         out = np.zeros_like(h.p)
         lambert = np.zeros_like(h.p)
@@ -204,10 +202,11 @@ class Tracer:
         # world is hidden from diffuse rays in this model, but glossy ones see it).
         lamps = [(light, True) for light in self.emitters.lights]
         lamps += [(sun, False) for sun in self.map_suns] if lobes else []
-        whole = None  # (n, L) bool: the hit sees scene lamp k whole (a clear shaft)
-        if where is not None and self.emitters.lights:
+        # (n, E + L) bool: the hit sees area emitter e, then lamp k, whole (a clear shaft).
+        whole, areas = None, len(self.emitters.hulls)
+        if where is not None:
             with self.clock("shafts"):
-                whole = self.lamp_shafts.clear(where[0][idx], where[1][idx])
+                whole = self.shafts.clear(where[0][idx], where[1][idx])
         # Every lamp's lit hits first, then all their shadow rays in one BVH call: a call's
         # fixed cost (pool set-up, the traversal's steps) is paid once per depth, not per lamp.
         lit_sets = []  # (diffuse, sub (k,), cast (k,) bool, to_l (n, 3), e (n, 3))
@@ -219,8 +218,8 @@ class Tracer:
             if not len(sub):
                 continue
             cast = np.full(len(sub), light.cast_shadow)
-            if light.cast_shadow and whole is not None and k < whole.shape[1]:
-                cast &= ~whole[sub, k]
+            if light.cast_shadow and whole is not None and k < len(self.emitters.lights):
+                cast &= ~whole[sub, areas + k]
                 self.stats.clear_shadow_rays += int(len(sub) - cast.sum())
             lit_sets.append((diffuse, sub, cast, to_l, e))
             rays = sub[cast]
@@ -250,7 +249,7 @@ class Tracer:
             area_lobes = [(f0[idx], weight[idx]) for f0, weight in lobes]
             diffuse, shine = self._area_direct(origin, ns, brdf_w, sub_strata, wo[idx], area_lobes,
                                                rough[idx], smooth,
-                                               None if where is None else (where[0][idx], where[1][idx]))
+                                               None if whole is None else whole[:, :areas])
             lambert[idx] += diffuse
             out[idx] += shine
         out += h.albedo * lambert
@@ -283,7 +282,7 @@ class Tracer:
         return lit, lambert
 
     def _area_direct(self, origin, ns, brdf_d, strata: Strata | None = None, wo=None,
-                     lobes: tuple | list = (), rough=None, smooth=None, where=None
+                     lobes: tuple | list = (), rough=None, smooth=None, whole=None
                      ) -> tuple[np.ndarray, np.ndarray]:
         """Light from area lights and emissive triangles: every emitter sample against every hit,
         EMITTER_BLOCK samples at a time, with one batch of shadow rays per block. Returns the
@@ -295,9 +294,8 @@ class Tracer:
         stratum k takes only its emitters' samples j with j = k (mod m), weighted m: the pixel's
         m sub-samples share out each emitter's stratified samples instead of each casting all
         of them (m times fewer shadow rays for the same samples per pixel). Emitters whose
-        sample count m does not divide keep every sample for every hit. where: the hits'
-        triangles (N,) and barycentrics (N, 3), when known: a hit that sees an emitter whole
-        (`shadow_shafts.py`) casts no shadow rays to it.
+        sample count m does not divide keep every sample for every hit. whole (N, E) bool, when
+        given: hit n sees emitter e whole (`shadow_shafts.py`) and casts no shadow rays to it.
         """
         em = self.emitters
         out = np.zeros_like(origin)
@@ -309,10 +307,6 @@ class Tracer:
             scale = np.where(shared, float(m), 1.0)  # (S,)
         else:
             keep, scale = None, None
-        whole = None  # (N, E) bool: the hit's triangle sees emitter e whole (a clear shaft)
-        if where is not None and em.hulls:
-            with self.clock("shafts"):
-                whole = self.shafts.clear(*where)
         for first in range(0, len(em.area_points), EMITTER_BLOCK):
             block = slice(first, first + EMITTER_BLOCK)
             delta = em.area_points[block][:, None, :] - origin[None, :, :]  # (B, N, 3)
