@@ -13,10 +13,11 @@ those holding at least SHAFT_SHARE of the scene's surface area, where many hits 
 receiver whose shaft is blocked (a floor triangle under a table) may still see the light whole
 over most of its area: its four midpoint children are tested, while they are large enough, and
 so on down to LEVELS subdivisions, each hit following its barycentrics into the part that holds
-it. Answers are kept for the tracer's life, and which receivers are tested depends on the scene
-alone, not on which rays came first: a hit's answer is the same whether it is traced with the
-whole view or with a tile of it (a ray can differ from its clear shaft only by rounding: a hit
-on the edge where a ceiling meets a wall, offset a hair outside the room, meets the wall).
+it. Answers are kept for the tracer's life. Every large receiver a hit asks about is tested, so a
+hit's answer depends on the scene and the hit alone, not on which rays came first: the same
+whether it is traced with the whole view or with a tile of it (a ray can differ from its clear
+shaft only by rounding: a hit on the edge where a ceiling meets a wall, offset a hair outside the
+room, meets the wall).
 
 Receivers are coded per level: a triangle's index at level 0, then code * 4 + child (0..2 the
 corner children of corners 0..2, 3 the middle one) at each level down.
@@ -103,17 +104,15 @@ class ClearShafts:
         self._parts = [[_Parts() for _ in range(LEVELS)] for _ in hulls]
         self.tested_pairs = 0  # receiver-emitter triangle pairs whose shaft was tested
 
-    def clear(self, tri: np.ndarray, bary: np.ndarray) -> np.ndarray:
-        """(N, E) bool: the hit on triangle tri[n] (N,) int at barycentrics bary[n] (N, 3) (of its
-        corners 0, 1, 2) sees emitter e whole."""
-        out = np.zeros((len(tri), len(self.hulls)), bool)
+    def clear(self, e: int, tri: np.ndarray, bary: np.ndarray) -> np.ndarray:
+        """(N,) bool: the hit on triangle tri[n] (N,) int at barycentrics bary[n] (N, 3) (of its
+        corners 0, 1, 2) sees emitter e whole. Ask only for the hits that would cast shadow rays
+        to e: every large receiver asked about is tested."""
         tri = np.asarray(tri, np.int64)
         large = self.areas[tri] >= self.min_area
-        if not large.any():
-            return out
-        for e, hull in enumerate(self.hulls):
-            if hull is not None:
-                out[large, e] = self._clear(e, tri[large], bary[large])
+        out = np.zeros(len(tri), bool)
+        if self.hulls[e] is not None and large.any():
+            out[large] = self._clear(e, tri[large], bary[large])
         return out
 
     def _clear(self, e: int, tri: np.ndarray, bary: np.ndarray) -> np.ndarray:

@@ -202,11 +202,8 @@ class Tracer:
         # world is hidden from diffuse rays in this model, but glossy ones see it).
         lamps = [(light, True) for light in self.emitters.lights]
         lamps += [(sun, False) for sun in self.map_suns] if lobes else []
-        # (n, E + L) bool: the hit sees area emitter e, then lamp k, whole (a clear shaft).
-        whole, areas = None, len(self.emitters.hulls)
-        if where is not None:
-            with self.clock("shafts"):
-                whole = self.shafts.clear(where[0][idx], where[1][idx])
+        tri, bary = (None, None) if where is None else (where[0][idx], where[1][idx])
+        areas = len(self.emitters.hulls)  # the shafts' emitters: area emitters, then lamps
         # Every lamp's lit hits first, then all their shadow rays in one BVH call: a call's
         # fixed cost (pool set-up, the traversal's steps) is paid once per depth, not per lamp.
         lit_sets = []  # (diffuse, sub (k,), cast (k,) bool, to_l (n, 3), e (n, 3))
@@ -218,8 +215,9 @@ class Tracer:
             if not len(sub):
                 continue
             cast = np.full(len(sub), light.cast_shadow)
-            if light.cast_shadow and whole is not None and k < len(self.emitters.lights):
-                cast &= ~whole[sub, areas + k]
+            if light.cast_shadow and tri is not None and k < len(self.emitters.lights):
+                with self.clock("shafts"):
+                    cast &= ~self.shafts.clear(areas + k, tri[sub], bary[sub])
                 self.stats.clear_shadow_rays += int(len(sub) - cast.sum())
             lit_sets.append((diffuse, sub, cast, to_l, e))
             rays = sub[cast]
@@ -245,11 +243,14 @@ class Tracer:
                 shine = ggx_highlight(ns[sub], to_l[sub], wo[rows], rough[rows], f0[rows])
                 out[rows] += shine * e[sub] * (weight[rows] * vis / cos_i)[:, None]
         if len(self.emitters.area_points):
+            whole = None  # (n, E) bool: the hit sees area emitter e whole
+            if tri is not None:
+                with self.clock("shafts"):
+                    whole = np.stack([self.shafts.clear(e, tri, bary) for e in range(areas)], 1)
             sub_strata = strata_rows(strata, idx)
             area_lobes = [(f0[idx], weight[idx]) for f0, weight in lobes]
             diffuse, shine = self._area_direct(origin, ns, brdf_w, sub_strata, wo[idx], area_lobes,
-                                               rough[idx], smooth,
-                                               None if whole is None else whole[:, :areas])
+                                               rough[idx], smooth, whole)
             lambert[idx] += diffuse
             out[idx] += shine
         out += h.albedo * lambert

@@ -71,13 +71,13 @@ def test_a_blocked_floor_triangle_is_split_down_to_the_parts_that_see_the_lamp()
     near = np.array([[0.05, 0.05, 0.9]])
     tri = np.array([0, 0, 1, 0])
     bary = np.concatenate([far, far[:1], near])
-    seen = shafts.clear(tri, bary)[:, 0]
+    seen = shafts.clear(0, tri, bary)
     assert seen[:3].all() and not seen[3]
     # Each hit's part is tested: 2 triangles, then 4 parts of each per level, down to the part
     # that holds the hit or sees the lamp whole (a lamp's rectangle: 2 pairs a receiver).
     assert shafts.tested_pairs % 2 == 0 and 2 * (2 + 8) <= shafts.tested_pairs <= 2 * (2 + 8 * 4)
     again = shafts.tested_pairs
-    np.testing.assert_array_equal(shafts.clear(tri, bary)[:, 0], seen)
+    np.testing.assert_array_equal(shafts.clear(0, tri, bary), seen)
     assert shafts.tested_pairs == again  # the answers are kept
 
 
