@@ -1,4 +1,4 @@
-"""Shadow rays skipped where a hit's part of its triangle sees an area light whole
+"""Shadow rays skipped where a hit's part of its triangle sees a light whole
 (kernels/trace/shadow_shafts.py): the same image as casting every ray, fewer rays."""
 
 import numpy as np
@@ -51,7 +51,7 @@ def test_children_tile_the_triangle_and_barycentrics_follow_the_point():
     assert (inner >= -1e-12).all() and np.allclose(inner.sum(axis=1), 1.0)
     again = np.einsum("nc,ncj->nj", inner, kids[np.arange(500), child])
     np.testing.assert_allclose(again, point, atol=1e-12)
-    # The lecture's corners: each corner lies in its own child.
+    # Each corner of the triangle lies in its own child.
     corner, at = child_of(np.eye(3))
     assert corner.tolist() == [0, 1, 2] and np.allclose(at, np.eye(3))
 
