@@ -7,9 +7,9 @@ from a hit there to any of the emitter's samples is unblocked: visibility exactl
 the ray would give. With 16 samples a hit, an area light's shadow rays are most of a lit room's
 work, and most of them are unblocked (a furnished room's cube-map capture: 80%).
 
-A shaft test costs about as much as a hundred shadow rays, so only large receivers are tested:
-those holding at least SHAFT_SHARE of the scene's surface area, where many hits land in any view
-(a room's walls and floor, not a fine mesh's triangles, which cast their rays as before). A
+A shaft test costs about as much as a hundred shadow rays, so only large receivers are tested,
+where many hits land in any view (a room's walls and floor, not a fine mesh's triangles, which
+cast their rays as before), the larger the fewer rays a hit casts to the emitter (SHAFT_WORTH). A
 receiver whose shaft is blocked (a floor triangle under a table) may still see the light whole
 over most of its area: its four midpoint children are tested, while they are large enough, and
 so on down to LEVELS subdivisions, each hit following its barycentrics into the part that holds
@@ -29,11 +29,14 @@ import numpy as np
 
 from ..geometry import shafts
 
-# Receivers holding at least this share of the scene's area are tested: one triangle pair costs
+# A receiver is tested for an emitter when its share of the scene's area times the shadow rays a
+# hit casts to the emitter reaches this: an area light's 4 x 4 samples test receivers of 1/1024 of
+# the area and more, a point lamp or a sun (one ray a hit) those of 1/64. One triangle pair costs
 # about as much as ~100 shadow rays (85 us against ~1 us, measured on a furnished room), a lamp's
-# rectangle is two pairs, and at most ~1/SHAFT_SHARE receivers (4/3 of it with their parts) are
-# ever tested in a scene.
-SHAFT_SHARE = 1.0 / 1024.0
+# rectangle is two pairs; chosen on that room's cube-map capture and the Cornell box (1/256,
+# 1/1024, 1/4096 at 16 rays a hit: 1/1024 the fastest on both) and a 192 x 144 view of two point
+# lamps (1/1024 at one ray a hit: shafts cost 0.07 of its 0.27 s, more than the rays they saved).
+SHAFT_WORTH = 16.0 / 1024.0
 # Subdivision levels below a triangle: 4^4 = 256 parts at the finest.
 LEVELS = 4
 # Receiver states: not tested yet (only triangles, level 0, are ever untested: parts are tested
@@ -86,10 +89,11 @@ class ClearShafts:
 
     triangles (T, 3, 3) world m: the receivers (the triangles rays hit); hulls: per emitter
     (K, 3, 3) world m triangles holding all of it, or a (3,) translation m (a sun: the shaft is
-    the receiver swept along it), or None (never tested: always cast rays);
-    bvh: the geometry that may block shadow rays; slack m: the rays' offset off surfaces."""
+    the receiver swept along it), or None (never tested: always cast rays); rays (E,): the shadow
+    rays a hit casts to each emitter; bvh: the geometry that may block shadow rays; slack m: the
+    rays' offset off surfaces."""
 
-    def __init__(self, triangles: np.ndarray, hulls: list, bvh, slack: float):
+    def __init__(self, triangles: np.ndarray, hulls: list, rays, bvh, slack: float):
         self.triangles = triangles
         self.hulls = hulls
         self.bvh = bvh
@@ -97,7 +101,9 @@ class ClearShafts:
         tris = np.asarray(triangles, np.float64)
         self.areas = 0.5 * np.linalg.norm(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]),
                                           axis=1)  # (T,) m^2
-        self.min_area = SHAFT_SHARE * float(self.areas.sum())  # m^2
+        # (E,) m^2: the least receiver tested for each emitter
+        self.min_area = SHAFT_WORTH * float(self.areas.sum()) / np.maximum(
+            np.asarray(rays, np.float64).reshape(len(hulls)), 1.0)
         # Per emitter: the triangles' states (T,) int8, allocated at its first use, and the
         # parts of levels 1..LEVELS.
         self._triangles: list[np.ndarray | None] = [None] * len(hulls)
@@ -109,7 +115,7 @@ class ClearShafts:
         corners 0, 1, 2) sees emitter e whole. Ask only for the hits that would cast shadow rays
         to e: every large receiver asked about is tested."""
         tri = np.asarray(tri, np.int64)
-        large = self.areas[tri] >= self.min_area
+        large = self.areas[tri] >= self.min_area[e]
         out = np.zeros(len(tri), bool)
         if self.hulls[e] is not None and large.any():
             out[large] = self._clear(e, tri[large], bary[large])
@@ -121,7 +127,7 @@ class ClearShafts:
         states = self._triangles[e]
         fresh = np.unique(tri[states[tri] == _UNTESTED])
         if fresh.size:
-            states[fresh] = self._states(fresh, 0, self._test(self._corners(fresh, 0), e))
+            states[fresh] = self._states(e, fresh, 0, self._test(self._corners(fresh, 0), e))
         out = np.zeros(len(tri), bool)
         hits, code = np.arange(len(tri)), tri
         for level in range(LEVELS + 1):
@@ -133,7 +139,8 @@ class ClearShafts:
                 nodes, at = np.unique(code[state == _OPEN], return_index=True)
                 kids = 4 * nodes[:, None] + np.arange(4)  # (R, 4)
                 seen = self._test(children(self._corners(nodes, level)).reshape(-1, 3, 3), e)
-                self._parts[e][level].add(kids.ravel(), self._states(kids.ravel(), level + 1, seen))
+                self._parts[e][level].add(kids.ravel(),
+                                          self._states(e, kids.ravel(), level + 1, seen))
                 table[rows[state == _OPEN][at]] = _SPLIT
                 state = table[rows]
             out[hits[state == _CLEAR]] = True
@@ -144,10 +151,11 @@ class ClearShafts:
             hits, code = hits[down], 4 * code[down] + child
         return out
 
-    def _states(self, codes: np.ndarray, level: int, seen: np.ndarray) -> np.ndarray:
-        """(R,) int8 states of receivers `codes` (R,) of `level` after their test (seen (R,))."""
+    def _states(self, e: int, codes: np.ndarray, level: int, seen: np.ndarray) -> np.ndarray:
+        """(R,) int8 states of receivers `codes` (R,) of `level` after their test for emitter e
+        (seen (R,))."""
         area = self.areas[codes >> (2 * level)] / 4.0**level
-        can_split = (level < LEVELS) & (area / 4.0 >= self.min_area)
+        can_split = (level < LEVELS) & (area / 4.0 >= self.min_area[e])
         return np.where(seen, _CLEAR, np.where(can_split, _OPEN, _BLOCKED)).astype(np.int8)
 
     def _corners(self, codes: np.ndarray, level: int) -> np.ndarray:

@@ -127,8 +127,12 @@ class Tracer:
         # rays to it: the area emitters' shafts, then the lamps' (a sun's reach twice the scene's
         # size: past all of it).
         reach = 2.0 * _scene_scale(scene)
-        self.shafts = ClearShafts(scene.triangles, self.emitters.hulls + [
-            lamp_hull(li, reach) for li in self.emitters.lights], self.shadow_bvh, self.offset)
+        em = self.emitters
+        self.shafts = ClearShafts(
+            scene.triangles, em.hulls + [lamp_hull(li, reach) for li in em.lights],
+            np.concatenate([np.bincount(em.area_emitter, minlength=len(em.hulls)),
+                            np.ones(len(em.lights))]),  # shadow rays a hit casts to each
+            self.shadow_bvh, self.offset)
         self.area_lamps = [li for li in scene.lights if li.kind == "AREA"]
         # A world map's suns (`world_light.extract_suns`): highlights of the rough lobes, and
         # the map without them for those lobes' rays (sky_scene).

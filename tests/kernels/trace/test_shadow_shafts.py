@@ -64,7 +64,7 @@ def test_a_blocked_floor_triangle_is_split_down_to_the_parts_that_see_the_lamp()
     floor = quad([(-2, -2, 0), (2, -2, 0), (2, 2, 0), (-2, 2, 0)])
     tris = np.concatenate([floor, cube])
     bvh = BVH.build(tris.astype(np.float32))
-    shafts = ClearShafts(tris, [lamp_rectangle(lamp)], bvh, slack=1e-5)
+    shafts = ClearShafts(tris, [lamp_rectangle(lamp)], [16], bvh, slack=1e-5)
     # Triangle 0 has corners (-2, -2), (2, -2), (2, 2); these are hits at (-1.2, -1.6) and
     # (1.6, -1.6), far from the cube; then (1.8, 1.6), just beside it, in its shadow.
     far = np.array([[0.8, 0.1, 0.1], [0.1, 0.8, 0.1]])
@@ -96,7 +96,7 @@ def lamp_of(kind: str) -> Light:
 @pytest.mark.parametrize("kind", ["AREA", "POINT", "SUN"])
 def test_skipping_clear_shadow_rays_leaves_the_image_as_casting_them(monkeypatch, kind):
     # The floor and cube under a lamp, seen from above with edges sampled: every pixel as when
-    # every shadow ray is cast, and most rays never cast.
+    # every shadow ray is cast, and many rays never cast.
     lamp = lamp_of(kind)
     cube = box((0.3, 0.2, 0.0), (0.9, 0.8, 0.6))
     floor = quad([(-2, -2, 0), (2, -2, 0), (2, 2, 0), (-2, 2, 0)])
@@ -104,9 +104,11 @@ def test_skipping_clear_shadow_rays_leaves_the_image_as_casting_them(monkeypatch
     scene = build([(floor, GREY), (cube, GREY)], cam, [lamp])
     settings = TracerSettings(max_depth=0, adaptive=4, area_samples=4)
     skipped = trace(scene, settings)
-    monkeypatch.setattr(shadow_shafts, "SHAFT_SHARE", np.inf)
+    monkeypatch.setattr(shadow_shafts, "SHAFT_WORTH", np.inf)
     cast = trace(scene, settings)
     assert cast.stats.clear_shadow_rays == 0
     assert skipped.stats.shadow_rays + skipped.stats.clear_shadow_rays == cast.stats.shadow_rays
-    assert skipped.stats.clear_shadow_rays > 0.5 * cast.stats.shadow_rays
+    # Most of the floor sees the lamp whole: 48-80% of the rays are skipped (a point lamp or a
+    # sun, one ray a hit, splits the floor into coarser parts than the panel's 16 rays a hit).
+    assert skipped.stats.clear_shadow_rays > 0.4 * cast.stats.shadow_rays
     np.testing.assert_array_equal(skipped.image, cast.image)

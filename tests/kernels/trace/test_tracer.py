@@ -261,7 +261,7 @@ def test_edge_sub_samples_share_out_an_area_lights_samples(monkeypatch):
                   size_x=1.0, size_y=1.0)
     cam = ortho_camera((0, 0, 3), (0, 0, -1), (0, 1, 0), 1.6, (16, 16))
     scene = build([(left, grey_a), (right, grey_b)], cam, [light])
-    monkeypatch.setattr(shadow_shafts, "SHAFT_SHARE", np.inf)  # every shadow ray cast
+    monkeypatch.setattr(shadow_shafts, "SHAFT_WORTH", np.inf)  # every shadow ray cast
     settings = TracerSettings(max_depth=0, adaptive=0, area_samples=4)
     centres = trace(scene, settings)
     edges = trace(scene, TracerSettings(max_depth=0, adaptive=4, area_samples=4))
@@ -371,7 +371,7 @@ def test_two_lamps_shadow_rays_in_one_call_and_the_profile(monkeypatch):
               point_light("R", (6.0, 0.0, height), np.full(3, intensity))]
     mat = Material(name="white", base_color=np.full(3, rho, np.float32), specular=0.0)
     scene = build([(plane, mat), (wall, mat)], cam, lights)
-    monkeypatch.setattr(shadow_shafts, "SHAFT_SHARE", np.inf)  # every shadow ray cast
+    monkeypatch.setattr(shadow_shafts, "SHAFT_WORTH", np.inf)  # every shadow ray cast
     result = trace(scene, TracerSettings(max_depth=0, adaptive=0))
     xs = -1.5 + (np.arange(16) + 0.5) / 16 * 3.0
     x, y = np.meshgrid(xs, xs[::-1])
