@@ -412,7 +412,8 @@ def capture_faces_steps(scene: Scene, index: int, size: int, tracer_settings: Tr
     centre, _ = object_bounds(scene, index)
     bvh = bvh or BVH.build(scene.triangles)
     hidden = hidden_bvh(scene, [index])
-    tracer = Tracer(scene, hidden, tracer_settings, shadow_bvh=bvh)
+    tracer = Tracer(scene, hidden, tracer_settings, shadow_bvh=bvh,
+                    view_pixels=6 * size * size)  # the whole cube's, for any faces
     side = size + 2 * BORDER
     n, a = supersample, edge_samples
     texels = len(faces) * side * side

@@ -7,17 +7,18 @@ from a hit there to any of the emitter's samples is unblocked: visibility exactl
 the ray would give. With 16 samples a hit, an area light's shadow rays are most of a lit room's
 work, and most of them are unblocked (a furnished room's cube-map capture: 80%).
 
-A shaft test costs about as much as a hundred shadow rays, so only large receivers are tested,
-where many hits land in any view (a room's walls and floor, not a fine mesh's triangles, which
-cast their rays as before), the larger the fewer rays a hit casts to the emitter (SHAFT_WORTH). A
-receiver whose shaft is blocked (a floor triangle under a table) may still see the light whole
-over most of its area: its four midpoint children are tested, while they are large enough, and
-so on down to LEVELS subdivisions, each hit following its barycentrics into the part that holds
-it. Answers are kept for the tracer's life. Every large receiver a hit asks about is tested, so a
-hit's answer depends on the scene and the hit alone, not on which rays came first: the same
-whether it is traced with the whole view or with a tile of it (a ray can differ from its clear
-shaft only by rounding: a hit on the edge where a ceiling meets a wall, offset a hair outside the
-room, meets the wall).
+A shaft test costs about as much as a hundred shadow rays, so only receivers that many of the
+view's hits land on are tested: those holding a share of the scene's area that, times the view's
+pixels and the shadow rays a hit casts to the emitter, reaches SHAFT_WORTH (a room's walls and
+floor, not a fine mesh's triangles, which cast their rays as before). A receiver whose shaft is
+blocked (a floor triangle under a table) may still see the light whole over most of its area: its
+four midpoint children are tested, while they are large enough, and so on down to LEVELS
+subdivisions, each hit following its barycentrics into the part that holds it. Answers are kept for
+the tracer's life. Every such receiver a hit asks about is tested, so a hit's answer depends on the
+scene, the view's size and the hit alone, not on which rays came first: the same whether it is
+traced with the whole view or with a tile of it, at any samples per pixel (a ray can differ from
+its clear shaft only by rounding: a hit on the edge where a ceiling meets a wall, offset a hair
+outside the room, meets the wall).
 
 Receivers are coded per level: a triangle's index at level 0, then code * 4 + child (0..2 the
 corner children of corners 0..2, 3 the middle one) at each level down.
@@ -29,14 +30,18 @@ import numpy as np
 
 from ..geometry import shafts
 
-# A receiver is tested for an emitter when its share of the scene's area times the shadow rays a
-# hit casts to the emitter reaches this: an area light's 4 x 4 samples test receivers of 1/1024 of
-# the area and more, a point lamp or a sun (one ray a hit) those of 1/64. One triangle pair costs
-# about as much as ~100 shadow rays (85 us against ~1 us, measured on a furnished room), a lamp's
-# rectangle is two pairs; chosen on that room's cube-map capture and the Cornell box (1/256,
-# 1/1024, 1/4096 at 16 rays a hit: 1/1024 the fastest on both) and a 192 x 144 view of two point
-# lamps (1/1024 at one ray a hit: shafts cost 0.07 of its 0.27 s, more than the rays they saved).
-SHAFT_WORTH = 16.0 / 1024.0
+# A receiver is tested for an emitter when its share of the scene's area, times the view's pixels,
+# times the shadow rays a hit casts to the emitter, reaches this: the shadow rays it would
+# take if the view saw the whole scene evenly. One triangle pair costs about as much as ~100
+# shadow rays (85 us against ~1 us, measured on a furnished room), a lamp's rectangle two pairs,
+# and about half the receivers come out clear. At 256: a furnished room's cube map (6 x 56^2
+# texels, 16 rays a hit) tests receivers of 1/1176 of its area (a flat 1/256, 1/1024, 1/4096
+# there: 1/1024 the fastest); a 192 x 144 view of two point lamps none (a flat 1/1024 cost 0.07
+# of its 0.27 s, more than the rays it saved); the clear rays outweigh the tests' seconds on
+# raytrace.blend, bump.blend, shadows.blend and the Cornell box (256 against 1024 and no shafts).
+SHAFT_WORTH = 256.0
+# The view's pixels when the tracer is not told (a 256 x 256 image).
+VIEW_PIXELS = 65536
 # Subdivision levels below a triangle: 4^4 = 256 parts at the finest.
 LEVELS = 4
 # Receiver states: not tested yet (only triangles, level 0, are ever untested: parts are tested
@@ -91,9 +96,12 @@ class ClearShafts:
     (K, 3, 3) world m triangles holding all of it, or a (3,) translation m (a sun: the shaft is
     the receiver swept along it), or None (never tested: always cast rays); rays (E,): the shadow
     rays a hit casts to each emitter; bvh: the geometry that may block shadow rays; slack m: the
-    rays' offset off surfaces."""
+    rays' offset off surfaces; view_pixels: the pixels of the whole view traced, supersampled
+    or not (a tile's tracer is told the whole view's, so its answers are the whole view's, and
+    a view's answers do not change with its samples per pixel)."""
 
-    def __init__(self, triangles: np.ndarray, hulls: list, rays, bvh, slack: float):
+    def __init__(self, triangles: np.ndarray, hulls: list, rays, bvh, slack: float,
+                 view_pixels: int | None = None):
         self.triangles = triangles
         self.hulls = hulls
         self.bvh = bvh
@@ -102,8 +110,8 @@ class ClearShafts:
         self.areas = 0.5 * np.linalg.norm(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]),
                                           axis=1)  # (T,) m^2
         # (E,) m^2: the least receiver tested for each emitter
-        self.min_area = SHAFT_WORTH * float(self.areas.sum()) / np.maximum(
-            np.asarray(rays, np.float64).reshape(len(hulls)), 1.0)
+        per_hit = np.maximum(np.asarray(rays, np.float64).reshape(len(hulls)), 1.0)
+        self.min_area = SHAFT_WORTH * float(self.areas.sum()) / (per_hit * (view_pixels or VIEW_PIXELS))
         # Per emitter: the triangles' states (T,) int8, allocated at its first use, and the
         # parts of levels 1..LEVELS.
         self._triangles: list[np.ndarray | None] = [None] * len(hulls)

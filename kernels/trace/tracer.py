@@ -103,7 +103,8 @@ class Tracer:
 
     def __init__(self, scene: Scene, bvh: BVH, settings: TracerSettings,
                  environment: Mapping[int, EnvironmentLookup] | None = None,
-                 shadow_bvh: BVH | None = None, diffuse: DiffuseLookup | None = None):
+                 shadow_bvh: BVH | None = None, diffuse: DiffuseLookup | None = None,
+                 view_pixels: int | None = None):
         self.scene = scene
         self.bvh = bvh
         # Shadow rays may test other geometry than the rays that see: a cube map's faces see
@@ -132,7 +133,7 @@ class Tracer:
             scene.triangles, em.hulls + [lamp_hull(li, reach) for li in em.lights],
             np.concatenate([np.bincount(em.area_emitter, minlength=len(em.hulls)),
                             np.ones(len(em.lights))]),  # shadow rays a hit casts to each
-            self.shadow_bvh, self.offset)
+            self.shadow_bvh, self.offset, view_pixels)
         self.area_lamps = [li for li in scene.lights if li.kind == "AREA"]
         # A world map's suns (`world_light.extract_suns`): highlights of the rough lobes, and
         # the map without them for those lobes' rays (sky_scene).
@@ -673,7 +674,8 @@ def trace_steps(scene: Scene, settings: TracerSettings, bvh: BVH | None = None,
     first_row, last_row = max(0, top - halo), min(height, bottom + halo)  # the rows traced
     band = last_row - first_row
     bvh = bvh or BVH.build(scene.triangles)
-    tracer = Tracer(scene, bvh, settings, environment, diffuse=diffuse)
+    tracer = Tracer(scene, bvh, settings, environment, diffuse=diffuse,
+                    view_pixels=width * height)
     image = out if out is not None else np.empty((bottom - top, width, 3), np.float32)
     n = settings.supersample
     passes = n * n

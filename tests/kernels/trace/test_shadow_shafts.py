@@ -103,6 +103,8 @@ def test_skipping_clear_shadow_rays_leaves_the_image_as_casting_them(monkeypatch
     cam = ortho_camera((0, 0, 4), (0, 0, -1), (0, 1, 0), 4.0, (48, 48))
     scene = build([(floor, GREY), (cube, GREY)], cam, [lamp])
     settings = TracerSettings(max_depth=0, adaptive=4, area_samples=4)
+    # A small view: its shafts would not pay (SHAFT_WORTH), but here every receiver is tested.
+    monkeypatch.setattr(shadow_shafts, "SHAFT_WORTH", 1.0)
     skipped = trace(scene, settings)
     monkeypatch.setattr(shadow_shafts, "SHAFT_WORTH", np.inf)
     cast = trace(scene, settings)
