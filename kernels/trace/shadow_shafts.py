@@ -29,6 +29,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..geometry import shafts
+from ..geometry.scene import triangle_areas
 
 # A receiver is tested for an emitter when its share of the scene's area, times the view's pixels,
 # times the shadow rays a hit casts to the emitter, reaches this: the shadow rays it would
@@ -63,8 +64,9 @@ class _Parts:
 
     def add(self, codes: np.ndarray, states: np.ndarray) -> None:
         """New parts (codes not in the table) with their states."""
-        order = np.argsort(np.concatenate([self.codes, codes]), kind="stable")
-        self.codes = np.concatenate([self.codes, codes])[order]
+        merged = np.concatenate([self.codes, codes])
+        order = np.argsort(merged, kind="stable")
+        self.codes = merged[order]
         self.state = np.concatenate([self.state, states])[order]
 
 
@@ -106,9 +108,7 @@ class ClearShafts:
         self.hulls = hulls
         self.bvh = bvh
         self.slack = slack
-        tris = np.asarray(triangles, np.float64)
-        self.areas = 0.5 * np.linalg.norm(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]),
-                                          axis=1)  # (T,) m^2
+        self.areas = triangle_areas(np.asarray(triangles))  # (T,) m^2
         # (E,) m^2: the least receiver tested for each emitter
         per_hit = np.maximum(np.asarray(rays, np.float64).reshape(len(hulls)), 1.0)
         self.min_area = SHAFT_WORTH * float(self.areas.sum()) / (per_hit * (view_pixels or VIEW_PIXELS))
