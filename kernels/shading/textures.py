@@ -100,17 +100,23 @@ def checker(uv: np.ndarray, color1: np.ndarray, color2: np.ndarray, scale: float
 MIN_BOX_WIDTH = 1e-9
 
 
+def _triangle_wave(x: np.ndarray) -> np.ndarray:
+    """S(x) = 1 - |(x mod 2) - 1|, the integral of the square wave s(x) = (-1)^floor(x).
+    x - 2 floor(x / 2) is x mod 2 exactly (Sterbenz: x and the even integer are within 2x), and
+    several times faster than np.mod."""
+    return 1.0 - np.abs(x - 2.0 * np.floor(0.5 * x) - 1.0)
+
+
 def _square_wave_mean(x0: np.ndarray, x1: np.ndarray) -> np.ndarray:
     """Mean of s(x) = (-1)^floor(x) over [x0, x1] (N,), via its integral, the triangle wave
-    S(x) = 1 - |(x mod 2) - 1| (S rises on [0, 1), falls on [1, 2))."""
-    def integral(x):
-        return 1.0 - np.abs(np.mod(x, 2.0) - 1.0)
-
+    S(x) (S rises on [0, 1), falls on [1, 2))."""
     width = x1 - x0
     wide = width > MIN_BOX_WIDTH
-    point = np.where(np.mod(np.floor(0.5 * (x0 + x1)), 2.0) == 0.0, 1.0, -1.0)
     with np.errstate(invalid="ignore", divide="ignore"):
-        mean = (integral(x1) - integral(x0)) / np.where(wide, width, 1.0)
+        mean = (_triangle_wave(x1) - _triangle_wave(x0)) / np.where(wide, width, 1.0)
+    if wide.all():
+        return mean
+    point = np.where(np.floor(0.5 * (x0 + x1)) % 2.0 == 0.0, 1.0, -1.0)
     return np.where(wide, mean, point)
 
 
@@ -120,11 +126,19 @@ def checker_box(lo: np.ndarray, hi: np.ndarray, color1: np.ndarray, color2: np.n
 
     Exact: with s(x) = (-1)^floor(x), the parity sign is the product of s over the coordinates,
     and its mean over a box is the product of the square waves' means (separable); colour 1
-    covers (1 - mean) / 2.
+    covers (1 - mean) / 2. A coordinate whose boxes are all one point (z = 0 of UV coordinates)
+    contributes one sign, computed once.
     """
-    p0 = (np.asarray(lo, np.float64) * scale + CHECKER_NUDGE_ADD) * CHECKER_NUDGE_MUL
-    p1 = (np.asarray(hi, np.float64) * scale + CHECKER_NUDGE_ADD) * CHECKER_NUDGE_MUL
-    sign = np.prod([_square_wave_mean(p0[:, c], p1[:, c]) for c in range(p0.shape[1])], axis=0)
+    lo = np.asarray(lo, np.float64)
+    hi = np.asarray(hi, np.float64)
+    sign = np.ones(lo.shape[0])
+    for c in range(lo.shape[1]):
+        a, b = lo[:, c], hi[:, c]
+        if a.size and (a == a[0]).all() and (b == a[0]).all():
+            a, b = a[:1], b[:1]
+        p0 = (a * scale + CHECKER_NUDGE_ADD) * CHECKER_NUDGE_MUL
+        p1 = (b * scale + CHECKER_NUDGE_ADD) * CHECKER_NUDGE_MUL
+        sign *= _square_wave_mean(p0, p1)
     share1 = (0.5 * (1.0 - sign))[:, None]
     return share1 * np.asarray(color1, np.float64) + (1.0 - share1) * np.asarray(color2, np.float64)
 

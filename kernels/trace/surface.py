@@ -82,42 +82,53 @@ def filtered_albedo(scene: Scene, tri: np.ndarray, centre: np.ndarray, fp: Footp
     # For a corner at (dx, dy) pixels from the cell centre, with a . b of per-hit vectors:
     #   line:  o' = o + dx o_x + dy o_y,  d' = d + dx d_x + dy d_y
     #   plane: s = n.(v0 - o') / n.d',  q = o' + s d' - v0,  (b1, b2) from q.e1 and q.e2.
-    coef = {}
-    for name, w in (("n", n), ("e1", e1), ("e2", e2)):
-        coef[name] = (np.einsum("ij,ij->i", rel, w), w @ o_x, w @ o_y,
-                      np.einsum("ij,ij->i", d, w), w @ d_x, w @ d_y)
-    speed = np.sqrt(np.einsum("ij,ij->i", d, d))
-    corner_uv = scene.texture_coords[tri]  # (M, 3, 3): (u, v, 0) or Generated
+    # Every corner of the g x g sub-cells at once: (K, 1) offsets against (M,) hits, K = (g+1)^2.
     g = fp.grid
     steps = (np.arange(g + 1) / g - 0.5) * fp.cell
-    uv = np.empty((g + 1, g + 1, len(tri), 3))  # sub-cell corners in texture space, [row, column]
-    rn, onx, ony, dn0, dnx, dny = coef["n"]
-    for i, dy in enumerate(steps):
-        for j, dx in enumerate(steps):
-            dn = dn0 + dx * dnx + dy * dny
-            # Edge-on (|cos| below GRAZING_COS, with |d'| ~ |d| across a pixel) or behind: the
-            # ray's own hit point.
-            ok = np.abs(dn) > GRAZING_COS * n_len * speed
-            s = -(rn + dx * onx + dy * ony) / np.where(ok, dn, 1.0)
-            ok &= s > 0.0
-            s = np.where(ok, s, 0.0)
-            q = []
-            for name in ("e1", "e2"):
-                r0, rx, ry, w0, wx, wy = coef[name]
-                q.append(r0 + dx * rx + dy * ry + s * (w0 + dx * wx + dy * wy))
-            b1 = (d22 * q[0] - d12 * q[1]) / det
-            b2 = (d11 * q[1] - d12 * q[0]) / det
-            bary = np.stack([1.0 - b1 - b2, b1, b2], axis=1)
-            bary[~ok] = centre[~ok]
-            uv[i, j] = np.einsum("mc,mcj->mj", bary, corner_uv)
-    quads = np.stack([uv[:-1, :-1], uv[:-1, 1:], uv[1:, :-1], uv[1:, 1:]])  # (4, g, g, M, 3)
-    lo = quads.min(axis=0).reshape(-1, 3)  # (g*g*M, 3), sub-cell-major
-    hi = quads.max(axis=0).reshape(-1, 3)
+    dy, dx = (a.reshape(-1, 1) for a in np.meshgrid(steps, steps, indexing="ij"))  # rows, columns
+
+    def along(w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """w . (o' - v0) and w . d' at every corner: (K, M) each."""
+        at_o = np.einsum("ij,ij->i", rel, w) + dx * (w @ o_x) + dy * (w @ o_y)
+        at_d = np.einsum("ij,ij->i", d, w) + dx * (w @ d_x) + dy * (w @ d_y)
+        return at_o, at_d
+
+    rn, dn = along(n)
+    speed = np.sqrt(np.einsum("ij,ij->i", d, d))
+    # Edge-on (|cos| below GRAZING_COS, with |d'| ~ |d| across a pixel) or behind: the ray's own
+    # hit point.
+    ok = np.abs(dn) > GRAZING_COS * n_len * speed
+    s = -rn / np.where(ok, dn, 1.0)
+    ok &= s > 0.0
+    s = np.where(ok, s, 0.0)
+    q = [r0 + s * w0 for r0, w0 in (along(e1), along(e2))]
+    b1 = (d22 * q[0] - d12 * q[1]) / det
+    b2 = (d11 * q[1] - d12 * q[0]) / det
+    bary = (np.where(ok, 1.0 - b1 - b2, centre[:, 0]), np.where(ok, b1, centre[:, 1]),
+            np.where(ok, b2, centre[:, 2]))
+    corner_uv = scene.texture_coords[tri]  # (M, 3, 3): (u, v, 0) or Generated
+    lo = np.zeros((3, g, g, len(tri)))  # each sub-cell's box in texture space, [axis, row, column]
+    hi = np.zeros((3, g, g, len(tri)))
+    for axis in range(3):
+        c = corner_uv[:, :, axis]
+        if not c.any():  # UV's z: 0 everywhere
+            continue
+        uv = (bary[0] * c[:, 0] + bary[1] * c[:, 1] + bary[2] * c[:, 2]).reshape(g + 1, g + 1, -1)
+        a, b = uv[:-1], uv[1:]  # the sub-cells' upper and lower corner rows
+        lo[axis] = np.minimum(np.minimum(a[:, :-1], a[:, 1:]), np.minimum(b[:, :-1], b[:, 1:]))
+        hi[axis] = np.maximum(np.maximum(a[:, :-1], a[:, 1:]), np.maximum(b[:, :-1], b[:, 1:]))
+    lo = lo.reshape(3, -1).T  # (g*g*M, 3), sub-cell-major
+    hi = hi.reshape(3, -1).T
     mats = np.tile(scene.material_ids[tri], g * g)
-    acc = np.empty((len(lo), 3))
-    for m in np.unique(mats):
-        rows = mats == m
-        acc[rows] = sample_texture_box(scene.materials[m].base_color_texture, lo[rows], hi[rows])
+    kinds = np.unique(mats)
+    if kinds.size == 1:  # one textured material: no row selection
+        acc = sample_texture_box(scene.materials[kinds[0]].base_color_texture, lo, hi)
+    else:
+        acc = np.empty((len(lo), 3))
+        for m in kinds:
+            rows = mats == m
+            acc[rows] = sample_texture_box(scene.materials[m].base_color_texture, lo[rows],
+                                           hi[rows])
     return acc.reshape(g * g, len(tri), 3).mean(axis=0)
 
 
