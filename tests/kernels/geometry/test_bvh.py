@@ -33,6 +33,7 @@ tree_settings = st.builds(
     chunk_size=st.sampled_from([256, 1024]),
     threads=st.just(1),
     brute_force_below=st.sampled_from([0, 0, 8, 64]),
+    frontier_rays=st.sampled_from([0, 4096]),  # the pool or the breadth-first frontier
 )
 
 
@@ -85,25 +86,28 @@ def test_bvh_equals_brute_force(scene, config):
     )
 
 
+@pytest.mark.parametrize("frontier_rays", [0, 4096])
 @pytest.mark.parametrize("width", [2, 4, 8])
-def test_bvh_equals_brute_force_on_a_mesh(width):
+def test_bvh_equals_brute_force_on_a_mesh(width, frontier_rays):
     tris = meshes.lumpy_sphere(4)  # 5120 triangles
     rng = np.random.default_rng(width)
     o = rng.uniform(-1.3, 1.3, (600, 3)).astype(np.float32)
     d = rng.normal(size=(600, 3)).astype(np.float32)
     t_max = rng.uniform(0.1, 3.0, 600).astype(np.float32)
-    bvh = BVH.build(tris, BVHSettings(width=width, threads=1, chunk_size=256))
+    bvh = BVH.build(tris, BVHSettings(width=width, threads=1, chunk_size=256,
+                                      frontier_rays=frontier_rays))
     ref = intersect_all(tris, o, d)
     assert 0.3 < (ref.tri >= 0).mean() < 0.9
     assert_same_hits(bvh.intersect(o, d), ref)
     np.testing.assert_array_equal(bvh.occluded(o, d, 0.0, t_max), occluded_all(tris, o, d, 0.0, t_max))
 
 
+@pytest.mark.parametrize("frontier_rays", [0, 4096])
 @pytest.mark.parametrize("mesh", ["sphere", "two triangles"])
-def test_occluded_passes_through_the_triangle_each_ray_skips(mesh):
-    """`BVH.occluded(skip=)`: each ray ignores one triangle (its own surface), on the tree's pool
-    and on a one-leaf scene's brute force alike: the same answers as testing every ray against
-    all triangles but its own."""
+def test_occluded_passes_through_the_triangle_each_ray_skips(mesh, frontier_rays):
+    """`BVH.occluded(skip=)`: each ray ignores one triangle (its own surface), on the tree's pool,
+    its breadth-first frontier and a one-leaf scene's brute force alike: the same answers as
+    testing every ray against all triangles but its own."""
     if mesh == "sphere":
         tris = meshes.lumpy_sphere(3)
     else:
@@ -120,7 +124,7 @@ def test_occluded_passes_through_the_triangle_each_ray_skips(mesh):
     d = normal + 0.5 * rng.normal(size=(count, 3))
     d = (d * np.sign(np.einsum("ij,ij->i", d, normal))[:, None]).astype(np.float32)  # outwards
     skip = np.where(rng.random(count) < 0.8, own, -1)  # some rays skip nothing
-    bvh = BVH.build(tris, BVHSettings(threads=1, chunk_size=256))
+    bvh = BVH.build(tris, BVHSettings(threads=1, chunk_size=256, frontier_rays=frontier_rays))
     expected = np.zeros(count, bool)
     for k in np.unique(skip):
         rows = skip == k
@@ -163,6 +167,10 @@ def test_watertight_icosphere_two_million_rays():
             o = o.astype(np.float32)
         hits = bvh.intersect(o, target - o)
         assert (hits.tri >= 0).all(), f"{(hits.tri < 0).sum()} misses"
+        # A call of a few thousand rays walks the tree breadth-first: the same answers.
+        few = slice(0, 4096)
+        assert_same_hits(bvh.intersect(o[few], (target - o)[few]), Hits(
+            t=hits.t[few], tri=hits.tri[few], u=hits.u[few], v=hits.v[few]))
         np.testing.assert_allclose(hits.t, 1.0, atol=1e-4)
         # The triangle owns the aimed vertex or edge: it contains corner a, and b unless s = 0.
         owner = faces[hits.tri]
@@ -293,6 +301,7 @@ def test_cornell_box_camera_rays_match_brute_force():
     o = np.tile(eye, (len(d), 1))
     ref = intersect_all(tris, o, d)
     assert (ref.tri >= 0).mean() > 0.85  # the box is open at the front
-    # The box has 32 triangles: through the tree and as one brute-force leaf.
-    for config in (BVHSettings(threads=1), BVHSettings(threads=1, brute_force_below=64)):
+    # The box has 32 triangles: through the tree (pool, frontier) and as one brute-force leaf.
+    for config in (BVHSettings(threads=1, frontier_rays=0), BVHSettings(threads=1),
+                   BVHSettings(threads=1, brute_force_below=64)):
         assert_same_hits(BVH.build(tris, config).intersect(o, d), ref)
