@@ -19,6 +19,9 @@ MIN_NORMAL_LENGTH = 1e-8
 # A cell's sample ray this close to edge-on with the hit triangle's plane (|cos|) keeps the centre's
 # UV: extrapolating along the plane would run off towards infinity.
 GRAZING_COS = 1e-4
+# Hits filtered at a time: the (corners, hits) float64 temporaries of a 3 x 3 grid stay ~1 MB, in
+# cache. A 640 x 480 view filtered in one go (300k hits, 38 MB temporaries) ran 30% slower.
+FILTER_CHUNK = 8192
 
 
 @dataclass
@@ -51,6 +54,16 @@ class Footprint:
 
 
 def filtered_albedo(scene: Scene, tri: np.ndarray, centre: np.ndarray, fp: Footprint,
+                     rays: np.ndarray) -> np.ndarray:
+    """`_filtered_albedo` in chunks of FILTER_CHUNK hits."""
+    out = np.empty((len(tri), 3))
+    for start in range(0, len(tri), FILTER_CHUNK):
+        part = slice(start, start + FILTER_CHUNK)
+        out[part] = _filtered_albedo(scene, tri[part], centre[part], fp, rays[part])
+    return out
+
+
+def _filtered_albedo(scene: Scene, tri: np.ndarray, centre: np.ndarray, fp: Footprint,
                      rays: np.ndarray) -> np.ndarray:
     """Base colour (M, 3) averaged over the image cells of camera rays `rays` that hit `tri` at
     barycentrics `centre` (M, 3).
