@@ -28,13 +28,14 @@ pytestmark = pytest.mark.filterwarnings("error")
 
 @fuzz
 @given(tris=meshes(), ray=rays(), poison=st.one_of(st.none(), POISON),
-       t_max=st.sampled_from([np.inf, 2.0, 0.0]))
-def test_bvh_intersect_and_occluded_answer_finitely(tris, ray, poison, t_max):
+       t_max=st.sampled_from([np.inf, 2.0, 0.0]), frontier_rays=st.sampled_from([0, 4096]))
+def test_bvh_intersect_and_occluded_answer_finitely(tris, ray, poison, t_max, frontier_rays):
+    """On the pool (frontier_rays 0) and the breadth-first frontier alike."""
     if poison is not None and len(tris):
         tris = tris.copy()
         tris[0, 0, 0] = poison  # left out of the tree: never hit
     origins, dirs = ray
-    bvh = BVH.build(tris, ONE_THREAD)
+    bvh = BVH.build(tris, BVHSettings(threads=1, brute_force_below=0, frontier_rays=frontier_rays))
     hits = bvh.intersect(origins, dirs, 0.0, t_max)
     seen = hits.tri >= 0
     assert all_finite(hits.t[seen], hits.u[seen], hits.v[seen])
