@@ -40,6 +40,10 @@ TRANSPOSE_BLOCK = 512
 # (ray, triangle) pairs tested at once by a one-leaf (brute force) BVH: keeps the (3, S, M)
 # temporaries of the test in the core's L2 cache.
 BRUTE_FORCE_PAIRS = 1 << 14
+# (ray, node) pairs a breadth-first round takes at most (the rest wait for a later round): its
+# (7W, pairs) float32 records and (W, pairs) temporaries stay a few MB. 4096 rays grazing a
+# million-triangle torus made at most 50k pairs.
+FRONTIER_PAIRS = 1 << 16
 # A pool refills its answered slots once this fraction of them is free.
 REFILL_AT = 1.0 / 8.0
 # Stack entries a ray may pop in one step while they are farther than its closest hit.
@@ -263,8 +267,13 @@ class Frontier:
             v = np.zeros(n, np.float32)
             occluded = np.zeros(n, bool)
             skip = None if queue.skip is None else queue.skip[ids]
-            ray, ref = np.arange(n), np.full(n, self.tree.root, np.int64)
-            while ray.size:
+            # Rounds still to run, as (ray, node or leaf reference) pairs; the last one runs next.
+            rounds = [(np.arange(n), np.full(n, self.tree.root, np.int64))]
+            while rounds:
+                ray, ref = rounds.pop()
+                if ray.size > FRONTIER_PAIRS:  # the rest waits: memory stays bounded
+                    rounds.append((ray[FRONTIER_PAIRS:], ref[FRONTIER_PAIRS:]))
+                    ray, ref = ray[:FRONTIER_PAIRS], ref[:FRONTIER_PAIRS]
                 leaf = ref <= -2
                 if leaf.any():
                     hit = self._leaves(table, kz, skip, ray[leaf], -2 - ref[leaf])
@@ -276,7 +285,8 @@ class Frontier:
                 if self.any_hit:
                     live = ~occluded[ray]
                     ray, ref = ray[live], ref[live]
-                ray, ref = self._nodes(table, ray, ref)
+                if ray.size:
+                    rounds.append(self._nodes(table, ray, ref))
             sink(ids, best, u, v, occluded)
             queue.report(n)
             yield

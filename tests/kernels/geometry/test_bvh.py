@@ -15,6 +15,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from classic_bake.bench import meshes
+from classic_bake.kernels.geometry import bvh_traversal
 from classic_bake.kernels.geometry.bvh import BVH, BVHSettings
 from classic_bake.kernels.geometry.intersect import Hits, intersect_all, occluded_all
 
@@ -100,6 +101,20 @@ def test_bvh_equals_brute_force_on_a_mesh(width, frontier_rays):
     assert 0.3 < (ref.tri >= 0).mean() < 0.9
     assert_same_hits(bvh.intersect(o, d), ref)
     np.testing.assert_array_equal(bvh.occluded(o, d, 0.0, t_max), occluded_all(tris, o, d, 0.0, t_max))
+
+
+@pytest.mark.parametrize("pairs", [7, 100])
+def test_frontier_rounds_split_into_bounded_parts(monkeypatch, pairs):
+    """A breadth-first round of more than FRONTIER_PAIRS (ray, node) pairs runs in parts, the
+    rest waiting: the same answers as brute force."""
+    monkeypatch.setattr(bvh_traversal, "FRONTIER_PAIRS", pairs)
+    tris = meshes.lumpy_sphere(4)
+    rng = np.random.default_rng(3)
+    o = rng.uniform(-1.3, 1.3, (3000, 3)).astype(np.float32)
+    d = rng.normal(size=(3000, 3)).astype(np.float32)
+    bvh = BVH.build(tris, BVHSettings(threads=1))
+    assert_same_hits(bvh.intersect(o, d), intersect_all(tris, o, d))
+    np.testing.assert_array_equal(bvh.occluded(o, d, 0.0, 0.7), occluded_all(tris, o, d, 0.0, 0.7))
 
 
 @pytest.mark.parametrize("frontier_rays", [0, 4096])
