@@ -39,6 +39,7 @@ from ..geometry.alpha_occlusion import clipped_hits, transmittance
 from ..geometry.bvh import BVH
 from ..geometry.camera import Strata, camera_rays, pixel_rays, strata_rows
 from ..geometry.scene import Scene, geometric_normals
+from ..geometry.vec import max_of_three
 from ..measure.phase_clock import PhaseClock
 from ..progress import Steps, drain
 from ..shading import lights as light_units
@@ -393,10 +394,10 @@ class Tracer:
         for k, lookup in self.environment.items():
             lit = getattr(lookup, "irradiance", None)
             if lit is not None and normals is not None and diffuse_rgb is not None:
-                rows = np.nonzero((objects == k) & (diffuse_rgb.max(axis=1) > 0.0))[0]
+                rows = np.nonzero((objects == k) & (max_of_three(diffuse_rgb) > 0.0))[0]
                 if len(rows):
                     out[rows] += diffuse_rgb[rows] * lit(p[rows], normals[rows]) / np.pi
-            rows = np.nonzero((objects == k) & (mirror_w.max(axis=1) > 0.0))[0]
+            rows = np.nonzero((objects == k) & (max_of_three(mirror_w) > 0.0))[0]
             if len(rows):
                 out[rows] += mirror_w[rows] * lookup(p[rows], r_dir[rows], rough[rows])
                 rows = rows[rough[rows] < self.settings.mirror_roughness]
@@ -547,7 +548,7 @@ class Tracer:
             # A black base reflects nothing diffusely: no shadow rays for it. A dark texel of a
             # coloured or textured material keeps them at the camera hits when the white-base
             # image (edge detection) needs their light; a black material never does.
-            dark = h.albedo.max(axis=1) <= 0.0
+            dark = max_of_three(h.albedo) <= 0.0
             if untextured is not None and depth == 0:
                 dark &= self.black[m]
             lit_w = np.where(dark, 0.0, diffuse_w)
@@ -629,8 +630,9 @@ class Tracer:
             for w_new, d_new, side, seen in ((refl_w, r_dir, 1.0, after_reflection),
                                              (refr_w, t_dir, -1.0, after_refraction)):
                 w_total = weight * w_new
-                alive = np.max(w_total, axis=1) > 0.0
-                strong = alive & (np.max(w_total, axis=1) >= s.min_weight)
+                w_max = max_of_three(w_total)
+                alive = w_max > 0.0
+                strong = alive & (w_max >= s.min_weight)
                 self.stats.pruned_branches += int(np.count_nonzero(alive & ~strong))
                 if strong.any():
                     o_new = h.p[strong] + side * h.ng[strong] * self.offset
