@@ -217,7 +217,7 @@ class Tracer:
         for k, (light, diffuse) in enumerate(lamps):
             to_l, dist = light_units.light_vectors(light, p)
             e = light_units.direct_irradiance(light, p, ns)  # (n, 3), includes cos and falloff
-            sub = np.flatnonzero(np.any(e > 0, axis=1))
+            sub = np.flatnonzero(max_of_three(e) > 0)
             if not len(sub):
                 continue
             cast = np.full(len(sub), light.cast_shadow)
