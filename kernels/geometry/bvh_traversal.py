@@ -190,6 +190,14 @@ def _keep_closest(
     v[pos] = bv[won]
 
 
+def _no_answers(table: np.ndarray) -> tuple[np.ndarray, ...]:
+    """A batch's answers before any hit, from its (14, R) ray table: (best (R,) int64 packed
+    (t_max, no triangle), u, v (R,) float32 zeros, occluded (R,) False)."""
+    n = table.shape[1]
+    return (pack(table[_T_BEST], np.full(n, INT32_MAX)), np.zeros(n, np.float32),
+            np.zeros(n, np.float32), np.zeros(n, bool))
+
+
 class BruteForce:
     """A one-leaf BVH (a tiny scene): every ray against every triangle, block by block.
 
@@ -207,10 +215,7 @@ class BruteForce:
         while (batch := queue.take()) is not None:
             ids, table, kz = batch
             n = ids.size
-            best = pack(table[_T_BEST], np.full(n, INT32_MAX))
-            u = np.zeros(n, np.float32)
-            v = np.zeros(n, np.float32)
-            occluded = np.zeros(n, bool)
+            best, u, v, occluded = _no_answers(table)
             for axis in range(3):
                 record = tree.leaves[axis][:, None]  # (10S, 1): the leaf in this ray frame
                 corners = record[: 9 * size].reshape(3, 3, size, 1)
@@ -262,10 +267,7 @@ class Frontier:
         while (batch := queue.take()) is not None:
             ids, table, kz = batch
             n = ids.size
-            best = pack(table[_T_BEST], np.full(n, INT32_MAX))
-            u = np.zeros(n, np.float32)
-            v = np.zeros(n, np.float32)
-            occluded = np.zeros(n, bool)
+            best, u, v, occluded = _no_answers(table)
             skip = None if queue.skip is None else queue.skip[ids]
             # Rounds still to run, as (ray, node or leaf reference) pairs; the last one runs next.
             rounds = [(np.arange(n), np.full(n, self.tree.root, np.int64))]
