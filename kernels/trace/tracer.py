@@ -511,14 +511,14 @@ class Tracer:
             with self.clock("surface"):
                 h = surface_at(self.scene, self.tri_normals, origins, dirs, hits, s.shading)
             m = h.material
+            u, v = hits.u.astype(np.float64), hits.v.astype(np.float64)
+            bary = np.stack([1.0 - u - v, u, v], axis=1)
             if depth == 0 and footprint is not None:
                 textured = self.textured[m]
                 if textured.any():
                     rows = np.nonzero(textured)[0]
-                    u, v = hits.u[rows].astype(np.float64), hits.v[rows].astype(np.float64)
-                    centre = np.stack([1.0 - u - v, u, v], axis=1)
                     with self.clock("texture filter"):
-                        h.albedo[rows] = filtered_albedo(self.scene, hits.tri[rows], centre,
+                        h.albedo[rows] = filtered_albedo(self.scene, hits.tri[rows], bary[rows],
                                                           footprint, pixel[rows])
             metallic, trans, rough = self.metallic[m], self.transmission[m], self.roughness[m]
             dielectric = (1.0 - metallic) * (1.0 - trans)
@@ -554,8 +554,6 @@ class Tracer:
             lit_w = np.where(dark, 0.0, diffuse_w)
             if self.diffuse is not None:
                 lit_w = np.zeros_like(lit_w)  # the solution's diffuse light replaces it below
-            u, v = hits.u.astype(np.float64), hits.v.astype(np.float64)
-            bary = np.stack([1.0 - u - v, u, v], axis=1)
             with self.clock("light sampling"):
                 if s.shading == "gouraud":
                     lit, lambert = self.gouraud_direct(h, hits, origins, lit_w, lobes, rough,
