@@ -42,8 +42,9 @@ class TracerSettings:
     |                  | phong, bump |      | corners, interpolated (gouraud); the corners'        |
     |                  |          |         | normals interpolated (phong); those perturbed by     |
     |                  |          |         | normal and height maps (bump, `bump.py`)             |
-    | texture_filter   | 1..16    | 3       | g: the base colour seen directly is averaged over    |
-    |                  |          |         | each sample's pixel cell in g/n x g/n boxes (>= 1);   |
+    | texture_filter   | 1..16    | 3       | g: the base colour is averaged over each sample's    |
+    |                  |          |         | pixel cell in g/n x g/n boxes (>= 1), seen directly   |
+    |                  |          |         | or in mirrors and glass (ray differentials);          |
     |                  |          |         | 1: point sampling, no filter                          |
     | output           | radiance,| radiance| what a camera ray returns: the light it carries, or  |
     |                  | albedo   |         | the diffuse albedo it sees first, textures filtered  |

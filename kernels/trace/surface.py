@@ -119,6 +119,50 @@ def _filtered_albedo(scene: Scene, tri: np.ndarray, centre: np.ndarray, fp: Foot
     b2 = (d11 * q[1] - d12 * q[0]) / det
     bary = (np.where(ok, 1.0 - b1 - b2, centre[:, 0]), np.where(ok, b1, centre[:, 1]),
             np.where(ok, b2, centre[:, 2]))
+    return _cell_means(scene, tri, bary, g)
+
+
+def footprint_albedo(scene: Scene, tri: np.ndarray, centre: np.ndarray, dp: np.ndarray,
+                     cell: float, grid: int) -> np.ndarray:
+    """`_footprint_albedo` in chunks of FILTER_CHUNK hits."""
+    out = np.empty((len(tri), 3))
+    for start in range(0, len(tri), FILTER_CHUNK):
+        part = slice(start, start + FILTER_CHUNK)
+        out[part] = _footprint_albedo(scene, tri[part], centre[part], dp[:, part], cell, grid)
+    return out
+
+
+def _footprint_albedo(scene: Scene, tri: np.ndarray, centre: np.ndarray, dp: np.ndarray,
+                      cell: float, grid: int) -> np.ndarray:
+    """Base colour (M, 3) averaged over image cells seen at hits on `tri` at barycentrics
+    `centre` (M, 3) whose positions move by dp (2, M, 3) m per pixel across the image (ray
+    differentials, `differentials.py`: a mirror's or a lens's view of the surface).
+
+    The cell (side `cell` pixels) maps to the parallelogram dp spans in the triangle's plane; it
+    is cut into grid x grid sub-cells whose texture-space boxes are averaged, as
+    `_filtered_albedo` does with the camera's exact corner rays.
+    """
+    v = scene.triangles[tri].astype(np.float64)
+    e1, e2 = v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]
+    d11 = np.einsum("ij,ij->i", e1, e1)
+    d12 = np.einsum("ij,ij->i", e1, e2)
+    d22 = np.einsum("ij,ij->i", e2, e2)
+    det = d11 * d22 - d12 * d12
+    q1, q2 = np.einsum("kij,ij->ki", dp, e1), np.einsum("kij,ij->ki", dp, e2)  # (2, M)
+    db1 = (d22 * q1 - d12 * q2) / det  # barycentric change per pixel, x and y
+    db2 = (d11 * q2 - d12 * q1) / det
+    steps = (np.arange(grid + 1) / grid - 0.5) * cell
+    dy, dx = (a.reshape(-1, 1) for a in np.meshgrid(steps, steps, indexing="ij"))
+    b1 = centre[:, 1] + dx * db1[0] + dy * db1[1]  # (K, M) at the sub-cells' corners
+    b2 = centre[:, 2] + dx * db2[0] + dy * db2[1]
+    return _cell_means(scene, tri, (1.0 - b1 - b2, b1, b2), grid)
+
+
+def _cell_means(scene: Scene, tri: np.ndarray, bary: tuple[np.ndarray, np.ndarray, np.ndarray],
+                g: int) -> np.ndarray:
+    """Base colour (M, 3): the mean over g x g sub-cells of the texture's mean over each
+    sub-cell's texture-space box, from barycentrics (K, M) each at its (g+1)^2 corners (row-major,
+    rows of g + 1) on the hit triangles tri (M,)."""
     corner_uv = scene.texture_coords[tri]  # (M, 3, 3): (u, v, 0) or Generated
     lo = np.zeros((3, g, g, len(tri)))  # each sub-cell's box in texture space, [axis, row, column]
     hi = np.zeros((3, g, g, len(tri)))

@@ -48,10 +48,18 @@ from ..shading.bump import bump_shadowing
 from ..shading.optics import fresnel_dielectric, reflect, refract
 from ..shading.specular_layer import ggx_highlight, metal_tables, view_factors, view_tables
 from ..shading.world_light import extract_suns, world_radiance
+from . import differentials as rd
 from .emitters import lamp_hull, scene_emitters
 from .settings import TraceResult, TracerSettings, TraceStats, auto_settings
 from .shadow_shafts import ClearShafts
-from .surface import MIN_NORMAL_LENGTH, Footprint, SurfaceHits, filtered_albedo, surface_at
+from .surface import (
+    MIN_NORMAL_LENGTH,
+    Footprint,
+    SurfaceHits,
+    filtered_albedo,
+    footprint_albedo,
+    surface_at,
+)
 
 # Emitter samples handled together in area lighting: B x hits arrays stay a few MB per block for
 # a typical wavefront of ~100k hits.
@@ -431,6 +439,25 @@ class Tracer:
             return self._radiance(origins, dirs, primary_ids, footprint, untextured, strata,
                                   primary_t)
 
+    def _child_differentials(self, spawned, tri, bary, h: SurfaceHits, dirs, t_dir, eta, dp, dd):
+        """Per spawned generation (rows (N,) bool, side +1 reflected / -1 refracted, bent (N,)
+        bool: the ray turned about the geometric normal), its rays' (dp, dd) (2, n, 3) each."""
+        rows = np.logical_or.reduce([strong for strong, _, _ in spawned])
+        dn = np.zeros_like(dp)  # the shading normal's change; 0 on flat shading
+        if self.settings.shading != "flat":
+            dn[:, rows] = rd.normal_derivatives(self.scene, tri[rows], bary[rows], h.ns[rows],
+                                                dp[:, rows])
+        out = []
+        for strong, side, bent in spawned:
+            n = np.where(bent[strong, None], h.ng[strong], h.ns[strong])  # the normal it used
+            dn_k = np.where(bent[strong, None], 0.0, dn[:, strong])
+            if side > 0:
+                dd_k = rd.reflected(dirs[strong], n, dd[:, strong], dn_k)
+            else:
+                dd_k = rd.refracted(dirs[strong], n, eta[strong], t_dir[strong], dd[:, strong], dn_k)
+            out.append((dp[:, strong], dd_k))
+        return out
+
     def _radiance(self, origins: np.ndarray, dirs: np.ndarray,
                   primary_ids: np.ndarray | None = None, footprint: Footprint | None = None,
                   untextured: np.ndarray | None = None, strata: Strata | None = None,
@@ -440,9 +467,12 @@ class Tracer:
         primary_ids: optional (N,) int64 filled with what each camera ray hit (object and
         material, -1 for the background), for edge detection without tracing twice.
         footprint: each ray's cell of the image; the base colour seen directly is then the
-        texture's mean over the cell (`filtered_albedo`), not its value at the ray's point.
+        texture's mean over the cell (`filtered_albedo`), not its value at the ray's point, and
+        the base colour seen in mirrors and through glass its mean over the cell's image there
+        (ray differentials, `footprint_albedo`).
         untextured: optional (N, 3) filled with the same radiance but a white base colour at the
-        camera hits: what edge detection compares, so texture detail (filtered) is no edge.
+        hits whose textures are filtered: what edge detection compares, so texture detail
+        (filtered) is no edge.
         strata: (stratum (N,), m) when the rays are m sub-samples of pixels: area lights' samples
         are shared out among them (`_area_direct`).
         primary_t: optional (N,) filled with each primary ray's hit distance (inf: none).
@@ -467,6 +497,10 @@ class Tracer:
         # face's; -1 for "unknown" (a back face met from outside: an open or inverted mesh).
         # At 0 the ray is on the camera's side (`DiffuseLookup`), closed meshes assumed.
         entered = np.zeros(len(origins), np.int32)
+        # Ray differentials (per image pixel) where textures are filtered: the textures seen in
+        # mirrors and through glass are then filtered over the pixel's footprint too.
+        follow = footprint is not None and bool(self.textured.any())
+        dp = dd = None  # (2, N, 3): each ray's origin and direction change across the image
         self.stats.camera_rays += len(origins)
         for depth in range(s.max_depth + 1):
             if len(origins) == 0:
@@ -505,6 +539,8 @@ class Tracer:
             keep = ~miss
             origins, dirs, pixel, weight = origins[keep], dirs[keep], pixel[keep], weight[keep]
             sharp, entered = sharp[keep], entered[keep]
+            if follow and depth > 0:
+                dp, dd = dp[:, keep], dd[:, keep]
             hits = type(hits)(t=hits.t[keep], tri=hits.tri[keep], u=hits.u[keep], v=hits.v[keep])
             if len(origins) == 0:
                 break
@@ -513,13 +549,24 @@ class Tracer:
             m = h.material
             u, v = hits.u.astype(np.float64), hits.v.astype(np.float64)
             bary = np.stack([1.0 - u - v, u, v], axis=1)
-            if depth == 0 and footprint is not None:
+            if follow:
+                with self.clock("differentials"):
+                    if depth == 0:
+                        dp, dd = rd.camera_derivatives(footprint, pixel, dirs, h.p, h.ng)
+                    else:  # the hit's own: carried from the ray's origin
+                        dp = rd.transfer(dp, dd, dirs, hits.t.astype(np.float64), h.ng)
+            if footprint is not None:
                 textured = self.textured[m]
                 if textured.any():
                     rows = np.nonzero(textured)[0]
                     with self.clock("texture filter"):
-                        h.albedo[rows] = filtered_albedo(self.scene, hits.tri[rows], bary[rows],
-                                                          footprint, pixel[rows])
+                        if depth == 0:
+                            h.albedo[rows] = filtered_albedo(self.scene, hits.tri[rows], bary[rows],
+                                                              footprint, pixel[rows])
+                        else:
+                            h.albedo[rows] = footprint_albedo(self.scene, hits.tri[rows], bary[rows],
+                                                               dp[:, rows], footprint.cell,
+                                                               footprint.grid)
             metallic, trans, rough = self.metallic[m], self.transmission[m], self.roughness[m]
             dielectric = (1.0 - metallic) * (1.0 - trans)
             # The diffuse base shows through the specular layer less the layer's albedo at this
@@ -549,7 +596,7 @@ class Tracer:
             # coloured or textured material keeps them at the camera hits when the white-base
             # image (edge detection) needs their light; a black material never does.
             dark = max_of_three(h.albedo) <= 0.0
-            if untextured is not None and depth == 0:
+            if untextured is not None and (depth == 0 or follow):
                 dark &= self.black[m]
             lit_w = np.where(dark, 0.0, diffuse_w)
             if self.diffuse is not None:
@@ -573,8 +620,8 @@ class Tracer:
             # Mirror and refraction directions about the (smooth) shading normal, falling back to
             # the geometric normal where that would send the ray to the wrong side of the surface.
             r_dir = reflect(dirs, h.ns)
-            wrong = np.einsum("ij,ij->i", r_dir, h.ng) <= 0.0
-            r_dir[wrong] = reflect(dirs[wrong], h.ng[wrong])
+            wrong_r = np.einsum("ij,ij->i", r_dir, h.ng) <= 0.0
+            r_dir[wrong_r] = reflect(dirs[wrong_r], h.ng[wrong_r])
             cos_o = np.einsum("ij,ij->i", wo, h.ns)
             # Metals: a tinted mirror (Schlick with F0 = base colour); a rough metal's one ray
             # stands for its lobe, as a rough layer's does (its lamps' highlights: `direct`),
@@ -596,8 +643,8 @@ class Tracer:
                     own = own + self._environment(hits.tri, h.p, r_dir, mirror_w, h.ns,
                                                   lit_w[:, None] * h.albedo)
             _scatter_add(result, pixel, weight * own)
-            if untextured is not None:  # white base colour at the camera hits only
-                flat_own = own + (1.0 - h.albedo) * lambert if depth == 0 else own
+            if untextured is not None:  # white base colour where textures are filtered
+                flat_own = own + (1.0 - h.albedo) * lambert if depth == 0 or follow else own
                 _scatter_add(flat, pixel, weight * flat_own)
             if depth == s.max_depth:
                 self.stats.depth_limited += int(np.count_nonzero(
@@ -609,7 +656,7 @@ class Tracer:
             wrong = ~tir & (np.einsum("ij,ij->i", t_dir, h.ng) >= 0.0)
             if wrong.any():
                 t_dir[wrong], tir[wrong] = refract(dirs[wrong], h.ng[wrong], eta[wrong])
-            children = []  # (origins, dirs, pixel, weight, sharp, entered)
+            children = []  # (origins, dirs, pixel, weight, sharp, entered[, dp, dd])
             # glass: Fresnel split between the reflected and the refracted ray
             glass = smooth & (trans > 0) & (metallic < 1)
             f_g = fresnel_dielectric(cos_o, eta)
@@ -625,8 +672,9 @@ class Tracer:
             after_reflection = np.where(known & (h.front | (entered > 0)), entered, -1)
             after_refraction = np.where(known & h.front, entered + 1,
                                         np.where(entered > 0, entered - 1, -1))
-            for w_new, d_new, side, seen in ((refl_w, r_dir, 1.0, after_reflection),
-                                             (refr_w, t_dir, -1.0, after_refraction)):
+            spawned = []  # (rows, side, direction, weight, entered, normal bent to ng)
+            for w_new, d_new, side, seen, bent in ((refl_w, r_dir, 1.0, after_reflection, wrong_r),
+                                                   (refr_w, t_dir, -1.0, after_refraction, wrong)):
                 w_total = weight * w_new
                 w_max = max_of_three(w_total)
                 alive = w_max > 0.0
@@ -636,14 +684,23 @@ class Tracer:
                     o_new = h.p[strong] + side * h.ng[strong] * self.offset
                     children.append((o_new, d_new[strong], pixel[strong], w_total[strong],
                                      sees[strong], seen[strong]))
+                    spawned.append((strong, side, bent))
             if not children:
                 break
+            if follow:
+                with self.clock("differentials"):
+                    for k, child in enumerate(self._child_differentials(
+                            spawned, hits.tri, bary, h, dirs, t_dir, eta, dp, dd)):
+                        children[k] += child
             origins = np.concatenate([c[0] for c in children])
             dirs = np.concatenate([c[1] for c in children])
             pixel = np.concatenate([c[2] for c in children])
             weight = np.concatenate([c[3] for c in children])
             sharp = np.concatenate([c[4] for c in children])
             entered = np.concatenate([c[5] for c in children])
+            if follow:
+                dp = np.concatenate([c[6] for c in children], axis=1)
+                dd = np.concatenate([c[7] for c in children], axis=1)
             t_min = np.zeros(len(origins))
         return result
 
