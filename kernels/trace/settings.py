@@ -43,7 +43,8 @@ class TracerSettings:
     |                  |          |         | normals interpolated (phong); those perturbed by     |
     |                  |          |         | normal and height maps (bump, `bump.py`)             |
     | texture_filter   | 1..16    | 3       | g: the base colour is averaged over each sample's    |
-    |                  |          |         | pixel cell in g/n x g/n boxes (>= 1), seen directly   |
+    |                  |          |         | pixel cell in k x k boxes, k = g/n rounded up (edge   |
+    |                  |          |         | sub-samples: g/a rounded up), seen directly           |
     |                  |          |         | or in mirrors and glass (ray differentials);          |
     |                  |          |         | 1: point sampling, no filter                          |
     | output           | radiance,| radiance| what a camera ray returns: the light it carries, or  |
