@@ -14,7 +14,7 @@ import numpy as np
 
 from ..geometry.camera import camera_ray_lines
 from ..geometry.scene import Scene
-from .surface import MIN_NORMAL_LENGTH, Footprint
+from .surface import Footprint
 
 # Below this |cos| between a ray and the plane it meets, the footprint would stretch without
 # bound along the plane: the hit's position derivatives are taken as zero (no filtering).
@@ -54,25 +54,37 @@ def transfer(dp: np.ndarray, dd: np.ndarray, dirs: np.ndarray, t: np.ndarray,
     cos = _dot(dirs, n)
     ok = np.abs(cos) > GRAZING_COS * np.sqrt(_dot(n, n))
     dt = -_dot(q, n) / np.where(ok, cos, 1.0)
-    return np.where(ok[:, None], q + dt[..., None] * dirs, 0.0)
+    q += dt[..., None] * dirs
+    q[:, ~ok] = 0.0
+    return q
 
 
-def normal_derivatives(scene: Scene, tri: np.ndarray, bary: np.ndarray, ns: np.ndarray,
-                       dp: np.ndarray) -> np.ndarray:
-    """Derivatives (2, M, 3) of the interpolated shading normal ns (M, 3) unit (corner normals
-    at barycentrics bary (M, 3), flipped as ns is) as the hit moves by dp (2, M, 3)."""
-    v = scene.triangles[tri].astype(np.float64)
-    e1, e2 = v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]
-    d11, d12, d22 = _dot(e1, e1), _dot(e1, e2), _dot(e2, e2)
-    det = d11 * d22 - d12 * d12
-    q1, q2 = _dot(dp, e1), _dot(dp, e2)  # (2, M)
-    db1 = (d22 * q1 - d12 * q2) / det
-    db2 = (d11 * q2 - d12 * q1) / det
-    cn = scene.normals[tri].astype(np.float64)  # (M, 3 corners, 3)
-    raw = np.einsum("mk,mka->ma", bary, cn)  # the interpolated normal, unnormalised
-    length = np.maximum(np.sqrt(_dot(raw, raw)), MIN_NORMAL_LENGTH)
-    side = np.sign(_dot(raw, ns))  # the flip to the incoming ray's side that surface_at applied
-    d_raw = db1[..., None] * (cn[:, 1] - cn[:, 0]) + db2[..., None] * (cn[:, 2] - cn[:, 0])
+class TriangleFrames:
+    """Per triangle, what carrying a hit's change across a triangle needs, built once per scene:
+    grad (T, 2, 3) the gradients of the barycentrics b1, b2 in the triangle's plane (b1's change
+    is grad[:, 0] . dp), and turn (T, 2, 3) the corner normals' differences n1 - n0, n2 - n0 (the
+    interpolated normal's change per unit of b1, b2)."""
+
+    def __init__(self, scene: Scene):
+        v = scene.triangles.astype(np.float64)
+        e1, e2 = v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]
+        d11, d12, d22 = _dot(e1, e1), _dot(e1, e2), _dot(e2, e2)
+        # A degenerate triangle is never hit (the BVH drops it): any finite gradient does.
+        det = np.where(d11 * d22 - d12 * d12 > 0.0, d11 * d22 - d12 * d12, 1.0)[:, None]
+        # float32: 48 bytes a triangle; a derivative needs no more than its 7 digits
+        self.grad = np.stack([(d22[:, None] * e1 - d12[:, None] * e2) / det,
+                              (d11[:, None] * e2 - d12[:, None] * e1) / det], 1).astype(np.float32)
+        n = scene.normals
+        self.turn = np.stack([n[:, 1] - n[:, 0], n[:, 2] - n[:, 0]], 1).astype(np.float32)
+
+
+def normal_derivatives(frames: TriangleFrames, tri: np.ndarray, ns: np.ndarray, length: np.ndarray,
+                       side: np.ndarray, dp: np.ndarray) -> np.ndarray:
+    """Derivatives (2, M, 3) of the shading normal ns (M, 3) unit, the corner normals of
+    triangles tri (M,) interpolated (length (M,) before normalising) and turned to side (M,) +-1,
+    as the hit moves by dp (2, M, 3)."""
+    grad, turn = frames.grad[tri], frames.turn[tri]
+    d_raw = _dot(dp, grad[:, 0])[..., None] * turn[:, 0] + _dot(dp, grad[:, 1])[..., None] * turn[:, 1]
     # raw / |raw| differentiated: the change across the unit normal, over the length
     return (d_raw - ns * _dot(ns, d_raw)[..., None]) * (side / length)[:, None]
 
@@ -94,4 +106,5 @@ def refracted(dirs: np.ndarray, n: np.ndarray, eta: np.ndarray, t_dir: np.ndarra
     dmu = -(eta + eta * eta * c / np.where(ok, cos_t, 1.0))[None] * dc
     mu = -(eta * c + cos_t)
     out = eta[:, None] * dd + mu[:, None] * dn + dmu[..., None] * n
-    return np.where(ok[:, None], out, 0.0)
+    out[:, ~ok] = 0.0
+    return out

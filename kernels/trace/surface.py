@@ -38,6 +38,8 @@ class SurfaceHits:
     # (N, 3) the shading normal before the relief (facing the incoming ray), for the bump
     # shadowing term (`bump.bump_shadowing`); None when no relief is shaded
     smooth: np.ndarray | None = None
+    # (N,) length of the interpolated corner normal before normalising (1 under flat shading)
+    normal_length: np.ndarray | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -200,6 +202,7 @@ def surface_at(scene: Scene, tri_normals, origins, dirs, hits, shading: str = "b
     material = scene.material_ids[tri]
     if shading == "flat":
         ns = ng.copy()
+        length = np.ones((len(tri), 1))
     else:
         cn = scene.normals[tri].astype(np.float64)
         ns = w * cn[:, 0] + u * cn[:, 1] + v * cn[:, 2]
@@ -239,4 +242,4 @@ def surface_at(scene: Scene, tri_normals, origins, dirs, hits, shading: str = "b
             uv = w * cuv[:, 0] + u * cuv[:, 1] + v * cuv[:, 2]
         albedo[rows] = sample_texture(mat.base_color_texture, uv[rows])
     emission = emission_at(scene, tri, np.concatenate([w, u, v], axis=1))
-    return SurfaceHits(p, ng, ns, front, material, albedo, emission, smooth)
+    return SurfaceHits(p, ng, ns, front, material, albedo, emission, smooth, length[:, 0])

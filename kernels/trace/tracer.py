@@ -167,6 +167,7 @@ class Tracer:
         self.layer_tables = view_tables(mats)
         self.metal_tables = metal_tables(mats)
         self.textured = np.array([m.base_color_texture is not None for m in mats], bool)
+        self._frames: rd.TriangleFrames | None = None  # built when differentials are first carried
         self.black = np.array([m.base_color_texture is None and not np.any(m.base_color > 0)
                                for m in mats], bool)
 
@@ -439,18 +440,24 @@ class Tracer:
             return self._radiance(origins, dirs, primary_ids, footprint, untextured, strata,
                                   primary_t)
 
-    def _child_differentials(self, spawned, tri, bary, h: SurfaceHits, dirs, t_dir, eta, dp, dd):
+    def _child_differentials(self, spawned, tri, h: SurfaceHits, dirs, t_dir, eta, dp, dd):
         """Per spawned generation (rows (N,) bool, side +1 reflected / -1 refracted, bent (N,)
         bool: the ray turned about the geometric normal), its rays' (dp, dd) (2, n, 3) each."""
-        rows = np.logical_or.reduce([strong for strong, _, _ in spawned])
-        dn = np.zeros_like(dp)  # the shading normal's change; 0 on flat shading
-        if self.settings.shading != "flat":
-            dn[:, rows] = rd.normal_derivatives(self.scene, tri[rows], bary[rows], h.ns[rows],
-                                                dp[:, rows])
+        rows = np.flatnonzero(np.logical_or.reduce([strong for strong, _, _ in spawned]))
+        if self.settings.shading == "flat":
+            dn = np.zeros((2, len(rows), 3))  # the shading normal's change at those rows
+        else:
+            if self._frames is None:
+                self._frames = rd.TriangleFrames(self.scene)
+            dn = rd.normal_derivatives(self._frames, tri[rows], h.ns[rows],
+                                       np.maximum(h.normal_length[rows], MIN_NORMAL_LENGTH),
+                                       np.where(h.front[rows], 1.0, -1.0), dp[:, rows])
         out = []
         for strong, side, bent in spawned:
-            n = np.where(bent[strong, None], h.ng[strong], h.ns[strong])  # the normal it used
-            dn_k = np.where(bent[strong, None], 0.0, dn[:, strong])
+            n, dn_k = h.ns[strong], dn[:, strong[rows]]  # strong's rows, in order, among rows
+            turned = bent[strong]
+            if turned.any():  # turned about the geometric normal, which does not turn
+                n[turned], dn_k[:, turned] = h.ng[strong][turned], 0.0
             if side > 0:
                 dd_k = rd.reflected(dirs[strong], n, dd[:, strong], dn_k)
             else:
@@ -690,7 +697,7 @@ class Tracer:
             if follow:
                 with self.clock("differentials"):
                     for k, child in enumerate(self._child_differentials(
-                            spawned, hits.tri, bary, h, dirs, t_dir, eta, dp, dd)):
+                            spawned, hits.tri, h, dirs, t_dir, eta, dp, dd)):
                         children[k] += child
             origins = np.concatenate([c[0] for c in children])
             dirs = np.concatenate([c[1] for c in children])

@@ -45,6 +45,7 @@ def follow(scene, bvh, x, y, bounces, glass):
     width, height = cam.resolution
     fp = Footprint(cam, width, height, x, y, 1.0, 1)
     tracer = Tracer(scene, bvh, TracerSettings())
+    frames = rd.TriangleFrames(scene)
     o, d = pixel_rays(cam, width, height, x, y)
     points, derivatives = [], []
     dp = dd = None
@@ -52,7 +53,6 @@ def follow(scene, bvh, x, y, bounces, glass):
         hits = bvh.intersect(o, d)
         assert (hits.tri >= 0).all()
         h = surface_at(scene, tracer.tri_normals, o, d, hits, "smooth")
-        bary = np.stack([1.0 - hits.u - hits.v, hits.u, hits.v], 1).astype(np.float64)
         if depth == 0:
             dp, dd = rd.camera_derivatives(fp, np.arange(len(x)), d, h.p, h.ng)
         else:
@@ -61,7 +61,8 @@ def follow(scene, bvh, x, y, bounces, glass):
         derivatives.append(dp)
         if depth == bounces:
             break
-        dn = rd.normal_derivatives(scene, hits.tri, bary, h.ns, dp)
+        dn = rd.normal_derivatives(frames, hits.tri, h.ns, h.normal_length,
+                                   np.where(h.front, 1.0, -1.0), dp)
         if glass:
             eta = np.where(h.front, 1.0 / 1.5, 1.5)
             new_d, tir = refract(d, h.ns, eta)
