@@ -34,7 +34,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..bake.camera_view import edge_pixels, pixel_patterns, stratified_offsets
+from ..bake.camera_view import edge_pixels, stratified_offsets
 from ..geometry.alpha_occlusion import clipped_hits, transmittance
 from ..geometry.bvh import BVH
 from ..geometry.camera import Strata, camera_rays, pixel_rays, strata_rows
@@ -786,13 +786,11 @@ def trace_steps(scene: Scene, settings: TracerSettings, bvh: BVH | None = None,
             tracer.pass_name = "edges"
             # All sub-samples of all edge pixels go out as few large wavefronts: per-call costs
             # (BVH pool set-up, one pass per depth) are paid once, not once per sub-sample.
-            # Sample k of a pixel lies in cell k of its a x a grid, at a point of the pixel's own
-            # pattern (`pixel_patterns`, by its index in the whole view, so tiles agree).
-            pattern = pixel_patterns(a, row[sel] * width + col[sel])  # (a*a, E, 2)
-            origins, dirs = pixel_rays(scene.camera, width, height,
-                                       (col[sel] + pattern[..., 0]).ravel(),
-                                       (row[sel] + pattern[..., 1]).ravel())  # (a*a*E, 3)
-            del pattern
+            rays = [pixel_rays(scene.camera, width, height, col[sel] + ox, row[sel] + oy)
+                    for ox, oy in grid]
+            origins = np.concatenate([o for o, _ in rays])  # (a*a*E, 3)
+            dirs = np.concatenate([d for _, d in rays])
+            del rays
             radiance = np.empty((len(origins), 3))
             stratum = np.repeat(np.arange(len(grid)), len(sel))  # the sub-sample of each ray
             # Each sub-sample's textures averaged over its 1/a cell, as in pass 1: a minified
