@@ -440,10 +440,11 @@ class Tracer:
             return self._radiance(origins, dirs, primary_ids, footprint, untextured, strata,
                                   primary_t)
 
-    def _child_differentials(self, spawned, tri, h: SurfaceHits, dirs, t_dir, eta, dp, dd):
-        """Per spawned generation (rows (N,) bool, side +1 reflected / -1 refracted, bent (N,)
-        bool: the ray turned about the geometric normal), its rays' (dp, dd) (2, n, 3) each."""
-        rows = np.flatnonzero(np.logical_or.reduce([strong for strong, _, _ in spawned]))
+    def _child_differentials(self, spawned, tri, h: SurfaceHits, dirs, t_dir, eta, rows, dp, dd):
+        """Per spawned generation (strong (N,) bool: the rays spawned; side +1 reflected, -1
+        refracted; bent (N,) bool: the ray turned about the geometric normal), its rays' (dp, dd)
+        (2, n, 3) each. rows (R,): the hits that spawn any, whose derivatives dp (the hit's) and
+        dd (the arriving ray's) are (2, R, 3)."""
         if self.settings.shading == "flat":
             dn = np.zeros((2, len(rows), 3))  # the shading normal's change at those rows
         else:
@@ -451,18 +452,19 @@ class Tracer:
                 self._frames = rd.TriangleFrames(self.scene)
             dn = rd.normal_derivatives(self._frames, tri[rows], h.ns[rows],
                                        np.maximum(h.normal_length[rows], MIN_NORMAL_LENGTH),
-                                       np.where(h.front[rows], 1.0, -1.0), dp[:, rows])
+                                       np.where(h.front[rows], 1.0, -1.0), dp)
         out = []
         for strong, side, bent in spawned:
-            n, dn_k = h.ns[strong], dn[:, strong[rows]]  # strong's rows, in order, among rows
+            own = strong[rows]  # strong's rows, in order, among rows
+            n, dn_k, dd_k = h.ns[strong], dn[:, own], dd[:, own]
             turned = bent[strong]
             if turned.any():  # turned about the geometric normal, which does not turn
                 n[turned], dn_k[:, turned] = h.ng[strong][turned], 0.0
             if side > 0:
-                dd_k = rd.reflected(dirs[strong], n, dd[:, strong], dn_k)
+                dd_k = rd.reflected(dirs[strong], n, dd_k, dn_k)
             else:
-                dd_k = rd.refracted(dirs[strong], n, eta[strong], t_dir[strong], dd[:, strong], dn_k)
-            out.append((dp[:, strong], dd_k))
+                dd_k = rd.refracted(dirs[strong], n, eta[strong], t_dir[strong], dd_k, dn_k)
+            out.append((dp[:, own], dd_k))
         return out
 
     def _radiance(self, origins: np.ndarray, dirs: np.ndarray,
@@ -556,12 +558,9 @@ class Tracer:
             m = h.material
             u, v = hits.u.astype(np.float64), hits.v.astype(np.float64)
             bary = np.stack([1.0 - u - v, u, v], axis=1)
-            if follow:
+            if follow and depth > 0:  # the hit's derivatives, carried from the ray's origin
                 with self.clock("differentials"):
-                    if depth == 0:
-                        dp, dd = rd.camera_derivatives(footprint, pixel, dirs, h.p, h.ng)
-                    else:  # the hit's own: carried from the ray's origin
-                        dp = rd.transfer(dp, dd, dirs, hits.t.astype(np.float64), h.ng)
+                    dp = rd.transfer(dp, dd, dirs, hits.t.astype(np.float64), h.ng)
             if footprint is not None:
                 textured = self.textured[m]
                 if textured.any():
@@ -696,8 +695,14 @@ class Tracer:
                 break
             if follow:
                 with self.clock("differentials"):
+                    rows = np.flatnonzero(np.logical_or.reduce([st for st, _, _ in spawned]))
+                    if depth == 0:  # the camera's: only for the hits that spawn rays
+                        dp_rows, dd_rows = rd.camera_derivatives(footprint, pixel[rows], dirs[rows],
+                                                                 h.p[rows], h.ng[rows])
+                    else:
+                        dp_rows, dd_rows = dp[:, rows], dd[:, rows]
                     for k, child in enumerate(self._child_differentials(
-                            spawned, hits.tri, h, dirs, t_dir, eta, dp, dd)):
+                            spawned, hits.tri, h, dirs, t_dir, eta, rows, dp_rows, dd_rows)):
                         children[k] += child
             origins = np.concatenate([c[0] for c in children])
             dirs = np.concatenate([c[1] for c in children])

@@ -244,6 +244,19 @@ def test_texture_filter_matches_supersampling_in_perspective():
     assert rel_mse(point, reference) > 0.1
 
 
+def test_supersampling_with_the_texture_filter_is_no_less_accurate_than_pixel_centres():
+    # The oblique checker floor again: 2 x 2 filtered samples a pixel take ceil(3 / 2) = 2 x 2
+    # boxes each. One box over a half-pixel cell (the bounding box of its slanted image) blurred
+    # the checker: 2 x 2 samples came out less accurate than the filtered pixel centres.
+    cam = persp_camera((0, -6, 1.5), (0, 1, -0.6), (0, 0, 1), np.radians(60), (48, 32))
+    scene = checker_floor(4.0, cam)
+    reference = trace(scene, TracerSettings(max_depth=0, supersample=16, adaptive=0,
+                                            texture_filter=1)).image
+    centres = trace(scene, TracerSettings(max_depth=0, adaptive=0)).image
+    quads = trace(scene, TracerSettings(max_depth=0, supersample=2, adaptive=0)).image
+    assert rel_mse(quads, reference) < rel_mse(centres, reference)
+
+
 def test_edge_sub_samples_share_out_an_area_lights_samples(monkeypatch):
     # Two halves of one grey (two objects: an edge down the middle) under a square area light of
     # 4 x 4 samples and nothing in between. Each edge pixel's 4 x 4 sub-samples take one light
