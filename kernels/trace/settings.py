@@ -29,7 +29,10 @@ TEXTURE_FILTER = 3
 class TracerSettings:
     """| field            | range    | default | meaning                                              |
     |------------------|----------|---------|------------------------------------------------------|
-    | max_depth        | 0..64    | 8       | ray-tree depth: 0 traces camera rays and shadows only |
+    | max_depth        | 0..64    | 8       | bounces (Cycles' Max Bounces): lamps light the hits  |
+    |                  |          |         | of up to max_depth mirror or glass bounces; the rays |
+    |                  |          |         | one bounce further see only what shines (emitters,   |
+    |                  |          |         | area lamps, the world)                               |
     | supersample      | 1..16    | 1       | n: n x n stratified samples in every pixel           |
     | adaptive         | 0..16    | 4       | n x n samples again in pixels at edges (0: off)      |
     | min_weight       | 0..1     | 1e-2    | a branch whose throughput falls below stops          |
@@ -121,7 +124,7 @@ class TraceStats:
     shadow_rays: int = 0
     clear_shadow_rays: int = 0  # shadow rays not cast: their triangle sees the light whole
     pruned_branches: int = 0  # reflected/refracted rays not traced because their weight was small
-    depth_limited: int = 0  # rays alive at max_depth (their energy is lost)
+    depth_limited: int = 0  # hits one bounce past max_depth that would reflect or refract further
     edge_pixels: int = 0
     rays_per_depth: list = field(default_factory=list)
     # Seconds per phase, exclusive of nested phases, in all and per depth (`PhaseClock.as_dict`).

@@ -511,7 +511,10 @@ class Tracer:
         follow = footprint is not None and bool(self.textured.any())
         dp = dd = None  # (2, N, 3): each ray's origin and direction change across the image
         self.stats.camera_rays += len(origins)
-        for depth in range(s.max_depth + 1):
+        # Lamps light the hits of up to max_depth bounces; the rays of one bounce more still see
+        # what shines (emitters, area lamps, the world), as Cycles' path after its last allowed
+        # bounce does (Cycles' kernel allows Max Bounces + 1 and lights no hit past the limit).
+        for depth in range(s.max_depth + 2):
             if len(origins) == 0:
                 break
             self.clock.label = f"{self.pass_name} depth {depth}"
@@ -548,7 +551,7 @@ class Tracer:
             keep = ~miss
             origins, dirs, pixel, weight = origins[keep], dirs[keep], pixel[keep], weight[keep]
             sharp, entered = sharp[keep], entered[keep]
-            if follow and depth > 0:
+            if follow and 0 < depth <= s.max_depth:
                 dp, dd = dp[:, keep], dd[:, keep]
             hits = type(hits)(t=hits.t[keep], tri=hits.tri[keep], u=hits.u[keep], v=hits.v[keep])
             if len(origins) == 0:
@@ -556,6 +559,14 @@ class Tracer:
             with self.clock("surface"):
                 h = surface_at(self.scene, self.tri_normals, origins, dirs, hits, s.shading)
             m = h.material
+            if depth > s.max_depth:  # one bounce past the limit: emission only, nothing lit
+                _scatter_add(result, pixel, weight * h.emission)
+                if untextured is not None:
+                    _scatter_add(flat, pixel, weight * h.emission)
+                self.stats.depth_limited += int(np.count_nonzero(
+                    ((self.roughness[m] < s.mirror_roughness) & (self.transmission[m] > 0))
+                    | (self.metallic[m] > 0) | (self.specular[m] > 0)))
+                break
             u, v = hits.u.astype(np.float64), hits.v.astype(np.float64)
             bary = np.stack([1.0 - u - v, u, v], axis=1)
             if follow and depth > 0:  # the hit's derivatives, carried from the ray's origin
@@ -652,10 +663,6 @@ class Tracer:
             if untextured is not None:  # white base colour where textures are filtered
                 flat_own = own + (1.0 - h.albedo) * lambert if depth == 0 or follow else own
                 _scatter_add(flat, pixel, weight * flat_own)
-            if depth == s.max_depth:
-                self.stats.depth_limited += int(np.count_nonzero(
-                    ((rough < s.mirror_roughness) & (trans > 0)) | (metallic > 0) | (layer_w > 0)))
-                break
             # --- spawn the next generation: mirror reflection and refraction -----------------------
             eta = np.where(h.front, 1.0 / self.ior[m], self.ior[m])
             t_dir, tir = refract(dirs, h.ns, eta)
@@ -693,7 +700,8 @@ class Tracer:
                     spawned.append((strong, side, bent))
             if not children:
                 break
-            if follow:
+            carry = follow and depth < s.max_depth  # the last generation filters no texture
+            if carry:
                 with self.clock("differentials"):
                     rows = np.flatnonzero(np.logical_or.reduce([st for st, _, _ in spawned]))
                     if depth == 0:  # the camera's: only for the hits that spawn rays
@@ -710,7 +718,7 @@ class Tracer:
             weight = np.concatenate([c[3] for c in children])
             sharp = np.concatenate([c[4] for c in children])
             entered = np.concatenate([c[5] for c in children])
-            if follow:
+            if carry:
                 dp = np.concatenate([c[6] for c in children], axis=1)
                 dd = np.concatenate([c[7] for c in children], axis=1)
             t_min = np.zeros(len(origins))
