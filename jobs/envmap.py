@@ -374,8 +374,8 @@ OPTIONS = (
     Option("diffuse_sh", EnvMapSettings, "Diffuse from SH", "A mapped object's diffuse part "
            "also reflects its map's SH9 irradiance (light from the surroundings; Cycles' Whitted "
            "model has none)"),
-    Option("face_depth", EnvMapSettings, "Face Depth", "Ray-tree depth of the face renders (-1: "
-           "from the scene)", minimum=-1, maximum=64),
+    Option("face_depth", EnvMapSettings, "Face Depth", "Mirror and glass bounces of the face "
+           "renders, counted as Cycles' Max Bounces (-1: from the scene)", minimum=-1, maximum=64),
     Option("adaptive", TracerSettings, "Edge Samples", "N x N camera samples again in pixels at "
            "edges (0: off)", minimum=0, maximum=16),
     Option("mips", PrefilterSettings, "Rough Mips", "GGX-prefiltered mip levels written beside "

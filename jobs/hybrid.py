@@ -26,8 +26,9 @@ OPTIONS = (
            "light and its shadows at every point the tracer meets (off: patches interpolated)"),
     Option("gather_rays", RadiositySettings, "Gather Rays", "Final gather: shadow rays per point "
            "to the emissive surfaces", minimum=1, soft_max=256),
-    Option("depth", TracerSettings, "Depth", "Pass 2: ray-tree depth through mirrors and glass; "
-           "-1 chooses it from the scene", field="max_depth", auto=-1, minimum=-1, maximum=64),
+    Option("depth", TracerSettings, "Depth", "Pass 2: mirror and glass bounces, counted as "
+           "Cycles' Max Bounces; -1 chooses them from the scene", field="max_depth", auto=-1,
+           minimum=-1, maximum=64),
     Option("supersample", TracerSettings, "Samples", "Pass 2: N x N samples in every pixel",
            minimum=1, maximum=16),
     Option("adaptive", TracerSettings, "Edge Samples", "Pass 2: N x N samples again in pixels at "

@@ -70,8 +70,9 @@ def camera_snapshot(context, resolution=None):
 
 
 TRACE_OPTIONS = (
-    Option("depth", TracerSettings, "Depth", "Ray-tree depth; -1 chooses it from the scene's "
-           "mirrors and glass", field="max_depth", auto=-1, minimum=-1, maximum=64),
+    Option("depth", TracerSettings, "Depth", "Mirror and glass bounces, counted as Cycles' Max "
+           "Bounces; -1 chooses them from the scene's mirrors and glass", field="max_depth",
+           auto=-1, minimum=-1, maximum=64),
     Option("supersample", TracerSettings, "Samples", "N x N samples in every pixel (1: pixel "
            "centres)", minimum=1, maximum=16),
     Option("adaptive", TracerSettings, "Edge Samples", "N x N samples again in pixels at edges "

@@ -685,7 +685,7 @@ class Tracer:
             after_reflection = np.where(known & (h.front | (entered > 0)), entered, -1)
             after_refraction = np.where(known & h.front, entered + 1,
                                         np.where(entered > 0, entered - 1, -1))
-            spawned = []  # (rows, side, direction, weight, entered, normal bent to ng)
+            spawned = []  # per generation spawned: (strong (N,) bool, side, bent (N,) bool)
             for w_new, d_new, side, seen, bent in ((refl_w, r_dir, 1.0, after_reflection, wrong_r),
                                                    (refr_w, t_dir, -1.0, after_refraction, wrong)):
                 w_total = weight * w_new
@@ -764,8 +764,7 @@ def trace_steps(scene: Scene, settings: TracerSettings, bvh: BVH | None = None,
     row += first_row
     # Each sample stands for a 1/n cell of its pixel; its textures are averaged over that cell,
     # in g/n boxes rounded up: one box over a half-pixel cell seen obliquely blurs (its texture
-    # space box is up to twice the cell's image), and 2 x 2 supersampling came out less accurate
-    # than the pixel centres alone.
+    # space box is up to twice the cell's image).
     grid = -(-settings.texture_filter // n)
     tracer.pass_name = "pixels"
     for k, (ox, oy) in enumerate(stratified_offsets(n)):
