@@ -232,14 +232,20 @@ def test_texture_filter_averages_a_checker_finer_than_the_pixels():
     assert np.abs(point[..., 0] - mean[0] * 3.0 / np.pi).min() > 0.3
 
 
-def test_texture_filter_matches_supersampling_in_perspective():
-    # A fine checker floor seen obliquely, squares shrinking to a fraction of a pixel far away: the
-    # filtered pixel centres land as close to 16 x 16 supersampling (256 rays a pixel) as 12 x 12
-    # does (measured 4e-4 and 8e-4); point-sampled centres alias (0.19).
+def oblique_checker():
+    """A fine checker floor seen obliquely, squares shrinking to a fraction of a pixel far away,
+    and its reference: 16 x 16 point samples a pixel (256 rays)."""
     cam = persp_camera((0, -6, 1.5), (0, 1, -0.6), (0, 0, 1), np.radians(60), (48, 32))
     scene = checker_floor(4.0, cam)
     reference = trace(scene, TracerSettings(max_depth=0, supersample=16, adaptive=0,
                                             texture_filter=1)).image
+    return scene, reference
+
+
+def test_texture_filter_matches_supersampling_in_perspective():
+    # The filtered pixel centres land as close to 16 x 16 supersampling as 12 x 12 does (measured
+    # 4e-4 and 8e-4); point-sampled centres alias (0.19).
+    scene, reference = oblique_checker()
     filtered = trace(scene, TracerSettings(max_depth=0, adaptive=0)).image
     point = trace(scene, TracerSettings(max_depth=0, adaptive=0, texture_filter=1)).image
     assert rel_mse(filtered, reference) < 1.5e-3
@@ -247,13 +253,10 @@ def test_texture_filter_matches_supersampling_in_perspective():
 
 
 def test_supersampling_with_the_texture_filter_is_no_less_accurate_than_pixel_centres():
-    # The oblique checker floor again: 2 x 2 filtered samples a pixel take ceil(3 / 2) = 2 x 2
-    # boxes each. One box over a half-pixel cell (the bounding box of its slanted image) blurred
-    # the checker: 2 x 2 samples came out less accurate than the filtered pixel centres.
-    cam = persp_camera((0, -6, 1.5), (0, 1, -0.6), (0, 0, 1), np.radians(60), (48, 32))
-    scene = checker_floor(4.0, cam)
-    reference = trace(scene, TracerSettings(max_depth=0, supersample=16, adaptive=0,
-                                            texture_filter=1)).image
+    # 2 x 2 filtered samples a pixel take ceil(3 / 2) = 2 x 2 boxes each. One box over a
+    # half-pixel cell (the bounding box of its slanted image) blurred the checker: 2 x 2 samples
+    # came out less accurate than the filtered pixel centres.
+    scene, reference = oblique_checker()
     centres = trace(scene, TracerSettings(max_depth=0, adaptive=0)).image
     quads = trace(scene, TracerSettings(max_depth=0, supersample=2, adaptive=0)).image
     assert rel_mse(quads, reference) < rel_mse(centres, reference)
