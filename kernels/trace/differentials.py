@@ -14,11 +14,10 @@ import numpy as np
 
 from ..geometry.camera import camera_ray_lines
 from ..geometry.scene import Scene
-from .surface import Footprint
+from .surface import GRAZING_COS, Footprint
 
-# Below this |cos| between a ray and the plane it meets, the footprint would stretch without
-# bound along the plane: the hit's position derivatives are taken as zero (no filtering).
-GRAZING_COS = 1e-4
+# GRAZING_COS (surface.py): below this |cos| between a ray and the plane it meets, the footprint
+# would stretch without bound along the plane; the hit's position derivatives are taken as zero.
 # Below this cos of the refracted ray (grazing, at the edge of total internal reflection) the
 # direction's derivative 1 / cos_t blows up: its change is taken as zero.
 MIN_COS_T = 1e-3
