@@ -12,9 +12,15 @@ Cycles render of the same material agree texel for texel:
   byte textures with `compress_as_srgb`; measured against its colour bake, bench/texture.py);
 * checker: Cycles' `svm_checker` on (u, v, 0) or on Generated coordinates (x, y, z): colour1
   where floor(x s) + floor(y s) + floor(z s) is odd. Coordinates are (N, 2) (z = 0) or (N, 3).
+
+Box means (`sample_texture_box`, the tracer's pixel filter): exact for the checker; an image box
+of more than a texel reads a mip pyramid of 2 x 2 means (trilinear between its two nearest levels),
+a box of a texel or less the image at the box's centre.
 """
 
 from __future__ import annotations
+
+from collections import OrderedDict
 
 import numpy as np
 
@@ -143,13 +149,77 @@ def checker_box(lo: np.ndarray, hi: np.ndarray, color1: np.ndarray, color2: np.n
     return share1 * np.asarray(color1, np.float64) + (1.0 - share1) * np.asarray(color2, np.float64)
 
 
+# An image box wider than this many texels (its longer side) is read from the mip pyramid; up to
+# it, at its centre: a texel's worth of box is what bilinear interpolation already spans.
+MIP_MIN_TEXELS = 1.0
+# Mip pyramids kept (the most recently used): one per image texture in use, 1/3 of its size.
+PYRAMID_CACHE = 8
+_pyramids: OrderedDict = OrderedDict()
+
+
 def sample_texture_box(texture: Texture, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     """RGB (N, 3) of a texture averaged over boxes [lo, hi] (N, 2 or 3): exact for the checker;
-    images are sampled (bilinear) at the box centre, which suits boxes up to about a texel."""
+    an image's boxes of at most MIP_MIN_TEXELS texels are read at their centre (bilinear), wider
+    ones from the mip pyramid (`_mip_mean`)."""
     if texture.kind == "CHECKER" and texture.uv_transform is None:
         mean = checker_box(lo, hi, texture.color1, texture.color2, texture.scale)
         return node_chain(texture, mean).astype(np.float64) if texture.transformed else mean
-    return sample_texture(texture, 0.5 * (np.asarray(lo) + np.asarray(hi))).astype(np.float64)
+    lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
+    centre = 0.5 * (lo + hi)
+    out = sample_texture(texture, centre).astype(np.float64)
+    if texture.kind == "CHECKER":
+        return out
+    extent = hi[:, :2] - lo[:, :2]  # the box's sides in UV
+    if texture.uv_transform is not None:  # the sides of the box around the moved box
+        extent = extent @ np.abs(np.asarray(texture.uv_transform, np.float64)[:, :2]).T
+    height, width = texture.pixels.shape[:2]
+    texels = np.maximum(extent[:, 0] * width, extent[:, 1] * height)
+    wide = texels > MIP_MIN_TEXELS
+    if wide.any():
+        out[wide] = _mip_mean(texture, centre[wide], texels[wide])
+    return out
+
+
+def _mip_mean(texture: Texture, uv: np.ndarray, texels: np.ndarray) -> np.ndarray:
+    """RGB (N, 3) float64: the image's mean over boxes `texels` (N,) texels wide at uv (N, 2+),
+    from the pyramid level of 2^k texels, k = log2(texels), interpolated between the two nearest
+    levels (trilinear). Exact for boxes of 2^k texels on the level's texel grid; the pyramid stops
+    at the first level with an odd side, and wider boxes read its last level."""
+    levels = _pyramid(texture)
+    if len(levels) == 1:  # an odd side: no pyramid, the centre as for a small box
+        return sample_texture(texture, uv).astype(np.float64)
+    uv = _moved(texture, uv)
+    lam = np.clip(np.log2(texels), 0.0, len(levels) - 1)
+    lower = np.floor(lam).astype(np.int64)
+    frac = (lam - lower)[:, None]
+    rgb = np.empty((len(uv), 3))
+    for k in np.unique(lower):
+        rows = lower == k
+        near = sample_image(levels[k], uv[rows], texture.extension).astype(np.float64)
+        if k + 1 < len(levels):
+            far = sample_image(levels[k + 1], uv[rows], texture.extension)
+            near += frac[rows] * (far - near)
+        rgb[rows] = near
+    return node_chain(texture, rgb).astype(np.float64) if texture.transformed else rgb
+
+
+def _pyramid(texture: Texture) -> list[np.ndarray]:
+    """The image's mip levels, (H / 2^k, W / 2^k, 3) float32 linear colour (decoded from sRGB):
+    each texel the mean of the 2 x 2 below it, while both sides stay even."""
+    key = id(texture.pixels)
+    cached = _pyramids.get(key)
+    if cached is not None and cached[0] is texture.pixels and cached[1] == texture.encoding:
+        _pyramids.move_to_end(key)
+        return cached[2]
+    rgb = np.ascontiguousarray(texture.pixels[..., :3], np.float32)
+    levels = [srgb_to_linear(rgb) if texture.encoding == "sRGB" else rgb]
+    while all(side % 2 == 0 for side in levels[-1].shape[:2]):
+        a = levels[-1]
+        levels.append(0.25 * (a[0::2, 0::2] + a[1::2, 0::2] + a[0::2, 1::2] + a[1::2, 1::2]))
+    _pyramids[key] = (texture.pixels, texture.encoding, levels)
+    while len(_pyramids) > PYRAMID_CACHE:
+        _pyramids.popitem(last=False)
+    return levels
 
 
 def srgb_to_linear(c: np.ndarray) -> np.ndarray:
@@ -163,12 +233,7 @@ def sample_texture(texture: Texture, uv: np.ndarray) -> np.ndarray:
     reads the first two): an sRGB-encoded image is interpolated as stored and decoded
     afterwards, as Cycles does; then the texture's node chain (`Texture.weights`, `gain`,
     `offset`, `clamp`) applies."""
-    uv = np.asarray(uv)
-    if texture.uv_transform is not None:
-        a = np.asarray(texture.uv_transform, np.float64)
-        moved = uv.astype(np.float64, copy=True)
-        moved[:, :2] = uv[:, :2] @ a[:, :2].T + a[:, 2]
-        uv = moved
+    uv = _moved(texture, np.asarray(uv))
     if texture.kind == "CHECKER":
         rgba = checker(uv, texture.color1, texture.color2, texture.scale)
     else:
@@ -178,6 +243,16 @@ def sample_texture(texture: Texture, uv: np.ndarray) -> np.ndarray:
     if not texture.transformed:
         return np.ascontiguousarray(rgba[:, :3])
     return node_chain(texture, rgba)
+
+
+def _moved(texture: Texture, uv: np.ndarray) -> np.ndarray:
+    """Coordinates (N, 2+) through the texture's affine UV transform (a Mapping node), if any."""
+    if texture.uv_transform is None:
+        return uv
+    a = np.asarray(texture.uv_transform, np.float64)
+    moved = uv.astype(np.float64, copy=True)
+    moved[:, :2] = uv[:, :2] @ a[:, :2].T + a[:, 2]
+    return moved
 
 
 def node_chain(texture: Texture, rgba: np.ndarray) -> np.ndarray:

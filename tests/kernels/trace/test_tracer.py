@@ -252,6 +252,27 @@ def test_texture_filter_matches_supersampling_in_perspective():
     assert rel_mse(point, reference) > 0.1
 
 
+def test_texture_filter_averages_a_minified_image_like_supersampling():
+    # An image of random texels, 64 to the metre, on the floor seen obliquely: far away a pixel
+    # covers many texels. Filtered pixel centres (the image's mip pyramid) against 16 x 16 point
+    # samples a pixel: 9.9e-4 (the 3 x 3 boxes read at their centres: 9.3e-3); point-sampled
+    # centres alias (0.15).
+    rng = np.random.default_rng(4)
+    pixels = np.ones((64, 64, 4), np.float32)
+    pixels[..., :3] = rng.random((64, 64, 3), np.float32)
+    image = Material(name="image", base_color=np.ones(3, np.float32), specular=0.0,
+                     base_color_texture=Texture(kind="IMAGE", pixels=pixels))
+    floor = quad([(-50, -50, 0), (50, -50, 0), (50, 50, 0), (-50, 50, 0)])  # UV: x, y in metres
+    cam = persp_camera((0, -6, 1.5), (0, 1, -0.6), (0, 0, 1), np.radians(60), (48, 32))
+    scene = build([(floor, image)], cam, [sun((0, 0, -1), 3.0)])
+    reference = trace(scene, TracerSettings(max_depth=0, supersample=16, adaptive=0,
+                                            texture_filter=1)).image
+    filtered = trace(scene, TracerSettings(max_depth=0, adaptive=0)).image
+    point = trace(scene, TracerSettings(max_depth=0, adaptive=0, texture_filter=1)).image
+    assert rel_mse(filtered, reference) < 2e-3
+    assert rel_mse(point, reference) > 0.1
+
+
 def test_supersampling_with_the_texture_filter_is_no_less_accurate_than_pixel_centres():
     # 2 x 2 filtered samples a pixel take ceil(3 / 2) = 2 x 2 boxes each. One box over a
     # half-pixel cell (the bounding box of its slanted image) blurred the checker: 2 x 2 samples
