@@ -155,6 +155,9 @@ MIP_MIN_TEXELS = 1.0
 # Mip pyramids kept (the most recently used): one per image texture in use, 1/3 of its size.
 PYRAMID_CACHE = 8
 _pyramids: OrderedDict = OrderedDict()
+# Image rows decoded at a time while the pyramid's first level is built (even: whole 2 x 2 blocks);
+# a 4096-wide image's band of float32 colour stays 25 MB.
+PYRAMID_BAND = 512
 
 
 def sample_texture_box(texture: Texture, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
@@ -195,31 +198,52 @@ def _mip_mean(texture: Texture, uv: np.ndarray, texels: np.ndarray) -> np.ndarra
     rgb = np.empty((len(uv), 3))
     for k in np.unique(lower):
         rows = lower == k
-        near = sample_image(levels[k], uv[rows], texture.extension).astype(np.float64)
+        near = _read_level(texture, levels, k, uv[rows])
         if k + 1 < len(levels):
-            far = sample_image(levels[k + 1], uv[rows], texture.extension)
-            near += frac[rows] * (far - near)
+            near += frac[rows] * (_read_level(texture, levels, k + 1, uv[rows]) - near)
         rgb[rows] = near
     return node_chain(texture, rgb).astype(np.float64) if texture.transformed else rgb
 
 
+def _read_level(texture: Texture, levels: list, k: int, uv: np.ndarray) -> np.ndarray:
+    """Linear RGB (N, 3) float64 of pyramid level k at uv (N, 2+), bilinear; level 0 is the
+    image itself, read as `sample_texture` reads it (decoded after interpolation)."""
+    rgb = sample_image(levels[k], uv, texture.extension)[:, :3]
+    if k == 0 and texture.encoding == "sRGB":
+        rgb = srgb_to_linear(rgb)
+    return rgb.astype(np.float64)
+
+
 def _pyramid(texture: Texture) -> list[np.ndarray]:
-    """The image's mip levels, (H / 2^k, W / 2^k, 3) float32 linear colour (decoded from sRGB):
-    each texel the mean of the 2 x 2 below it, while both sides stay even."""
+    """The image's mip levels: level 0 the image as stored, then (H / 2^k, W / 2^k, 3) float32
+    linear colour (decoded from sRGB), each texel the mean of the 2 x 2 below it, while both sides
+    stay even."""
     key = id(texture.pixels)
     cached = _pyramids.get(key)
     if cached is not None and cached[0] is texture.pixels and cached[1] == texture.encoding:
         _pyramids.move_to_end(key)
         return cached[2]
-    rgb = np.ascontiguousarray(texture.pixels[..., :3], np.float32)
-    levels = [srgb_to_linear(rgb) if texture.encoding == "sRGB" else rgb]
-    while all(side % 2 == 0 for side in levels[-1].shape[:2]):
-        a = levels[-1]
-        levels.append(0.25 * (a[0::2, 0::2] + a[1::2, 0::2] + a[0::2, 1::2] + a[1::2, 1::2]))
+    levels = [texture.pixels]
+    height, width = texture.pixels.shape[:2]
+    if height % 2 == 0 and width % 2 == 0:
+        first = np.empty((height // 2, width // 2, 3), np.float32)
+        for top in range(0, height, PYRAMID_BAND):  # decoded a band at a time
+            band = np.asarray(texture.pixels[top:top + PYRAMID_BAND, :, :3], np.float32)
+            if texture.encoding == "sRGB":
+                band = srgb_to_linear(band)
+            first[top // 2:(top + len(band)) // 2] = _halved(band)
+        levels.append(first)
+    while len(levels) > 1 and all(side % 2 == 0 for side in levels[-1].shape[:2]):
+        levels.append(_halved(levels[-1]))
     _pyramids[key] = (texture.pixels, texture.encoding, levels)
     while len(_pyramids) > PYRAMID_CACHE:
         _pyramids.popitem(last=False)
     return levels
+
+
+def _halved(a: np.ndarray) -> np.ndarray:
+    """The means of an (2h, 2w, C) array's 2 x 2 blocks: (h, w, C)."""
+    return 0.25 * (a[0::2, 0::2] + a[1::2, 0::2] + a[0::2, 1::2] + a[1::2, 1::2])
 
 
 def srgb_to_linear(c: np.ndarray) -> np.ndarray:

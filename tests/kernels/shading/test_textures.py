@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from classic_bake.kernels.geometry.scene import Texture
+from classic_bake.kernels.shading import textures
 from classic_bake.kernels.shading.textures import (
     checker,
     checker_box,
@@ -130,10 +131,14 @@ def random_image(height=64, width=64, encoding="linear", seed=3):
     return Texture(kind="IMAGE", pixels=pixels, encoding=encoding)
 
 
+@pytest.mark.parametrize("band", [512, 6])
 @pytest.mark.parametrize("encoding", ["linear", "sRGB"])
-def test_an_image_box_of_2k_texels_on_the_grid_is_the_mean_of_its_texels(encoding):
+def test_an_image_box_of_2k_texels_on_the_grid_is_the_mean_of_its_texels(encoding, band,
+                                                                         monkeypatch):
     # A box of 16 x 16 texels whose corners are texel corners: the mip level of 16-texel means
-    # holds its mean exactly (of the decoded colours, as Cycles averages what it looks up).
+    # holds its mean exactly (of the decoded colours, as Cycles averages what it looks up),
+    # whether the first level is built in one band of rows or in several.
+    monkeypatch.setattr(textures, "PYRAMID_BAND", band)
     tex = random_image(encoding=encoding)
     lo, hi = np.array([[16 / 64, 32 / 64]]), np.array([[32 / 64, 48 / 64]])
     linear = tex.pixels[..., :3] if encoding == "linear" else srgb_to_linear(tex.pixels[..., :3])
