@@ -45,6 +45,7 @@ from ..progress import Steps, drain
 from ..shading import lights as light_units
 from ..shading.alpha import scene_alpha
 from ..shading.bump import bump_shadowing
+from ..shading.material_maps import emission_at
 from ..shading.optics import fresnel_dielectric, reflect, refract
 from ..shading.specular_layer import ggx_highlight, metal_tables, view_factors, view_tables
 from ..shading.world_light import extract_suns, world_radiance
@@ -556,19 +557,22 @@ class Tracer:
             hits = type(hits)(t=hits.t[keep], tri=hits.tri[keep], u=hits.u[keep], v=hits.v[keep])
             if len(origins) == 0:
                 break
-            with self.clock("surface"):
-                h = surface_at(self.scene, self.tri_normals, origins, dirs, hits, s.shading)
-            m = h.material
+            u, v = hits.u.astype(np.float64), hits.v.astype(np.float64)
+            bary = np.stack([1.0 - u - v, u, v], axis=1)
             if depth > s.max_depth:  # one bounce past the limit: emission only, nothing lit
-                _scatter_add(result, pixel, weight * h.emission)
+                with self.clock("surface"):
+                    shine = weight * emission_at(self.scene, hits.tri, bary)
+                _scatter_add(result, pixel, shine)
                 if untextured is not None:
-                    _scatter_add(flat, pixel, weight * h.emission)
+                    _scatter_add(flat, pixel, shine)
+                m = self.scene.material_ids[hits.tri]
                 self.stats.depth_limited += int(np.count_nonzero(
                     ((self.roughness[m] < s.mirror_roughness) & (self.transmission[m] > 0))
                     | (self.metallic[m] > 0) | (self.specular[m] > 0)))
                 break
-            u, v = hits.u.astype(np.float64), hits.v.astype(np.float64)
-            bary = np.stack([1.0 - u - v, u, v], axis=1)
+            with self.clock("surface"):
+                h = surface_at(self.scene, self.tri_normals, origins, dirs, hits, s.shading)
+            m = h.material
             if follow and depth > 0:  # the hit's derivatives, carried from the ray's origin
                 with self.clock("differentials"):
                     dp = rd.transfer(dp, dd, dirs, hits.t.astype(np.float64), h.ng)
