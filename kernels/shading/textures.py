@@ -169,15 +169,16 @@ def sample_texture_box(texture: Texture, lo: np.ndarray, hi: np.ndarray) -> np.n
         return node_chain(texture, mean).astype(np.float64) if texture.transformed else mean
     lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
     centre = 0.5 * (lo + hi)
-    out = sample_texture(texture, centre).astype(np.float64)
     if texture.kind == "CHECKER":
-        return out
+        return sample_texture(texture, centre).astype(np.float64)
     extent = hi[:, :2] - lo[:, :2]  # the box's sides in UV
     if texture.uv_transform is not None:  # the sides of the box around the moved box
         extent = extent @ np.abs(np.asarray(texture.uv_transform, np.float64)[:, :2]).T
     height, width = texture.pixels.shape[:2]
     texels = np.maximum(extent[:, 0] * width, extent[:, 1] * height)
     wide = texels > MIP_MIN_TEXELS
+    out = np.empty((len(centre), 3))
+    out[~wide] = sample_texture(texture, centre[~wide])
     if wide.any():
         out[wide] = _mip_mean(texture, centre[wide], texels[wide])
     return out
