@@ -58,10 +58,16 @@ class Footprint:
 def filtered_albedo(scene: Scene, tri: np.ndarray, centre: np.ndarray, fp: Footprint,
                      rays: np.ndarray) -> np.ndarray:
     """`_filtered_albedo` in chunks of FILTER_CHUNK hits."""
-    out = np.empty((len(tri), 3))
-    for start in range(0, len(tri), FILTER_CHUNK):
+    return _in_chunks(len(tri), lambda part: _filtered_albedo(scene, tri[part], centre[part], fp,
+                                                               rays[part]))
+
+
+def _in_chunks(count: int, colours) -> np.ndarray:
+    """(count, 3): colours(part) for the slices of FILTER_CHUNK hits."""
+    out = np.empty((count, 3))
+    for start in range(0, count, FILTER_CHUNK):
         part = slice(start, start + FILTER_CHUNK)
-        out[part] = _filtered_albedo(scene, tri[part], centre[part], fp, rays[part])
+        out[part] = colours(part)
     return out
 
 
@@ -125,34 +131,26 @@ def _filtered_albedo(scene: Scene, tri: np.ndarray, centre: np.ndarray, fp: Foot
 
 
 def footprint_albedo(scene: Scene, tri: np.ndarray, centre: np.ndarray, dp: np.ndarray,
-                     cell: float, grid: int) -> np.ndarray:
+                     grad: np.ndarray, cell: float, grid: int) -> np.ndarray:
     """`_footprint_albedo` in chunks of FILTER_CHUNK hits."""
-    out = np.empty((len(tri), 3))
-    for start in range(0, len(tri), FILTER_CHUNK):
-        part = slice(start, start + FILTER_CHUNK)
-        out[part] = _footprint_albedo(scene, tri[part], centre[part], dp[:, part], cell, grid)
-    return out
+    return _in_chunks(len(tri), lambda part: _footprint_albedo(
+        scene, tri[part], centre[part], dp[:, part], grad[part], cell, grid))
 
 
 def _footprint_albedo(scene: Scene, tri: np.ndarray, centre: np.ndarray, dp: np.ndarray,
-                      cell: float, grid: int) -> np.ndarray:
+                      grad: np.ndarray, cell: float, grid: int) -> np.ndarray:
     """Base colour (M, 3) averaged over image cells seen at hits on `tri` at barycentrics
     `centre` (M, 3) whose positions move by dp (2, M, 3) m per pixel across the image (ray
-    differentials, `differentials.py`: a mirror's or a lens's view of the surface).
+    differentials, `differentials.py`: a mirror's or a lens's view of the surface); grad (M, 2, 3)
+    the gradients of the barycentrics b1, b2 in each triangle's plane
+    (`differentials.TriangleFrames`).
 
     The cell (side `cell` pixels) maps to the parallelogram dp spans in the triangle's plane; it
     is cut into grid x grid sub-cells whose texture-space boxes are averaged, as
     `_filtered_albedo` does with the camera's exact corner rays.
     """
-    v = scene.triangles[tri].astype(np.float64)
-    e1, e2 = v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]
-    d11 = np.einsum("ij,ij->i", e1, e1)
-    d12 = np.einsum("ij,ij->i", e1, e2)
-    d22 = np.einsum("ij,ij->i", e2, e2)
-    det = d11 * d22 - d12 * d12
-    q1, q2 = np.einsum("kij,ij->ki", dp, e1), np.einsum("kij,ij->ki", dp, e2)  # (2, M)
-    db1 = (d22 * q1 - d12 * q2) / det  # barycentric change per pixel, x and y
-    db2 = (d11 * q2 - d12 * q1) / det
+    # the barycentric change per pixel, x and y: (2, M) each
+    db1, db2 = (np.einsum("kij,ij->ki", dp, grad[:, c]) for c in (0, 1))
     steps = (np.arange(grid + 1) / grid - 0.5) * cell
     dy, dx = (a.reshape(-1, 1) for a in np.meshgrid(steps, steps, indexing="ij"))
     b1 = centre[:, 1] + dx * db1[0] + dy * db1[1]  # (K, M) at the sub-cells' corners

@@ -441,6 +441,13 @@ class Tracer:
             return self._radiance(origins, dirs, primary_ids, footprint, untextured, strata,
                                   primary_t)
 
+    @property
+    def frames(self) -> rd.TriangleFrames:
+        """The triangles' frames for ray differentials, built when first needed."""
+        if self._frames is None:
+            self._frames = rd.TriangleFrames(self.scene)
+        return self._frames
+
     def _child_differentials(self, spawned, tri, h: SurfaceHits, dirs, t_dir, eta, rows, dp, dd):
         """Per spawned generation (strong (N,) bool: the rays spawned; side +1 reflected, -1
         refracted; bent (N,) bool: the ray turned about the geometric normal), its rays' (dp, dd)
@@ -449,9 +456,7 @@ class Tracer:
         if self.settings.shading == "flat":
             dn = np.zeros((2, len(rows), 3))  # the shading normal's change at those rows
         else:
-            if self._frames is None:
-                self._frames = rd.TriangleFrames(self.scene)
-            dn = rd.normal_derivatives(self._frames, tri[rows], h.ns[rows],
+            dn = rd.normal_derivatives(self.frames, tri[rows], h.ns[rows],
                                        np.maximum(h.normal_length[rows], MIN_NORMAL_LENGTH),
                                        np.where(h.front[rows], 1.0, -1.0), dp)
         out = []
@@ -585,9 +590,9 @@ class Tracer:
                             h.albedo[rows] = filtered_albedo(self.scene, hits.tri[rows], bary[rows],
                                                               footprint, pixel[rows])
                         else:
-                            h.albedo[rows] = footprint_albedo(self.scene, hits.tri[rows], bary[rows],
-                                                               dp[:, rows], footprint.cell,
-                                                               footprint.grid)
+                            h.albedo[rows] = footprint_albedo(
+                                self.scene, hits.tri[rows], bary[rows], dp[:, rows],
+                                self.frames.grad[hits.tri[rows]], footprint.cell, footprint.grid)
             metallic, trans, rough = self.metallic[m], self.transmission[m], self.roughness[m]
             dielectric = (1.0 - metallic) * (1.0 - trans)
             # The diffuse base shows through the specular layer less the layer's albedo at this
