@@ -266,6 +266,13 @@ def test_invalid_rays_and_limits():
         bvh.intersect(o[:, :2], d[:, :2])
 
 
+@pytest.mark.parametrize("field", [{"bins": 1}, {"leaf_size": 0}, {"width": 3}, {"chunk_size": 100},
+                                   {"solo_chunk_size": 100}, {"threads": -1}])
+def test_settings_out_of_range_are_refused(field):
+    with pytest.raises(ValueError):
+        BVHSettings(**field)
+
+
 @pytest.mark.slow
 def test_results_do_not_depend_on_chunks_or_threads():
     # Enough rays that every thread gets work (`bvh.THREAD_RAYS` per thread).
@@ -275,7 +282,9 @@ def test_results_do_not_depend_on_chunks_or_threads():
     d = rng.normal(size=(70_000, 3))
     base = BVH.build(tris, BVHSettings(threads=1, chunk_size=256))
     ref = base.intersect(o, d)
-    for config in (BVHSettings(threads=2, chunk_size=1000), BVHSettings(threads=3)):
+    # The default pools: one thread (solo_chunk_size slots), several (chunk_size slots each).
+    configs = (BVHSettings(threads=1), BVHSettings(threads=2, chunk_size=1000), BVHSettings(threads=3))
+    for config in configs:
         assert_same_hits(BVH.build(tris, config).intersect(o, d), ref)
     assert_same_hits(base.intersect(o, d), ref)
 
