@@ -22,7 +22,7 @@ import numpy as np
 
 from ...kernels.measure.exr import read_exr, read_exr_pass
 from .models import COMBINED_PASS, RENDER_PASSES, CyclesModel, direct
-from .settings import SettingsLog, matched_scene
+from .settings import SettingsLog, lost_enum_value, matched_scene
 
 # Size of the warm-up render (pixels per side) and its sample count.
 WARM_UP_PIXELS = 8
@@ -118,7 +118,8 @@ def exr_output(scene, log: SettingsLog, resolution,
             yield folder
     finally:
         for prop, value in saved:
-            setattr(settings, prop, value)
+            if not lost_enum_value(settings, prop, value):
+                setattr(settings, prop, value)
 
 
 def render_camera(scene, model: CyclesModel, samples: int,

@@ -90,7 +90,15 @@ class SettingsLog:
     def restore(self) -> None:
         while self._changes:
             owner, prop, old = self._changes.pop()
-            setattr(owner, prop, old)
+            if not lost_enum_value(owner, prop, old):
+                setattr(owner, prop, old)
+
+
+def lost_enum_value(owner, prop: str, value) -> bool:
+    """Whether `value`, read from `owner.prop`, is the "" RNA gives for an enum whose stored
+    value matches none of its items (a Blender 2.7x file's JPEG output with colour mode 32): it
+    cannot be set back, and setting it would raise."""
+    return value == "" and owner.bl_rna.properties[prop].type == "ENUM"
 
 
 def _owner(scene, path: str):

@@ -12,6 +12,7 @@ import math
 import bpy
 import numpy as np
 import pytest
+from reference_data import reference_path
 
 from classic_bake.addon import bridge
 from classic_bake.addon import cycles as cr
@@ -197,6 +198,21 @@ def test_matched_scene_sets_each_model_and_restores_every_setting():
     # A render changes samples, size and the output format on the way: all restored as well.
     cr.render_camera(scene, cr.direct(), 1, resolution=(4, 3))
     assert scene_dump(scene) == before
+
+
+def test_a_file_whose_output_format_no_longer_exists_renders_and_keeps_it():
+    # Saved by Blender 2.79 with JPEG output in colour mode 32, which matches none of today's
+    # items (RNA reads it as ""): it cannot be set back, and trying raised, so no reference of
+    # such a file could be rendered. The format comes back, and with it the colour mode Blender
+    # gives JPEG (RGB).
+    bpy.ops.wm.open_mainfile(filepath=str(reference_path("old_output_format.blend")),
+                             load_ui=False, use_scripts=False)
+    scene, top, bottom = emission_scene()
+    settings = scene.render.image_settings
+    assert (settings.file_format, settings.color_mode) == ("JPEG", "")
+    pixels, _ = cr.render_camera(scene, cr.whitted(2), samples=1)
+    np.testing.assert_allclose(pixels[0, 0], top, rtol=1e-5)
+    assert (settings.file_format, settings.color_mode) == ("JPEG", "RGB")
 
 
 def test_render_camera_returns_exact_linear_radiance_top_row_first():
