@@ -1,8 +1,13 @@
 """Blender materials reduced to kernel `Material`s: the node-tree reader (Principled, Diffuse,
-Glossy, Glass and Emission shaders, Mix and Add Shaders of them, image and checker textures,
-normal maps and bumps) and a record of everything it does not model (`Material.ignored`).
-What drives a socket is read through `socket_values.py` (node chains between a texture and the
-socket); base colour, emission, metallic and roughness may come from textures.
+Glossy, Glass, Emission and Transparent shaders, Mix and Add Shaders of them, node groups
+holding any of these, image and checker textures, normal maps and bumps) and a record of
+everything it does not model (`Material.ignored`). What drives a socket is read through
+`socket_values.py` (node chains between a texture and the socket); base colour, emission,
+metallic, roughness and alpha may come from textures.
+
+Node groups are walked as Cycles flattens them (`nodes.follow_through`): the reader keeps the
+Group nodes it entered to reach the node it reads (`MaterialReader._groups`), so a socket inside
+a group that reads the group's input reads what the Group node's input is given outside.
 
 Textures keep their encoding: an sRGB byte image is decoded per look-up after interpolation, as
 Cycles does (`Texture.encoding`).
@@ -10,6 +15,7 @@ Cycles does (`Texture.encoding`).
 
 from __future__ import annotations
 
+from contextlib import contextmanager
 from dataclasses import replace
 
 import bpy
@@ -17,7 +23,7 @@ import numpy as np
 
 from ...kernels.geometry.scene import Material, Texture
 from .images import image_pixels, stored_srgb
-from .nodes import active_output, follow, node_tree
+from .nodes import active_output, follow_through, node_tree
 from .request import SnapshotRequest
 from .socket_fallback import BakeTarget, SocketFallback
 from .socket_values import SocketReader, Value
@@ -34,6 +40,12 @@ DEFAULT_MATERIAL = (Material(name=DEFAULT_MATERIAL_NAME) if bpy.app.version >= (
 # Mix and Add Shaders nested deeper than this are not followed (a shader tree is finite, but a
 # node group could repeat one mix many times; eight levels hold 256 leaves).
 MAX_SHADER_MIX_DEPTH = 8
+# Cycles evaluates volume closures only in a material's Volume slot: one in the Surface slot adds
+# nothing (measured: a Principled BSDF plus a Volume Absorption renders as the BSDF alone).
+VOLUME_SHADER_PREFIX = "ShaderNodeVolume"
+# Mix weights this close to 1 (or a transparency this close to 1) count as 1: a Fac of 1 picks
+# one shader whole, whatever float rounding left of 1 - Fac.
+MIX_WEIGHT_EPS = 1e-9
 
 
 def mix_materials(name: str, parts: list, ignored: list) -> Material:
@@ -111,6 +123,34 @@ def mix_materials(name: str, parts: list, ignored: list) -> Material:
         bump_strength=1.0 if normal is None else normal.bump_strength,
         bump_distance=1.0 if normal is None else normal.bump_distance,
         ignored=tuple(ignored))
+
+
+def with_transparency(name: str, parts: list, ignored: list) -> Material:
+    """`mix_materials` of parts [(weight, Material)] some of which let light through (a
+    Transparent BSDF is a part of alpha 0, a Principled BSDF's Alpha its own).
+
+    Cycles shades sum_i w_i (a_i S_i + (1 - a_i) T), T passing the ray on; the kernels shade
+    a S + (1 - a) T. So a = 1 - sum_i w_i (1 - a_i), and S mixes the parts with weights
+    w_i a_i / a. A part's alpha texture counts as its constant alpha here (noted), unless that
+    part is the whole mix."""
+    if len(parts) == 1 and abs(parts[0][0] - 1.0) <= MIX_WEIGHT_EPS:
+        return replace(parts[0][1], ignored=tuple(ignored))
+    if not any(m.has_alpha for _, m in parts):
+        return mix_materials(name, parts, ignored)
+    if any(m.alpha_texture is not None for _, m in parts):
+        ignored.append("an alpha texture in a mix of shaders: its part's constant alpha used")
+    transparency = sum(w * (1.0 - m.alpha) for w, m in parts)
+    if transparency >= 1.0 - MIX_WEIGHT_EPS:
+        if transparency > 1.0 + MIX_WEIGHT_EPS:
+            ignored.append(f"a mix passing {transparency:.3g} of the light it receives (a "
+                           f"Transparent BSDF added to others): alpha 0 used")
+        return Material(name=name, base_color=np.zeros(3, np.float32), specular=0.0, alpha=0.0,
+                        ignored=tuple(ignored))
+    alpha = 1.0 - transparency
+    surface = [(w * m.alpha / alpha, replace(m, alpha=1.0, alpha_texture=None))
+               for w, m in parts if w * m.alpha > 0.0]
+    return replace(mix_materials(name, surface, ignored), alpha=alpha, ignored=tuple(ignored))
+
 
 
 def _mixed_emission_texture(parts: list, constant: np.ndarray, ignored: list) -> Texture | None:
@@ -191,11 +231,21 @@ class MaterialReader:
         self.fallback = (None if request.socket_bake is None
                          else SocketFallback(request.socket_bake))
         self._mat, self._target, self._baked = None, None, []
+        self._groups: tuple = ()  # the Group nodes entered to reach the node being read
+
+    @contextmanager
+    def _inside(self, groups: tuple):
+        """Read nodes reached inside the Group nodes `groups` (outermost first) meanwhile."""
+        outer, self._groups = self._groups, groups
+        try:
+            yield
+        finally:
+            self._groups = outer
 
     def read(self, mat, target: BakeTarget | None = None) -> Material:
         """The kernel `Material` of `mat` on the object `target` (which a socket read through a
         Cycles bake is baked over; None: such sockets take their defaults, listed as ignored)."""
-        self._mat, self._target, self._baked = mat, target, []
+        self._mat, self._target, self._baked, self._groups = mat, target, [], ()
         material = self._material(mat)
         return replace(material, fallbacks=tuple(self._baked)) if self._baked else material
 
@@ -227,15 +277,16 @@ class MaterialReader:
             ignored.append("volume shader")
         if output.inputs["Displacement"].is_linked:
             ignored.append("displacement (bump mapping reads Bump/Normal Map nodes only)")
-        node, _ = follow(output.inputs["Surface"])
+        node, _, groups = follow_through(output.inputs["Surface"])
         if node is None:
             return Material(name=mat.name, base_color=np.zeros(3, np.float32),
                             ignored=tuple(ignored + ["no surface shader: black"]))
-        return self._shader(mat.name, node, ignored)
+        with self._inside(groups):
+            return self._shader(mat.name, node, ignored)
 
     def _shader(self, name: str, node, ignored: list, depth: int = 0) -> Material:
         """The kernel `Material` of the shader node `node` (a BSDF, an emission, or a Mix or
-        Add Shader of such, `_mixed`)."""
+        Add Shader of such, `_mixed`), reached inside the Group nodes `self._groups`."""
         kind = node.type
         if kind in ("MIX_SHADER", "ADD_SHADER") and depth < MAX_SHADER_MIX_DEPTH:
             return self._mixed(name, node, ignored, depth)
@@ -259,27 +310,91 @@ class MaterialReader:
             return Material(name=name, base_color=color, base_color_texture=tex, metallic=1.0,
                             roughness=self._value(node.inputs["Roughness"], ignored),
                             ignored=tuple(ignored))
+        if kind == "BSDF_TRANSPARENT":
+            color, _ = self._color(node.inputs["Color"], ignored, textures=False)
+            if not np.allclose(color, 1.0):
+                ignored.append("a tinted Transparent BSDF: light passes it untinted")
+            return Material(name=name, base_color=np.zeros(3, np.float32), specular=0.0,
+                            alpha=0.0, ignored=tuple(ignored))
+        if node.bl_idname.startswith(VOLUME_SHADER_PREFIX):
+            ignored.append(f"volume shader '{node.bl_idname}' in the Surface slot: no surface "
+                           f"(black), as Cycles renders it")
+            return Material(name=name, base_color=np.zeros(3, np.float32), specular=0.0,
+                            ignored=tuple(ignored))
         ignored.append(f"surface shader '{node.bl_idname}' is not modelled: grey diffuse used")
         return Material(name=name, ignored=tuple(ignored))
 
     def _mixed(self, name: str, node, ignored: list, depth: int) -> Material:
         """A Mix Shader (weights 1 - Fac and Fac; a Fac fed by a node takes its default, noted)
-        or an Add Shader (weights 1 and 1) of two shaders, as one `Material` (`mix_materials`);
-        an unlinked shader input is a black surface (no closure: Cycles absorbs there)."""
-        add = node.type == "ADD_SHADER"
+        or an Add Shader (weights 1 and 1) of two shaders, as one `Material` (`mix_materials`,
+        `with_transparency`); an unlinked shader input, or a volume shader (Cycles evaluates
+        those in the Volume slot only), is a black surface (no closure: Cycles absorbs there).
+
+        A Mix Shader of a Transparent BSDF and one other shader is that shader with Fac (or
+        1 - Fac) as its alpha, read as the Principled Alpha is (a texture too): the cut-out
+        leaves and fences of imported assets."""
         sockets = [s for s in node.inputs if s.type == "SHADER"]
-        if add:
+        sources = []
+        for socket in sockets:
+            source, _, groups = follow_through(socket, self._groups)
+            if source is not None and source.bl_idname.startswith(VOLUME_SHADER_PREFIX):
+                ignored.append(f"volume shader '{source.bl_idname}' in the Surface slot: no "
+                               f"surface, as Cycles renders it")
+                source = None
+            sources.append((source, groups))
+        if node.type != "ADD_SHADER":
+            cut_out = self._cut_out(name, node.inputs["Fac"], sources, ignored, depth)
+            if cut_out is not None:
+                return cut_out
+        if node.type == "ADD_SHADER":
             weights = [1.0, 1.0]
         else:
             fac = min(max(self._value(node.inputs["Fac"], ignored), 0.0), 1.0)
             weights = [1.0 - fac, fac]
         parts = []
-        for socket, weight in zip(sockets, weights, strict=True):
-            source, _ = follow(socket)
+        for (source, groups), weight in zip(sources, weights, strict=True):
             if source is None or weight == 0.0:
                 continue
-            parts.append((weight, self._shader(name, source, ignored, depth + 1)))
-        return mix_materials(name, parts, ignored)
+            with self._inside(groups):
+                parts.append((weight, self._shader(name, source, ignored, depth + 1)))
+        return with_transparency(name, parts, ignored)
+
+    def _cut_out(self, name: str, fac_socket, sources: list, ignored: list,
+                 depth: int) -> Material | None:
+        """A Mix Shader of a Transparent BSDF and one other shader whose Fac a texture drives:
+        that shader with the texture (or 1 - it) as its alpha, times its own alpha. None for
+        any other mix (a constant Fac goes the general way, `with_transparency`)."""
+        kinds = [None if source is None else source.type for source, _ in sources]
+        if kinds.count("BSDF_TRANSPARENT") != 1 or None in kinds:
+            return None
+        fac = self._read_or_bake(fac_socket, self._any_texture(ignored), [], bake=True)
+        if fac is None or fac.texture is None:
+            return None
+        surface_at = 1 - kinds.index("BSDF_TRANSPARENT")  # Fac weighs the second input
+        coverage = fac if surface_at == 1 else fac.affine(-1.0, 1.0)
+        if coverage is None:
+            return None
+        source, groups = sources[surface_at]
+        with self._inside(groups):
+            surface = self._shader(name, source, ignored, depth + 1)
+        transparent, groups = sources[1 - surface_at]
+        with self._inside(groups):
+            self._shader(name, transparent, ignored, depth + 1)  # its notes (a tint)
+        if surface.alpha_texture is not None:
+            ignored.append("a cut-out mix of a shader with its own alpha texture: the mix's "
+                           "texture used")
+        texture = replace(coverage.texture,
+                          gain=(coverage.texture.gain * surface.alpha).astype(np.float32),
+                          offset=(coverage.texture.offset * surface.alpha).astype(np.float32))
+        return replace(surface, alpha=1.0, alpha_texture=texture, ignored=tuple(ignored))
+
+    def _any_texture(self, ignored):
+        """A `texture_of` that reads textures even where the request reads no colours: coverage
+        decides where shadows fall."""
+        def texture_of(node, what, groups):
+            with self._inside(groups):
+                return self._texture(node, ignored, what)
+        return texture_of
 
     def _principled(self, name, node, ignored) -> Material:
         inputs = node.inputs
@@ -289,10 +404,10 @@ class MaterialReader:
         metallic, metallic_tex = self._number(inputs["Metallic"], ignored)
         roughness, roughness_tex = self._number(inputs["Roughness"], ignored)
         for unmodelled in ("Subsurface Weight", "Coat Weight", "Sheen Weight"):
-            if unmodelled in inputs and (
-                inputs[unmodelled].is_linked or inputs[unmodelled].default_value > 0
-            ):
-                ignored.append(f"{unmodelled} is not modelled")
+            if unmodelled in inputs:
+                weight = self._read(inputs[unmodelled], [])  # through groups: their inputs' values
+                if weight is None or weight.texture is not None or weight.const[0] > 0.0:
+                    ignored.append(f"{unmodelled} is not modelled")
         alpha, alpha_tex = self._alpha(inputs["Alpha"], ignored) if "Alpha" in inputs else (1.0, None)
         normal_tex, height_tex, strength_b, distance_b = self._normal(inputs["Normal"], ignored)
         return Material(
@@ -323,10 +438,9 @@ class MaterialReader:
         With `bake` (a socket the kernels read as a texture), a chain the reader cannot follow
         is baked by Cycles instead (`SocketFallback`) and named in the material's `fallbacks`."""
         if self.request.textures:
-            def texture_of(node, what):
-                return self._texture(node, ignored, what)
+            texture_of = self._any_texture(ignored)
         else:
-            def texture_of(node, what):
+            def texture_of(node, what, groups):
                 return None
         return self._read_or_bake(socket, texture_of, ignored, bake and self.request.textures)
 
@@ -335,7 +449,7 @@ class MaterialReader:
         texture Cycles bakes of it (`SocketFallback`, named in `fallbacks`) instead of the
         reader's reasons in `ignored`."""
         unread: list[str] = []
-        value = SocketReader(texture_of, unread).read(socket, socket.name)
+        value = SocketReader(texture_of, unread).read(socket, socket.name, self._groups)
         if value is None and bake and self.fallback is not None and self._mat is not None:
             texture, entry = self.fallback.texture(self._mat, socket, socket.type != "RGBA",
                                                    self._target)
@@ -389,8 +503,7 @@ class MaterialReader:
     def _alpha(self, socket, ignored) -> tuple[float, Texture | None]:
         """The Principled Alpha: (constant, None) or (1, texture). Read with its texture even
         when the bake reads no colours: coverage decides where shadows fall (a leaf card)."""
-        value = self._read_or_bake(socket, lambda node, what: self._texture(node, ignored, what),
-                                   ignored, bake=True)
+        value = self._read_or_bake(socket, self._any_texture(ignored), ignored, bake=True)
         if value is None:
             return min(max(float(socket.default_value), 0.0), 1.0), None
         if value.texture is None:
@@ -419,15 +532,16 @@ class MaterialReader:
         KHR_texture_transform) becomes the transform. `generated`: whether this use can read
         Generated coordinates (base colours can; bump and normal maps, whose tangent frames
         follow the UVs, read UVs instead)."""
-        vec_node, vec_socket = follow(node.inputs["Vector"])
+        vec_node, vec_socket, groups = follow_through(node.inputs["Vector"], self._groups)
         if vec_node is not None and vec_node.type == "MAPPING":
-            transform = mapping_transform(vec_node)
-            inner = follow(vec_node.inputs["Vector"])[0]
-            if transform is None or inner is None:
-                ignored.append(f"{what}: a Mapping node with linked, 3D or unlinked inputs is "
-                               f"not modelled")
-                return False, None, "UV", None
-            ok, layer, coordinates, _ = self._uv_layer(vec_node, ignored, what, False)
+            with self._inside(groups):
+                transform = mapping_transform(vec_node)
+                inner = follow_through(vec_node.inputs["Vector"], groups)[0]
+                if transform is None or inner is None:
+                    ignored.append(f"{what}: a Mapping node with linked, 3D or unlinked inputs "
+                                   f"is not modelled")
+                    return False, None, "UV", None
+                ok, layer, coordinates, _ = self._uv_layer(vec_node, ignored, what, False)
             return ok, layer, coordinates, transform
         if vec_node is None and node.type != "TEX_CHECKER":
             return True, None, "UV", None
@@ -486,20 +600,24 @@ class MaterialReader:
         return None
 
     def _normal(self, socket, ignored):
-        node, _ = follow(socket)
+        node, _, groups = follow_through(socket, self._groups)
         if node is None:
             return None, None, 1.0, 1.0
+        with self._inside(groups):
+            return self._normal_node(node, ignored)
+
+    def _normal_node(self, node, ignored):
+        """(normal texture, height texture, strength, distance) of the node feeding a Normal."""
         if node.type == "NORMAL_MAP":
             if node.space != "TANGENT":
                 ignored.append(f"normal map in {node.space} space is not modelled")
                 return None, None, 1.0, 1.0
-            tex_node, _ = follow(node.inputs["Color"])
-            tex = self._texture(tex_node, ignored, "Normal Map", False) if tex_node else None
+            tex = self._texture_feeding(node.inputs["Color"], ignored, "Normal Map")
             strength = self._value(node.inputs["Strength"], ignored)
             return tex, None, strength, 1.0
         if node.type == "BUMP":
-            tex_node, _ = follow(node.inputs["Height"])
-            tex = self._texture(tex_node, ignored, "Bump height", False) if tex_node else None
+            tex_node = follow_through(node.inputs["Height"], self._groups)[0]
+            tex = self._texture_feeding(node.inputs["Height"], ignored, "Bump height")
             if tex_node is not None and tex is None:
                 ignored.append(f"bump height from '{tex_node.bl_idname}' is not modelled")
             if node.inputs["Normal"].is_linked:
@@ -510,3 +628,12 @@ class MaterialReader:
                     -distance if node.invert else distance)
         ignored.append(f"normal input from '{node.bl_idname}' is not modelled")
         return None, None, 1.0, 1.0
+
+    def _texture_feeding(self, socket, ignored, what) -> Texture | None:
+        """The image or checker texture feeding `socket` directly (through reroutes and groups),
+        read on UVs (a normal or bump map, whose tangent frames follow the UVs); else None."""
+        node, _, groups = follow_through(socket, self._groups)
+        if node is None:
+            return None
+        with self._inside(groups):
+            return self._texture(node, ignored, what, False)

@@ -1,9 +1,16 @@
-"""Walking shader node trees: which tree Cycles shades a datablock with, which node feeds a socket,
-which output node is active."""
+"""Walking shader node trees: which tree Cycles shades a datablock with, which node feeds a socket
+(within one tree, or across node groups), which output node is active."""
 
 from __future__ import annotations
 
 import bpy
+
+# Node groups nested deeper than this are not entered (Blender forbids a group inside itself, so
+# only a malformed file reaches it).
+MAX_GROUP_DEPTH = 16
+# Groups entered and left along one link path by `follow_through`: each pass through a group
+# costs two (in, out), and a real graph passes a handful.
+MAX_GROUP_HOPS = 256
 
 
 def node_tree(idblock):
@@ -38,3 +45,55 @@ def active_output(tree, kind: str):
         if getattr(node, "is_active_output", False) and node.target in ("ALL", "CYCLES"):
             return node
     return outputs[0] if outputs else None
+
+
+def group_output_socket(group, out):
+    """The socket inside Group node `group` that its output `out` passes on: the input of the
+    group's active Group Output node with out's identifier; None if there is none."""
+    tree = group.node_tree
+    if tree is None:
+        return None
+    outputs = [n for n in tree.nodes if n.type == "GROUP_OUTPUT"]
+    output = next((n for n in outputs if n.is_active_output), outputs[0] if outputs else None)
+    if output is None:
+        return None
+    return next((s for s in output.inputs if s.identifier == out.identifier), None)
+
+
+def group_input_socket(groups: tuple, node, out):
+    """The input of the Group node `groups[-1]` (the group entered last) that the Group Input
+    node `node`'s output `out` reads inside it; None if no group was entered or `node` lies in
+    another tree."""
+    if not groups or node.id_data != groups[-1].node_tree:
+        return None
+    return next((s for s in groups[-1].inputs if s.identifier == out.identifier), None)
+
+
+def follow_through(socket, groups: tuple = ()):
+    """`follow` across node groups, as Cycles flattens them: a Group node's output goes on from
+    the matching socket inside the group (the Group node pushed onto `groups`), a Group Input
+    node's output from the matching input of the group it was entered by (popped).
+
+    socket: a socket in the tree of `groups[-1]` (the material's own tree when `groups` is
+    empty); groups: the Group nodes entered to reach it, outermost first.
+    Returns (node, its output socket, the Group nodes entered to reach that node); (None, None,
+    groups) where the chain ends unlinked. A group with no matching output, or a Group Input
+    not entered through `groups`, is returned as the node itself (for the caller to report).
+    """
+    for _ in range(MAX_GROUP_HOPS):
+        node, out = follow(socket)
+        if node is None or node.mute:
+            return node, out, groups
+        if node.type == "GROUP" and len(groups) < MAX_GROUP_DEPTH:
+            inner = group_output_socket(node, out)
+            if inner is None:
+                return node, out, groups
+            socket, groups = inner, groups + (node,)
+        elif node.type == "GROUP_INPUT":
+            outer = group_input_socket(groups, node, out)
+            if outer is None:
+                return node, out, groups
+            socket, groups = outer, groups[:-1]
+        else:
+            return node, out, groups
+    return None, None, groups

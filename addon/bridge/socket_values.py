@@ -32,16 +32,15 @@ import numpy as np
 from ...kernels.geometry.scene import Texture
 from ...kernels.shading.hue_saturation import hue_saturation_value
 from ...kernels.shading.textures import node_chain, srgb_to_linear
-from .nodes import follow
+from .nodes import MAX_GROUP_DEPTH, follow, group_input_socket, group_output_socket
 
 # Cycles' colour-to-number conversion (linear Rec. 709 luminance, the scene's default working space).
 LUMINANCE = (0.2126, 0.7152, 0.0722)
 # Texels of the look-up tables a ColorRamp or a curve is sampled into (inputs in [0, 1]).
 CURVE_TABLE_SIZE = 1024
-# A group may contain groups; deeper than this the reader stops (a malformed file).
-MAX_GROUP_DEPTH = 16
 
-TextureSource = Callable[[object, str], "Texture | None"]  # (texture node, what) -> Texture
+# (texture node, what, the Group nodes entered to reach it) -> Texture
+TextureSource = Callable[[object, str, tuple], "Texture | None"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -137,8 +136,9 @@ def _convert(value: Value, from_type: str, to_type: str) -> Value:
 
 
 class SocketReader:
-    """Reads sockets of one material's tree; `texture_of(node, what)` makes a kernel `Texture` of
-    an Image or Checker Texture node (or None, having said why in `ignored`)."""
+    """Reads sockets of one material's tree; `texture_of(node, what, groups)` makes a kernel
+    `Texture` of an Image or Checker Texture node reached inside the Group nodes `groups` (or
+    None, having said why in `ignored`)."""
 
     def __init__(self, texture_of: TextureSource, ignored: list):
         self.texture_of = texture_of
@@ -167,7 +167,7 @@ class SocketReader:
         if kind == "RGB":
             return Value(np.asarray(out.default_value[:3], np.float64))
         if kind in ("TEX_IMAGE", "TEX_CHECKER"):
-            return self._texture(node, out, what)
+            return self._texture(node, out, what, groups)
         if kind in ("SEPARATE_COLOR", "SEPRGB", "SEPXYZ"):
             return self._separate(node, out, what, groups)
         if kind == "MATH":
@@ -191,8 +191,7 @@ class SocketReader:
         if kind == "GROUP":
             return self._group(node, out, what, groups)
         if kind == "GROUP_INPUT" and groups:
-            outer = groups[-1]
-            socket = next((s for s in outer.inputs if s.identifier == out.identifier), None)
+            socket = group_input_socket(groups, node, out)
             return None if socket is None else self.read(socket, what, groups[:-1])
         if kind in ("ATTRIBUTE", "VERTEX_COLOR"):
             self._say(what, node, "colour attributes are not modelled")
@@ -211,8 +210,8 @@ class SocketReader:
             return None
         return float(value.const[0])
 
-    def _texture(self, node, out, what) -> Value | None:
-        texture = self.texture_of(node, what)
+    def _texture(self, node, out, what, groups) -> Value | None:
+        texture = self.texture_of(node, what, groups)
         if texture is None:
             return None
         value = Value(np.zeros(3), texture)
@@ -421,14 +420,10 @@ class SocketReader:
         return result
 
     def _group(self, node, out, what, groups) -> Value | None:
-        tree = node.node_tree
-        if tree is None or len(groups) >= MAX_GROUP_DEPTH:
+        if node.node_tree is None or len(groups) >= MAX_GROUP_DEPTH:
             self._say(what, node, "an empty or too deeply nested group")
             return None
-        outputs = [n for n in tree.nodes if n.type == "GROUP_OUTPUT"]
-        output = next((n for n in outputs if n.is_active_output), outputs[0] if outputs else None)
-        socket = None if output is None else next(
-            (s for s in output.inputs if s.identifier == out.identifier), None)
+        socket = group_output_socket(node, out)
         if socket is None:
             self._say(what, node, "its output is not found in the group")
             return None

@@ -1,0 +1,316 @@
+"""Shader-level graphs of real assets, read by the material reader (addon/bridge/materials.py):
+a whole shader inside a node group (asset libraries ship their materials so), groups inside
+groups, a shader passed into a group, a Transparent BSDF mixed in for cut-outs (leaves, fences:
+the pre-2.8 way, still what many importers build), and a volume shader in the Surface slot.
+
+Each grouped or mixed graph is compared with its flat twin, a plain Principled BSDF the reader is
+checked against Cycles on elsewhere: the two must read as the same kernel `Material`, field by
+field. Where the twin's equality rests on how Cycles shades (a volume in the Surface slot), Cycles
+renders both."""
+
+from __future__ import annotations
+
+from dataclasses import fields, replace
+
+import bpy
+import numpy as np
+import pytest
+
+from classic_bake.addon import bridge
+from classic_bake.addon import cycles as cr
+from classic_bake.addon.bridge.materials import MaterialReader
+from classic_bake.addon.bridge.request import SnapshotRequest
+from classic_bake.kernels.geometry.scene import Material, Texture
+
+RNG = np.random.default_rng(11)
+SIDE = 8  # texels of the test images
+
+
+def _image(name: str) -> bpy.types.Image:
+    image = bpy.data.images.new(name, SIDE, SIDE, alpha=True, float_buffer=True)
+    image.colorspace_settings.name = "Non-Color"
+    image.pixels.foreach_set(RNG.uniform(0.05, 0.95, SIDE * SIDE * 4).astype(np.float32))
+    return image
+
+
+@pytest.fixture
+def images():
+    """(colour image, normal-map image), made per test (every test starts from factory settings)."""
+    return _image("Colour"), _image("Normals")
+
+
+def _material(name: str):
+    """A material with an empty tree but its Material Output: (material, tree, output)."""
+    mat = bpy.data.materials.new(name)
+    if bpy.app.version < (5, 0, 0):
+        mat.use_nodes = True
+    tree = mat.node_tree
+    for node in [n for n in tree.nodes if n.type != "OUTPUT_MATERIAL"]:
+        tree.nodes.remove(node)
+    return mat, tree, next(n for n in tree.nodes if n.type == "OUTPUT_MATERIAL")
+
+
+def _texture(tree, image, output="Color"):
+    node = tree.nodes.new("ShaderNodeTexImage")
+    node.image = image
+    return node.outputs[output]
+
+
+def _normal_map(tree, normals):
+    node = tree.nodes.new("ShaderNodeNormalMap")
+    node.inputs["Strength"].default_value = 0.7
+    tree.links.new(_texture(tree, normals), node.inputs["Color"])
+    return node.outputs["Normal"]
+
+
+def _principled(tree, metallic=0.25, specular=0.3):
+    bsdf = tree.nodes.new("ShaderNodeBsdfPrincipled")
+    bsdf.inputs["Metallic"].default_value = metallic
+    bsdf.inputs["Specular IOR Level"].default_value = specular
+    return bsdf
+
+
+def _flat(images):
+    """The twin: a Principled BSDF, base colour from an image, roughness 0.35, a normal map."""
+    colour, normals = images
+    mat, tree, output = _material("Flat")
+    bsdf = _principled(tree)
+    bsdf.inputs["Roughness"].default_value = 0.35
+    tree.links.new(_texture(tree, colour), bsdf.inputs["Base Color"])
+    tree.links.new(_normal_map(tree, normals), bsdf.inputs["Normal"])
+    tree.links.new(bsdf.outputs["BSDF"], output.inputs["Surface"])
+    return mat
+
+
+def _pbr_group():
+    """A group holding the Principled BSDF, its base colour, roughness and normal as inputs (as
+    asset libraries build it); metallic and specular are set inside."""
+    group = bpy.data.node_groups.new("PBR", "ShaderNodeTree")
+    for name, kind in (("Base Color", "NodeSocketColor"), ("Roughness", "NodeSocketFloat"),
+                       ("Normal", "NodeSocketVector")):
+        group.interface.new_socket(name, in_out="INPUT", socket_type=kind)
+    group.interface.new_socket("BSDF", in_out="OUTPUT", socket_type="NodeSocketShader")
+    inner_in = group.nodes.new("NodeGroupInput")
+    inner_out = group.nodes.new("NodeGroupOutput")
+    bsdf = _principled(group)
+    for name in ("Base Color", "Roughness", "Normal"):
+        group.links.new(inner_in.outputs[name], bsdf.inputs[name])
+    group.links.new(bsdf.outputs["BSDF"], inner_out.inputs["BSDF"])
+    return group
+
+
+def _group_node(tree, group, images):
+    """A Group node of `group` fed like the twin: the images outside, roughness on the node."""
+    colour, normals = images
+    node = tree.nodes.new("ShaderNodeGroup")
+    node.node_tree = group
+    node.inputs["Roughness"].default_value = 0.35
+    tree.links.new(_texture(tree, colour), node.inputs["Base Color"])
+    tree.links.new(_normal_map(tree, normals), node.inputs["Normal"])
+    return node
+
+
+def _read(mat) -> Material:
+    return MaterialReader(SnapshotRequest(socket_bake=None)).read(mat)
+
+
+def _assert_same_texture(ours: Texture | None, twin: Texture | None, what: str) -> None:
+    assert (ours is None) == (twin is None), what
+    if ours is None:
+        return
+    for field in fields(Texture):
+        a, b = getattr(ours, field.name), getattr(twin, field.name)
+        if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+            np.testing.assert_array_equal(a, b, err_msg=f"{what}.{field.name}")
+        else:
+            assert a == b, f"{what}.{field.name}: {a} != {b}"
+
+
+def _assert_same_material(ours: Material, twin: Material) -> None:
+    """Every field the kernels shade with equal (names and notes aside)."""
+    for field in fields(Material):
+        if field.name in ("name", "ignored", "fallbacks"):
+            continue
+        a, b = getattr(ours, field.name), getattr(twin, field.name)
+        if isinstance(a, Texture) or isinstance(b, Texture):
+            _assert_same_texture(a, b, field.name)
+        elif isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+            np.testing.assert_allclose(a, b, rtol=1e-6, atol=1e-7, err_msg=field.name)
+        else:
+            assert a == b, f"{field.name}: {a} != {b}"
+
+
+def test_a_shader_inside_a_node_group_reads_as_its_flat_twin(images):
+    twin = _read(_flat(images))
+    mat, tree, output = _material("Grouped")
+    node = _group_node(tree, _pbr_group(), images)
+    tree.links.new(node.outputs["BSDF"], output.inputs["Surface"])
+    ours = _read(mat)
+    assert ours.base_color_texture is not None and ours.normal_texture is not None
+    assert ours.roughness == np.float32(0.35) and ours.metallic == np.float32(0.25)
+    _assert_same_material(ours, twin)
+    assert not ours.ignored, ours.ignored
+
+
+def test_groups_inside_groups_pass_their_inputs_through(images):
+    twin = _read(_flat(images))
+    inner = _pbr_group()
+    outer = bpy.data.node_groups.new("Wrapper", "ShaderNodeTree")
+    for item in inner.interface.items_tree:  # the same sockets, passed straight through
+        outer.interface.new_socket(item.name, in_out=item.in_out, socket_type=item.socket_type)
+    o_in, o_out = outer.nodes.new("NodeGroupInput"), outer.nodes.new("NodeGroupOutput")
+    wrapped = outer.nodes.new("ShaderNodeGroup")
+    wrapped.node_tree = inner
+    for name in ("Base Color", "Roughness", "Normal"):
+        outer.links.new(o_in.outputs[name], wrapped.inputs[name])
+    outer.links.new(wrapped.outputs["BSDF"], o_out.inputs["BSDF"])
+    mat, tree, output = _material("Nested")
+    node = _group_node(tree, outer, images)
+    tree.links.new(node.outputs["BSDF"], output.inputs["Surface"])
+    _assert_same_material(_read(mat), twin)
+
+
+def test_a_shader_passed_into_a_group_is_mixed_inside_it():
+    # Outside: Principled -> group "Tint" (a Mix Shader of its input and a red Diffuse) -> output.
+    group = bpy.data.node_groups.new("Tint", "ShaderNodeTree")
+    group.interface.new_socket("Shader", in_out="INPUT", socket_type="NodeSocketShader")
+    group.interface.new_socket("Shader", in_out="OUTPUT", socket_type="NodeSocketShader")
+    g_in, g_out = group.nodes.new("NodeGroupInput"), group.nodes.new("NodeGroupOutput")
+    mix = group.nodes.new("ShaderNodeMixShader")
+    mix.inputs["Fac"].default_value = 0.25
+    red = group.nodes.new("ShaderNodeBsdfDiffuse")
+    red.inputs["Color"].default_value = (0.8, 0.1, 0.1, 1.0)
+    group.links.new(g_in.outputs[0], mix.inputs[1])
+    group.links.new(red.outputs[0], mix.inputs[2])
+    group.links.new(mix.outputs[0], g_out.inputs[0])
+    mat, tree, output = _material("Tinted")
+    bsdf = _principled(tree)
+    bsdf.inputs["Base Color"].default_value = (0.1, 0.7, 0.2, 1.0)
+    node = tree.nodes.new("ShaderNodeGroup")
+    node.node_tree = group
+    tree.links.new(bsdf.outputs[0], node.inputs[0])
+    tree.links.new(node.outputs[0], output.inputs["Surface"])
+
+    flat, f_tree, f_output = _material("TintedFlat")
+    f_bsdf = _principled(f_tree)
+    f_bsdf.inputs["Base Color"].default_value = (0.1, 0.7, 0.2, 1.0)
+    f_mix = f_tree.nodes.new("ShaderNodeMixShader")
+    f_mix.inputs["Fac"].default_value = 0.25
+    f_red = f_tree.nodes.new("ShaderNodeBsdfDiffuse")
+    f_red.inputs["Color"].default_value = (0.8, 0.1, 0.1, 1.0)
+    f_tree.links.new(f_bsdf.outputs[0], f_mix.inputs[1])
+    f_tree.links.new(f_red.outputs[0], f_mix.inputs[2])
+    f_tree.links.new(f_mix.outputs[0], f_output.inputs["Surface"])
+    _assert_same_material(_read(mat), _read(flat))
+
+
+def _cut_out(colour, transparent_first: bool):
+    """Mix Shader of a Transparent BSDF and a Principled BSDF whose base colour is `colour`, the
+    Fac the image's alpha; `transparent_first`: the Transparent BSDF in the first slot."""
+    mat, tree, output = _material("CutOut")
+    bsdf = _principled(tree)
+    tree.links.new(_texture(tree, colour), bsdf.inputs["Base Color"])
+    clear = tree.nodes.new("ShaderNodeBsdfTransparent")
+    mix = tree.nodes.new("ShaderNodeMixShader")
+    tree.links.new(_texture(tree, colour, "Alpha"), mix.inputs["Fac"])
+    first, second = (clear, bsdf) if transparent_first else (bsdf, clear)
+    tree.links.new(first.outputs[0], mix.inputs[1])
+    tree.links.new(second.outputs[0], mix.inputs[2])
+    tree.links.new(mix.outputs[0], output.inputs["Surface"])
+    return mat
+
+
+def _alpha_twin(colour):
+    """The Principled BSDF with the image's alpha in its own Alpha input."""
+    mat, tree, output = _material("AlphaTwin")
+    bsdf = _principled(tree)
+    tree.links.new(_texture(tree, colour), bsdf.inputs["Base Color"])
+    tree.links.new(_texture(tree, colour, "Alpha"), bsdf.inputs["Alpha"])
+    tree.links.new(bsdf.outputs[0], output.inputs["Surface"])
+    return mat
+
+
+def test_a_transparent_mix_reads_as_the_principled_alpha(images):
+    colour = images[0]
+    twin = _read(_alpha_twin(colour))
+    assert twin.alpha_texture is not None
+    _assert_same_material(_read(_cut_out(colour, transparent_first=True)), twin)
+    # The Transparent BSDF second: the surface weighs 1 - Fac, so the coverage is 1 - alpha.
+    flipped = _read(_cut_out(colour, transparent_first=False))
+    coverage = replace(twin.alpha_texture, gain=-twin.alpha_texture.gain,
+                       offset=1.0 - twin.alpha_texture.offset)
+    _assert_same_material(flipped, replace(twin, alpha_texture=coverage))
+
+
+def test_a_constant_transparent_mix_is_a_partial_alpha():
+    mat, tree, output = _material("Veil")
+    clear = tree.nodes.new("ShaderNodeBsdfTransparent")
+    grey = tree.nodes.new("ShaderNodeBsdfDiffuse")
+    grey.inputs["Color"].default_value = (0.5, 0.4, 0.3, 1.0)
+    mix = tree.nodes.new("ShaderNodeMixShader")
+    mix.inputs["Fac"].default_value = 0.3  # 0.7 transparent, 0.3 diffuse
+    tree.links.new(clear.outputs[0], mix.inputs[1])
+    tree.links.new(grey.outputs[0], mix.inputs[2])
+    tree.links.new(mix.outputs[0], output.inputs["Surface"])
+    ours = _read(mat)
+    assert abs(ours.alpha - 0.3) < 1e-6 and ours.alpha_texture is None
+    np.testing.assert_allclose(ours.base_color, (0.5, 0.4, 0.3), rtol=1e-6)
+    assert ours.specular == 0.0 and ours.metallic == 0.0
+
+
+def _plane_under_a_sun(mat):
+    bpy.ops.mesh.primitive_plane_add(size=4.0)
+    bpy.context.object.data.materials.append(mat)
+    scene = bpy.context.scene
+    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    camera.location = (0.0, 0.0, 5.0)
+    scene.collection.objects.link(camera)
+    scene.camera = camera
+    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
+    sun.data.energy = 3.0
+    scene.collection.objects.link(sun)
+    return scene
+
+
+def test_a_volume_shader_in_the_surface_slot_adds_nothing():
+    mat, tree, output = _material("Fog")
+    bsdf = _principled(tree, metallic=0.0, specular=0.5)
+    bsdf.inputs["Base Color"].default_value = (0.6, 0.5, 0.4, 1.0)
+    tree.links.new(bsdf.outputs[0], output.inputs["Surface"])
+    scene = _plane_under_a_sun(mat)
+    alone = cr.render_camera(scene, cr.whitted(2), 4, (8, 8))[0]
+    twin = _read(mat)
+    add = tree.nodes.new("ShaderNodeAddShader")
+    fog = tree.nodes.new("ShaderNodeVolumeAbsorption")
+    tree.links.new(bsdf.outputs[0], add.inputs[0])
+    tree.links.new(fog.outputs[0], add.inputs[1])
+    tree.links.new(add.outputs[0], output.inputs["Surface"])
+    # Cycles: the same image as the BSDF alone (volume closures count in the Volume slot only).
+    np.testing.assert_allclose(cr.render_camera(scene, cr.whitted(2), 4, (8, 8))[0], alone,
+                               rtol=1e-6)
+    ours = _read(mat)
+    _assert_same_material(ours, twin)
+    assert any("volume shader" in note for note in ours.ignored)
+
+
+def test_a_normal_map_inside_a_group_gets_its_tangent_frames(images):
+    # The whole shader, normal map and its image included, inside one group: the snapshot reads
+    # the map and builds the tangent frames it is read in, as for the flat twin.
+    colour, normals = images
+    group = bpy.data.node_groups.new("Sealed", "ShaderNodeTree")
+    group.interface.new_socket("BSDF", in_out="OUTPUT", socket_type="NodeSocketShader")
+    bsdf = _principled(group)
+    group.links.new(_normal_map(group, normals), bsdf.inputs["Normal"])
+    group.links.new(bsdf.outputs["BSDF"], group.nodes.new("NodeGroupOutput").inputs["BSDF"])
+    mat, tree, output = _material("Sealed")
+    node = tree.nodes.new("ShaderNodeGroup")
+    node.node_tree = group
+    tree.links.new(node.outputs["BSDF"], output.inputs["Surface"])
+    _plane_under_a_sun(mat)
+    scene = bridge.snapshot()
+    sealed = next(m for m in scene.materials if m.name == "Sealed")
+    assert sealed.normal_texture is not None and sealed.normal_texture.name == "Normals"
+    assert scene.corner_tangents is not None
+    # The plane's tangents follow its UVs' u axis: world +x, unit length.
+    np.testing.assert_allclose(scene.corner_tangents.reshape(-1, 3),
+                               np.tile([1.0, 0.0, 0.0], (scene.triangle_count * 3, 1)), atol=1e-6)
