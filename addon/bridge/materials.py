@@ -43,6 +43,10 @@ MAX_SHADER_MIX_DEPTH = 8
 # Cycles evaluates volume closures only in a material's Volume slot: one in the Surface slot adds
 # nothing (measured: a Principled BSDF plus a Volume Absorption renders as the BSDF alone).
 VOLUME_SHADER_PREFIX = "ShaderNodeVolume"
+# What Cycles reads from an Image Texture node whose image is missing (its file not found) or
+# unset: colour (1, 0, 1), alpha 1 (measured: a plane of that base colour under a sun renders
+# magenta at 3 / pi per W/m^2, and opaque).
+MISSING_IMAGE_TEXEL = (1.0, 0.0, 1.0, 1.0)
 # Mix weights this close to 1 (or a transparency this close to 1) count as 1: a Fac of 1 picks
 # one shader whole, whatever float rounding left of 1 - Fac.
 MIX_WEIGHT_EPS = 1e-9
@@ -316,6 +320,12 @@ class MaterialReader:
                 ignored.append("a tinted Transparent BSDF: light passes it untinted")
             return Material(name=name, base_color=np.zeros(3, np.float32), specular=0.0,
                             alpha=0.0, ignored=tuple(ignored))
+        if kind == "GROUP" and node.node_tree is not None and node.node_tree.is_missing:
+            # A placeholder without nodes: no closure, black in Cycles (measured).
+            ignored.append(f"node group '{node.node_tree.name}' is missing (its library file "
+                           f"was not found): no surface (black), as Cycles renders it")
+            return Material(name=name, base_color=np.zeros(3, np.float32), specular=0.0,
+                            ignored=tuple(ignored))
         if node.bl_idname.startswith(VOLUME_SHADER_PREFIX):
             ignored.append(f"volume shader '{node.bl_idname}' in the Surface slot: no surface "
                            f"(black), as Cycles renders it")
@@ -560,15 +570,21 @@ class MaterialReader:
     def _texture(self, node, ignored, what, generated: bool = True) -> Texture | None:
         if node.type == "TEX_IMAGE":
             ok, uv_layer, coordinates, uv_transform = self._uv_layer(node, ignored, what, generated)
+            if not ok:
+                return None
             image = node.image
-            if image is None or not ok:
-                return None
-            pixels = self.images.get(image.name)
-            if image.name not in self.images:
-                pixels = self.images[image.name] = image_pixels(image, decode=False)
+            pixels = None
+            if image is not None:
+                pixels = self.images.get(image.name)
+                if image.name not in self.images:
+                    pixels = self.images[image.name] = image_pixels(image, decode=False)
             if pixels is None:
-                ignored.append(f"{what}: image '{image.name}' has no pixels (missing file?)")
-                return None
+                missing = "no image" if image is None else f"image '{image.name}' has no pixels"
+                ignored.append(f"{what}: {missing} (missing file?): magenta, as Cycles reads it")
+                return Texture(kind="IMAGE", name=f"{what}: missing image",
+                               pixels=np.array(MISSING_IMAGE_TEXEL, np.float32).reshape(1, 1, 4),
+                               extension="EXTEND", interpolation="CLOSEST", uv_layer=uv_layer,
+                               coordinates=coordinates, encoding="linear")
             return Texture(
                 kind="IMAGE",
                 name=image.name,

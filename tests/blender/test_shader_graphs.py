@@ -6,7 +6,8 @@ the pre-2.8 way, still what many importers build), and a volume shader in the Su
 Each grouped or mixed graph is compared with its flat twin, a plain Principled BSDF the reader is
 checked against Cycles on elsewhere: the two must read as the same kernel `Material`, field by
 field. Where the twin's equality rests on how Cycles shades (a volume in the Surface slot), Cycles
-renders both."""
+renders both. What a file whose data went missing (a linked library, an image file) reads as is
+measured against Cycles' render of it."""
 
 from __future__ import annotations
 
@@ -21,6 +22,8 @@ from classic_bake.addon import cycles as cr
 from classic_bake.addon.bridge.materials import MaterialReader
 from classic_bake.addon.bridge.request import SnapshotRequest
 from classic_bake.kernels.geometry.scene import Material, Texture
+from classic_bake.kernels.trace.settings import TracerSettings
+from classic_bake.kernels.trace.tracer import trace
 
 RNG = np.random.default_rng(11)
 SIDE = 8  # texels of the test images
@@ -314,3 +317,56 @@ def test_a_normal_map_inside_a_group_gets_its_tangent_frames(images):
     # The plane's tangents follow its UVs' u axis: world +x, unit length.
     np.testing.assert_allclose(scene.corner_tangents.reshape(-1, 3),
                                np.tile([1.0, 0.0, 0.0], (scene.triangle_count * 3, 1)), atol=1e-6)
+
+
+def test_a_group_from_a_missing_library_is_no_surface_as_cycles_renders_it(tmp_path):
+    # lib.blend holds a group; main.blend links it into its material; then lib.blend is gone.
+    group = _pbr_group()
+    group.use_fake_user = True
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "lib.blend"))
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    with bpy.data.libraries.load(str(tmp_path / "lib.blend"), link=True) as (source, target):
+        target.node_groups = ["PBR"]
+    mat, tree, output = _material("Linked")
+    node = tree.nodes.new("ShaderNodeGroup")
+    node.node_tree = bpy.data.node_groups["PBR"]
+    tree.links.new(node.outputs["BSDF"], output.inputs["Surface"])
+    scene = _plane_under_a_sun(mat)
+    bpy.context.scene.world = bpy.data.worlds.new("Black")
+    bpy.context.scene.world.color = (0.0, 0.0, 0.0)
+    bpy.ops.wm.save_as_mainfile(filepath=str(tmp_path / "main.blend"))
+    (tmp_path / "lib.blend").unlink()
+    bpy.ops.wm.open_mainfile(filepath=str(tmp_path / "main.blend"), load_ui=False,
+                             use_scripts=False)
+    scene = bpy.context.scene
+    assert bpy.data.node_groups["PBR"].is_missing
+    np.testing.assert_array_equal(cr.render_camera(scene, cr.whitted(2), 1, (8, 8))[0], 0.0)
+    ours = _read(bpy.data.materials["Linked"])
+    np.testing.assert_array_equal(ours.emission, 0.0)
+    np.testing.assert_array_equal(ours.base_color, 0.0)
+    assert ours.specular == 0.0 and ours.metallic == 0.0
+    assert any("missing" in note for note in ours.ignored)
+
+
+def test_a_missing_image_reads_magenta_as_cycles_renders_it():
+    # An asset whose texture file did not come along: Cycles shades the Image Texture as colour
+    # (1, 0, 1), alpha 1; the kernels read the same, so the traced view matches Cycles' render.
+    mat, tree, output = _material("Gone")
+    bsdf = _principled(tree, metallic=0.0, specular=0.0)
+    image = bpy.data.images.new("Gone", 4, 4)
+    image.source = "FILE"
+    image.filepath = "//textures/not_here.png"
+    node = tree.nodes.new("ShaderNodeTexImage")
+    node.image = image
+    tree.links.new(node.outputs["Color"], bsdf.inputs["Base Color"])
+    tree.links.new(node.outputs["Alpha"], bsdf.inputs["Alpha"])
+    tree.links.new(bsdf.outputs[0], output.inputs["Surface"])
+    scene = _plane_under_a_sun(mat)
+    theirs = cr.render_camera(scene, cr.whitted(2), 4, (8, 8))[0]
+    ours = _read(mat)
+    np.testing.assert_array_equal(ours.base_color_texture.pixels, [[[1.0, 0.0, 1.0, 1.0]]])
+    assert any("magenta" in note for note in ours.ignored)
+    snap = bridge.snapshot(resolution=(8, 8))
+    traced = trace(snap, TracerSettings(max_depth=2), resolution=(8, 8)).image
+    np.testing.assert_allclose(traced, theirs, rtol=2e-3, atol=1e-4)
+    np.testing.assert_allclose(theirs[4, 4], (3.0 / np.pi, 0.0, 3.0 / np.pi), rtol=1e-4)
