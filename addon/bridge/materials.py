@@ -176,6 +176,8 @@ def _scaled_texture(texture: Texture, factor: float, ignored: list) -> Texture:
     texels are decoded after filtering, is kept as it is (noted)."""
     if abs(factor - 1.0) < 1e-9:
         return texture
+    if texture.kind == "ATTRIBUTE":
+        return scaled_texture(texture, factor)
     if texture.kind == "CHECKER":
         return replace(texture, color1=(texture.color1 * factor).astype(np.float32),
                        color2=(texture.color2 * factor).astype(np.float32))
@@ -568,6 +570,10 @@ class MaterialReader:
         return False, None, "UV", None
 
     def _texture(self, node, ignored, what, generated: bool = True) -> Texture | None:
+        if node.type in ("VERTEX_COLOR", "ATTRIBUTE"):  # read per corner (`attributes.py`)
+            name = node.layer_name if node.type == "VERTEX_COLOR" else node.attribute_name
+            return Texture(kind="ATTRIBUTE", name=name, coordinates="ATTRIBUTE",
+                           extension="EXTEND")
         if node.type == "TEX_IMAGE":
             ok, uv_layer, coordinates, uv_transform = self._uv_layer(node, ignored, what, generated)
             if not ok:

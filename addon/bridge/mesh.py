@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .attributes import attribute_names, corner_attribute
 from .tangents import (
     loop_triangle_tangents,
     normal_map_layer,
@@ -55,6 +56,12 @@ class MeshChunk:
     # UVs the normal-map image is looked up on where that is not the active render layer (a UV
     # Map node into its Image Texture naming another layer); None: `uv`.
     normal_map_uv: np.ndarray | None = None  # (T, 3, 2) float32
+    # The attributes the slot materials' Color Attribute and Attribute nodes name, per corner:
+    # name -> (T, 3, 3) float32 linear, or None where the mesh lacks it (`attributes.py`).
+    attributes: dict = field(default_factory=dict)
+    # (T, 3, 3) float32: per triangle, the attribute its material reads (set by the snapshot
+    # once materials are read); None: no material reads one.
+    colors: np.ndarray | None = None
 
 
 def mesh_triangles(mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -212,6 +219,10 @@ def mesh_chunk(
         loop_uv = mesh_uv(mesh, request.lightmap_uv)
         lightmap_uv = None if loop_uv is None else loop_uv[corner_loops]
 
+    attributes = {}
+    if request.materials and request.textures:
+        attributes = {name: corner_attribute(mesh, name, corner_loops, corner_verts, polys)
+                      for name in attribute_names(slot_materials)}
     matches = original_mesh is not None and (
         len(original_mesh.loops) == len(mesh.loops)
         and len(original_mesh.vertices) == len(mesh.vertices)
@@ -233,6 +244,7 @@ def mesh_chunk(
         tangents=tangents,
         tangent_signs=signs,
         normal_map_uv=normal_map_uv,
+        attributes=attributes,
     )
 
 

@@ -10,6 +10,7 @@ import numpy as np
 
 from ...kernels.geometry.scene import Light, Material, ObjectInfo, Scene
 from ...kernels.shading.material_maps import resolve_material_maps
+from .attributes import material_attribute
 from .camera import read_camera
 from .lights import read_light
 from .materials import DEFAULT_MATERIAL, MaterialReader
@@ -104,6 +105,9 @@ def snapshot(context=None, request: SnapshotRequest = DEFAULT_REQUEST,
         # Out-of-range slots render with the default surface in Cycles; do the same.
         in_range = chunk.slot_ids < len(chunk.slot_materials)
         chunk.slot_ids = np.where(in_range, table[np.minimum(chunk.slot_ids, table.size - 1)], 0)
+    attribute_of = [material_attribute(mat, ignored) for mat in materials]
+    for chunk in chunks:
+        chunk.colors = _corner_colors(chunk, attribute_of)
     for mat in materials:
         ignored.extend(f"material '{mat.name}': {why}" for why in mat.ignored)
     materials = [_checked_emission(mat, ignored) for mat in materials]
@@ -166,6 +170,21 @@ def _checked_emission(mat: Material, ignored: list) -> Material:
     return replace(mat, emission=fixed.astype(emission.dtype))
 
 
+def _corner_colors(chunk, attribute_of: list) -> np.ndarray | None:
+    """(T, 3, 3) float32: per triangle of `chunk` the attribute its material reads
+    (`attribute_of[material index]`, 0 where the mesh lacks it); None: no material reads one."""
+    names = {m: attribute_of[m] for m in np.unique(chunk.slot_ids) if attribute_of[m] is not None}
+    if not names:
+        return None
+    colors = np.zeros((len(chunk.slot_ids), 3, 3), np.float32)
+    for m, name in names.items():
+        values = chunk.attributes.get(name)
+        if values is not None:
+            rows = chunk.slot_ids == m
+            colors[rows] = values[rows]
+    return colors
+
+
 def _assemble(chunks, materials, lights, camera, world, request, ignored) -> Scene:
     counts = [c.triangles.shape[0] for c in chunks]
     starts = np.concatenate([[0], np.cumsum(counts)]).astype(int)
@@ -191,6 +210,8 @@ def _assemble(chunks, materials, lights, camera, world, request, ignored) -> Sce
         uv=stack("uv", (3, 2), np.float32),
         lightmap_uv=stack("lightmap_uv", (3, 2), np.float32) if request.lightmap_uv else None,
         generated=stack("generated", (3, 3), np.float32) if request.uv else None,
+        corner_colors=(stack("colors", (3, 3), np.float32)
+                       if any(c.colors is not None for c in chunks) else None),
         corner_tangents=(stack("tangents", (3, 3), np.float32)
                          if any(c.tangents is not None for c in chunks) else None),
         corner_signs=(stack("tangent_signs", (3,), np.float32)

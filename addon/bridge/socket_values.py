@@ -15,6 +15,9 @@ follows such a chain from a socket back to its source:
   number in its channel (`_combine`);
 * node groups (the glTF importer's among them) are entered and left through their sockets, muted
   nodes pass their input through, reroutes are skipped;
+* a Color Attribute or (geometry) Attribute node is a texture of kind ATTRIBUTE (vertex colours
+  interpolated across each triangle, `attributes.py`); linear nodes fold into it as into an
+  image, point-wise curves of it are not modelled (they would bend the interpolated colour);
 * everything else is reported (one reason appended to `ignored`) and the socket's own value used
   (the material reader then has Cycles bake the socket where it can: `socket_fallback`).
 
@@ -86,9 +89,16 @@ class Value:
         return Value(self.const, replace(self.texture, clamp=True))
 
 
+class NotFoldable(Exception):
+    """A node chain that cannot be folded into its texture (the reader says so and moves on)."""
+
+
 def bake_curve(texture: Texture, curve: Callable[[np.ndarray], np.ndarray]) -> Texture:
     """`texture` with its node chain and then `curve` ((N, 3) -> (N, 3) linear) applied to every
-    texel (an image) or to both colours (a checker): a plain texture of the result."""
+    texel (an image) or to both colours (a checker): a plain texture of the result. A colour
+    attribute has no texels (Cycles bends the colour interpolated at each point): NotFoldable."""
+    if texture.kind == "ATTRIBUTE":
+        raise NotFoldable("a curve of a colour attribute")
     plain = dict(weights=None, gain=np.ones(3, np.float32), offset=np.zeros(3, np.float32),
                  clamp=False)
     if texture.kind == "CHECKER":
@@ -150,7 +160,11 @@ class SocketReader:
         node, out = follow(socket)
         if node is None:
             return Value(socket_constant(socket))
-        value = self._node(node, out, what, groups)
+        try:
+            value = self._node(node, out, what, groups)
+        except NotFoldable as why:
+            self._say(what, node, f"{why} is not modelled")
+            return None
         return None if value is None else _convert(value, out.type, socket.type)
 
     def _say(self, what: str, node, why: str = "not modelled") -> None:
@@ -194,8 +208,7 @@ class SocketReader:
             socket = group_input_socket(groups, node, out)
             return None if socket is None else self.read(socket, what, groups[:-1])
         if kind in ("ATTRIBUTE", "VERTEX_COLOR"):
-            self._say(what, node, "colour attributes are not modelled")
-            return None
+            return self._attribute(node, out, what, groups)
         self._say(what, node)
         return None
 
@@ -209,6 +222,22 @@ class SocketReader:
                                 f"not modelled; its default used")
             return None
         return float(value.const[0])
+
+    def _attribute(self, node, out, what, groups) -> Value | None:
+        """A Color Attribute or geometry Attribute node's colour (its Fac: the channels' mean)."""
+        if node.type == "ATTRIBUTE" and (node.attribute_type != "GEOMETRY"
+                                         or not node.attribute_name):
+            self._say(what, node, "an attribute of an object, instancer or view layer, or none, "
+                      "is not modelled")
+            return None
+        if out.name == "Alpha":
+            self._say(what, node, "a colour attribute's alpha is not modelled")
+            return None
+        texture = self.texture_of(node, what, groups)
+        if texture is None:
+            return None
+        value = Value(np.zeros(3), texture)
+        return value.pick((1 / 3, 1 / 3, 1 / 3, 0.0)) if out.name == "Fac" else value
 
     def _texture(self, node, out, what, groups) -> Value | None:
         texture = self.texture_of(node, what, groups)

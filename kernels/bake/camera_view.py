@@ -119,9 +119,11 @@ def background_and_fragments(scene: Scene, resolution=None, out: np.ndarray | No
     return image, camera_fragments(scene, (width, height))
 
 
-def edge_pixels(image: np.ndarray, ids: np.ndarray) -> np.ndarray:
+def edge_pixels(image: np.ndarray, ids: np.ndarray, chroma: np.ndarray | None = None) -> np.ndarray:
     """(H, W) bool: pixels whose 4-neighbours see another object/material (ids (H, W), -1 for
-    none) or a visible luminance contrast (EDGE_CONTRAST) in image (H, W, 3)."""
+    none) or a visible luminance contrast (EDGE_CONTRAST) in image (H, W, 3). Where chroma
+    (H, W) bool marks either pixel of a pair, a contrast in any one channel counts too (colours
+    of equal luminance meet there: vertex colours of neighbouring faces)."""
     lum = image @ np.array(REC709_LUMINANCE)
     mark = np.zeros(ids.shape, bool)
     for axis in (0, 1):
@@ -132,6 +134,10 @@ def edge_pixels(image: np.ndarray, ids: np.ndarray) -> np.ndarray:
         differ = ids[tuple(a)] != ids[tuple(b)]
         la, lb = lum[tuple(a)], lum[tuple(b)]
         differ |= np.abs(la - lb) > EDGE_CONTRAST * (la + lb + CONTRAST_FLOOR)
+        if chroma is not None:
+            ca, cb = image[tuple(a)], image[tuple(b)]
+            channel = (np.abs(ca - cb) > EDGE_CONTRAST * (ca + cb + CONTRAST_FLOOR)).any(axis=-1)
+            differ |= (chroma[tuple(a)] | chroma[tuple(b)]) & channel
         mark[tuple(a)] |= differ
         mark[tuple(b)] |= differ
     return mark

@@ -142,7 +142,7 @@ def straddling(scene: Scene, targets) -> np.ndarray:
 def texture_units(scene: Scene, triangles: np.ndarray) -> np.ndarray:
     """(M, 3) texture units per coordinate unit along each texture axis for each triangle's
     material: an image's width and height in texels (it ignores the third), a checker's scale in
-    squares, 0 without a texture."""
+    squares, 0 without a texture or for a colour attribute."""
     units = np.zeros((len(triangles), 3))
     mids = scene.material_ids[triangles]
     for m in np.unique(mids):
@@ -152,6 +152,8 @@ def texture_units(scene: Scene, triangles: np.ndarray) -> np.ndarray:
         rows = mids == m
         if texture.kind == "CHECKER":
             units[rows] = texture.scale
+        elif texture.kind == "ATTRIBUTE":  # smooth: one sample a texel reads it
+            continue
         else:
             height, width = texture.pixels.shape[:2]
             units[rows] = (width, height, 0)

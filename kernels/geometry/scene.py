@@ -25,7 +25,7 @@ from typing import Literal
 
 import numpy as np
 
-TextureKind = Literal["IMAGE", "CHECKER"]
+TextureKind = Literal["IMAGE", "CHECKER", "ATTRIBUTE"]
 LightKind = Literal["POINT", "SPOT", "SUN", "AREA"]
 AreaShape = Literal["SQUARE", "RECTANGLE", "DISK", "ELLIPSE"]
 CameraKind = Literal["PERSP", "ORTHO"]
@@ -40,6 +40,10 @@ class Texture:
     floor(z*scale) is odd, `color2` where even (Cycles' `svm_checker`), on (u, v, 0) or on the
     Generated coordinates (`coordinates`; measured in renders by tests/blender/test_sample_scenes.py's
     author: on UVs at scale 2 the top-left quadrant u < 0.5, v > 0.5 is color1).
+    ATTRIBUTE: a mesh attribute read by a Color Attribute or Attribute node (vertex colours):
+    `name` the attribute's ("" the object's default colour attribute); its linear RGB per corner
+    (`Scene.corner_colors`) is interpolated across each triangle, as Cycles does, and is the
+    look-up's colour (`coordinates` "ATTRIBUTE": the coordinates ARE the colour).
     """
 
     kind: TextureKind
@@ -51,9 +55,10 @@ class Texture:
     color2: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))  # (3,) linear
     scale: float = 1.0  # checker squares per UV unit
     uv_layer: str | None = None  # None: the object's active render UV layer
-    # What it is read along: "UV" (u, v, 0), or "GENERATED" (`Scene.generated`: the object's
-    # texture space mapped to the unit cube; an image reads its x and y).
-    coordinates: Literal["UV", "GENERATED"] = "UV"
+    # What it is read along: "UV" (u, v, 0), "GENERATED" (`Scene.generated`: the object's
+    # texture space mapped to the unit cube; an image reads its x and y), or "ATTRIBUTE"
+    # (`Scene.corner_colors`, an ATTRIBUTE texture's own colour).
+    coordinates: Literal["UV", "GENERATED", "ATTRIBUTE"] = "UV"
     # "sRGB": `pixels` hold sRGB-encoded colour, decoded after interpolation. Cycles keeps 8-bit
     # sRGB images so and decodes each look-up after filtering; decoding the texels first gives
     # brighter transitions (env_room's tiled floor baked: 2.5% bright, relMSE 1.4e-2 -> 7e-5).
@@ -291,20 +296,26 @@ class Scene:
     # Whether the Normal Map node builds its frame on the interpolated normal made unit (Cycles
     # in Blender 5.2) or as interpolated (4.5); the bridge sets it from Blender's version.
     normal_map_unit_normal: bool = True
+    # (T, 3, 3) float32 linear RGB per corner of the attribute each triangle's material reads
+    # through ATTRIBUTE textures (vertex colours; 0 where the mesh lacks it, as Cycles reads a
+    # missing attribute); None: no material reads one.
+    corner_colors: np.ndarray | None = None
 
     @cached_property
     def texture_coords(self) -> np.ndarray:
         """(T, 3, 3) float64 per-corner coordinates that each triangle's base-colour texture is
-        read along: (u, v, 0), or `generated` where that texture reads Generated coordinates."""
+        read along: (u, v, 0), `generated` where that texture reads Generated coordinates, or
+        `corner_colors` where it is a colour attribute."""
         out = np.zeros((self.triangle_count, 3, 3))
         out[..., :2] = self.uv
-        if self.generated is None:
-            return out
-        reads = np.array([m.base_color_texture is not None
-                          and m.base_color_texture.coordinates == "GENERATED"
-                          for m in self.materials], bool)
-        rows = np.flatnonzero(reads[self.material_ids])
-        out[rows] = self.generated[rows]
+        for kind, corners in (("GENERATED", self.generated), ("ATTRIBUTE", self.corner_colors)):
+            if corners is None:
+                continue
+            reads = np.array([m.base_color_texture is not None
+                              and m.base_color_texture.coordinates == kind
+                              for m in self.materials], bool)
+            rows = np.flatnonzero(reads[self.material_ids])
+            out[rows] = corners[rows]
         return out
 
     @property

@@ -117,6 +117,7 @@ def with_sheet_backs(scene: Scene, backs: np.ndarray, offset: float
         material_ids=rowwise(scene.material_ids),
         object_ids=rowwise(scene.object_ids), corner_loops=corners(scene.corner_loops),
         corner_verts=corners(scene.corner_verts),
-        generated=corners(scene.generated), triangle_radiance=rowwise(scene.triangle_radiance),
+        generated=corners(scene.generated), corner_colors=corners(scene.corner_colors),
+        triangle_radiance=rowwise(scene.triangle_radiance),
         corner_tangents=tangents, corner_signs=corners(scene.corner_signs),
         normal_map_uv=corners(scene.normal_map_uv)), back_of

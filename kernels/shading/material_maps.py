@@ -40,9 +40,13 @@ MAX_SIDE = 12
 
 def corner_coords(scene: Scene, tri: np.ndarray, texture: Texture) -> np.ndarray:
     """(N, 3, 3) float64 per-corner coordinates of triangles `tri` that `texture` reads: (u, v, 0)
-    on the active UVs, or Generated."""
+    on the active UVs, Generated, or a colour attribute's colours."""
     if texture.coordinates == "GENERATED" and scene.generated is not None:
         return scene.generated[tri].astype(np.float64)
+    if texture.coordinates == "ATTRIBUTE":
+        if scene.corner_colors is None:
+            return np.zeros((len(tri), 3, 3))
+        return scene.corner_colors[tri].astype(np.float64)
     out = np.zeros((len(tri), 3, 3))
     out[..., :2] = scene.uv[tri]
     return out
@@ -66,6 +70,8 @@ def texels_covered(texture: Texture, coords: np.ndarray) -> np.ndarray:
     area = 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
     if texture.kind == "CHECKER":
         return area * texture.scale ** 2
+    if texture.kind == "ATTRIBUTE":  # linear across the triangle: its centroid holds its mean
+        return np.ones(len(coords))
     height, width = texture.pixels.shape[:2]
     return area * width * height
 

@@ -169,7 +169,9 @@ def sample_texture_box(texture: Texture, lo: np.ndarray, hi: np.ndarray) -> np.n
         return node_chain(texture, mean).astype(np.float64) if texture.transformed else mean
     lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
     centre = 0.5 * (lo + hi)
-    if texture.kind == "CHECKER":
+    # A checker under a UV transform, or a colour attribute: linear across the box, so its
+    # centre holds its mean.
+    if texture.kind in ("CHECKER", "ATTRIBUTE"):
         return sample_texture(texture, centre).astype(np.float64)
     extent = hi[:, :2] - lo[:, :2]  # the box's sides in UV
     if texture.uv_transform is not None:  # the sides of the box around the moved box
@@ -261,6 +263,8 @@ def sample_texture(texture: Texture, uv: np.ndarray) -> np.ndarray:
     uv = _moved(texture, np.asarray(uv))
     if texture.kind == "CHECKER":
         rgba = checker(uv, texture.color1, texture.color2, texture.scale)
+    elif texture.kind == "ATTRIBUTE":  # the interpolated colour is the coordinate
+        rgba = np.concatenate([uv[:, :3], np.ones((len(uv), 1))], axis=1).astype(np.float32)
     else:
         rgba = sample_image(texture.pixels, uv[:, :2], texture.extension, texture.interpolation)
         if texture.encoding == "sRGB":

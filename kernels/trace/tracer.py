@@ -171,6 +171,11 @@ class Tracer:
         self._frames: rd.TriangleFrames | None = None  # built when differentials are first carried
         self.black = np.array([m.base_color_texture is None and not np.any(m.base_color > 0)
                                for m in mats], bool)
+        # Base colours from colour attributes change across triangle edges (per-face or
+        # per-corner values) with nothing filtering them: the edge-detection image keeps them.
+        self.attribute_base = np.array([m.base_color_texture is not None
+                                        and m.base_color_texture.kind == "ATTRIBUTE"
+                                        for m in mats], bool)
 
     # --- direct light ---------------------------------------------------------------------------
 
@@ -670,7 +675,10 @@ class Tracer:
                                                   lit_w[:, None] * h.albedo)
             _scatter_add(result, pixel, weight * own)
             if untextured is not None:  # white base colour where textures are filtered
-                flat_own = own + (1.0 - h.albedo) * lambert if depth == 0 or follow else own
+                flat_own = own
+                if depth == 0 or follow:
+                    white = ~self.attribute_base[m]
+                    flat_own = own + (1.0 - h.albedo) * lambert * white[:, None]
                 _scatter_add(flat, pixel, weight * flat_own)
             # --- spawn the next generation: mirror reflection and refraction -----------------------
             eta = np.where(h.front, 1.0 / self.ior[m], self.ior[m])
@@ -797,8 +805,14 @@ def trace_steps(scene: Scene, settings: TracerSettings, bvh: BVH | None = None,
         seen = flat / passes if settings.texture_filter > 1 else pixels
         tracer.clock.label = "camera"
         with tracer.clock("edge detection"):
+            chroma = None
+            if tracer.attribute_base.any():  # colour-attribute bases: hue edges count too
+                kinds = len(scene.materials) + 1
+                chroma = ((first_ids >= 0)
+                          & tracer.attribute_base[np.maximum(first_ids, 0) % kinds]).reshape(
+                    band, width)
             mark = edge_pixels(seen.reshape(band, width, 3),
-                               first_ids.reshape(band, width)).ravel()
+                               first_ids.reshape(band, width), chroma).ravel()
             mark &= (row >= top) & (row < bottom)  # the band's own rows
         tracer.stats.edge_pixels = int(mark.sum())
         if mark.any():

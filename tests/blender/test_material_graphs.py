@@ -263,15 +263,15 @@ def test_the_kernels_read_what_cycles_shades(case):
 
 
 def test_an_unread_chain_is_listed_with_what_was_used():
-    """A Color Attribute feeding the IOR (a socket the kernels hold as one number, so no Cycles
+    """A Noise Texture feeding the IOR (a socket the kernels hold as one number, so no Cycles
     bake of it is read: test_material_fallback.py) is not modelled: the default is used and
     said so."""
     tree, bsdf = _plane_with_emission()
-    attr = tree.nodes.new("ShaderNodeVertexColor")
-    tree.links.new(attr.outputs["Color"], bsdf.inputs["IOR"])
+    noise = tree.nodes.new("ShaderNodeTexNoise")
+    tree.links.new(noise.outputs["Fac"], bsdf.inputs["IOR"])
     scene = bridge.snapshot()
     (why,) = [w for w in scene.ignored if "'IOR'" in w]
-    assert "material 'Graph'" in why and "colour attributes are not modelled" in why
+    assert "material 'Graph'" in why and "'ShaderNodeTexNoise' node: not modelled" in why
     assert "default used" in why
 
 
@@ -292,8 +292,8 @@ def test_every_run_lists_the_unread_sockets_in_metrics_json(tmp_path):
     import sys
 
     tree, bsdf = _plane_with_emission()
-    attr = tree.nodes.new("ShaderNodeVertexColor")
-    tree.links.new(attr.outputs["Color"], bsdf.inputs["IOR"])
+    noise = tree.nodes.new("ShaderNodeTexNoise")
+    tree.links.new(noise.outputs["Fac"], bsdf.inputs["IOR"])
     cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
     cam.location = (0.0, 0.0, 4.0)
     bpy.context.scene.collection.objects.link(cam)
@@ -308,7 +308,7 @@ def test_every_run_lists_the_unread_sockets_in_metrics_json(tmp_path):
         assert done.returncode == 0, done.stderr
         metrics = json.loads(next(out.rglob("metrics.json")).read_text())
         listed = metrics["ignored"]
-        assert any("'IOR'" in why and "colour attributes" in why for why in listed), (
+        assert any("'IOR'" in why and "ShaderNodeTexNoise" in why for why in listed), (
             command, listed)
 
 
