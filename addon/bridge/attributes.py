@@ -5,8 +5,8 @@ values at the corners (`corner_attribute`), and which one each material's textur
 
 What Cycles reads (measured on a plane under a sun of pi W/m^2, where the radiance is the albedo):
 a byte colour attribute as its linear value (`color`, not `color_srgb`); a name the mesh lacks
-as 0; a Color Attribute node naming none as the mesh's default colour attribute; an Attribute
-node's Fac as the mean of the three channels.
+as 0; a Color Attribute node naming none as the mesh's default colour attribute, an Attribute
+node naming none as 0; an Attribute node's Fac as the mean of the three channels.
 """
 
 from __future__ import annotations

@@ -224,12 +224,14 @@ class SocketReader:
         return float(value.const[0])
 
     def _attribute(self, node, out, what, groups) -> Value | None:
-        """A Color Attribute or geometry Attribute node's colour (its Fac: the channels' mean)."""
-        if node.type == "ATTRIBUTE" and (node.attribute_type != "GEOMETRY"
-                                         or not node.attribute_name):
-            self._say(what, node, "an attribute of an object, instancer or view layer, or none, "
-                      "is not modelled")
+        """A Color Attribute or geometry Attribute node's colour (its Fac: the channels' mean); an
+        Attribute node naming none reads 0 in Cycles (measured)."""
+        if node.type == "ATTRIBUTE" and node.attribute_type != "GEOMETRY":
+            self._say(what, node, "an attribute of an object, instancer or view layer is not "
+                      "modelled")
             return None
+        if node.type == "ATTRIBUTE" and not node.attribute_name:
+            return Value(np.zeros(3))
         if out.name == "Alpha":
             self._say(what, node, "a colour attribute's alpha is not modelled")
             return None

@@ -157,3 +157,14 @@ def test_an_emission_attribute_lights_each_triangle_with_its_mean():
     rgb = values.reshape(-1, 4)[:, :3]
     expected = 2.0 * rgb[snap.corner_verts].mean(axis=1)
     np.testing.assert_allclose(snap.triangle_radiance, expected, rtol=1e-5, atol=1e-6)
+
+
+def test_an_attribute_node_naming_none_reads_black_as_in_cycles():
+    grid = _grid()
+    _attribute(grid.data, "Paint", "FLOAT_COLOR", "POINT", seed=4)
+    tree, bsdf = _lambertian(grid.data)
+    _attribute_node(tree, bsdf, "", "Color")  # unlike a Color Attribute node: no default
+    snap, ours, theirs = _traced_and_rendered()
+    np.testing.assert_array_equal(theirs, 0.0)
+    np.testing.assert_array_equal(ours, 0.0)
+    assert not any("Attribute" in note for note in snap.ignored), snap.ignored
