@@ -322,8 +322,9 @@ class MaterialReader:
                 ignored.append("a tinted Transparent BSDF: light passes it untinted")
             return Material(name=name, base_color=np.zeros(3, np.float32), specular=0.0,
                             alpha=0.0, ignored=tuple(ignored))
-        if kind == "GROUP" and node.node_tree is not None and node.node_tree.is_missing:
-            # A placeholder without nodes: no closure, black in Cycles (measured).
+        if kind == "GROUP" and node.node_tree is not None and node.node_tree.original.is_missing:
+            # A placeholder without nodes: no closure, black in Cycles (measured). An evaluated
+            # copy (a snapshot reads the depsgraph's materials) says so on its original only.
             ignored.append(f"node group '{node.node_tree.name}' is missing (its library file "
                            f"was not found): no surface (black), as Cycles renders it")
             return Material(name=name, base_color=np.zeros(3, np.float32), specular=0.0,

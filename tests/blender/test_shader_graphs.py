@@ -345,6 +345,10 @@ def test_a_group_from_a_missing_library_is_no_surface_as_cycles_renders_it(tmp_p
     np.testing.assert_array_equal(ours.emission, 0.0)
     np.testing.assert_array_equal(ours.base_color, 0.0)
     assert ours.specular == 0.0 and ours.metallic == 0.0
+    # A snapshot reads the depsgraph's evaluated copy of the material: the same.
+    snapped = next(m for m in bridge.snapshot().materials if m.name == "Linked")
+    np.testing.assert_array_equal(snapped.base_color, 0.0)
+    assert snapped.specular == 0.0 and any("missing" in note for note in snapped.ignored)
     assert any("missing" in note for note in ours.ignored)
 
 
