@@ -9,6 +9,11 @@ from __future__ import annotations
 
 import numpy as np
 
+# What Cycles reads from an Image or Environment Texture node whose image is missing (its file
+# not found) or unset: colour (1, 0, 1), alpha 1 (measured: a plane of that base colour under a
+# sun renders magenta at 3 / pi per W/m^2, and opaque; a world of it shows (1, 0, 1) x strength).
+MISSING_IMAGE_TEXEL = (1.0, 0.0, 1.0, 1.0)
+
 
 def flip_rows(pixels: np.ndarray) -> np.ndarray:
     """Kernel images are top row first, Blender's bottom row first; the same flip goes both ways."""

@@ -22,7 +22,7 @@ import bpy
 import numpy as np
 
 from ...kernels.geometry.scene import Material, Texture
-from .images import image_pixels, stored_srgb
+from .images import MISSING_IMAGE_TEXEL, image_pixels, stored_srgb
 from .nodes import active_output, follow_through, node_tree
 from .request import SnapshotRequest
 from .socket_fallback import BakeTarget, SocketFallback
@@ -43,10 +43,6 @@ MAX_SHADER_MIX_DEPTH = 8
 # Cycles evaluates volume closures only in a material's Volume slot: one in the Surface slot adds
 # nothing (measured: a Principled BSDF plus a Volume Absorption renders as the BSDF alone).
 VOLUME_SHADER_PREFIX = "ShaderNodeVolume"
-# What Cycles reads from an Image Texture node whose image is missing (its file not found) or
-# unset: colour (1, 0, 1), alpha 1 (measured: a plane of that base colour under a sun renders
-# magenta at 3 / pi per W/m^2, and opaque).
-MISSING_IMAGE_TEXEL = (1.0, 0.0, 1.0, 1.0)
 # Mix weights this close to 1 (or a transparency this close to 1) count as 1: a Fac of 1 picks
 # one shader whole, whatever float rounding left of 1 - Fac.
 MIX_WEIGHT_EPS = 1e-9

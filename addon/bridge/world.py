@@ -8,7 +8,7 @@ import numpy as np
 
 from ...kernels.geometry.scene import Texture
 from ..cycles.world_map import render_world_map
-from .images import image_pixels
+from .images import MISSING_IMAGE_TEXEL, image_pixels
 from .nodes import active_output, follow, node_tree
 
 
@@ -55,6 +55,11 @@ def read_world(scene, mapped=None) -> tuple[np.ndarray, list[str]]:
             ignored.append(f"world: the Environment Texture '{color_node.image.name}' is read "
                            "along world directions; what feeds its Vector (other than a Mapping "
                            "of Generated coordinates) is not modelled")
+    elif color_node is not None and color_node.type == "TEX_ENVIRONMENT":
+        color = np.array(MISSING_IMAGE_TEXEL[:3], np.float32)
+        what = "no image" if color_node.image is None else f"image '{color_node.image.name}'"
+        ignored.append(f"world: the Environment Texture's {what} has no pixels (missing "
+                       "file?): magenta, as Cycles renders it")
     elif color_node is not None:
         ignored.append(f"world colour from '{color_node.bl_idname}' is not modelled: the "
                        "socket's own colour used")
@@ -127,8 +132,9 @@ def _has_light_path(world) -> bool:
 def _world_render_reason(scene) -> str | None:
     """What of the world's shader the bridge cannot read itself (a few words), or None where it
     reads all of it: no world, a world colour, nothing linked to the output, or a Background of
-    an unlinked strength whose colour is constant or an equirectangular Environment Texture with
-    an image, read along the world direction or through a Mapping node `world_mapping` models."""
+    an unlinked strength whose colour is constant or an equirectangular Environment Texture,
+    read along the world direction or through a Mapping node `world_mapping` models (one without
+    an image is magenta, `read_world`)."""
     node = _world_surface(scene)
     if node is None:
         return None
@@ -142,7 +148,7 @@ def _world_render_reason(scene) -> str | None:
     if color.type != "TEX_ENVIRONMENT":
         return f"a colour from '{color.bl_idname}'"
     if color.image is None:
-        return "an Environment Texture without an image"
+        return None
     if color.projection != "EQUIRECTANGULAR":
         return f"the mirror-ball Environment Texture '{color.image.name}'"
     if world_mapping(color) is None:

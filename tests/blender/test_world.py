@@ -372,3 +372,29 @@ def test_bakes_that_see_no_light_render_no_world():
     shadows = drain(shadow_bake_job(bpy.context, DirectLightSettings(), "Lightmap", uv,
                                          render=False))
     assert albedo.scene.world_texture is None and shadows.scene.world_texture is None
+
+
+@pytest.mark.parametrize("image", ["unset", "missing file"])
+def test_an_environment_texture_without_its_image_is_magenta_as_in_cycles(image):
+    # A world whose HDRI did not come along: Cycles shows (1, 0, 1) x strength; so do the kernels.
+    scene = bpy.context.scene
+    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    scene.collection.objects.link(camera)
+    scene.camera = camera
+    scene.world = bpy.data.worlds.new("Gone")
+    tree = scene.world.node_tree
+    background = next(n for n in tree.nodes if n.type == "BACKGROUND")
+    background.inputs["Strength"].default_value = 2.0
+    env = tree.nodes.new("ShaderNodeTexEnvironment")
+    tree.links.new(env.outputs["Color"], background.inputs["Color"])
+    if image == "missing file":
+        env.image = bpy.data.images.new("Gone", 4, 4)
+        env.image.source = "FILE"
+        env.image.filepath = "//hdri/not_here.hdr"
+    theirs = cr.render_camera(scene, cr.whitted(2), 1, (4, 4))[0]
+    np.testing.assert_allclose(theirs, np.broadcast_to((2.0, 0.0, 2.0), theirs.shape))
+    snap = bridge.snapshot(resolution=(4, 4))
+    np.testing.assert_allclose(snap.world_color, (2.0, 0.0, 2.0))
+    assert any("magenta" in note for note in snap.ignored), snap.ignored
+    ours = trace(snap, TracerSettings(max_depth=1), resolution=(4, 4)).image
+    np.testing.assert_allclose(ours, theirs, rtol=1e-6)
