@@ -382,6 +382,8 @@ def test_an_environment_texture_without_its_image_is_magenta_as_in_cycles(image)
     scene.collection.objects.link(camera)
     scene.camera = camera
     scene.world = bpy.data.worlds.new("Gone")
+    if bpy.app.version < (5, 0, 0):
+        scene.world.use_nodes = True
     tree = scene.world.node_tree
     background = next(n for n in tree.nodes if n.type == "BACKGROUND")
     background.inputs["Strength"].default_value = 2.0
