@@ -152,7 +152,6 @@ def with_transparency(name: str, parts: list, ignored: list) -> Material:
     return replace(mix_materials(name, surface, ignored), alpha=alpha, ignored=tuple(ignored))
 
 
-
 def _mixed_emission_texture(parts: list, constant: np.ndarray, ignored: list) -> Texture | None:
     """The emission texture of a mix of shaders: the one textured part's, times its weight, plus
     the other parts' constant emission (`constant`, their weighted sum); None without one."""
@@ -652,7 +651,7 @@ class MaterialReader:
         """The image or checker texture feeding `socket` directly (through reroutes and groups),
         read on UVs (a normal or bump map, whose tangent frames follow the UVs); else None."""
         node, _, groups = follow_through(socket, self._groups)
-        if node is None:
+        if node is None or node.type not in ("TEX_IMAGE", "TEX_CHECKER"):
             return None
         with self._inside(groups):
             return self._texture(node, ignored, what, False)

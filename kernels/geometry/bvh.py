@@ -117,7 +117,6 @@ class BVHSettings:
         return self.thread_count * self.chunk_size * QUERY_BYTES_PER_SLOT
 
 
-
 class BVH:
     """A BVH over world-space triangles; build with `BVH.build`.
 
