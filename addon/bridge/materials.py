@@ -135,6 +135,9 @@ def with_transparency(name: str, parts: list, ignored: list) -> Material:
     part is the whole mix."""
     if len(parts) == 1 and abs(parts[0][0] - 1.0) <= MIX_WEIGHT_EPS:
         return replace(parts[0][1], ignored=tuple(ignored))
+    glowing = _with_emitters(name, parts, ignored)
+    if glowing is not None:
+        return glowing
     if not any(m.has_alpha for _, m in parts):
         return mix_materials(name, parts, ignored)
     if any(m.alpha_texture is not None for _, m in parts):
@@ -150,6 +153,31 @@ def with_transparency(name: str, parts: list, ignored: list) -> Material:
     surface = [(w * m.alpha / alpha, replace(m, alpha=1.0, alpha_texture=None))
                for w, m in parts if w * m.alpha > 0.0]
     return replace(mix_materials(name, surface, ignored), alpha=alpha, ignored=tuple(ignored))
+
+
+def _with_emitters(name: str, parts: list, ignored: list) -> Material | None:
+    """Emission shaders added to one surface of weight 1 (an Add Shader, as the glTF importer of
+    Blender 2.8 to 3.x built emissive materials): that surface whole (its metallic, roughness,
+    normal and alpha maps kept) with the emitters' light added to its own. None for any other
+    mix."""
+    emitters = [(w, m) for w, m in parts if _pure_emitter(m)]
+    surfaces = [(w, m) for w, m in parts if not _pure_emitter(m)]
+    if not emitters or len(surfaces) != 1 or abs(surfaces[0][0] - 1.0) > MIX_WEIGHT_EPS:
+        return None
+    surface = surfaces[0][1]
+    lights = emitters + [(1.0, surface)]
+    emission = sum((w * m.emission.astype(np.float64) for w, m in lights), np.zeros(3))
+    texture = _mixed_emission_texture(lights, emission, ignored)
+    if texture is not None:
+        emission = np.zeros(3)
+    return replace(surface, name=name, emission=emission.astype(np.float32),
+                   emission_texture=texture, ignored=tuple(ignored))
+
+
+def _pure_emitter(m: Material) -> bool:
+    """Whether `m` only emits (an Emission shader): it reflects and transmits nothing."""
+    return (m.base_color_texture is None and not np.any(m.base_color > 0.0) and m.specular == 0.0
+            and m.metallic == 0.0 and m.transmission == 0.0 and not m.has_alpha)
 
 
 def _mixed_emission_texture(parts: list, constant: np.ndarray, ignored: list) -> Texture | None:

@@ -374,3 +374,31 @@ def test_a_missing_image_reads_magenta_as_cycles_renders_it():
     traced = trace(snap, TracerSettings(max_depth=2), resolution=(8, 8)).image
     np.testing.assert_allclose(traced, theirs, rtol=2e-3, atol=1e-4)
     np.testing.assert_allclose(theirs[4, 4], (3.0 / np.pi, 0.0, 3.0 / np.pi), rtol=1e-4)
+
+
+def test_an_emission_added_to_a_surface_reads_as_its_principled_emission(images):
+    # Blender 2.8-3.x's glTF importer built emissive materials as an Add Shader of an Emission
+    # and the Principled BSDF: the same as the Principled's own emission, its maps all kept.
+    colour, normals = images
+    mat, tree, output = _material("Glowing")
+    bsdf = _principled(tree)
+    tree.links.new(_texture(tree, colour), bsdf.inputs["Base Color"])
+    tree.links.new(_texture(tree, normals, "Alpha"), bsdf.inputs["Roughness"])
+    glow = tree.nodes.new("ShaderNodeEmission")
+    glow.inputs["Strength"].default_value = 2.0
+    tree.links.new(_texture(tree, normals), glow.inputs["Color"])
+    add = tree.nodes.new("ShaderNodeAddShader")
+    tree.links.new(glow.outputs[0], add.inputs[0])
+    tree.links.new(bsdf.outputs[0], add.inputs[1])
+    tree.links.new(add.outputs[0], output.inputs["Surface"])
+
+    twin, t_tree, t_output = _material("GlowingTwin")
+    t_bsdf = _principled(t_tree)
+    t_tree.links.new(_texture(t_tree, colour), t_bsdf.inputs["Base Color"])
+    t_tree.links.new(_texture(t_tree, normals, "Alpha"), t_bsdf.inputs["Roughness"])
+    t_tree.links.new(_texture(t_tree, normals), t_bsdf.inputs["Emission Color"])
+    t_bsdf.inputs["Emission Strength"].default_value = 2.0
+    t_tree.links.new(t_bsdf.outputs[0], t_output.inputs["Surface"])
+    ours = _read(mat)
+    assert ours.roughness_texture is not None and ours.emission_texture is not None
+    _assert_same_material(ours, _read(twin))
