@@ -28,6 +28,7 @@ class Emitters:
     area_points: np.ndarray  # (S, 3) sample positions on area lights / emissive triangles
     area_normals: np.ndarray  # (S, 3) emitting side's normal
     area_radiance_da: np.ndarray  # (S, 3) radiance times the sample's area, W/sr
+    area_da: np.ndarray  # (S,) m^2, the emitting area the sample stands for
     area_two_sided: np.ndarray  # (S,) bool: emissive meshes emit from both sides in Cycles
     area_local: np.ndarray  # (S,) int: the sample's index among its emitter's samples
     area_count: np.ndarray  # (S,) int: how many samples its emitter has
@@ -39,11 +40,11 @@ class Emitters:
 
 
 def mesh_light_samples(scene: Scene, tri_ids: np.ndarray, n: int
-                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
     """Shadow-ray targets on one object's emissive triangles `tri_ids`: points (S, 3), their
-    faces' normals (S, 3), radiance x the area each stands for (S, 3, W/sr), each one's index
-    among its emitter's samples (S,) and that emitter's sample count (a triangle's, or the
-    object's when it is one light).
+    faces' normals (S, 3), radiance x the area each stands for (S, 3, W/sr), that area (S,) m^2,
+    each one's index among its emitter's samples (S,) and that emitter's sample count (a
+    triangle's, or the object's when it is one light).
 
     Up to MESH_LIGHT_TRIANGLES triangles, n x n stratified points on each (a folded square
     grid). A finer mesh is one light of MESH_LIGHT_TRIANGLES x n x n points in all, spread
@@ -62,10 +63,11 @@ def mesh_light_samples(scene: Scene, tri_ids: np.ndarray, n: int
         k = len(bary)
         pts = np.einsum("kc,tcj->tkj", bary, tris).reshape(-1, 3)
         return (pts, np.repeat(ng, k, axis=0), np.repeat(radiance * (area / k)[:, None], k, axis=0),
-                np.tile(np.arange(k), len(tri_ids)), k)
+                np.repeat(area / k, k), np.tile(np.arange(k), len(tri_ids)), k)
     total = MESH_LIGHT_TRIANGLES * n * n
     if not area.sum() > 0.0:  # every triangle degenerate: nothing emits (and no nan CDF)
-        return np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0, np.int64), total
+        return (np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0),
+                np.zeros(0, np.int64), total)
     cdf = np.cumsum(area) / area.sum()
     position = (np.arange(total) + 0.5) / total
     t = np.minimum(np.searchsorted(cdf, position, side="right"), len(area) - 1)
@@ -77,7 +79,8 @@ def mesh_light_samples(scene: Scene, tri_ids: np.ndarray, n: int
     root = np.sqrt(u)
     bary = np.stack([1.0 - root, root * (1.0 - v), root * v], axis=1)
     pts = np.einsum("sc,scj->sj", bary, tris[t])
-    return pts, ng[t], radiance[t] * (area.sum() / total), np.arange(total), total
+    share = area.sum() / total
+    return pts, ng[t], radiance[t] * share, np.full(total, share), np.arange(total), total
 
 
 def lamp_rectangle(light: Light) -> np.ndarray:
@@ -103,7 +106,7 @@ def lamp_hull(light: Light, reach: float) -> np.ndarray | None:
 
 
 def scene_emitters(scene: Scene, settings: TracerSettings) -> Emitters:
-    points, normals, power, two_sided, local, count, hulls = [], [], [], [], [], [], []
+    points, normals, power, areas, two_sided, local, count, hulls = [], [], [], [], [], [], [], []
     n = settings.area_samples
     for light in scene.lights:
         if light.kind != "AREA":
@@ -116,6 +119,7 @@ def scene_emitters(scene: Scene, settings: TracerSettings) -> Emitters:
         points.append(samples)
         normals.append(np.tile(light.direction, (len(samples), 1)))
         power.append(np.tile(light.radiance * area / len(samples), (len(samples), 1)))
+        areas.append(np.full(len(samples), area / len(samples)))
         two_sided.append(np.zeros(len(samples), bool))
         local.append(np.arange(len(samples)))
         count.append(np.full(len(samples), len(samples)))
@@ -125,10 +129,11 @@ def scene_emitters(scene: Scene, settings: TracerSettings) -> Emitters:
     if len(tri_ids):
         for obj in np.unique(scene.object_ids[tri_ids]):
             own = tri_ids[scene.object_ids[tri_ids] == obj]
-            pts, ng, radiance_da, index, per_emitter = mesh_light_samples(scene, own, n)
+            pts, ng, radiance_da, da, index, per_emitter = mesh_light_samples(scene, own, n)
             points.append(pts)
             normals.append(ng)
             power.append(radiance_da)
+            areas.append(da)
             two_sided.append(np.ones(len(pts), bool))
             local.append(index)
             count.append(np.full(len(pts), per_emitter))
@@ -137,11 +142,13 @@ def scene_emitters(scene: Scene, settings: TracerSettings) -> Emitters:
     if points:
         emitter = np.repeat(np.arange(len(points)), [len(p) for p in points])
         return Emitters([li for li in scene.lights if li.kind != "AREA"], np.concatenate(points),
-                         np.concatenate(normals), np.concatenate(power), np.concatenate(two_sided),
-                         np.concatenate(local), np.concatenate(count), emitter, hulls)
+                        np.concatenate(normals), np.concatenate(power), np.concatenate(areas),
+                        np.concatenate(two_sided), np.concatenate(local), np.concatenate(count),
+                        emitter, hulls)
     z = np.zeros((0, 3))
     none = np.zeros(0, np.int64)
-    return Emitters(list(scene.lights), z, z, z, np.zeros(0, bool), none, none, none, [])
+    return Emitters(list(scene.lights), z, z, z, np.zeros(0), np.zeros(0, bool), none, none, none,
+                    [])
 
 
 def point_light(name: str, position, intensity) -> Light:

@@ -16,7 +16,7 @@ from classic_bake.kernels.geometry.scene import Light, Material, Texture
 from classic_bake.kernels.measure.metrics import rel_mse
 from classic_bake.kernels.shading.specular_layer import schlick_grazing_curve
 from classic_bake.kernels.trace import shadow_shafts
-from classic_bake.kernels.trace.emitters import point_light
+from classic_bake.kernels.trace.emitters import point_light, scene_emitters
 from classic_bake.kernels.trace.settings import TracerSettings, auto_settings
 from classic_bake.kernels.trace.tracer import Tracer, trace
 
@@ -201,6 +201,41 @@ def test_emissive_surface_lights_a_diffuse_plane():
     r2 = x * x + y * y + height**2
     irradiance = radiance * np.sum(height**2 / r2**2) * (side / 400) ** 2
     np.testing.assert_allclose(image[..., 0], rho / np.pi * irradiance, rtol=2e-3)
+
+
+def test_an_emitter_touching_a_surface_lights_it_within_the_physical_bound():
+    # A 1 m emissive wall standing on a white floor, its lowest samples 5 mm above it: no floor
+    # point can receive more than the whole hemisphere's worth, pi L (radiance rho L). Each of
+    # the emitter's samples stands for a disc of its share of the area (Wallace's approximation),
+    # so a sample millimetres away does not count as a point light: 1 / d^2 made the floor by
+    # the wall's foot hundreds of times too bright. Far away the disc is the point: the sum of
+    # cos cos / d^2 over the samples, within 0.3% (d^2 = 6 m^2 against a / pi = 0.01 m^2).
+    rho, radiance = 0.5, 10.0
+    plane = quad([(-3, -3, 0), (3, -3, 0), (3, 3, 0), (-3, 3, 0)])
+    mat = Material(name="white", base_color=np.full(3, rho, np.float32), specular=0.0)
+    settings = TracerSettings(max_depth=0, adaptive=0)
+
+    def scene_seen_by(camera, foot):
+        wall = quad([(0, -0.5, foot), (0, 0.5, foot), (0, 0.5, foot + 1), (0, -0.5, foot + 1)])
+        return build([(plane, mat), (wall, emitter(radiance))], camera)
+
+    probe = scene_seen_by(ortho_camera((0.05, 0, 1), (0, 0, -1), (0, 1, 0), 0.08, (2, 2)), 0.0)
+    foot = 0.005 - scene_emitters(probe, settings).area_points[:, 2].min()
+    # The floor beside the wall's foot, 1 to 9 cm from it: the camera never sees the wall.
+    near = trace(scene_seen_by(ortho_camera((0.05, 0, 1), (0, 0, -1), (0, 1, 0), 0.08, (32, 32)),
+                               foot), settings).image
+    assert near.max() <= rho * radiance * (1.0 + 1e-6)
+    assert near.max() > 0.1 * rho * radiance  # lit: the wall is right there
+    far_scene = scene_seen_by(ortho_camera((2.5, 0, 1), (0, 0, -1), (0, 1, 0), 0.2, (2, 2)), foot)
+    far = trace(far_scene, settings).image
+    points = scene_emitters(far_scene, settings).area_points  # 1 m^2 shared out equally
+    for i, y in enumerate(np.array([0.05, -0.05])):
+        for j, x in enumerate(2.5 + np.array([-0.05, 0.05])):
+            d = points - np.array([x, y, 0.0])
+            d2 = np.einsum("ij,ij->i", d, d)
+            g = d[:, 2] * np.abs(d[:, 0]) / d2**2  # cos at the floor x cos at the wall / d^2
+            expected = rho / np.pi * radiance * g.sum() / len(points)
+            assert far[i, j, 0] == pytest.approx(expected, rel=3e-3)
 
 
 def sun(direction, irradiance):
