@@ -15,6 +15,7 @@ import math
 import bpy
 import numpy as np
 import pytest
+from blender_parts import overhead_sun
 
 from classic_bake.addon import bridge
 from classic_bake.addon import cycles as cr
@@ -36,14 +37,7 @@ def _grid(uv: bool = True):
     grid = bpy.context.object
     if not uv:
         grid.data.uv_layers.remove(grid.data.uv_layers[0])
-    scene = bpy.context.scene
-    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    camera.location = (0.0, 0.0, 5.0)
-    scene.collection.objects.link(camera)
-    scene.camera = camera
-    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
-    sun.data.energy = math.pi
-    scene.collection.objects.link(sun)
+    scene, _ = overhead_sun(math.pi)
     scene.world = bpy.data.worlds.new("Black")
     scene.world.color = (0.0, 0.0, 0.0)
     scene.render.resolution_x = scene.render.resolution_y = SIZE

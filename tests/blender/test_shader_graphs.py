@@ -16,6 +16,7 @@ from dataclasses import fields, replace
 import bpy
 import numpy as np
 import pytest
+from blender_parts import overhead_sun
 
 from classic_bake.addon import bridge
 from classic_bake.addon import cycles as cr
@@ -173,19 +174,25 @@ def test_groups_inside_groups_pass_their_inputs_through(images):
     _assert_same_material(_read(mat), twin)
 
 
+def _tint(tree, shader, destination):
+    """In `tree`: a Mix Shader (Fac 0.25) of `shader` (an output socket) and a red Diffuse,
+    into `destination` (an input socket)."""
+    mix = tree.nodes.new("ShaderNodeMixShader")
+    mix.inputs["Fac"].default_value = 0.25
+    red = tree.nodes.new("ShaderNodeBsdfDiffuse")
+    red.inputs["Color"].default_value = (0.8, 0.1, 0.1, 1.0)
+    tree.links.new(shader, mix.inputs[1])
+    tree.links.new(red.outputs[0], mix.inputs[2])
+    tree.links.new(mix.outputs[0], destination)
+
+
 def test_a_shader_passed_into_a_group_is_mixed_inside_it():
-    # Outside: Principled -> group "Tint" (a Mix Shader of its input and a red Diffuse) -> output.
+    # Outside: Principled -> group "Tint" (the tint inside it) -> output; its twin tints flat.
     group = bpy.data.node_groups.new("Tint", "ShaderNodeTree")
     group.interface.new_socket("Shader", in_out="INPUT", socket_type="NodeSocketShader")
     group.interface.new_socket("Shader", in_out="OUTPUT", socket_type="NodeSocketShader")
-    g_in, g_out = group.nodes.new("NodeGroupInput"), group.nodes.new("NodeGroupOutput")
-    mix = group.nodes.new("ShaderNodeMixShader")
-    mix.inputs["Fac"].default_value = 0.25
-    red = group.nodes.new("ShaderNodeBsdfDiffuse")
-    red.inputs["Color"].default_value = (0.8, 0.1, 0.1, 1.0)
-    group.links.new(g_in.outputs[0], mix.inputs[1])
-    group.links.new(red.outputs[0], mix.inputs[2])
-    group.links.new(mix.outputs[0], g_out.inputs[0])
+    _tint(group, group.nodes.new("NodeGroupInput").outputs[0],
+          group.nodes.new("NodeGroupOutput").inputs[0])
     mat, tree, output = _material("Tinted")
     bsdf = _principled(tree)
     bsdf.inputs["Base Color"].default_value = (0.1, 0.7, 0.2, 1.0)
@@ -197,13 +204,7 @@ def test_a_shader_passed_into_a_group_is_mixed_inside_it():
     flat, f_tree, f_output = _material("TintedFlat")
     f_bsdf = _principled(f_tree)
     f_bsdf.inputs["Base Color"].default_value = (0.1, 0.7, 0.2, 1.0)
-    f_mix = f_tree.nodes.new("ShaderNodeMixShader")
-    f_mix.inputs["Fac"].default_value = 0.25
-    f_red = f_tree.nodes.new("ShaderNodeBsdfDiffuse")
-    f_red.inputs["Color"].default_value = (0.8, 0.1, 0.1, 1.0)
-    f_tree.links.new(f_bsdf.outputs[0], f_mix.inputs[1])
-    f_tree.links.new(f_red.outputs[0], f_mix.inputs[2])
-    f_tree.links.new(f_mix.outputs[0], f_output.inputs["Surface"])
+    _tint(f_tree, f_bsdf.outputs[0], f_output.inputs["Surface"])
     _assert_same_material(_read(mat), _read(flat))
 
 
@@ -264,15 +265,7 @@ def test_a_constant_transparent_mix_is_a_partial_alpha():
 def _plane_under_a_sun(mat):
     bpy.ops.mesh.primitive_plane_add(size=4.0)
     bpy.context.object.data.materials.append(mat)
-    scene = bpy.context.scene
-    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    camera.location = (0.0, 0.0, 5.0)
-    scene.collection.objects.link(camera)
-    scene.camera = camera
-    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
-    sun.data.energy = 3.0
-    scene.collection.objects.link(sun)
-    return scene
+    return overhead_sun(3.0)[0]
 
 
 def test_a_volume_shader_in_the_surface_slot_adds_nothing():

@@ -87,6 +87,20 @@ def oblique_camera(scene):
     return cam
 
 
+def overhead_sun(energy):
+    """A camera 5 m above the origin looking straight down and a sun of `energy` W/m^2 shining
+    straight down with it: (scene, camera). A Lambertian plane at z = 0 seen there shows
+    albedo x energy / pi (pi W/m^2: the albedo itself)."""
+    scene = bpy.context.scene
+    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    cam.location = (0.0, 0.0, 5.0)
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
+    sun.data.energy = energy
+    scene.collection.objects.link(sun)
+    return scene, cam
+
 
 def hdri_world(pixels, strength=1.0):
     """The scene's world: an Environment Texture (equirectangular) of float pixels (H, W, 3),
