@@ -16,7 +16,7 @@ Cycles does (`Texture.encoding`).
 from __future__ import annotations
 
 from contextlib import contextmanager
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import bpy
 import numpy as np
@@ -46,6 +46,18 @@ VOLUME_SHADER_PREFIX = "ShaderNodeVolume"
 # Mix weights this close to 1 (or a transparency this close to 1) count as 1: a Fac of 1 picks
 # one shader whole, whatever float rounding left of 1 - Fac.
 MIX_WEIGHT_EPS = 1e-9
+
+
+@dataclass(frozen=True)
+class Relief:
+    """What feeds a shader's Normal (`Material`'s fields of the same names): a tangent-space
+    normal map, a Bump node's height, or both (a Normal Map into a Bump node's Normal)."""
+
+    normal_texture: Texture | None = None
+    normal_strength: float = 1.0
+    height_texture: Texture | None = None
+    bump_strength: float = 1.0
+    bump_distance: float = 1.0
 
 
 def mix_materials(name: str, parts: list, ignored: list) -> Material:
@@ -119,6 +131,7 @@ def mix_materials(name: str, parts: list, ignored: list) -> Material:
         emission=emission.astype(np.float32),
         emission_texture=emission_texture,
         normal_texture=None if normal is None else normal.normal_texture,
+        normal_strength=1.0 if normal is None else normal.normal_strength,
         height_texture=None if normal is None else normal.height_texture,
         bump_strength=1.0 if normal is None else normal.bump_strength,
         bump_distance=1.0 if normal is None else normal.bump_distance,
@@ -445,7 +458,7 @@ class MaterialReader:
                 if weight is None or weight.texture is not None or weight.const[0] > 0.0:
                     ignored.append(f"{unmodelled} is not modelled")
         alpha, alpha_tex = self._alpha(inputs["Alpha"], ignored) if "Alpha" in inputs else (1.0, None)
-        normal_tex, height_tex, strength_b, distance_b = self._normal(inputs["Normal"], ignored)
+        relief = self._normal(inputs["Normal"], ignored)
         return Material(
             name=name,
             base_color=color,
@@ -461,10 +474,11 @@ class MaterialReader:
             roughness_texture=roughness_tex,
             alpha=alpha,
             alpha_texture=alpha_tex,
-            normal_texture=normal_tex,
-            height_texture=height_tex,
-            bump_strength=strength_b,
-            bump_distance=distance_b,
+            normal_texture=relief.normal_texture,
+            normal_strength=relief.normal_strength,
+            height_texture=relief.height_texture,
+            bump_strength=relief.bump_strength,
+            bump_distance=relief.bump_distance,
             ignored=tuple(ignored),
         )
 
@@ -645,35 +659,41 @@ class MaterialReader:
             )
         return None
 
-    def _normal(self, socket, ignored):
+    def _normal(self, socket, ignored) -> Relief:
+        """The relief feeding a Normal socket."""
         node, _, groups = follow_through(socket, self._groups)
         if node is None:
-            return None, None, 1.0, 1.0
+            return Relief()
         with self._inside(groups):
             return self._normal_node(node, ignored)
 
-    def _normal_node(self, node, ignored):
-        """(normal texture, height texture, strength, distance) of the node feeding a Normal."""
+    def _normal_node(self, node, ignored) -> Relief:
+        """`_normal` of the node feeding a Normal: a Normal Map, a Bump, or a Bump whose Normal
+        a Normal Map feeds (the bump on the mapped normal, as Cycles chains them)."""
         if node.type == "NORMAL_MAP":
             if node.space != "TANGENT":
                 ignored.append(f"normal map in {node.space} space is not modelled")
-                return None, None, 1.0, 1.0
-            tex = self._texture_feeding(node.inputs["Color"], ignored, "Normal Map")
-            strength = self._value(node.inputs["Strength"], ignored)
-            return tex, None, strength, 1.0
+                return Relief()
+            return Relief(normal_texture=self._texture_feeding(node.inputs["Color"], ignored,
+                                                               "Normal Map"),
+                          normal_strength=self._value(node.inputs["Strength"], ignored))
         if node.type == "BUMP":
             tex_node = follow_through(node.inputs["Height"], self._groups)[0]
             tex = self._texture_feeding(node.inputs["Height"], ignored, "Bump height")
             if tex_node is not None and tex is None:
                 ignored.append(f"bump height from '{tex_node.bl_idname}' is not modelled")
-            if node.inputs["Normal"].is_linked:
-                ignored.append("a Bump node's Normal input (chained bumps) is not modelled")
+            below = self._normal(node.inputs["Normal"], ignored)
+            if below.height_texture is not None:
+                ignored.append("a Bump node's Normal input from another Bump node (chained "
+                               "bumps) is not modelled: the inner one's height left out")
             distance = self._value(node.inputs["Distance"], ignored)
             # Invert: the height pushes the surface inwards, the same as a negated distance.
-            return (None, tex, self._value(node.inputs["Strength"], ignored),
-                    -distance if node.invert else distance)
+            return Relief(normal_texture=below.normal_texture,
+                          normal_strength=below.normal_strength, height_texture=tex,
+                          bump_strength=self._value(node.inputs["Strength"], ignored),
+                          bump_distance=-distance if node.invert else distance)
         ignored.append(f"normal input from '{node.bl_idname}' is not modelled")
-        return None, None, 1.0, 1.0
+        return Relief()
 
     def _texture_feeding(self, socket, ignored, what) -> Texture | None:
         """The image or checker texture feeding `socket` directly (through reroutes and groups),

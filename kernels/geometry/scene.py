@@ -98,7 +98,10 @@ class Material:
     | specular           | [0, inf)  | 0.5     | Principled "Specular IOR Level"; 0: Lambertian |
     | emission           | [0, inf)^3| 0       | radiance W/(m^2 sr): colour x strength         |
     | normal_texture     | Texture   | None    | tangent-space normal map (bump mapping)        |
-    | height_texture     | Texture   | None    | height map feeding a Bump node                 |
+    | normal_strength    | [0, inf)  | 1       | the Normal Map node's strength                 |
+    | height_texture     | Texture   | None    | height map feeding a Bump node; with a normal  |
+    |                    |           |         | map too, the Bump node's Normal is the mapped  |
+    |                    |           |         | normal (a Normal Map into a Bump node)         |
     | bump_strength      | [0, 1]    | 1       | the Bump node's strength                       |
     | bump_distance      | [0, inf)  | 1       | the Bump node's distance, metres               |
     | metal_color        | [0, 1]^3  | None    | the metal part's tint where it is not the base |
@@ -131,6 +134,7 @@ class Material:
     specular: float = 0.5
     emission: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))
     normal_texture: Texture | None = None
+    normal_strength: float = 1.0
     height_texture: Texture | None = None
     bump_strength: float = 1.0
     bump_distance: float = 1.0

@@ -256,15 +256,18 @@ def has_bump(material: Material) -> bool:
 
 def perturb(material: Material, n: np.ndarray, triangles: np.ndarray, corner_uvs: np.ndarray,
             uv: np.ndarray) -> np.ndarray:
-    """(N, 3) shading normals of `material` at N points: its normal map or its Bump node's height
-    applied to unit normals n, the points' triangles (N, 3, 3) with their corner UVs (N, 3, 2)
-    and the points' UVs (N, 2). Materials without either return n."""
+    """(N, 3) shading normals of `material` at N points: its normal map, then its Bump node's
+    height (on the mapped normal, where a Normal Map feeds the Bump node), applied to unit
+    normals n, the points' triangles (N, 3, 3) with their corner UVs (N, 3, 2) and the points'
+    UVs (N, 2). Materials without either return n."""
     if not has_bump(material):
         return n
     dpdu, dpdv = uv_derivatives(triangles, corner_uvs)
     if material.normal_texture is not None:
         rgb = sample_texture(material.normal_texture, uv)
-        return normal_mapped(n, dpdu, dpdv, rgb, material.bump_strength)
+        n = normal_mapped(n, dpdu, dpdv, rgb, material.normal_strength)
+    if material.height_texture is None:
+        return n
     slope = height_slope(material.height_texture, uv)
     return bumped_normals(n, dpdu, dpdv, slope, material.bump_distance,
                           max(float(material.bump_strength), 0.0))
@@ -285,11 +288,24 @@ def scene_normals(scene: Scene, tri: np.ndarray, bary: np.ndarray, n: np.ndarray
         material = scene.materials[m]
         if material.normal_texture is not None and scene.corner_tangents is not None:
             framed = _mikktspace_rows(scene, tri, bary, rows, material, n, out)
+            if material.height_texture is not None and framed.any():
+                _bump_rows(scene, tri, bary, rows[framed], material, out)
             rows = rows[~framed]  # objects without frames: the triangles' own, below
         corner_uvs = _relief_uv(scene, material)[tri[rows]].astype(np.float64)
         uv = np.einsum("nk,nkc->nc", bary[rows], corner_uvs)
         out[rows] = perturb(material, n[rows], scene.triangles[tri[rows]], corner_uvs, uv)
     return out
+
+
+def _bump_rows(scene: Scene, tri: np.ndarray, bary: np.ndarray, rows: np.ndarray,
+               material: Material, out: np.ndarray) -> None:
+    """`material`'s Bump node on the normals out[rows] (already normal-mapped), in place."""
+    corner_uvs = _relief_uv(scene, material)[tri[rows]].astype(np.float64)
+    uv = np.einsum("nk,nkc->nc", bary[rows], corner_uvs)
+    dpdu, dpdv = uv_derivatives(scene.triangles[tri[rows]], corner_uvs)
+    slope = height_slope(material.height_texture, uv)
+    out[rows] = bumped_normals(out[rows], dpdu, dpdv, slope, material.bump_distance,
+                               max(float(material.bump_strength), 0.0))
 
 
 def _relief_uv(scene: Scene, material: Material) -> np.ndarray:
@@ -315,5 +331,5 @@ def _mikktspace_rows(scene: Scene, tri: np.ndarray, bary: np.ndarray, rows: np.n
     uv = np.einsum("nk,nkc->nc", weights, _relief_uv(scene, material)[corners].astype(np.float64))
     rgb = sample_texture(material.normal_texture, uv)
     out[done] = mikktspace_normal_mapped(n[done], smooth, tangents[framed], signs, rgb,
-                                         material.bump_strength, scene.normal_map_unit_normal)
+                                         material.normal_strength, scene.normal_map_unit_normal)
     return framed

@@ -247,3 +247,25 @@ def test_valid_reflection_bends_normals_until_the_view_reflects_above_the_surfac
     np.testing.assert_allclose(azimuth_turn, 0.0, atol=1e-9)
     np.testing.assert_allclose(reflect[bent, 2], floor[bent], atol=1e-6)
     assert np.all(np.einsum("ij,ij->i", got, wo) > 0)
+
+
+def test_a_bump_on_a_normal_map_follows_cycles_bump_node_on_the_mapped_normal():
+    # A plane (dp/du = x, dp/dv = y), a normal map of one tilt N, a height h = k u under a Bump
+    # node of distance D whose Normal is the map's. Cycles' bump node (svm_node_set_bump) with
+    # that Normal: R_u = dp/dv x N, R_v = N x dp/du, det = dp/du . R_u = N_z, and
+    # N' = normalize(|det| N - D (dh/du R_u + dh/dv R_v)) = normalize(N_z N - D k (N_z, 0, -N_x)).
+    tri = np.array([[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]])
+    corner_uvs = tri[:, :, :2].copy()
+    tilt = np.array([0.3, -0.2, np.sqrt(1.0 - 0.13)])
+    rgb = np.append(0.5 + 0.5 * tilt, 1.0).astype(np.float32)
+    normal_map = Texture(kind="IMAGE", pixels=np.tile(rgb, (4, 4, 1)), interpolation="CLOSEST")
+    k, distance, side = 0.6, 0.5, 64
+    ramp = np.tile((np.arange(side) + 0.5) / side * k, (side, 1)).astype(np.float32)
+    heights = Texture(kind="IMAGE", pixels=np.stack([ramp, ramp, ramp, np.ones_like(ramp)], -1),
+                      extension="EXTEND")
+    material = Material(name="chained", normal_texture=normal_map, height_texture=heights,
+                        bump_distance=distance)
+    ours = bump.perturb(material, np.array([[0.0, 0.0, 1.0]]), tri, corner_uvs,
+                        np.array([[0.3, 0.3]]))
+    expected = tilt[2] * tilt - distance * k * np.array([tilt[2], 0.0, -tilt[0]])
+    np.testing.assert_allclose(ours[0], expected / np.linalg.norm(expected), atol=1e-5)
