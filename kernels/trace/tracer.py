@@ -44,7 +44,7 @@ from ..measure.phase_clock import PhaseClock
 from ..progress import Steps, drain
 from ..shading import lights as light_units
 from ..shading.alpha import scene_alpha
-from ..shading.bump import bump_shadowing
+from ..shading.bump import bump_shadowing, valid_reflection
 from ..shading.material_maps import emission_at
 from ..shading.optics import fresnel_dielectric, reflect, refract
 from ..shading.specular_layer import ggx_highlight, metal_tables, view_factors, view_tables
@@ -461,7 +461,8 @@ class Tracer:
 
     def _child_differentials(self, spawned, tri, h: SurfaceHits, dirs, t_dir, eta, rows, dp, dd):
         """Per spawned generation (strong (N,) bool: the rays spawned; side +1 reflected, -1
-        refracted; bent (N,) bool: the ray turned about the geometric normal), its rays' (dp, dd)
+        refracted; bent (N,) bool: the ray turned about the normal `about` (N, 3), the geometric
+        one or one bent towards it, not the shading normal), its rays' (dp, dd)
         (2, n, 3) each. rows (R,): the hits that spawn any, whose derivatives dp (the hit's) and
         dd (the arriving ray's) are (2, R, 3)."""
         if self.settings.shading == "flat":
@@ -471,12 +472,12 @@ class Tracer:
                                        np.maximum(h.normal_length[rows], MIN_NORMAL_LENGTH),
                                        np.where(h.front[rows], 1.0, -1.0), dp)
         out = []
-        for strong, side, bent in spawned:
+        for strong, side, bent, about in spawned:
             own = strong[rows]  # strong's rows, in order, among rows
             n, dn_k, dd_k = h.ns[strong], dn[:, own], dd[:, own]
             turned = bent[strong]
-            if turned.any():  # turned about the geometric normal, which does not turn
-                n[turned], dn_k[:, turned] = h.ng[strong][turned], 0.0
+            if turned.any():  # turned about a normal taken as not turning across the pixel
+                n[turned], dn_k[:, turned] = about[strong][turned], 0.0
             if side > 0:
                 dd_k = rd.reflected(dirs[strong], n, dd_k, dn_k)
             else:
@@ -658,7 +659,16 @@ class Tracer:
             # the geometric normal where that would send the ray to the wrong side of the surface.
             r_dir = reflect(dirs, h.ns)
             wrong_r = np.einsum("ij,ij->i", r_dir, h.ng) <= 0.0
-            r_dir[wrong_r] = reflect(dirs[wrong_r], h.ng[wrong_r])
+            # A mirror direction below the surface (an interpolated normal tilted away from the
+            # view near a silhouette, a bevel's custom normals): the normal bent towards the
+            # geometric one until the reflection just leaves the surface, as Cycles does
+            # (`bump.valid_reflection`). Reflecting about the geometric normal instead showed a
+            # custom-normal mirror cube's bevel the lamp where Cycles shows the horizon.
+            about_r = h.ng
+            if wrong_r.any():
+                about_r = h.ng.copy()
+                about_r[wrong_r] = valid_reflection(h.ng[wrong_r], -dirs[wrong_r], h.ns[wrong_r])
+                r_dir[wrong_r] = reflect(dirs[wrong_r], about_r[wrong_r])
             cos_o = np.einsum("ij,ij->i", wo, h.ns)
             # Metals: a tinted mirror (Schlick with F0 = base colour); a rough metal's one ray
             # stands for its lobe, as a rough layer's does (its lamps' highlights: `direct`),
@@ -708,9 +718,12 @@ class Tracer:
             after_reflection = np.where(known & (h.front | (entered > 0)), entered, -1)
             after_refraction = np.where(known & h.front, entered + 1,
                                         np.where(entered > 0, entered - 1, -1))
-            spawned = []  # per generation spawned: (strong (N,) bool, side, bent (N,) bool)
-            for w_new, d_new, side, seen, bent in ((refl_w, r_dir, 1.0, after_reflection, wrong_r),
-                                                   (refr_w, t_dir, -1.0, after_refraction, wrong)):
+            # per generation spawned: (strong (N,) bool, side, bent (N,) bool, the normal the bent
+            # rays turned about (N, 3))
+            spawned = []
+            for w_new, d_new, side, seen, bent, about in (
+                    (refl_w, r_dir, 1.0, after_reflection, wrong_r, about_r),
+                    (refr_w, t_dir, -1.0, after_refraction, wrong, h.ng)):
                 w_total = weight * w_new
                 w_max = max_of_three(w_total)
                 alive = w_max > 0.0
@@ -720,13 +733,13 @@ class Tracer:
                     o_new = h.p[strong] + side * h.ng[strong] * self.offset
                     children.append((o_new, d_new[strong], pixel[strong], w_total[strong],
                                      sees[strong], seen[strong]))
-                    spawned.append((strong, side, bent))
+                    spawned.append((strong, side, bent, about))
             if not children:
                 break
             carry = follow and depth < s.max_depth  # the last generation filters no texture
             if carry:
                 with self.clock("differentials"):
-                    rows = np.flatnonzero(np.logical_or.reduce([st for st, _, _ in spawned]))
+                    rows = np.flatnonzero(np.logical_or.reduce([st for st, *_ in spawned]))
                     if depth == 0:  # the camera's: only for the hits that spawn rays
                         dp_rows, dd_rows = rd.camera_derivatives(footprint, pixel[rows], dirs[rows],
                                                                  h.p[rows], h.ng[rows])
