@@ -655,8 +655,9 @@ class Tracer:
                 lambert = reflected / np.maximum(h.albedo, ALBEDO_FLOOR)
             own = h.emission + lit
             smooth = rough < s.mirror_roughness
-            # Mirror and refraction directions about the (smooth) shading normal, falling back to
-            # the geometric normal where that would send the ray to the wrong side of the surface.
+            # Mirror and refraction directions about the (smooth) shading normal; where that would
+            # send the ray to the wrong side of the surface, about a normal bent towards the
+            # geometric one (reflection, below) or the geometric one itself (refraction).
             r_dir = reflect(dirs, h.ns)
             wrong_r = np.einsum("ij,ij->i", r_dir, h.ng) <= 0.0
             # A mirror direction below the surface (an interpolated normal tilted away from the
