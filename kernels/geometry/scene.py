@@ -93,7 +93,8 @@ class Material:
     | base_color_texture | Texture   | None    | replaces base_color when present               |
     | metallic           | [0, 1]    | 0       | 1: perfect (tinted) mirror when roughness ~ 0  |
     | roughness          | [0, 1]    | 0.5     | Blender's perceptual roughness                 |
-    | ior                | >= 1      | 1.5     | index of refraction (dielectric)               |
+    | ior                | > 0       | 1.5     | index of refraction (dielectric); below 1 the  |
+    |                    |           |         | specular layer reflects as 1 / ior does        |
     | transmission       | [0, 1]    | 0       | 1: glass                                       |
     | specular           | [0, inf)  | 0.5     | Principled "Specular IOR Level"; 0: Lambertian |
     | emission           | [0, inf)^3| 0       | radiance W/(m^2 sr): colour x strength         |

@@ -47,7 +47,13 @@ from ..shading.alpha import scene_alpha
 from ..shading.bump import bump_shadowing, valid_reflection
 from ..shading.material_maps import emission_at
 from ..shading.optics import fresnel_dielectric, reflect, refract
-from ..shading.specular_layer import ggx_highlight, metal_tables, view_factors, view_tables
+from ..shading.specular_layer import (
+    ggx_highlight,
+    layer_f0,
+    metal_tables,
+    view_factors,
+    view_tables,
+)
 from ..shading.world_light import extract_suns, world_radiance
 from . import differentials as rd
 from .emitters import lamp_hull, scene_emitters
@@ -164,6 +170,9 @@ class Tracer:
         self.transmission = np.array([m.transmission for m in mats])
         self.roughness = np.array([m.roughness for m in mats])
         self.ior = np.array([max(m.ior, 1.0 + 1e-6) for m in mats])
+        # The specular layer's F0 from the material's own IOR, as its albedo tables take it (an
+        # IOR below 1 reflects as its inverse does; 0: F0 = 1, as Cycles shows it).
+        self.layer_f0 = np.array([layer_f0(m.ior, m.specular) for m in mats])
         self.specular = np.array([m.specular for m in mats])
         self.layer_tables = view_tables(mats)
         self.metal_tables = metal_tables(mats)
@@ -619,7 +628,7 @@ class Tracer:
             wo = -dirs
             spec_level = self.specular[m]
             has_spec = (dielectric > 0) & (spec_level > 0) & (rough >= s.mirror_roughness)
-            f0_dielectric = ((self.ior[m] - 1.0) / (self.ior[m] + 1.0)) ** 2 * 2.0 * spec_level
+            f0_dielectric = self.layer_f0[m]
             # Rough glossy lobes lit directly: the specular layer's and a rough metal's.
             lobes = []
             if has_spec.any():

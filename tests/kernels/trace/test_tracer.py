@@ -485,3 +485,22 @@ def test_a_mirror_direction_below_the_surface_bends_as_cycles_does():
     normals[:2] = (-np.sin(tilt), 0.0, np.cos(tilt))  # the mirror's two triangles
     image = trace(replace(scene, normals=normals), TracerSettings(max_depth=1, adaptive=0)).image
     np.testing.assert_allclose(image.reshape(-1, 3), np.tile([0.0, 1.0, 0.0], (4, 1)), atol=1e-6)
+
+
+def test_an_ior_below_one_reflects_as_its_inverse():
+    # The specular layer's F0 = ((ior - 1) / (ior + 1))^2 is the same for ior and 1 / ior, in
+    # Cycles' Principled BSDF and in the layer's albedo tables; the lamps' highlights took the
+    # IOR clamped at 1 (no highlight) while the tables hid the base as for the inverse.
+    plane = quad([(-2, -2, 0), (2, -2, 0), (2, 2, 0), (-2, 2, 0)])
+    cam = persp_camera((0, -3, 2), (0, 1, -0.7), (0, 0, 1), np.radians(40), (16, 12))
+    light = point_light("P", (0.0, 1.5, 1.5), np.full(3, 40.0))
+
+    def image(ior):
+        mat = Material(name="layer", base_color=np.full(3, 0.5, np.float32), roughness=0.4,
+                       ior=ior)
+        return trace(build([(plane, mat)], cam, [light]),
+                     TracerSettings(max_depth=1, adaptive=0)).image
+
+    below, above = image(1.0 / 1.8), image(1.8)
+    np.testing.assert_allclose(below, above, rtol=1e-5, atol=1e-7)
+    assert np.max(above - image(1.0 + 1e-6)) > 0.01  # the highlight is there to compare
