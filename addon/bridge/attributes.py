@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...kernels.geometry.scene import Material
-from .nodes import MAX_GROUP_DEPTH, node_tree
+from .nodes import node_tree, tree_nodes
 
 # RNA field and component count of each attribute type a colour can be made of: colours give
 # their RGB, vectors their components (a 2D vector (x, y, 0)), numbers all three channels.
@@ -32,19 +32,13 @@ def attribute_names(materials) -> set[str]:
     names: set[str] = set()
     for mat in materials:
         tree = node_tree(mat) if mat is not None else None
-        if tree is not None:
-            _collect(tree, names, 0)
+        for node in tree_nodes(tree) if tree is not None else ():
+            if node.type == "VERTEX_COLOR":
+                names.add(node.layer_name)
+            elif (node.type == "ATTRIBUTE" and node.attribute_type == "GEOMETRY"
+                  and node.attribute_name):
+                names.add(node.attribute_name)
     return names
-
-
-def _collect(tree, names: set, depth: int) -> None:
-    for node in tree.nodes:
-        if node.type == "VERTEX_COLOR":
-            names.add(node.layer_name)
-        elif node.type == "ATTRIBUTE" and node.attribute_type == "GEOMETRY" and node.attribute_name:
-            names.add(node.attribute_name)
-        elif node.type == "GROUP" and node.node_tree is not None and depth < MAX_GROUP_DEPTH:
-            _collect(node.node_tree, names, depth + 1)
 
 
 def corner_attribute(mesh, name: str, corner_loops: np.ndarray, corner_verts: np.ndarray,

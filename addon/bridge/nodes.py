@@ -47,6 +47,15 @@ def active_output(tree, kind: str):
     return outputs[0] if outputs else None
 
 
+def tree_nodes(tree, depth: int = 0):
+    """Every node of `tree` and of the node groups it holds (nested up to MAX_GROUP_DEPTH), each
+    group's nodes where its Group node stands."""
+    for node in tree.nodes:
+        yield node
+        if node.type == "GROUP" and node.node_tree is not None and depth < MAX_GROUP_DEPTH:
+            yield from tree_nodes(node.node_tree, depth + 1)
+
+
 def group_output_socket(group, out):
     """The socket inside Group node `group` that its output `out` passes on: the input of the
     group's active Group Output node with out's identifier; None if there is none."""

@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...kernels.normalmap.mikktspace import mikktspace_tangents
-from .nodes import MAX_GROUP_DEPTH, follow
+from .nodes import follow, tree_nodes
 
 # Faces with more corners than this are split into their loop triangles (MikkTSpace's limit).
 MIKKTSPACE_MAX_CORNERS = 4
@@ -78,15 +78,8 @@ def _tangent_normal_maps(materials):
     for mat in materials:
         tree = getattr(mat, "node_tree", None)
         if tree is not None:
-            yield from _normal_maps_in(tree, 0)
-
-
-def _normal_maps_in(tree, depth: int):
-    for node in tree.nodes:
-        if node.type == "NORMAL_MAP" and node.space == "TANGENT":
-            yield node
-        elif node.type == "GROUP" and node.node_tree is not None and depth < MAX_GROUP_DEPTH:
-            yield from _normal_maps_in(node.node_tree, depth + 1)
+            yield from (node for node in tree_nodes(tree)
+                        if node.type == "NORMAL_MAP" and node.space == "TANGENT")
 
 
 def _render_layer(mesh) -> str | None:

@@ -450,6 +450,11 @@ class Tracer:
                     + self.scene.material_ids[t])
         return ids
 
+    def attribute_hits(self, ids: np.ndarray) -> np.ndarray:
+        """(N,) bool: which `hit_ids` saw a material whose base colour is a colour attribute."""
+        materials = np.maximum(ids, 0) % (len(self.scene.materials) + 1)
+        return (ids >= 0) & self.attribute_base[materials]
+
     # --- the wavefront ---------------------------------------------------------------------------
 
     def radiance(self, origins: np.ndarray, dirs: np.ndarray,
@@ -836,10 +841,7 @@ def trace_steps(scene: Scene, settings: TracerSettings, bvh: BVH | None = None,
         with tracer.clock("edge detection"):
             chroma = None
             if tracer.attribute_base.any():  # colour-attribute bases: hue edges count too
-                kinds = len(scene.materials) + 1
-                chroma = ((first_ids >= 0)
-                          & tracer.attribute_base[np.maximum(first_ids, 0) % kinds]).reshape(
-                    band, width)
+                chroma = tracer.attribute_hits(first_ids).reshape(band, width)
             mark = edge_pixels(seen.reshape(band, width, 3),
                                first_ids.reshape(band, width), chroma).ravel()
             mark &= (row >= top) & (row < bottom)  # the band's own rows
