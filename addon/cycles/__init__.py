@@ -31,7 +31,15 @@ from .bakes import (
     bake_color_attributes,
     bake_lightmaps,
 )
-from .cache import CACHE_FORMAT, Reference, cache_key, file_sha256, reference
+from .cache import (
+    CACHE_FORMAT,
+    Reference,
+    cache_key,
+    cached_render,
+    dependency_hashes,
+    file_sha256,
+    reference,
+)
 from .convergence import MAX_SAMPLES, START_SAMPLES, TARGET_REL_MSE, converged_run
 from .ladder import doubling_counts, ladder_step, sample_ladder
 from .models import (
@@ -56,7 +64,8 @@ __all__ = [
     "PASS_FILTERS", "RENDER_PASSES", "START_SAMPLES", "TARGET_REL_MSE", "TEMP_PREFIX",
     "WORLD_MAP_SIZE", "BakeSpec", "BakeType", "CyclesModel", "CyclesRun", "Reference",
     "ReferenceKind", "SettingsLog", "albedo", "bake_color_attributes", "bake_lightmaps",
-    "cache_key", "configure", "converged_run", "direct", "doubling_counts", "file_sha256",
+    "cache_key", "cached_render", "configure", "converged_run", "dependency_hashes", "direct",
+    "doubling_counts", "file_sha256",
     "global_illumination", "ladder_step", "matched_scene", "radiosity", "reference",
     "render_camera", "render_world_map",
     "run_cycles", "sample_ladder", "warm_up", "whitted",

@@ -3,6 +3,7 @@ OpenEXR per image and meta.json; a miss opens the .blend and renders or bakes it
 
 from __future__ import annotations
 
+import glob
 import hashlib
 import json
 import os
@@ -24,7 +25,10 @@ from .runner import warm_up
 from .runs import BakeSpec, CyclesRun, ReferenceKind, run_cycles
 
 # Bump this when what a cached reference means changes; it is part of every cache key.
-CACHE_FORMAT = 1
+CACHE_FORMAT = 2
+
+# Tokens Blender expands in an image's path to one file per UDIM tile.
+TILE_TOKENS = ("<UDIM>", "<UVTILE>")
 
 
 @dataclass(frozen=True, eq=False)
@@ -70,6 +74,33 @@ def file_sha256(path: str | os.PathLike) -> str:
         for block in iter(lambda: f.read(1 << 20), b""):
             digest.update(block)
     return digest.hexdigest()
+
+
+def dependency_hashes(scene_path: str | os.PathLike, paths) -> dict[str, str | None]:
+    """The SHA-256 of each file a .blend reads from outside itself (images, libraries, caches),
+    keyed by the path as the .blend records it (`//` is the .blend's folder); None for a missing
+    file. A tiled path (`<UDIM>`) hashes the tiles it matches, in name order."""
+    folder = Path(scene_path).parent
+    hashes = {}
+    for recorded in sorted(set(paths)):
+        path = recorded.replace("\\", "/") if os.sep == "/" else recorded
+        path = str(folder / path[2:]) if path.startswith("//") else path
+        if any(token in path for token in TILE_TOKENS):
+            pattern = glob.escape(path)
+            for token in TILE_TOKENS:
+                pattern = pattern.replace(glob.escape(token), "*")
+            tiles = sorted(glob.glob(pattern))
+            hashes[recorded] = hashlib.sha256(
+                "".join(f"{Path(t).name}:{file_sha256(t)};" for t in tiles).encode()
+            ).hexdigest() if tiles else None
+        else:
+            hashes[recorded] = file_sha256(path) if os.path.isfile(path) else None
+    return hashes
+
+
+def _dependencies_unchanged(scene_path: Path, meta: dict[str, Any]) -> bool:
+    recorded = meta.get("dependencies")
+    return isinstance(recorded, dict) and dependency_hashes(scene_path, recorded) == recorded
 
 
 def cache_key(blend_sha256: str, model: CyclesModel, kind: str, *, samples: int | None,
@@ -151,6 +182,8 @@ def cached_render(scene_path: str | os.PathLike, model: CyclesModel,
             continue
         if any(settings.get(k) != v for k, v in wanted.items()):
             continue
+        if not _dependencies_unchanged(Path(scene_path), meta):
+            continue
         if best is None or int(meta["samples"]) > int(best[1]["samples"]):
             best = (meta_path.parent, meta)
     if best is None:
@@ -172,8 +205,10 @@ def reference(scene_path: str | os.PathLike, model: CyclesModel, kind: Reference
     one float32 OpenEXR per image (lightmaps carry their coverage mask as alpha, colour attributes
     are (V, 1) images) and `meta.json` (settings, samples, seconds, noise). The key is the SHA-256
     of `cache_key`'s settings, so a changed .blend, model, kind, size, sample count, bake or
-    Blender version is a miss. On a miss the file is opened (replacing the open one, scripts off);
-    on a hit nothing is opened or rendered.
+    Blender version is a miss; meta.json also records the hash of every file the .blend reads
+    from outside itself (`dependency_hashes`), and a hit whose files changed is a miss too. On a
+    miss the file is opened (replacing the open one, scripts off); on a hit nothing is opened or
+    rendered.
     """
     scene_path = Path(scene_path)
     key, settings = cache_key(file_sha256(scene_path), model, kind, samples=samples,
@@ -182,10 +217,11 @@ def reference(scene_path: str | os.PathLike, model: CyclesModel, kind: Reference
     folder = Path(cache_dir) / key
     if (folder / "meta.json").is_file():
         run, meta = _read_cached(folder)
-        if meta.get("key") == key:
+        if meta.get("key") == key and _dependencies_unchanged(scene_path, meta):
             return Reference(run, True, meta.get("noise_rel_mse"), key, folder, settings)
 
     _open_blend(scene_path)
+    dependencies = dependency_hashes(scene_path, bpy.utils.blend_paths(absolute=False))
     scene = bpy.context.scene
     if bake is not None and kind != "render":
         _prepare_bake(scene, bake)
@@ -203,7 +239,7 @@ def reference(scene_path: str | os.PathLike, model: CyclesModel, kind: Reference
     staging = Path(tempfile.mkdtemp(prefix=f".{key[:12]}-", dir=cache_dir))
     try:
         _write_cached(staging, run, {"key": key, "settings": settings, "noise_rel_mse": noise,
-                                     "scene": str(scene_path)})
+                                     "scene": str(scene_path), "dependencies": dependencies})
         if folder.exists():  # an unreadable leftover: replace it
             shutil.rmtree(folder)
         os.replace(staging, folder)

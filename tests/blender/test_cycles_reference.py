@@ -372,6 +372,56 @@ def test_reference_cache_hit_and_miss(tmp_path):
     np.testing.assert_allclose(again.images["Top"], np.broadcast_to(top, (8, 8, 3)), rtol=1e-6)
 
 
+def write_png(path, value):
+    """A 2 x 2 PNG of one grey `value` (8-bit), saved to `path`."""
+    image = bpy.data.images.new(f"grey{value}", 2, 2)
+    image.pixels.foreach_set(np.tile([value, value, value, 1.0], 4).astype(np.float32))
+    image.filepath_raw, image.file_format = str(path), "PNG"
+    image.save()
+    bpy.data.images.remove(image)
+
+
+def test_reference_cache_misses_when_a_file_the_blend_reads_changes(tmp_path):
+    scene, top, _ = emission_scene()
+    scene.render.resolution_x, scene.render.resolution_y = 8, 6
+    write_png(tmp_path / "tint.png", 128 / 255)
+    tree = bpy.data.materials["Top"].node_tree
+    texture = tree.nodes.new("ShaderNodeTexImage")
+    texture.image = bpy.data.images.load(str(tmp_path / "tint.png"))
+    texture.image.colorspace_settings.name = "Non-Color"
+    tree.links.new(texture.outputs["Color"], tree.nodes["Emission"].inputs["Color"])
+    path = tmp_path / "textured.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path), relative_remap=True)
+    cache = tmp_path / "cache"
+
+    first = cr.reference(path, cr.direct(), "render", samples=1, cache_dir=cache)
+    np.testing.assert_allclose(first.image[0], 128 / 255 * top[2], rtol=1e-3)
+    assert cr.reference(path, cr.direct(), "render", samples=1, cache_dir=cache).cache_hit
+
+    # The .blend's bytes are the same, the image it reads is not: a miss, rendered again.
+    write_png(tmp_path / "tint.png", 64 / 255)
+    second = cr.reference(path, cr.direct(), "render", samples=1, cache_dir=cache)
+    assert not second.cache_hit and second.key == first.key
+    np.testing.assert_allclose(second.image[0], 64 / 255 * top[2], rtol=1e-3)
+    assert cr.reference(path, cr.direct(), "render", samples=1, cache_dir=cache).cache_hit
+    assert cr.cached_render(path, cr.direct(), None, cache_dir=cache).image[0, 0, 2] == pytest.approx(
+        64 / 255 * top[2], rel=1e-3)
+
+
+def test_dependency_hashes_cover_every_udim_tile_and_missing_files(tmp_path):
+    for tile in (1001, 1002):
+        (tmp_path / f"paint.{tile}.png").write_bytes(b"tile %d" % tile)
+    blend = tmp_path / "scene.blend"
+    paths = ["//paint.<UDIM>.png", "//gone.png", "//none.<UDIM>.png"]
+    before = cr.dependency_hashes(blend, paths)
+    assert before["//gone.png"] is None and before["//none.<UDIM>.png"] is None
+    assert before["//paint.<UDIM>.png"] is not None
+    (tmp_path / "paint.1002.png").write_bytes(b"painted over")
+    assert cr.dependency_hashes(blend, paths)["//paint.<UDIM>.png"] != before["//paint.<UDIM>.png"]
+    (tmp_path / "gone.png").write_bytes(b"back")
+    assert cr.dependency_hashes(blend, paths)["//gone.png"] == cr.file_sha256(tmp_path / "gone.png")
+
+
 def test_auto_samples_converge_on_a_noise_free_scene_and_ladder_entries(tmp_path):
     scene, top, bottom = emission_scene()
     path = tmp_path / "emitters.blend"
