@@ -56,7 +56,8 @@ test-quick: lint $(VENV)/.stamp
 # command-line catalogues and the slow comparisons with converged Cycles renders. So CI stays
 # under 20 minutes.
 BLENDER45_TESTS := $(addprefix tests/blender/,test_interface.py test_world.py test_records.py \
-	test_material_graphs.py test_shader_graphs.py test_color_attributes.py test_envmap_outputs.py \
+	test_material_graphs.py test_shader_graphs.py test_color_attributes.py test_udim_images.py \
+	test_envmap_outputs.py \
 	test_normalmap.py test_normalmap_tangents.py test_normalmap_high_to_low.py \
 	test_normalmap_frames.py \
 	test_snapshot.py test_write_back.py test_light_units.py test_install.py \

@@ -7,12 +7,21 @@ interpolation, as Cycles does (`Texture.encoding`, `stored_srgb`).
 
 from __future__ import annotations
 
+import os
+import tempfile
+
+import bpy
 import numpy as np
 
-# What Cycles reads from an Image or Environment Texture node whose image is missing (its file
-# not found) or unset: colour (1, 0, 1), alpha 1 (measured: a plane of that base colour under a
-# sun renders magenta at 3 / pi per W/m^2, and opaque; a world of it shows (1, 0, 1) x strength).
-MISSING_IMAGE_TEXEL = (1.0, 0.0, 1.0, 1.0)
+from ...kernels.shading.textures import MISSING_TEXEL, UDIM_ROW
+
+# Cycles reads an Image or Environment Texture node whose image is missing (its file not found)
+# or unset as MISSING_TEXEL, magenta (a world of it shows (1, 0, 1) x strength).
+MISSING_IMAGE_TEXEL = MISSING_TEXEL
+
+# Blender's tokens for a UDIM tile in an image's path: <UDIM> is the tile number (1001 ...),
+# <UVTILE> u{tx + 1}_v{ty + 1}.
+UDIM_TOKEN, UVTILE_TOKEN = "<UDIM>", "<UVTILE>"
 
 
 def flip_rows(pixels: np.ndarray) -> np.ndarray:
@@ -44,3 +53,42 @@ def image_pixels(image, decode: bool = True) -> np.ndarray | None:
     if decode and stored_srgb(image):
         pixels[..., :3] = srgb_to_linear(pixels[..., :3])
     return pixels
+
+
+def tile_path(image, number: int) -> str:
+    """The absolute path of tile `number` of a tiled image (its tokens filled in)."""
+    path = bpy.path.abspath(image.filepath, library=image.library)
+    tx, ty = (number - 1001) % UDIM_ROW, (number - 1001) // UDIM_ROW
+    return path.replace(UDIM_TOKEN, str(number)).replace(UVTILE_TOKEN, f"u{tx + 1}_v{ty + 1}")
+
+
+def tile_pixels(image, decode: bool = True) -> dict[int, np.ndarray]:
+    """A tiled (UDIM) image's tiles {number: (H, W, 4) float32, as `image_pixels` reads them}.
+
+    `Image.pixels` holds one tile only, so each tile's file (or packed data) is loaded as an image
+    of its own in the tiled image's colour space, read, and removed. Tiles that do not load are
+    left out: Cycles reads them magenta, as the kernels do (`sample_tiles`)."""
+    packed = {p.tile_number: p.packed_file for p in image.packed_files}
+    tiles = {}
+    for tile in image.tiles:
+        with tempfile.TemporaryDirectory(prefix="classic_bake_tile_") as folder:
+            path = tile_path(image, tile.number)
+            if tile.number in packed:
+                path = os.path.join(folder, f"tile{os.path.splitext(path)[1]}")
+                with open(path, "wb") as f:
+                    f.write(packed[tile.number].data)
+            if not os.path.isfile(path):
+                continue
+            try:
+                loaded = bpy.data.images.load(path, check_existing=False)
+            except RuntimeError:  # not an image Blender reads
+                continue
+            try:
+                loaded.colorspace_settings.name = image.colorspace_settings.name
+                loaded.alpha_mode = image.alpha_mode
+                pixels = image_pixels(loaded, decode)
+            finally:
+                bpy.data.images.remove(loaded)
+        if pixels is not None:
+            tiles[tile.number] = pixels
+    return tiles

@@ -22,7 +22,7 @@ import bpy
 import numpy as np
 
 from ...kernels.geometry.scene import Material, Texture
-from .images import MISSING_IMAGE_TEXEL, image_pixels, stored_srgb
+from .images import MISSING_IMAGE_TEXEL, image_pixels, stored_srgb, tile_pixels
 from .nodes import active_output, follow_through, node_tree
 from .request import SnapshotRequest
 from .socket_fallback import BakeTarget, SocketFallback
@@ -267,7 +267,8 @@ class MaterialReader:
 
     def __init__(self, request: SnapshotRequest):
         self.request = request
-        self.images: dict[str, np.ndarray | None] = {}
+        # image name -> pixels, or {tile: pixels} for a UDIM image; None: no pixels
+        self.images: dict[str, np.ndarray | dict[int, np.ndarray] | None] = {}
         # Sockets it cannot read are baked by Cycles over the object's UVs (socket_fallback.py);
         # a bake that reads no textures bakes none but the alpha (coverage casts shadows).
         self.fallback = (None if request.socket_bake is None
@@ -617,11 +618,16 @@ class MaterialReader:
             if not ok:
                 return None
             image = node.image
-            pixels = None
+            pixels = udim = None
             if image is not None:
-                pixels = self.images.get(image.name)
                 if image.name not in self.images:
-                    pixels = self.images[image.name] = image_pixels(image, decode=False)
+                    if image.source == "TILED":
+                        self.images[image.name] = tile_pixels(image, decode=False) or None
+                    else:
+                        self.images[image.name] = image_pixels(image, decode=False)
+                pixels = self.images[image.name]
+                if isinstance(pixels, dict):  # UDIM tiles: `pixels` the largest
+                    udim, pixels = pixels, max(pixels.values(), key=lambda p: p.shape[0] * p.shape[1])
             if pixels is None:
                 missing = "no image" if image is None else f"image '{image.name}' has no pixels"
                 ignored.append(f"{what}: {missing} (missing file?): magenta, as Cycles reads it")
@@ -639,6 +645,7 @@ class MaterialReader:
                 coordinates=coordinates,
                 encoding="sRGB" if stored_srgb(image) else "linear",
                 uv_transform=uv_transform,
+                udim=udim,
             )
         if node.type == "TEX_CHECKER":
             ok, uv_layer, coordinates, uv_transform = self._uv_layer(node, ignored, what, generated)

@@ -75,6 +75,10 @@ class Texture:
     # (2, 3) affine [A | t] applied to (u, v) before the look-up (a Mapping node of type Point
     # turning, scaling and moving the UVs, e.g. glTF's KHR_texture_transform); None: none
     uv_transform: np.ndarray | None = None
+    # A tiled (UDIM) image: {tile number: (H, W, 4) pixels as `pixels` holds them}; (u, v) reads
+    # tile 1001 + tx + 10 ty at (u - tx, v - ty), tx and ty the integer parts (`sample_tiles`).
+    # `pixels` is then the largest tile (it sizes sampling densities); None: one image.
+    udim: dict[int, np.ndarray] | None = None
 
     @property
     def transformed(self) -> bool:

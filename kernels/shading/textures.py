@@ -10,6 +10,9 @@ Cycles render of the same material agree texel for texel:
   transparent black, and bilinear lookups near the border blend towards it), MIRROR;
 * 8-bit sRGB images: interpolated in their sRGB encoding and decoded after the look-up (Cycles'
   byte textures with `compress_as_srgb`; measured against its colour bake, bench/texture.py);
+* UDIM tiles: (u, v) reads tile 1001 + tx + 10 ty at (u - tx, v - ty), with tx, ty the integer
+  parts truncated towards zero (so u in (-1, 0) reads tile 1001 through its extension); a tile
+  the image lacks, or tx outside [0, 10), reads magenta (measured in Cycles renders);
 * checker: Cycles' `svm_checker` on (u, v, 0) or on Generated coordinates (x, y, z): colour1
   where floor(x s) + floor(y s) + floor(z s) is odd. Coordinates are (N, 2) (z = 0) or (N, 3).
 
@@ -21,10 +24,18 @@ a box of a texel or less the image at the box's centre.
 from __future__ import annotations
 
 from collections import OrderedDict
+from dataclasses import replace
 
 import numpy as np
 
 from ..geometry.scene import Texture
+
+# What Cycles reads where an image has no pixels (a missing file, or a UDIM tile the image lacks):
+# colour (1, 0, 1), alpha 1 (measured: a plane of that base colour renders magenta, opaque).
+MISSING_TEXEL = (1.0, 0.0, 1.0, 1.0)
+
+# Tiles per UDIM row: tile 1001 + tx + UDIM_ROW * ty.
+UDIM_ROW = 10
 
 # Cycles nudges checker coordinates by (p + 1e-6) * 0.999999 so that integer lattice points fall
 # on a definite side; the same nudge keeps our squares aligned with its squares.
@@ -89,6 +100,32 @@ def sample_image(
         term = np.take(flat, index, axis=0) * weight[:, None]
         acc = term if acc is None else np.add(acc, term, out=acc)
     out[...] = acc
+    return out
+
+
+def udim_tiles(uv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(tile numbers (N,) int64, -1 where no tile can hold them; (N, 2) the tile's corner) of
+    (N, 2+) UVs: Cycles' integer parts, truncated towards zero, and rows of UDIM_ROW tiles."""
+    corner = np.trunc(np.asarray(uv, np.float64)[:, :2])
+    valid = (corner[:, 0] >= 0) & (corner[:, 1] >= 0) & (corner[:, 0] < UDIM_ROW)
+    number = 1001 + corner[:, 0] + UDIM_ROW * corner[:, 1]
+    return np.where(valid, number, -1).astype(np.int64), corner
+
+
+def sample_tiles(tiles: dict[int, np.ndarray], uv: np.ndarray, extension: str = "REPEAT",
+                 interpolation: str = "LINEAR") -> np.ndarray:
+    """Look up (N, 2) UVs in a tiled (UDIM) image {number: (H, W, C)}: each tile read as
+    `sample_image` reads one image at the UVs less its corner (so the extension and the bilinear
+    filter act within a tile); MISSING_TEXEL where no tile holds a UV. Returns (N, C) float32."""
+    channels = next(iter(tiles.values())).shape[2]
+    out = np.empty((len(uv), channels), np.float32)
+    out[:] = MISSING_TEXEL[:channels]
+    number, corner = udim_tiles(uv)
+    for n in np.unique(number):
+        pixels = tiles.get(int(n))
+        if pixels is not None:
+            rows = np.flatnonzero(number == n)
+            out[rows] = sample_image(pixels, uv[rows, :2] - corner[rows], extension, interpolation)
     return out
 
 
@@ -176,6 +213,8 @@ def sample_texture_box(texture: Texture, lo: np.ndarray, hi: np.ndarray) -> np.n
     extent = hi[:, :2] - lo[:, :2]  # the box's sides in UV
     if texture.uv_transform is not None:  # the sides of the box around the moved box
         extent = extent @ np.abs(np.asarray(texture.uv_transform, np.float64)[:, :2]).T
+    if texture.udim is not None:
+        return _tile_boxes(texture, centre, extent)
     height, width = texture.pixels.shape[:2]
     texels = np.maximum(extent[:, 0] * width, extent[:, 1] * height)
     wide = texels > MIP_MIN_TEXELS
@@ -183,6 +222,26 @@ def sample_texture_box(texture: Texture, lo: np.ndarray, hi: np.ndarray) -> np.n
     out[~wide] = sample_texture(texture, centre[~wide])
     if wide.any():
         out[wide] = _mip_mean(texture, centre[wide], texels[wide])
+    return out
+
+
+def _tile_boxes(texture: Texture, centre: np.ndarray, extent: np.ndarray) -> np.ndarray:
+    """RGB (N, 3) box means of a tiled image: each box, centre (N, 2+) and sides (N, 2) in moved
+    UVs, read in the tile that holds its centre as one image's box is (a box across a tile's
+    edge sees that tile's extension, as a Cycles look-up there does)."""
+    moved = _moved(texture, centre)
+    number, corner = udim_tiles(moved)
+    out = np.empty((len(centre), 3))
+    for n in np.unique(number):
+        rows = np.flatnonzero(number == n)
+        pixels = texture.udim.get(int(n))
+        if pixels is None:  # magenta, through the node chain
+            out[rows] = sample_texture(texture, centre[rows])
+            continue
+        tile = replace(texture, pixels=pixels, udim=None, uv_transform=None)
+        local = moved[rows, :2] - corner[rows]
+        half = 0.5 * extent[rows]
+        out[rows] = sample_texture_box(tile, local - half, local + half)
     return out
 
 
@@ -266,7 +325,10 @@ def sample_texture(texture: Texture, uv: np.ndarray) -> np.ndarray:
     elif texture.kind == "ATTRIBUTE":  # the interpolated colour is the coordinate
         rgba = np.concatenate([uv[:, :3], np.ones((len(uv), 1))], axis=1).astype(np.float32)
     else:
-        rgba = sample_image(texture.pixels, uv[:, :2], texture.extension, texture.interpolation)
+        if texture.udim is None:
+            rgba = sample_image(texture.pixels, uv[:, :2], texture.extension, texture.interpolation)
+        else:
+            rgba = sample_tiles(texture.udim, uv[:, :2], texture.extension, texture.interpolation)
         if texture.encoding == "sRGB":
             rgba[:, :3] = srgb_to_linear(rgba[:, :3])
     if not texture.transformed:

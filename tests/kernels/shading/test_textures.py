@@ -12,6 +12,7 @@ from classic_bake.kernels.shading.textures import (
     sample_image,
     sample_texture,
     sample_texture_box,
+    sample_tiles,
     srgb_to_linear,
 )
 
@@ -175,3 +176,41 @@ def test_wider_image_boxes_approach_the_mean_of_their_texels():
         errors_centre.append(np.abs(sample_texture(tex, 0.5 * (lo + hi))[0] - exact).mean())
     assert np.median(errors_mip) < 0.02
     assert np.median(errors_mip) < 0.2 * np.median(errors_centre)
+
+
+def flat(rgb, size=4):
+    return np.broadcast_to(np.array([*rgb, 1.0], np.float32), (size, size, 4)).copy()
+
+
+def test_udim_tiles_follow_cycles_integer_parts_and_missing_tiles_are_magenta():
+    tiles = {1001: flat((1, 0, 0)), 1002: flat((0, 1, 0)), 1011: flat((0, 0, 1))}
+    uv = np.array([[0.5, 0.5], [1.5, 0.25], [0.25, 1.75], [2.5, 0.5], [-0.5, 0.5], [10.5, 0.5],
+                   [0.5, -0.25]])
+    got = sample_tiles(tiles, uv)
+    # The integer parts truncate towards zero (Cycles' int cast): u = -0.5 and v = -0.25 read
+    # tile 1001 through its extension; tile 1003 is absent and u = 10.5 has no tile: magenta.
+    expected = [(1, 0, 0), (0, 1, 0), (0, 0, 1), (1, 0, 1), (1, 0, 0), (1, 0, 1), (1, 0, 0)]
+    np.testing.assert_array_equal(got[:, :3], expected)
+    assert (got[:, 3] == 1).all()
+    # CLIP acts within the tile: u = -0.5 is outside tile 1001's [0, 1] and reads black.
+    np.testing.assert_array_equal(sample_tiles(tiles, uv[4:5], "CLIP"), [[0, 0, 0, 0]])
+
+
+def test_udim_tile_reads_its_texels_at_the_tile_local_uvs():
+    img = ramp()
+    tiles = {1001: flat((9, 9, 9), 2), 1012: img}
+    uv = np.array([[0.3, 0.6], [0.9, 0.1]])
+    np.testing.assert_allclose(sample_tiles(tiles, uv + [1.0, 1.0]), sample_image(img, uv), atol=1e-6)
+
+
+def test_udim_texture_boxes_read_each_tile_and_its_pyramid():
+    checker_tile = np.zeros((8, 8, 4), np.float32)
+    checker_tile[..., 3] = 1
+    checker_tile[::2, ::2, 0] = checker_tile[1::2, 1::2, 0] = 1.0  # mean red 0.5
+    tex = Texture(kind="IMAGE", pixels=checker_tile, udim={1001: flat((0, 0, 1), 8),
+                                                          1002: checker_tile})
+    centre = np.array([[0.5, 0.5], [1.5, 0.5], [2.5, 0.5]])
+    half = np.full((3, 2), 0.5)  # whole tiles: the pyramid's last level
+    got = sample_texture_box(tex, centre - half, centre + half)
+    np.testing.assert_allclose(got, [(0, 0, 1), (0.5, 0, 0), (1, 0, 1)], atol=1e-6)
+    np.testing.assert_allclose(sample_texture(tex, centre), sample_tiles(tex.udim, centre)[:, :3])
