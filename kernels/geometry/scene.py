@@ -249,6 +249,18 @@ class ObjectInfo:
 
 
 @dataclass(frozen=True, eq=False)
+class MapVariants:
+    """A material whose metallic or roughness comes from a texture, and its variants of constant
+    values: `ids[i, j]` is the index in `Scene.materials` of the variant with metallic
+    `metallic[i]` and roughness `roughness[j]`, the quantised values its maps can take."""
+
+    source: Material  # the material as read, its metallic / roughness textures on it
+    metallic: np.ndarray  # (I,) float64 levels, ascending, evenly spaced
+    roughness: np.ndarray  # (J,) float64 levels, ascending, evenly spaced
+    ids: np.ndarray  # (I, J) int32
+
+
+@dataclass(frozen=True, eq=False)
 class Scene:
     """A snapshot of what one bake needs. Unrequested parts are empty arrays or None.
 
@@ -309,6 +321,19 @@ class Scene:
     # through ATTRIBUTE textures (vertex colours; 0 where the mesh lacks it, as Cycles reads a
     # missing attribute); None: no material reads one.
     corner_colors: np.ndarray | None = None
+    # Materials whose metallic or roughness comes from a texture, each with its variants of
+    # constant values (`MapVariants`): triangles carry the variant of the maps' mean over them,
+    # ray hits the variant of the maps' values at the hit (`shading/material_maps.py`).
+    map_variants: tuple[MapVariants, ...] = ()
+
+    @cached_property
+    def variant_family(self) -> np.ndarray:
+        """(M,) int64 per material: the index in `map_variants` of the family it is a variant
+        of, -1 for none."""
+        family = np.full(len(self.materials), -1, np.int64)
+        for f, variants in enumerate(self.map_variants):
+            family[variants.ids.ravel()] = f
+        return family
 
     @cached_property
     def texture_coords(self) -> np.ndarray:

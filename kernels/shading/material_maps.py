@@ -9,11 +9,12 @@ here once per snapshot, so that every kernel reads them as it reads a constant m
   triangle as a light (`Scene.triangle_radiance`: the texture's mean over the triangle, what the
   tracer's mesh lights and radiosity's sources emit); triangles whose mean is black emit nothing
   and cost no shadow rays;
-* metallic and roughness: per triangle, the texture's mean over the triangle rounded to
-  `METALLIC_STEP` / `ROUGHNESS_STEP`, each distinct pair a variant of the material with those
-  constants (`resolve_material_maps`). Within one triangle they do not vary: a mesh whose metal
-  mask changes inside large triangles is shaded with the mask's mean there (each material's
-  variant count is listed in `Scene.ignored`).
+* metallic and roughness: rounded to `METALLIC_STEP` / `ROUGHNESS_STEP`, each pair the maps can
+  give a variant of the material with those constants (`Scene.map_variants`). A ray hit takes
+  the variant of the maps' values at the hit (`hit_materials`: the tracer, so a low-poly asset's
+  painted metal trim is metal where it is painted); a triangle carries the variant of their
+  mean over it (`resolve_material_maps`), what kernels shading per triangle or texel read
+  (each material's variant count is listed in `Scene.ignored`).
 
 Coordinates are the texture's own: the active UVs, or Generated (`Texture.coordinates`).
 """
@@ -25,8 +26,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..geometry.scene import Material, Scene, Texture
-from .textures import sample_texture
+from ..geometry.scene import MapVariants, Material, Scene, Texture
+from .textures import sample_texture, srgb_to_linear
 
 # Metallic and roughness per triangle are rounded to these steps before triangles are grouped
 # into material variants: finer than a glTF texture's 8-bit steps would make a variant per
@@ -122,7 +123,9 @@ def _quantised(values: np.ndarray, step: float) -> np.ndarray:
 
 def resolve_material_maps(scene: Scene) -> Scene:
     """The scene with its materials' emission, metallic and roughness textures resolved per
-    triangle (module docstring); the same scene when no material has one."""
+    triangle, and the metallic / roughness variants ray hits choose among (`hit_materials`)
+    listed in `Scene.map_variants` (module docstring); the same scene when no material has
+    such a texture."""
     textured = [k for k, m in enumerate(scene.materials)
                 if m.emission_texture is not None or m.metallic_texture is not None
                 or m.roughness_texture is not None]
@@ -132,6 +135,7 @@ def resolve_material_maps(scene: Scene) -> Scene:
     material_ids = scene.material_ids.copy()
     radiance = None
     notes = list(scene.ignored)
+    families = []
     for k in textured:
         mat = scene.materials[k]
         tri = np.flatnonzero(scene.material_ids == k)
@@ -140,33 +144,115 @@ def resolve_material_maps(scene: Scene) -> Scene:
                 radiance = np.array([np.asarray(m.emission, np.float64) for m in materials]
                                     ).reshape(-1, 3)[scene.material_ids]
             radiance[tri] = np.maximum(triangle_means(scene, tri, mat.emission_texture), 0.0)
-        if mat.metallic_texture is None and mat.roughness_texture is None:
+        if (mat.metallic_texture is None and mat.roughness_texture is None) or len(tri) == 0:
             continue
-        metal = np.full(len(tri), mat.metallic)
-        rough = np.full(len(tri), mat.roughness)
-        if mat.metallic_texture is not None:
-            metal = _quantised(triangle_means(scene, tri, mat.metallic_texture)[:, 0],
-                               METALLIC_STEP)
-        if mat.roughness_texture is not None:
-            rough = _quantised(triangle_means(scene, tri, mat.roughness_texture)[:, 0],
-                               ROUGHNESS_STEP)
-        pairs, which = np.unique(np.column_stack([metal, rough]), axis=0, return_inverse=True)
-        which = which.reshape(-1)
-        ids = []
-        for j, (m_value, r_value) in enumerate(pairs):
-            variant = replace(mat, metallic=float(m_value), roughness=float(r_value),
+        metal_levels = _levels(scene, tri, mat.metallic_texture, mat.metallic, METALLIC_STEP)
+        rough_levels = _levels(scene, tri, mat.roughness_texture, mat.roughness, ROUGHNESS_STEP)
+        ids = np.empty((len(metal_levels), len(rough_levels)), np.int32)
+        for n, (i, j) in enumerate(np.ndindex(ids.shape)):
+            variant = replace(mat, metallic=float(metal_levels[i]),
+                              roughness=float(rough_levels[j]),
                               metallic_texture=None, roughness_texture=None)
-            if j == 0:
+            if n == 0:
                 materials[k] = variant
-                ids.append(k)
+                ids[i, j] = k
             else:
-                materials.append(replace(variant, name=f"{mat.name} ({j})"))
-                ids.append(len(materials) - 1)
-        material_ids[tri] = np.asarray(ids, np.int32)[which]
-        notes.append(f"material '{mat.name}': metallic / roughness textures resolved per triangle "
-                     f"into {len(pairs)} variants (steps {METALLIC_STEP:g} / {ROUGHNESS_STEP:g})")
+                materials.append(replace(variant, name=f"{mat.name} ({n})"))
+                ids[i, j] = len(materials) - 1
+        metal = _level_index(triangle_means, scene, tri, mat.metallic_texture, metal_levels,
+                             METALLIC_STEP)
+        rough = _level_index(triangle_means, scene, tri, mat.roughness_texture, rough_levels,
+                             ROUGHNESS_STEP)
+        material_ids[tri] = ids[metal, rough]
+        families.append(MapVariants(mat, metal_levels, rough_levels, ids))
+        notes.append(f"material '{mat.name}': metallic / roughness textures read at each ray hit "
+                     f"of a traced view, per triangle elsewhere ({ids.size} variants, steps "
+                     f"{METALLIC_STEP:g} / {ROUGHNESS_STEP:g})")
     return replace(scene, materials=tuple(materials), material_ids=material_ids,
-                   triangle_radiance=radiance, ignored=tuple(notes))
+                   triangle_radiance=radiance, ignored=tuple(notes), map_variants=tuple(families))
+
+
+def hit_materials(scene: Scene, tri: np.ndarray, bary: np.ndarray,
+                  materials: np.ndarray) -> np.ndarray:
+    """(N,) int32 the material of each hit, at barycentric points (N, 3) of triangles `tri`: where
+    the triangle's material (`materials`, (N,)) has metallic / roughness maps, the variant of
+    the maps' quantised values at the hit itself (`Scene.map_variants`); else unchanged."""
+    if not scene.map_variants:
+        return materials
+    family = scene.variant_family[materials]
+    out = materials.copy()
+    for f in np.unique(family[family >= 0]):
+        rows = np.flatnonzero(family == f)
+        mv = scene.map_variants[f]
+
+        def at_hits(scene_, tri_, texture, rows=rows):
+            coords = corner_coords(scene_, tri_, texture)
+            return sample_texture(texture, np.einsum("nc,ncj->nj", bary[rows], coords))
+
+        metal = _level_index(at_hits, scene, tri[rows], mv.source.metallic_texture, mv.metallic,
+                             METALLIC_STEP)
+        rough = _level_index(at_hits, scene, tri[rows], mv.source.roughness_texture,
+                             mv.roughness, ROUGHNESS_STEP)
+        out[rows] = mv.ids[metal, rough]
+    return out
+
+
+def _level_index(read, scene: Scene, tri: np.ndarray, texture: Texture | None,
+                 levels: np.ndarray, step: float) -> np.ndarray:
+    """(N,) int64 indices into `levels` of the quantised value `read(scene, tri, texture)[:, 0]`
+    (per triangle or per hit); 0 where there is no texture (one level, the constant)."""
+    if texture is None:
+        return np.zeros(len(tri), np.int64)
+    steps = np.round(np.clip(read(scene, tri, texture)[:, 0], 0.0, 1.0) / step)
+    return np.clip(steps - np.round(levels[0] / step), 0, len(levels) - 1).astype(np.int64)
+
+
+def _levels(scene: Scene, tri: np.ndarray, texture: Texture | None, constant: float,
+            step: float) -> np.ndarray:
+    """The values, `step` apart, that a map's look-ups on triangles `tri` can round to: every
+    step from its lowest to its highest possible value (`_value_bounds`); the material's
+    constant alone when there is no map."""
+    if texture is None:
+        return np.array([float(constant)])
+    lo, hi = _value_bounds(scene, tri, texture)
+    first = np.round(np.clip(lo, 0.0, 1.0) / step)
+    last = np.round(np.clip(hi, 0.0, 1.0) / step)
+    return np.clip(np.arange(first, last + 1) * step, 0.0, 1.0)
+
+
+def _value_bounds(scene: Scene, tri: np.ndarray, texture: Texture) -> tuple[float, float]:
+    """(lowest, highest) value of a texture's first output channel anywhere: from its texels'
+    (all tiles', decoded) per-channel extremes, a checker's two colours or the triangles' corner
+    colours, through its node chain (bounds of a weighted sum: each weight at the end of the
+    range that makes its term smallest or largest)."""
+    if texture.kind == "CHECKER":
+        corners = np.stack([texture.color1, texture.color2])
+        corners = np.column_stack([corners, np.ones(2)])
+    elif texture.kind == "ATTRIBUTE":
+        colours = (scene.corner_colors[tri].reshape(-1, 3) if scene.corner_colors is not None
+                   else np.zeros((1, 3)))
+        corners = np.column_stack([colours, np.ones(len(colours))])
+    else:
+        images = texture.udim.values() if texture.udim is not None else [texture.pixels]
+        flat = [np.asarray(p, np.float64).reshape(-1, p.shape[-1]) for p in images]
+        corners = np.stack([np.min([f.min(axis=0) for f in flat], axis=0),
+                            np.max([f.max(axis=0) for f in flat], axis=0)])
+        if corners.shape[1] == 3:
+            corners = np.column_stack([corners, np.ones(2)])
+        if texture.encoding == "sRGB":
+            corners[:, :3] = srgb_to_linear(corners[:, :3])
+        if texture.extension == "CLIP":  # transparent black outside the image
+            corners[0] = np.minimum(corners[0], 0.0)
+    lo4, hi4 = corners.min(axis=0), corners.max(axis=0)
+    if texture.weights is None:
+        lo, hi = lo4[0], hi4[0]
+    else:
+        w = np.asarray(texture.weights, np.float64)
+        lo, hi = np.minimum(w * lo4, w * hi4).sum(), np.maximum(w * lo4, w * hi4).sum()
+    ends = sorted((lo * texture.gain[0] + texture.offset[0], hi * texture.gain[0] + texture.offset[0]))
+    if texture.clamp:
+        ends = [min(max(e, 0.0), 1.0) for e in ends]
+    return float(ends[0]), float(ends[1])
 
 
 def material_with_maps(material: Material) -> bool:

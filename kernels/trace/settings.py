@@ -100,6 +100,10 @@ def auto_settings(scene: Scene, **overrides) -> TracerSettings:
     hollow shell), plus 2 for mirrors around them, capped at 16.
     """
     used = set(np.unique(scene.material_ids).tolist()) if scene.triangle_count else set()
+    for variants in scene.map_variants:  # a ray hit may take any variant of a material it meets
+        family = set(variants.ids.ravel().tolist())
+        if used & family:
+            used |= family
     mats = [scene.materials[m] for m in used]
     glassy = {scene.objects[o].name for o in np.unique(scene.object_ids[np.isin(
         scene.material_ids, [m for m in used if scene.materials[m].transmission > 0])])}

@@ -10,7 +10,7 @@ import numpy as np
 from ..geometry.camera import Camera, camera_ray_lines
 from ..geometry.scene import Scene
 from ..shading.bump import scene_normals, valid_reflection
-from ..shading.material_maps import emission_at
+from ..shading.material_maps import emission_at, hit_materials
 from ..shading.textures import sample_texture, sample_texture_box
 
 # Shading normals are renormalised; below this length (degenerate corner normals) the geometric
@@ -40,6 +40,15 @@ class SurfaceHits:
     smooth: np.ndarray | None = None
     # (N,) length of the interpolated corner normal before normalising (1 under flat shading)
     normal_length: np.ndarray | None = None
+    # (N, 3) the normal the glossy lobes and mirror rays turn about: `ns` bent towards `ng` where
+    # the view reflected about `ns` would not leave the surface (`bump.valid_reflection`, Cycles'
+    # ensure_valid_specular_reflection, which its glossy closures apply and its diffuse ones do
+    # not); None: `ns`
+    spec: np.ndarray | None = None
+
+    @property
+    def glossy_normal(self) -> np.ndarray:
+        return self.ns if self.spec is None else self.spec
 
 
 @dataclass(frozen=True, eq=False)
@@ -197,7 +206,8 @@ def surface_at(scene: Scene, tri_normals, origins, dirs, hits, shading: str = "b
     v = hits.v.astype(np.float64)[:, None]
     w = 1.0 - u - v
     ng = tri_normals[tri]
-    material = scene.material_ids[tri]
+    # Metallic and roughness maps are read at the hit (the variant of their values there).
+    material = hit_materials(scene, tri, np.concatenate([w, u, v], axis=1), scene.material_ids[tri])
     if shading == "flat":
         ns = ng.copy()
         length = np.ones((len(tri), 1))
@@ -218,15 +228,15 @@ def surface_at(scene: Scene, tri_normals, origins, dirs, hits, shading: str = "b
     ns = ns * side
     if smooth is not None:
         smooth = smooth * side
-    # A shading normal turned away from the viewer would shade the back: fall back to geometry;
-    # a bump or normal map's is bent back just far enough (`bump.valid_reflection`), which keeps
-    # its tilt (a normal-mapped tile facing away: less than half the error against Cycles of
-    # falling back to the geometric normal).
-    away = np.einsum("ij,ij->i", ns, dirs) > 0.0
-    if shading == "bump" and away.any():
-        ns[away] = valid_reflection(ng[away], -dirs[away], ns[away])
+    # An interpolated normal turned away from the viewer falls back to the geometric one (the
+    # lecture's Phong and Gouraud). A bump or normal map's is kept for the diffuse base, as
+    # Cycles' diffuse closures keep it (a tile tilted away from the sun stays dark: relMSE
+    # 0.0026 on a steep normal-mapped floor, 0.57 with the normal bent towards the viewer);
+    # the glossy lobes and mirror rays turn about `spec`, bent until the reflection is valid.
+    if shading != "bump":
         away = np.einsum("ij,ij->i", ns, dirs) > 0.0
-    ns[away] = ng[away]
+        ns[away] = ng[away]
+    spec = None if shading == "flat" else valid_reflection(ng, -dirs, ns)
     albedo = np.empty((len(tri), 3))
     uv = None
     for m in np.unique(material):
@@ -240,4 +250,5 @@ def surface_at(scene: Scene, tri_normals, origins, dirs, hits, shading: str = "b
             uv = w * cuv[:, 0] + u * cuv[:, 1] + v * cuv[:, 2]
         albedo[rows] = sample_texture(mat.base_color_texture, uv[rows])
     emission = emission_at(scene, tri, np.concatenate([w, u, v], axis=1))
-    return SurfaceHits(p, ng, ns, front, material, albedo, emission, smooth, length[:, 0])
+    return SurfaceHits(p, ng, ns, front, material, albedo, emission, smooth, length[:, 0],
+                       None if spec is ns else spec)

@@ -224,7 +224,7 @@ class Tracer:
         if not shading.any():
             return out, lambert
         idx = np.nonzero(shading)[0]
-        p, ng, ns = h.p[idx], h.ng[idx], h.ns[idx]
+        p, ng, ns, gn = h.p[idx], h.ng[idx], h.ns[idx], h.glossy_normal[idx]
         origin = p + ng * self.offset
         brdf_w = np.repeat(diffuse_w[idx, None] / np.pi, 3, axis=1)  # white base colour
         smooth = None if h.smooth is None else h.smooth[idx]
@@ -268,9 +268,9 @@ class Tracer:
                                                                     to_l[sub])[:, None]
                 lambert[idx[sub]] += brdf_w[sub] * e[sub] * vis[:, None] * relief
             rows = idx[sub]
-            cos_i = np.maximum(np.einsum("ij,ij->i", ns[sub], to_l[sub]), 1e-6)
+            cos_i = np.maximum(np.einsum("ij,ij->i", ns[sub], to_l[sub]), 1e-6)  # e's cosine
             for f0, weight in lobes:
-                shine = ggx_highlight(ns[sub], to_l[sub], wo[rows], rough[rows], f0[rows])
+                shine = ggx_highlight(gn[sub], to_l[sub], wo[rows], rough[rows], f0[rows])
                 out[rows] += shine * e[sub] * (weight[rows] * vis / cos_i)[:, None]
         if len(self.emitters.area_points):
             whole = None  # (n, E) bool: the hit sees area emitter e whole
@@ -280,7 +280,7 @@ class Tracer:
             sub_strata = strata_rows(strata, idx)
             area_lobes = [(f0[idx], weight[idx]) for f0, weight in lobes]
             diffuse, shine = self._area_direct(origin, ns, brdf_w, sub_strata, wo[idx], area_lobes,
-                                               rough[idx], smooth, whole)
+                                               rough[idx], smooth, whole, gn)
             lambert[idx] += diffuse
             out[idx] += shine
         out += h.albedo * lambert
@@ -313,8 +313,8 @@ class Tracer:
         return lit, lambert
 
     def _area_direct(self, origin, ns, brdf_d, strata: Strata | None = None, wo=None,
-                     lobes: tuple | list = (), rough=None, smooth=None, whole=None
-                     ) -> tuple[np.ndarray, np.ndarray]:
+                     lobes: tuple | list = (), rough=None, smooth=None, whole=None,
+                     glossy=None) -> tuple[np.ndarray, np.ndarray]:
         """Light from area lights and emissive triangles: every emitter sample against every hit,
         EMITTER_BLOCK samples at a time, with one batch of shadow rays per block. Returns the
         diffuse part (N, 3) (brdf_d weighted) and the area lights' highlights in the glossy
@@ -327,8 +327,10 @@ class Tracer:
         of them (m times fewer shadow rays for the same samples per pixel). Emitters whose
         sample count m does not divide keep every sample for every hit. whole (N, E) bool, when
         given: hit n sees emitter e whole (`shadow_shafts.py`) and casts no shadow rays to it.
+        glossy (N, 3): the normals the lobes turn about (`SurfaceHits.spec`); None: ns.
         """
         em = self.emitters
+        glossy = ns if glossy is None else glossy
         out = np.zeros_like(origin)
         shine = np.zeros_like(origin)
         if strata is not None and strata[1] > 1:
@@ -376,7 +378,7 @@ class Tracer:
                 pick = np.flatnonzero(lamp & (w[n_idx] > 0.0))
                 if pick.size:
                     rows, l_dir = n_idx[pick], to_l[b_idx[pick], n_idx[pick]]
-                    brdf_cos = ggx_highlight(ns[rows], l_dir, wo[rows], rough[rows], f0[rows])
+                    brdf_cos = ggx_highlight(glossy[rows], l_dir, wo[rows], rough[rows], f0[rows])
                     cos_r = np.maximum(np.einsum("ij,ij->i", ns[rows], l_dir), 1e-6)
                     _scatter_add(shine, rows, brdf_cos * (weight[pick] * (w[rows] / cos_r)[:, None]))
         return out, shine
@@ -441,13 +443,15 @@ class Tracer:
                         out[at] += mirror_w[at] * lamp[meet] * vis[:, None]
         return out
 
-    def hit_ids(self, tri: np.ndarray) -> np.ndarray:
-        """Object * (materials + 1) + material of each hit triangle; -1 where nothing was hit."""
+    def hit_ids(self, tri: np.ndarray, materials: np.ndarray | None = None) -> np.ndarray:
+        """Object * (materials + 1) + material of each hit triangle (`materials` (N,): the hits'
+        own, else the triangles'); -1 where nothing was hit."""
         ids = np.full(len(tri), -1, np.int64)
         hit = tri >= 0
         t = tri[hit]
+        material = self.scene.material_ids[t] if materials is None else materials[hit]
         ids[hit] = (self.scene.object_ids[t].astype(np.int64) * (len(self.scene.materials) + 1)
-                    + self.scene.material_ids[t])
+                    + material)
         return ids
 
     def attribute_hits(self, ids: np.ndarray) -> np.ndarray:
@@ -604,6 +608,10 @@ class Tracer:
             with self.clock("surface"):
                 h = surface_at(self.scene, self.tri_normals, origins, dirs, hits, s.shading)
             m = h.material
+            if depth == 0 and primary_ids is not None and self.scene.map_variants:
+                # the variant a metallic / roughness map gives each hit: where it changes
+                # inside a triangle (a metal trim), the edge pass samples the pixel again
+                primary_ids[pixel] = self.hit_ids(hits.tri, m)
             if follow and depth > 0:  # the hit's derivatives, carried from the ray's origin
                 with self.clock("differentials"):
                     dp = rd.transfer(dp, dd, dirs, hits.t.astype(np.float64), h.ng)
@@ -623,8 +631,9 @@ class Tracer:
             dielectric = (1.0 - metallic) * (1.0 - trans)
             # The diffuse base shows through the specular layer less the layer's albedo at this
             # view (`specular_layer.py`), in Cycles' Diffuse Color pass and diffuse lobe alike.
+            gn = h.glossy_normal
             diffuse_w = dielectric * view_factors(self.layer_tables, m,
-                                                  np.einsum("ij,ij->i", dirs, h.ns))
+                                                  np.einsum("ij,ij->i", dirs, gn))
             if s.output == "albedo":  # what the first hit reflects diffusely; no light, no ray
                 _scatter_add(result, pixel, weight * h.albedo * diffuse_w[:, None])
                 if untextured is not None:
@@ -672,7 +681,7 @@ class Tracer:
             # Mirror and refraction directions about the (smooth) shading normal; where that would
             # send the ray to the wrong side of the surface, about a normal bent towards the
             # geometric one (reflection, below) or the geometric one itself (refraction).
-            r_dir = reflect(dirs, h.ns)
+            r_dir = reflect(dirs, gn)
             wrong_r = np.einsum("ij,ij->i", r_dir, h.ng) <= 0.0
             # A mirror direction below the surface (an interpolated normal tilted away from the
             # view near a silhouette, a bevel's custom normals): the normal bent towards the
@@ -682,9 +691,9 @@ class Tracer:
             about_r = h.ng
             if wrong_r.any():
                 about_r = h.ng.copy()
-                about_r[wrong_r] = valid_reflection(h.ng[wrong_r], -dirs[wrong_r], h.ns[wrong_r])
+                about_r[wrong_r] = valid_reflection(h.ng[wrong_r], -dirs[wrong_r], gn[wrong_r])
                 r_dir[wrong_r] = reflect(dirs[wrong_r], about_r[wrong_r])
-            cos_o = np.einsum("ij,ij->i", wo, h.ns)
+            cos_o = np.einsum("ij,ij->i", wo, gn)
             # Metals: a tinted mirror (Schlick with F0 = base colour); a rough metal's one ray
             # stands for its lobe, as a rough layer's does (its lamps' highlights: `direct`),
             # with Schlick's grazing term averaged over the lobe (`schlick_grazing_curve`: a
@@ -702,7 +711,7 @@ class Tracer:
             mirror_w = metal_w + layer_w[:, None]
             if self.environment:  # environment-mapped mirrors: a look-up, whatever the depth
                 with self.clock("environment"):
-                    own = own + self._environment(hits.tri, h.p, r_dir, mirror_w, h.ns,
+                    own = own + self._environment(hits.tri, h.p, r_dir, mirror_w, gn,
                                                   lit_w[:, None] * h.albedo)
             _scatter_add(result, pixel, weight * own)
             if untextured is not None:  # white base colour where textures are filtered

@@ -8,6 +8,7 @@ from scene_builder import build
 from classic_bake.kernels.geometry.scene import Material, Texture, triangle_emission
 from classic_bake.kernels.shading.material_maps import (
     emission_at,
+    hit_materials,
     lattice_points,
     resolve_material_maps,
     triangle_means,
@@ -82,7 +83,32 @@ def test_metallic_and_roughness_textures_become_variants_per_triangle():
     left, right = (resolved.materials[k] for k in resolved.material_ids)
     assert (left.metallic, right.metallic) == (0.0, 1.0)
     assert left.roughness == right.roughness == pytest.approx(0.3125)  # 0.3 to 1/16
-    assert left.metallic_texture is None and "2 variants" in resolved.ignored[-1]
+    # Variants for every value a look-up can round to: metallic 0, 1/8, ..., 1 (bilinear
+    # look-ups between the halves), roughness 5/16 alone.
+    assert left.metallic_texture is None and "9 variants" in resolved.ignored[-1]
+    (family,) = resolved.map_variants
+    np.testing.assert_allclose(family.metallic, np.arange(9) / 8)
+    np.testing.assert_allclose(family.roughness, [0.3125])
+
+
+def test_ray_hits_read_metallic_and_roughness_at_the_hit():
+    """One triangle across a metal mask's edge: its mean is half metal, each hit the texel's."""
+    mask = np.zeros((1, 2, 4), np.float32)
+    mask[0, 1, 2] = 1.0  # blue: metallic 1 on the right half
+    mask[0, :, 1] = (0.2, 0.8)  # green: roughness 0.2 left, 0.8 right
+    metal = Texture(kind="IMAGE", name="mr", pixels=mask, interpolation="CLOSEST",
+                    weights=np.array([0, 0, 1, 0], np.float32))
+    rough = Texture(kind="IMAGE", name="mr", pixels=mask, interpolation="CLOSEST",
+                    weights=np.array([0, 1, 0, 0], np.float32))
+    mat = Material(name="Asset", metallic_texture=metal, roughness_texture=rough)
+    scene = resolve_material_maps(_scene([[[0.0, 0.0], [1.0, 0.0], [0.5, 1.0]]], mat))
+    assert 0.0 < scene.materials[scene.material_ids[0]].metallic < 1.0  # the triangle's mean
+    # Barycentric points at u = 0.2 and u = 0.8 (the corners' UVs weighted).
+    bary = np.array([[0.7, 0.1, 0.2], [0.1, 0.7, 0.2]])
+    hits = hit_materials(scene, np.array([0, 0]), bary, scene.material_ids[[0, 0]])
+    got = [(scene.materials[k].metallic, scene.materials[k].roughness) for k in hits]
+    assert got == [(0.0, 0.1875), (1.0, 0.8125)]  # 0.2 and 0.8 to 1/16
+    assert all(scene.materials[k].metallic_texture is None for k in hits)
 
 
 def test_emission_textures_emit_per_triangle_and_per_hit():
