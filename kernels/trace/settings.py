@@ -23,6 +23,9 @@ MIN_WEIGHT = 1e-2
 # texture look-ups instead of rays. On the ray-tracing sample 3 x 3 boxes reach the error of 4 x 4
 # in less time; 2 x 2 raised the error by 12% with edges.
 TEXTURE_FILTER = 3
+# Rays a whole rough lobe (albedo 1) reflects along from a camera hit; a lobe of albedo E takes
+# ceil(E x LOBE_RAYS), so a dielectric layer's faint lobe keeps one ray.
+LOBE_RAYS = 8
 
 
 @dataclass(frozen=True)
@@ -41,6 +44,11 @@ class TracerSettings:
     | point_like_ratio | >= 0     | 0.05    | emitters smaller than this x distance act as points   |
     | mirror_roughness | 0..1     | 0.1     | rougher metals and glass spawn no reflected or       |
     |                  |          |         | refracted ray; rougher layers get lamp highlights    |
+    | lobe_rays        | 1..64    | 8       | rays a camera hit's rough glossy lobe (roughness at  |
+    |                  |          |         | least mirror_roughness) reflects its surroundings    |
+    |                  |          |         | along: ceil(lobe albedo x lobe_rays), drawn from     |
+    |                  |          |         | GGX's visible normals (`glossy_lobe.py`); 1: the     |
+    |                  |          |         | mirror direction alone                               |
     | shading          | flat, gouraud, | bump | normals: the triangles' own (flat); light at the  |
     |                  | phong, bump |      | corners, interpolated (gouraud); the corners'        |
     |                  |          |         | normals interpolated (phong); those perturbed by     |
@@ -65,6 +73,7 @@ class TracerSettings:
     area_samples: int = 4
     point_like_ratio: float = 0.05
     mirror_roughness: float = MIRROR_ROUGHNESS
+    lobe_rays: int = LOBE_RAYS
     texture_filter: int = TEXTURE_FILTER
     shading: ShadingMode = "bump"
     output: Literal["radiance", "albedo"] = "radiance"
@@ -78,6 +87,8 @@ class TracerSettings:
             raise ValueError(f"max_depth must be in [0, 64], got {self.max_depth}")
         if not 1 <= self.supersample <= 16 or not 0 <= self.adaptive <= 16:
             raise ValueError("supersample must be in [1, 16] and adaptive in [0, 16]")
+        if not 1 <= self.lobe_rays <= 64:
+            raise ValueError(f"lobe_rays must be in [1, 64], got {self.lobe_rays}")
         if not 1 <= self.texture_filter <= 16:
             raise ValueError(f"texture_filter must be in [1, 16], got {self.texture_filter}")
         if self.offset_scale < 0 or self.min_weight < 0:
@@ -127,6 +138,7 @@ class TraceStats:
     secondary_rays: int = 0
     shadow_rays: int = 0
     clear_shadow_rays: int = 0  # shadow rays not cast: their triangle sees the light whole
+    lobe_rays: int = 0  # reflected rays across rough glossy lobes (in place of mirror rays)
     pruned_branches: int = 0  # reflected/refracted rays not traced because their weight was small
     depth_limited: int = 0  # hits one bounce past max_depth that would reflect or refract further
     edge_pixels: int = 0

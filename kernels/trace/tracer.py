@@ -45,6 +45,7 @@ from ..progress import Steps, drain
 from ..shading import lights as light_units
 from ..shading.alpha import scene_alpha
 from ..shading.bump import bump_shadowing, valid_reflection
+from ..shading.glossy_lobe import ggx_reflections, lobe_points
 from ..shading.material_maps import emission_at
 from ..shading.optics import fresnel_dielectric, reflect, refract
 from ..shading.specular_layer import (
@@ -477,6 +478,39 @@ class Tracer:
             self._frames = rd.TriangleFrames(self.scene)
         return self._frames
 
+    def _lobe_rays(self, child: tuple, strong: np.ndarray, h: SurfaceHits, wo: np.ndarray,
+                   rough: np.ndarray, lobe_w: np.ndarray) -> tuple:
+        """The reflected generation `child` (origins, dirs, pixel, weight, sharp, entered[, dp,
+        dd]: the rays of hits `strong` (N,) bool) with each rough hit's mirror ray replaced by
+        rays across its GGX lobe (`glossy_lobe.py`): ceil(E x lobe_rays) for a lobe of albedo E
+        (lobe_w (N, 3), its largest channel), sharing the ray's weight equally among those that
+        leave the surface, each with the mirror ray's origin and differentials. A hit none of
+        whose rays leaves keeps its mirror ray."""
+        s = self.settings
+        rows = np.flatnonzero(strong)
+        count = np.clip(np.ceil(max_of_three(lobe_w[rows]) * s.lobe_rays), 1, s.lobe_rays)
+        count = np.where(rough[rows] >= s.mirror_roughness, count, 1).astype(np.int64)
+        many = np.flatnonzero(count > 1)  # positions in `child`
+        if not len(many):
+            return child
+        which, points = lobe_points(count[many], h.p[rows[many]])
+        hit = rows[many][which]
+        dirs = ggx_reflections(h.glossy_normal[hit], wo[hit], rough[hit], points)
+        above = np.einsum("ij,ij->i", dirs, h.ng[hit]) > 0.0
+        leaving = np.bincount(which[above], minlength=len(many))
+        new = above & (leaving[which] > 0)
+        source = many[which[new]]  # the mirror ray each new ray stands in for
+        kept = np.ones(len(rows), bool)
+        kept[many[leaving > 0]] = False
+        fields = [child[0][source], dirs[new], child[2][source],
+                  child[3][source] / leaving[which[new]][:, None], child[4][source],
+                  child[5][source]]
+        out = [np.concatenate([old[kept], field]) for old, field in zip(child[:6], fields, strict=True)]
+        for old in child[6:]:  # ray differentials (2, n, 3)
+            out.append(np.concatenate([old[:, kept], old[:, source]], axis=1))
+        self.stats.lobe_rays += int(new.sum())
+        return tuple(out)
+
     def _child_differentials(self, spawned, tri, h: SurfaceHits, dirs, t_dir, eta, rows, dp, dd):
         """Per spawned generation (strong (N,) bool: the rays spawned; side +1 reflected, -1
         refracted; bent (N,) bool: the ray turned about the normal `about` (N, 3), the geometric
@@ -492,7 +526,8 @@ class Tracer:
         out = []
         for strong, side, bent, about in spawned:
             own = strong[rows]  # strong's rows, in order, among rows
-            n, dn_k, dd_k = h.ns[strong], dn[:, own], dd[:, own]
+            n = (h.glossy_normal if side > 0 else h.ns)[strong]
+            dn_k, dd_k = dn[:, own], dd[:, own]
             turned = bent[strong]
             if turned.any():  # turned about a normal taken as not turning across the pixel
                 n[turned], dn_k[:, turned] = about[strong][turned], 0.0
@@ -772,6 +807,11 @@ class Tracer:
                     for k, child in enumerate(self._child_differentials(
                             spawned, hits.tri, h, dirs, t_dir, eta, rows, dp_rows, dd_rows)):
                         children[k] += child
+            if depth == 0 and s.lobe_rays > 1:  # rough lobes seen directly: rays across them
+                with self.clock("glossy lobes"):
+                    children = [self._lobe_rays(child, strong, h, wo, rough, mirror_w)
+                                if side > 0 else child
+                                for child, (strong, side, _, _) in zip(children, spawned, strict=True)]
             origins = np.concatenate([c[0] for c in children])
             dirs = np.concatenate([c[1] for c in children])
             pixel = np.concatenate([c[2] for c in children])

@@ -354,21 +354,23 @@ def test_edge_sub_samples_share_out_an_area_lights_samples(monkeypatch):
     np.testing.assert_allclose(edges.image[changed], full[changed], rtol=5e-3)
 
 
-def test_a_rough_metal_reflects_its_surroundings():
-    """A rough gold plane (roughness 0.4) seen 60 degrees off its normal, facing a large emissive
-    wall of radiance 2 across the mirror direction: one mirror ray stands for the metal's lobe,
-    weighted by Schlick's Fresnel of the base colour with its grazing term averaged over the
-    lobe (`specular_layer.schlick_grazing_curve`; it used to be black: only roughness below
+@pytest.mark.parametrize("lobe_rays", [1, 8])
+def test_a_rough_metal_reflects_its_surroundings(lobe_rays):
+    """A rough gold plane (roughness 0.4) seen 60 degrees off its normal under a world of
+    radiance 2 all round: the lobe's rays (or one mirror ray) carry its
+    albedo, Schlick's Fresnel of the base colour with the grazing term averaged over the lobe
+    (`specular_layer.schlick_grazing_curve`; it used to be black: only roughness below
     `mirror_roughness` made a metal reflect)."""
     gold = np.array([0.9, 0.7, 0.4])
     metal = Material(name="gold", base_color=gold.astype(np.float32), metallic=1.0, roughness=0.4)
     t = np.radians(60.0)
     forward = np.array([0.0, np.sin(t), -np.cos(t)])
     cam = ortho_camera(-3.0 * forward, forward, (0, 0, 1), 0.4, (4, 4))
-    wall = quad([(20, 4, -1), (20, 4, 40), (-20, 4, 40), (-20, 4, -1)])
-    scene = build([(quad([(-2, -2, 0), (2, -2, 0), (2, 2, 0), (-2, 2, 0)]), metal),
-                   (wall, emitter(2.0))], cam)
-    image = trace(scene, TracerSettings(max_depth=1, adaptive=0)).image
+    scene = build([(quad([(-2, -2, 0), (2, -2, 0), (2, 2, 0), (-2, 2, 0)]), metal)], cam,
+                  world=(2.0, 2.0, 2.0))
+    result = trace(scene, TracerSettings(max_depth=1, adaptive=0, lobe_rays=lobe_rays))
+    image = result.image
+    assert (result.stats.lobe_rays > 0) == (lobe_rays > 1)
     grazing = schlick_grazing_curve(np.array([np.cos(t)]), 0.4)[0]
     expected = 2.0 * (gold + (1.0 - gold) * grazing)
     # The tracer reads a table of 65 views: within 1e-3 of the integral.

@@ -1,0 +1,74 @@
+"""Directions across a rough glossy lobe: GGX's distribution of visible normals, sampled.
+
+A rough metal or specular layer reflects its surroundings blurred by its GGX lobe. The tracer
+stands for the lobe with a few rays (`TracerSettings.lobe_rays`) whose directions are the view
+reflected about microfacet normals drawn from the normals the view sees (Heitz, "Sampling the
+GGX Distribution of Visible Normals", JCGT 2018): each such ray carries an equal share of the
+lobe's albedo, the weight VNDF sampling gives up to the Fresnel and masking terms the albedo
+tables already hold (`specular_layer.py`).
+
+The points are a stratified set per hit (`lobe_points`), shifted by an offset hashed from the hit
+position (Cranley-Patterson rotation): deterministic, the same for a point wherever a tile of the
+view traces it, and without the pattern a shared set would stamp on every pixel.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..geometry.frames import tangent_frames
+
+# The golden ratio's fractional part: the second coordinate of a Fibonacci lattice.
+GOLDEN_STEP = 0.6180339887498949
+# Hash of a hit position into [0, 1)^2 (the classic sin-dot hash); any two unrelated directions
+# and a large scale do, as the offsets only need to look unrelated between neighbouring hits.
+HASH_AXES = np.array([[12.9898, 78.233, 37.719], [39.3468, 11.135, 83.155]])
+HASH_SCALE = 43758.5453
+# Alpha below which a lobe is taken as a mirror (Blender roughness 0.01).
+MIN_ALPHA = 1e-4
+
+
+def lobe_points(counts: np.ndarray, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """For hits that each take counts[i] (N,) rays: (which hit (M,), points (M, 2) in [0, 1)^2),
+    M = counts.sum(); hit i's are a Fibonacci lattice of counts[i] points ((j + 1/2) / c,
+    j x GOLDEN_STEP) shifted by an offset hashed from its position (N, 3), modulo 1."""
+    counts = np.asarray(counts, np.int64)
+    which = np.repeat(np.arange(len(counts)), counts)
+    j = np.arange(len(which)) - np.repeat(np.cumsum(counts) - counts, counts)
+    offset = np.sin(np.asarray(positions, np.float64) @ HASH_AXES.T) * HASH_SCALE
+    offset -= np.floor(offset)
+    points = np.stack([(j + 0.5) / counts[which], j * GOLDEN_STEP], axis=1) + offset[which]
+    return which, points - np.floor(points)
+
+
+def ggx_reflections(n: np.ndarray, wo: np.ndarray, roughness: np.ndarray,
+                    points: np.ndarray) -> np.ndarray:
+    """(N, 3) unit directions: the views wo (N, 3, unit, towards the viewer, above n) reflected
+    about microfacet normals drawn from GGX's visible normals about unit normals n (N, 3), of
+    Blender roughness (N,) (alpha = roughness^2), at points (N, 2) in [0, 1)^2. A direction may
+    fall below the surface (a shadowed share of the lobe): callers drop it."""
+    t1, t2 = tangent_frames(n)
+    local = np.stack([np.einsum("ij,ij->i", wo, t1), np.einsum("ij,ij->i", wo, t2),
+                      np.einsum("ij,ij->i", wo, n)], axis=1)
+    alpha = np.maximum(np.asarray(roughness, np.float64) ** 2, MIN_ALPHA)
+    # The view stretched to the hemisphere configuration (alpha = 1).
+    vh = np.stack([alpha * local[:, 0], alpha * local[:, 1], np.maximum(local[:, 2], 0.0)], 1)
+    vh /= np.maximum(np.linalg.norm(vh, axis=1, keepdims=True), 1e-12)
+    lensq = vh[:, 0] ** 2 + vh[:, 1] ** 2
+    inv = 1.0 / np.sqrt(np.maximum(lensq, 1e-24))
+    b1 = np.where((lensq > 0.0)[:, None],
+                  np.stack([-vh[:, 1] * inv, vh[:, 0] * inv, np.zeros(len(vh))], 1), [1.0, 0.0, 0.0])
+    b2 = np.cross(vh, b1)
+    # A point of the unit disc, its second half squeezed towards the view's projection.
+    r = np.sqrt(points[:, 0])
+    phi = 2.0 * np.pi * points[:, 1]
+    d1, d2 = r * np.cos(phi), r * np.sin(phi)
+    s = 0.5 * (1.0 + vh[:, 2])
+    d2 = (1.0 - s) * np.sqrt(np.maximum(1.0 - d1 * d1, 0.0)) + s * d2
+    nh = (d1[:, None] * b1 + d2[:, None] * b2
+          + np.sqrt(np.maximum(1.0 - d1 * d1 - d2 * d2, 0.0))[:, None] * vh)
+    # Back to the ellipsoid configuration, then to world space.
+    m = np.stack([alpha * nh[:, 0], alpha * nh[:, 1], np.maximum(nh[:, 2], 0.0)], 1)
+    m /= np.maximum(np.linalg.norm(m, axis=1, keepdims=True), 1e-12)
+    micro = m[:, :1] * t1 + m[:, 1:2] * t2 + m[:, 2:] * n
+    return 2.0 * np.einsum("ij,ij->i", wo, micro)[:, None] * micro - wo
