@@ -453,13 +453,14 @@ class MaterialReader:
                                                 inputs["Emission Strength"], ignored)
         metallic, metallic_tex = self._number(inputs["Metallic"], ignored)
         roughness, roughness_tex = self._number(inputs["Roughness"], ignored)
-        for unmodelled in ("Subsurface Weight", "Coat Weight", "Sheen Weight"):
+        for unmodelled in ("Subsurface Weight", "Sheen Weight"):
             if unmodelled in inputs:
                 weight = self._read(inputs[unmodelled], [])  # through groups: their inputs' values
                 if weight is None or weight.texture is not None or weight.const[0] > 0.0:
                     ignored.append(f"{unmodelled} is not modelled")
         alpha, alpha_tex = self._alpha(inputs["Alpha"], ignored) if "Alpha" in inputs else (1.0, None)
         relief = self._normal(inputs["Normal"], ignored)
+        coat = self._coat(inputs, ignored, relief)
         return Material(
             name=name,
             base_color=color,
@@ -481,7 +482,32 @@ class MaterialReader:
             bump_strength=relief.bump_strength,
             bump_distance=relief.bump_distance,
             ignored=tuple(ignored),
+            **coat,
         )
+
+    def _coat(self, inputs, ignored, relief: Relief) -> dict:
+        """The Principled coat's `Material` fields: weight, roughness, IOR and tint as constants
+        (a texture driving one is noted, its default used); {} where there is no coat, and over
+        a normal or bump map, whose coat is noted and left out: there the coat's mirror ray
+        made a ribbed glTF test asset further from Cycles (relMSE 0.051 -> 0.114) where a
+        plain coated plane comes nearer (0.0067 -> 0.0010)."""
+        if "Coat Weight" not in inputs:
+            return {}
+        weight = min(max(self._value(inputs["Coat Weight"], ignored), 0.0), 1.0)
+        if weight <= 0.0:
+            return {}
+        if relief.normal_texture is not None or relief.height_texture is not None:
+            ignored.append("Coat Weight over a normal or bump map is not modelled")
+            return {}
+        normal, surface = inputs["Coat Normal"], inputs["Normal"]
+        if normal.is_linked and not (surface.is_linked and normal.links[0].from_socket
+                                     == surface.links[0].from_socket):
+            ignored.append("a Coat Normal of its own is not modelled: the surface's normal used")
+        tint, _ = self._color(inputs["Coat Tint"], ignored, textures=False)
+        return {"coat": weight,
+                "coat_roughness": min(max(self._value(inputs["Coat Roughness"], ignored), 0.0), 1.0),
+                "coat_ior": max(self._value(inputs["Coat IOR"], ignored), 1.0),
+                "coat_tint": np.clip(tint, 0.0, None).astype(np.float32)}
 
     def _read(self, socket, ignored, bake: bool = False) -> Value | None:
         """What `socket` reads (socket_values.py): a constant or a texture with its node chain.

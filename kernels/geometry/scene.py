@@ -117,6 +117,11 @@ class Material:
     |                    |           |         | `emission`                                     |
     | metallic_texture   | Texture   | None    | metallic per texel (its first channel)         |
     | roughness_texture  | Texture   | None    | roughness per texel (its first channel)        |
+    | coat               | [0, 1]    | 0       | Principled Coat Weight: a clear dielectric     |
+    |                    |           |         | layer over everything else                     |
+    | coat_roughness     | [0, 1]    | 0.03    | the coat's roughness                           |
+    | coat_ior           | >= 1      | 1.5     | the coat's index of refraction                 |
+    | coat_tint          | [0, 1]^3  | 1       | what the coat lets through at normal incidence |
     | fallbacks          | dicts     | ()      | sockets read from a Cycles bake of their graph |
     |                    |           |         | (the bridge's general fallback): socket,       |
     |                    |           |         | read_as, seconds, cached, object               |
@@ -147,6 +152,10 @@ class Material:
     emission_texture: Texture | None = None
     metallic_texture: Texture | None = None
     roughness_texture: Texture | None = None
+    coat: float = 0.0
+    coat_roughness: float = 0.03
+    coat_ior: float = 1.5
+    coat_tint: np.ndarray = field(default_factory=lambda: np.ones(3, np.float32))
     # Coverage (Principled Alpha): what a ray meets of this surface; shadow and visibility rays
     # pass with weight 1 - alpha (`shading/alpha.py`, `geometry/alpha_occlusion.py`).
     alpha: float = 1.0

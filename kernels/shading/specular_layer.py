@@ -193,6 +193,27 @@ def _grazing_table(roughness: float) -> tuple[float, ...]:
     return tuple(schlick_grazing_curve(np.linspace(0.0, 1.0, MU_STEPS) ** 2, roughness))
 
 
+def coat_tables(materials) -> np.ndarray:
+    """(M, MU_STEPS) per material, 1 - E(mu) of its coat (`Material.coat_roughness`, F0 of
+    `coat_ior`), as `view_tables` holds its specular layer's; 1 where it has no coat."""
+    rows = [_view_table(float(m.coat_roughness), layer_f0(m.coat_ior, 0.5)) if m.coat > 0.0
+            else (1.0,) * MU_STEPS for m in materials]
+    return np.array(rows, np.float64).reshape(len(rows), MU_STEPS)
+
+
+def coat_attenuation(coat: np.ndarray, coat_e: np.ndarray, tint: np.ndarray, ior: np.ndarray,
+                     mu: np.ndarray) -> np.ndarray:
+    """(N, 3) what a coat of weight `coat` (N,) leaves of the light of the layers under it, seen
+    at |cos| = mu (N,): 1 - coat x E (its albedo `coat_e` (N,) there), times the tint (N, 3)
+    raised to the path length through a coat of unit thickness, 1 / cos of the refracted view
+    (Cycles' Principled BSDF: the tint is what normal incidence lets through, Beer's law
+    elsewhere), mixed in by the weight."""
+    mu = np.clip(np.abs(mu), 1e-6, 1.0)
+    cos_t = np.sqrt(np.maximum(1.0 - (1.0 - mu * mu) / np.maximum(ior, 1.0) ** 2, 1e-12))
+    tinted = np.power(np.maximum(tint, 0.0), (1.0 / cos_t)[:, None])
+    return (1.0 - coat * coat_e)[:, None] * (1.0 + coat[:, None] * (tinted - 1.0))
+
+
 def metal_tables(materials) -> np.ndarray:
     """(M, MU_STEPS) per material, `schlick_grazing_curve` at sqrt(mu) = 0, ..., 1, for
     `view_factors`: a metal's reflectance at a view is F0 + (1 - F0) x the row's value there."""

@@ -49,6 +49,8 @@ from ..shading.glossy_lobe import ggx_reflections, lobe_points
 from ..shading.material_maps import emission_at
 from ..shading.optics import fresnel_dielectric, reflect, refract
 from ..shading.specular_layer import (
+    coat_attenuation,
+    coat_tables,
     ggx_highlight,
     layer_f0,
     metal_tables,
@@ -177,6 +179,13 @@ class Tracer:
         self.specular = np.array([m.specular for m in mats])
         self.layer_tables = view_tables(mats)
         self.metal_tables = metal_tables(mats)
+        # The Principled coat: a clear layer over everything else (`specular_layer.coat_*`).
+        self.coat = np.array([m.coat for m in mats], np.float64)
+        self.coat_roughness = np.array([m.coat_roughness for m in mats], np.float64)
+        self.coat_ior = np.array([m.coat_ior for m in mats], np.float64)
+        self.coat_f0 = np.array([layer_f0(m.coat_ior, 0.5) for m in mats], np.float64)
+        self.coat_tint = np.array([m.coat_tint for m in mats], np.float64).reshape(-1, 3)
+        self.coat_tables = coat_tables(mats) if self.coat.any() else None
         self.textured = np.array([m.base_color_texture is not None for m in mats], bool)
         self._frames: rd.TriangleFrames | None = None  # built when differentials are first carried
         self.black = np.array([m.base_color_texture is None and not np.any(m.base_color > 0)
@@ -712,6 +721,27 @@ class Tracer:
                 # A white base's share, for edge detection (the `untextured` image).
                 lambert = reflected / np.maximum(h.albedo, ALBEDO_FLOOR)
             own = h.emission + lit
+            # A coat over it all: what lies under shows through less the coat's albedo (and its
+            # tint); the coat adds its own highlights and, below, its own reflected ray.
+            coat_w = self.coat[m]
+            coated = coat_w > 0.0
+            under = coat_e = None
+            if coated.any():
+                mu_coat = np.einsum("ij,ij->i", dirs, gn)
+                coat_e = np.where(coated, 1.0 - view_factors(self.coat_tables, m, mu_coat), 0.0)
+                under = coat_attenuation(coat_w, coat_e, self.coat_tint[m], self.coat_ior[m],
+                                         mu_coat)
+                own = own * under
+                lambert = lambert * under
+                coat_rough = self.coat_roughness[m]
+                coat_lobe = np.where(coated & (coat_rough >= s.mirror_roughness), coat_w, 0.0)
+                if coat_lobe.any() and s.shading != "gouraud":
+                    with self.clock("light sampling"):
+                        shine, _ = self.direct(h, wo, np.zeros(len(m)),
+                                               [(self.coat_f0[m][:, None] * np.ones((1, 3)),
+                                                 coat_lobe)], coat_rough, hit_strata,
+                                               (hits.tri, bary))
+                    own = own + shine
             smooth = rough < s.mirror_roughness
             # Mirror and refraction directions about the (smooth) shading normal; where that would
             # send the ray to the wrong side of the surface, about a normal bent towards the
@@ -771,18 +801,29 @@ class Tracer:
                 refl_w = np.where(self._mapped(hits.tri)[:, None],
                                   refl_w - mirror_w, refl_w)
             refr_w = np.where((glass & ~tir)[:, None], glass_w * (1.0 - f_g)[:, None] * h.albedo, 0.0)
-            sees = sharp & smooth
             known = entered >= 0
             # A back face met from outside every solid: the mesh is open or inverted.
             after_reflection = np.where(known & (h.front | (entered > 0)), entered, -1)
             after_refraction = np.where(known & h.front, entered + 1,
                                         np.where(entered > 0, entered - 1, -1))
+            base_lobe, coat_generation = mirror_w, []
+            if under is not None:  # the layers under the coat, and the coat's own reflection
+                refl_w, refr_w, base_lobe = refl_w * under, refr_w * under, mirror_w * under
+                coat_refl = (coat_w * coat_e)[:, None] * np.ones((1, 3))
+                coat_generation = [(coat_refl, r_dir, 1.0, after_reflection, wrong_r, about_r,
+                                    self.coat_roughness[m], coat_refl)]
+            generations = [(refl_w, r_dir, 1.0, after_reflection, wrong_r, about_r, rough,
+                            base_lobe),
+                           (refr_w, t_dir, -1.0, after_refraction, wrong, h.ng, None, None),
+                           *coat_generation]
             # per generation spawned: (strong (N,) bool, side, bent (N,) bool, the normal the bent
-            # rays turned about (N, 3))
-            spawned = []
-            for w_new, d_new, side, seen, bent, about in (
-                    (refl_w, r_dir, 1.0, after_reflection, wrong_r, about_r),
-                    (refr_w, t_dir, -1.0, after_refraction, wrong, h.ng)):
+            # rays turned about (N, 3)); and the roughness and albedo of the lobe it reflects
+            # along (None: refraction)
+            spawned, lobes_of = [], []
+            for w_new, d_new, side, seen, bent, about, lobe_rough, lobe_w in generations:
+                # rays off smooth surfaces see area lamps (`sharp`)
+                sees = sharp & (lobe_rough < s.mirror_roughness if lobe_rough is not None
+                                else smooth)
                 w_total = weight * w_new
                 w_max = max_of_three(w_total)
                 alive = w_max > 0.0
@@ -793,6 +834,7 @@ class Tracer:
                     children.append((o_new, d_new[strong], pixel[strong], w_total[strong],
                                      sees[strong], seen[strong]))
                     spawned.append((strong, side, bent, about))
+                    lobes_of.append((lobe_rough, lobe_w))
             if not children:
                 break
             carry = follow and depth < s.max_depth  # the last generation filters no texture
@@ -809,9 +851,10 @@ class Tracer:
                         children[k] += child
             if depth == 0 and s.lobe_rays > 1:  # rough lobes seen directly: rays across them
                 with self.clock("glossy lobes"):
-                    children = [self._lobe_rays(child, strong, h, wo, rough, mirror_w)
-                                if side > 0 else child
-                                for child, (strong, side, _, _) in zip(children, spawned, strict=True)]
+                    children = [child if lobe_rough is None else
+                                self._lobe_rays(child, strong, h, wo, lobe_rough, lobe_w)
+                                for child, (strong, *_), (lobe_rough, lobe_w)
+                                in zip(children, spawned, lobes_of, strict=True)]
             origins = np.concatenate([c[0] for c in children])
             dirs = np.concatenate([c[1] for c in children])
             pixel = np.concatenate([c[2] for c in children])

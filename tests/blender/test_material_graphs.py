@@ -331,3 +331,21 @@ def test_a_mapping_node_on_uvs_moves_the_look_up():
     assert not scene.ignored or all("Mapping" not in why for why in scene.ignored)
     err = np.abs(ours - theirs).max(axis=2)[mask]
     assert theirs.max() > 0.1 and np.mean(err > 1e-3) <= 0.02, (err.max(), np.mean(err > 1e-3))
+
+
+def test_a_coat_is_read_and_one_over_a_normal_map_is_noted_and_left_out():
+    tree, bsdf = _plane_with_emission()
+    bsdf.inputs["Coat Weight"].default_value = 0.6
+    bsdf.inputs["Coat Roughness"].default_value = 0.2
+    bsdf.inputs["Coat IOR"].default_value = 1.7
+    bsdf.inputs["Coat Tint"].default_value = (1.0, 0.5, 0.25, 1.0)
+    graph = next(m for m in bridge.snapshot().materials if m.name == "Graph")
+    assert (graph.coat, graph.coat_ior) == pytest.approx((0.6, 1.7))
+    assert graph.coat_roughness == pytest.approx(0.2)
+    np.testing.assert_allclose(graph.coat_tint, (1.0, 0.5, 0.25))
+    normal_map = tree.nodes.new("ShaderNodeNormalMap")
+    tree.links.new(_image_node(tree).outputs["Color"], normal_map.inputs["Color"])
+    tree.links.new(normal_map.outputs["Normal"], bsdf.inputs["Normal"])
+    graph = next(m for m in bridge.snapshot().materials if m.name == "Graph")
+    assert graph.coat == 0.0 and graph.normal_texture is not None
+    assert any("Coat Weight over a normal or bump map" in why for why in graph.ignored)

@@ -180,3 +180,36 @@ def test_a_rough_metal_blurs_a_bright_panel_as_cycles_does():
                             cycles) for rays in (1, 8)}
     print("relMSE against Cycles", errors)
     assert errors[8] < 0.015 and errors[8] < 0.25 * errors[1]
+
+
+def test_a_coated_plane_matches_cycles():
+    """A blue plane under a clear coat (Coat Weight 1, roughness 0.03 and 0.3), under the sun and
+    the blue world, seen at 72 degrees: the coat's albedo dims what lies under it, it reflects the
+    world along its own ray and draws its own highlights (`specular_layer.coat_attenuation`).
+    Against Cycles' Whitted-model render (256 samples, 32 x 24): measured relMSE 2.1e-3 and
+    3.3e-3; the same snapshot without its coat 0.061 and 0.051."""
+    from dataclasses import replace
+
+    from blender_parts import principled
+
+    from classic_bake.kernels.measure.metrics import rel_mse
+    from classic_bake.kernels.trace.settings import TracerSettings
+    from classic_bake.kernels.trace.tracer import trace
+
+    for roughness in (0.03, 0.3):
+        bpy.ops.wm.read_factory_settings(use_empty=True)
+        mat, bsdf = principled("Coated", base=(0.05, 0.1, 0.6))
+        bsdf.inputs["Specular IOR Level"].default_value = 0.5
+        bsdf.inputs["Coat Weight"].default_value = 1.0
+        bsdf.inputs["Coat Roughness"].default_value = roughness
+        ours, cycles = _plane_against_cycles(mat)
+        snap = bridge.snapshot(resolution=(32, 24))
+        coated = next(m for m in snap.materials if m.name == "Coated")
+        assert (coated.coat, coated.coat_ior) == (1.0, 1.5) and not coated.ignored
+        assert abs(coated.coat_roughness - roughness) < 1e-6
+        bare = replace(snap, materials=tuple(replace(m, coat=0.0) for m in snap.materials))
+        without = trace(bare, TracerSettings(max_depth=2)).image
+        on_plane = np.abs(without - snap.world_color).sum(axis=2) > 1e-6
+        print("relMSE against Cycles", rel_mse(ours, cycles), rel_mse(without[on_plane], cycles))
+        assert rel_mse(ours, cycles) < 5e-3
+        assert rel_mse(ours, cycles) < 0.1 * rel_mse(without[on_plane], cycles)
