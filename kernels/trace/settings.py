@@ -23,8 +23,9 @@ MIN_WEIGHT = 1e-2
 # texture look-ups instead of rays. On the ray-tracing sample 3 x 3 boxes reach the error of 4 x 4
 # in less time; 2 x 2 raised the error by 12% with edges.
 TEXTURE_FILTER = 3
-# Rays a whole rough lobe (albedo 1) reflects along from a camera hit; a lobe of albedo E takes
-# ceil(E x LOBE_RAYS), so a dielectric layer's faint lobe keeps one ray.
+# Rays a rough lobe that is all a hit reflects (a metal) takes from a camera hit; a faint layer
+# over a light base takes one. 8 against 4: a third less error on glTF test assets of rough
+# metals, for up to a third more time on them.
 LOBE_RAYS = 8
 
 
@@ -46,9 +47,10 @@ class TracerSettings:
     |                  |          |         | refracted ray; rougher layers get lamp highlights    |
     | lobe_rays        | 1..64    | 8       | rays a camera hit's rough glossy lobe (roughness at  |
     |                  |          |         | least mirror_roughness) reflects its surroundings    |
-    |                  |          |         | along: ceil(lobe albedo x lobe_rays), drawn from     |
-    |                  |          |         | GGX's visible normals (`glossy_lobe.py`); 1: the     |
-    |                  |          |         | mirror direction alone                               |
+    |                  |          |         | along: ceil(share x lobe_rays), share the lobe's     |
+    |                  |          |         | part of the light the hit reflects in its strongest  |
+    |                  |          |         | channel, directions from GGX's visible normals       |
+    |                  |          |         | (`glossy_lobe.py`); 1: the mirror direction alone    |
     | shading          | flat, gouraud, | bump | normals: the triangles' own (flat); light at the  |
     |                  | phong, bump |      | corners, interpolated (gouraud); the corners'        |
     |                  |          |         | normals interpolated (phong); those perturbed by     |

@@ -488,16 +488,20 @@ class Tracer:
         return self._frames
 
     def _lobe_rays(self, child: tuple, strong: np.ndarray, h: SurfaceHits, wo: np.ndarray,
-                   rough: np.ndarray, lobe_w: np.ndarray) -> tuple:
+                   rough: np.ndarray, lobe_w: np.ndarray, diffuse: np.ndarray) -> tuple:
         """The reflected generation `child` (origins, dirs, pixel, weight, sharp, entered[, dp,
         dd]: the rays of hits `strong` (N,) bool) with each rough hit's mirror ray replaced by
-        rays across its GGX lobe (`glossy_lobe.py`): ceil(E x lobe_rays) for a lobe of albedo E
-        (lobe_w (N, 3), its largest channel), sharing the ray's weight equally among those that
-        leave the surface, each with the mirror ray's origin and differentials. A hit none of
-        whose rays leaves keeps its mirror ray."""
+        rays across its GGX lobe (`glossy_lobe.py`), sharing the ray's weight equally among
+        those that leave the surface, each with the mirror ray's origin and differentials. A
+        lobe of albedo lobe_w (N, 3) over a diffuse reflectance `diffuse` (N, 3) takes
+        ceil(share x lobe_rays) rays, share its largest part of the two in any channel: a metal
+        all of them, a faint layer over a white base one, the same layer over a saturated red
+        most (its green and blue are the lobe's). A hit none of whose rays leaves keeps its
+        mirror ray."""
         s = self.settings
         rows = np.flatnonzero(strong)
-        count = np.clip(np.ceil(max_of_three(lobe_w[rows]) * s.lobe_rays), 1, s.lobe_rays)
+        part = lobe_w[rows] / np.maximum(lobe_w[rows] + diffuse[rows], 1e-12)
+        count = np.clip(np.ceil(max_of_three(part) * s.lobe_rays), 1, s.lobe_rays)
         count = np.where(rough[rows] >= s.mirror_roughness, count, 1).astype(np.int64)
         many = np.flatnonzero(count > 1)  # positions in `child`
         if not len(many):
@@ -850,9 +854,13 @@ class Tracer:
                             spawned, hits.tri, h, dirs, t_dir, eta, rows, dp_rows, dd_rows)):
                         children[k] += child
             if depth == 0 and s.lobe_rays > 1:  # rough lobes seen directly: rays across them
+                diffuse_reflectance = diffuse_w[:, None] * h.albedo
+                if under is not None:
+                    diffuse_reflectance = diffuse_reflectance * under
                 with self.clock("glossy lobes"):
                     children = [child if lobe_rough is None else
-                                self._lobe_rays(child, strong, h, wo, lobe_rough, lobe_w)
+                                self._lobe_rays(child, strong, h, wo, lobe_rough, lobe_w,
+                                                diffuse_reflectance)
                                 for child, (strong, *_), (lobe_rough, lobe_w)
                                 in zip(children, spawned, lobes_of, strict=True)]
             origins = np.concatenate([c[0] for c in children])

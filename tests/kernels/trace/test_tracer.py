@@ -506,3 +506,26 @@ def test_an_ior_below_one_reflects_as_its_inverse():
     below, above = image(1.0 / 1.8), image(1.8)
     np.testing.assert_allclose(below, above, rtol=1e-5, atol=1e-7)
     assert np.max(above - image(1.0 + 1e-6)) > 0.01  # the highlight is there to compare
+
+
+def test_a_layer_takes_lobe_rays_where_its_reflection_outweighs_the_base():
+    """A rough layer (roughness 0.5) seen 60 degrees off its normal under a uniform world: over a
+    white base its reflection is a small part of every channel (one mirror ray will do), over a
+    saturated red it is most of the green and blue (rays across the lobe); both show the same
+    world-lit layer, and the same light whichever way it is drawn."""
+    t = np.radians(60.0)
+    forward = np.array([0.0, np.sin(t), -np.cos(t)])
+    cam = ortho_camera(-3.0 * forward, forward, (0, 0, 1), 0.4, (4, 4))
+    results = {}
+    for name, base in (("white", (0.8, 0.8, 0.8)), ("red", (0.8, 0.01, 0.01))):
+        mat = Material(name=name, base_color=np.array(base, np.float32), roughness=0.5)
+        scene = build([(quad([(-2, -2, 0), (2, -2, 0), (2, 2, 0), (-2, 2, 0)]), mat)], cam,
+                      world=(1.0, 1.0, 1.0))
+        results[name] = trace(scene, TracerSettings(max_depth=1, adaptive=0))
+    assert results["white"].stats.lobe_rays == 0
+    # 8 a pixel, less the few that fall below the surface
+    assert 0.9 * 8 * 16 <= results["red"].stats.lobe_rays <= 8 * 16
+    # No lamp and a world the diffuse base does not see: both show the layer's albedo times the
+    # world's 1, whether one ray or eight carry it.
+    np.testing.assert_allclose(results["red"].image, results["white"].image, rtol=1e-6)
+    assert np.all(results["red"].image > 0.03)
