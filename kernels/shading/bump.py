@@ -164,9 +164,22 @@ def normal_mapped(n: np.ndarray, dpdu: np.ndarray, dpdv: np.ndarray, rgb: np.nda
     """(N, 3) unit normals of a tangent-space normal map: n* = 2 rgb - 1 in the frame (t, b, n),
     blended towards n by Blender's Normal Map strength (n + strength (n* - n))."""
     t, b, n = tangent_frame(n, dpdu, dpdv)
-    local = 2.0 * np.asarray(rgb, np.float64)[:, :3] - 1.0
-    world = _normalize(np.einsum("nji,nj->ni", frame_matrix(t, b, n), local))
-    return _normalize(n + max(strength, 0.0) * (world - n)) if strength != 1.0 else world
+    local = strengthened(2.0 * np.asarray(rgb, np.float64)[:, :3] - 1.0, strength)
+    return _normalize(np.einsum("nji,nj->ni", frame_matrix(t, b, n), local))
+
+
+def strengthened(local: np.ndarray, strength: float) -> np.ndarray:
+    """(N, 3) tangent-space normals (x, y, z) = 2 rgb - 1 under the Normal Map node's strength,
+    as Cycles applies it in tangent space: (s x, s y, 1 + min(s, 1) (z - 1)) (a strength of 2
+    on a steep relief: relMSE 0.032 against Cycles blending the world normals instead, 0.0013
+    this way)."""
+    s = max(float(strength), 0.0)
+    if s == 1.0:
+        return local
+    out = local.copy()
+    out[:, :2] *= s
+    out[:, 2] = 1.0 + min(s, 1.0) * (local[:, 2] - 1.0)
+    return out
 
 
 def mikktspace_normal_mapped(n: np.ndarray, smooth: np.ndarray, tangents: np.ndarray,
@@ -181,11 +194,11 @@ def mikktspace_normal_mapped(n: np.ndarray, smooth: np.ndarray, tangents: np.nda
     viewer by the caller) faces away from s; blended towards n by the node's strength."""
     if unit_normal:
         smooth = _normalize(smooth)
-    local = 2.0 * np.asarray(rgb, np.float64)[:, :3] - 1.0
+    local = strengthened(2.0 * np.asarray(rgb, np.float64)[:, :3] - 1.0, strength)
     b = np.cross(smooth, tangents) * np.asarray(signs, np.float64)[:, None]
     world = _normalize(local[:, 0:1] * tangents + local[:, 1:2] * b + local[:, 2:3] * smooth)
     world[np.einsum("ij,ij->i", n, smooth) < 0.0] *= -1.0
-    return _normalize(n + max(strength, 0.0) * (world - n)) if strength != 1.0 else world
+    return world
 
 
 def valid_reflection(ng: np.ndarray, wo: np.ndarray, n: np.ndarray) -> np.ndarray:

@@ -93,19 +93,24 @@ def light_vectors(light: Light, points: np.ndarray) -> tuple[np.ndarray, np.ndar
     return delta / safe[:, None], dist
 
 
-def direct_irradiance(light: Light, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
+def direct_irradiance(light: Light, points: np.ndarray, normals: np.ndarray,
+                      direction_weight=None) -> np.ndarray:
     """Unoccluded irradiance (N, 3) W/m^2 that `light` causes at `points` with unit `normals`.
 
     points (N, 3) world m, normals (N, 3) world unit. Surfaces facing away receive 0 (one-sided).
     Point, spot and sun are exact; area lights are integrated over a stratified grid of the emitter
     (`AREA_SAMPLES_PER_SIDE`), which is what a receiver far from the emitter needs.
+    direction_weight: optional f(to_light (N, 3) unit) -> (N,), a factor on the light arriving
+    from each direction (a relief's shadowing), taken per grid sample of an area light.
     """
     points = np.asarray(points, np.float64)
     normals = np.asarray(normals, np.float64)
     if light.kind == "AREA":
-        return _area_irradiance(light, points, normals)
+        return _area_irradiance(light, points, normals, direction_weight)
     to_light, dist = light_vectors(light, points)
     cos_r = np.clip(np.einsum("ij,ij->i", normals, to_light), 0.0, None)
+    if direction_weight is not None:
+        cos_r = cos_r * direction_weight(to_light)
     if light.kind == "SUN":
         return cos_r[:, None] * np.asarray(light.irradiance, np.float64)[None, :]
     falloff = cos_r / (np.maximum(dist, MIN_LIGHT_DISTANCE) ** 2 + light.radius**2)
@@ -131,7 +136,8 @@ def area_light_samples(light: Light, per_side: int = AREA_SAMPLES_PER_SIDE) -> n
     return np.asarray(light.position, np.float64) + gx[:, None] * ax + gy[:, None] * ay
 
 
-def _area_irradiance(light: Light, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
+def _area_irradiance(light: Light, points: np.ndarray, normals: np.ndarray,
+                     direction_weight=None) -> np.ndarray:
     samples = area_light_samples(light)  # (S, 3)
     area = area_of_shape(light.shape, light.size_x, light.size_y)
     d_area = area / samples.shape[0]
@@ -143,5 +149,7 @@ def _area_irradiance(light: Light, points: np.ndarray, normals: np.ndarray) -> n
         inv_d = 1.0 / np.sqrt(d2)
         cos_r = np.clip(np.einsum("ij,ij->i", normals, delta) * inv_d, 0.0, None)
         cos_e = np.clip(-(delta @ emitter_n) * inv_d, 0.0, None)
+        if direction_weight is not None:
+            cos_r = cos_r * direction_weight(delta * inv_d[:, None])
         total += cos_r * cos_e / d2
     return (total * d_area)[:, None] * np.asarray(light.radiance, np.float64)[None, :]

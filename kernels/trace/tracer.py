@@ -246,7 +246,7 @@ class Tracer:
         areas = len(self.emitters.hulls)  # the shafts' emitters: area emitters, then lamps
         # Every lamp's lit hits first, then all their shadow rays in one BVH call: a call's
         # fixed cost (pool set-up, the traversal's steps) is paid once per depth, not per lamp.
-        lit_sets = []  # (diffuse, sub (k,), cast (k,) bool, to_l (n, 3), e (n, 3))
+        lit_sets = []  # (light, diffuse, sub (k,), cast (k,) bool, to_l (n, 3), e (n, 3))
         shadow_o, shadow_d, shadow_t = [], [], []
         for k, (light, diffuse) in enumerate(lamps):
             to_l, dist = light_units.light_vectors(light, p)
@@ -259,7 +259,7 @@ class Tracer:
                 with self.clock("shafts"):
                     cast &= ~self.shafts.clear(areas + k, tri[sub], bary[sub])
                 self.stats.clear_shadow_rays += int(len(sub) - cast.sum())
-            lit_sets.append((diffuse, sub, cast, to_l, e))
+            lit_sets.append((light, diffuse, sub, cast, to_l, e))
             rays = sub[cast]
             shadow_o.append(origin[rays])
             shadow_d.append(to_l[rays])
@@ -268,15 +268,21 @@ class Tracer:
             seen = self._visible(np.concatenate(shadow_o), np.concatenate(shadow_d),
                                  np.concatenate(shadow_t))
             seen_at = np.cumsum([0] + [len(o) for o in shadow_o])
-        for k, (diffuse, sub, cast, to_l, e) in enumerate(lit_sets):
+        for k, (light, diffuse, sub, cast, to_l, e) in enumerate(lit_sets):
             vis = np.ones(len(sub))
             if cast.any():
                 vis[cast] = seen[seen_at[k]:seen_at[k + 1]]
             if diffuse:
-                # The relief's facets hide part of a low light from the diffuse base (Cycles).
-                relief = 1.0 if smooth is None else bump_shadowing(smooth[sub], ns[sub],
-                                                                    to_l[sub])[:, None]
-                lambert[idx[sub]] += brdf_w[sub] * e[sub] * vis[:, None] * relief
+                # The relief's facets hide part of a low light from the diffuse base (Cycles),
+                # taken along each direction a lamp's light comes from (an area lamp whose
+                # centre is under the tilted normal's horizon still lights it by its rest).
+                lit_e = e[sub]
+                if smooth is not None:
+                    s_sub, n_sub = smooth[sub], ns[sub]
+                    lit_e = light_units.direct_irradiance(
+                        light, p[sub], n_sub,
+                        lambda to, s_sub=s_sub, n_sub=n_sub: bump_shadowing(s_sub, n_sub, to))
+                lambert[idx[sub]] += brdf_w[sub] * lit_e * vis[:, None]
             rows = idx[sub]
             cos_i = np.maximum(np.einsum("ij,ij->i", ns[sub], to_l[sub]), 1e-6)  # e's cosine
             for f0, weight in lobes:

@@ -156,8 +156,10 @@ def test_steep_normal_maps_reflect_about_a_valid_normal_as_cycles_does():
     camera, or reflect its view below the floor. Cycles' glossy closures bend such a normal
     towards the geometric one until the reflection leaves the surface, its diffuse ones keep
     it (a tile tilted away from the sun stays dark); so do the kernels (`SurfaceHits.spec`).
-    Measured against Cycles (`whitted`, 64 samples, 64 x 48): 0.0026; bending the normal for
-    the diffuse base too gave 0.57."""
+    Measured against Cycles (`whitted`, 64 samples, 64 x 48): 0.0026 in Blender 5.2 (0.010 in
+    4.5, whose Cycles shades steep reliefs a little differently); bending the normal for the
+    diffuse base too gave 0.57. A Normal Map strength of 2, applied in tangent space as Cycles
+    does: 0.0047 (blending the world normals instead: 0.032)."""
     from classic_bake.addon import cycles as cr
     from classic_bake.kernels.measure.metrics import rel_mse
     from classic_bake.kernels.trace.settings import auto_settings
@@ -191,11 +193,14 @@ def test_steep_normal_maps_reflect_about_a_valid_normal_as_cycles_does():
     scene.collection.objects.link(camera)
     scene.camera = camera
     resolution = (64, 48)
-    snap = bridge.snapshot(resolution=resolution)
-    reference, _ = cr.render_camera(scene, cr.whitted(4), 64, resolution=resolution)
-    error = rel_mse(trace(snap, auto_settings(snap), resolution=resolution).image, reference)
-    print("relMSE against Cycles", error)
-    assert error < 0.01
+    bound = 0.01 if bpy.app.version >= (5, 0, 0) else 0.02
+    for strength in (1.0, 2.0):
+        normal_map.inputs["Strength"].default_value = strength
+        snap = bridge.snapshot(resolution=resolution)
+        reference, _ = cr.render_camera(scene, cr.whitted(4), 64, resolution=resolution)
+        error = rel_mse(trace(snap, auto_settings(snap), resolution=resolution).image, reference)
+        print("relMSE against Cycles at strength", strength, error)
+        assert error < bound * strength
 
 
 def test_a_bump_on_a_normal_map_matches_cycles(open_sample):

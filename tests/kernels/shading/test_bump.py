@@ -269,3 +269,17 @@ def test_a_bump_on_a_normal_map_follows_cycles_bump_node_on_the_mapped_normal():
                         np.array([[0.3, 0.3]]))
     expected = tilt[2] * tilt - distance * k * np.array([tilt[2], 0.0, -tilt[0]])
     np.testing.assert_allclose(ours[0], expected / np.linalg.norm(expected), atol=1e-5)
+
+
+def test_normal_map_strength_scales_the_tangent_space_normal_as_cycles_does():
+    """Cycles applies a Normal Map's strength s in tangent space: (s x, s y, 1 + min(s, 1)(z - 1))
+    before the frame turns it to world space; 0 gives the surface normal, 1 the map."""
+    from classic_bake.kernels.shading.bump import strengthened
+
+    local = np.array([[0.6, -0.3, np.sqrt(1 - 0.45)]])
+    np.testing.assert_array_equal(strengthened(local, 1.0), local)
+    np.testing.assert_allclose(strengthened(local, 0.0), [[0.0, 0.0, 1.0]])
+    np.testing.assert_allclose(strengthened(local, 2.0), [[1.2, -0.6, local[0, 2]]])
+    half = strengthened(local, 0.5)
+    np.testing.assert_allclose(half, [[0.3, -0.15, 1.0 + 0.5 * (local[0, 2] - 1.0)]])
+    np.testing.assert_allclose(strengthened(local, -1.0), strengthened(local, 0.0))

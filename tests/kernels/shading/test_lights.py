@@ -94,3 +94,19 @@ def test_area_light_matches_the_closed_form_for_a_disk():
     e = lights.direct_irradiance(light, np.zeros((1, 3)), UP[None])
     # The 16x16 stratified grid keeps ~200 cells inside the disk: 2% is its measured bound at h = R.
     assert e[0, 0] == pytest.approx(np.pi * 0.5, rel=0.02)
+
+
+def test_a_direction_weight_is_taken_along_each_direction_the_light_comes_from():
+    """A relief's shadowing weighs the light per direction: over a square lamp centred above the
+    receiver, a weight of 1 on its +x half and 0 on its -x half leaves half the irradiance (the
+    centre's direction alone would keep all of it or none); a sun's or a point's single
+    direction takes the weight there."""
+    square = make_light("AREA", position=np.array([0.0, 0.0, 1.0]), radiance=np.ones(3),
+                        size_x=1.0, size_y=1.0)
+    at, up = np.zeros((1, 3)), UP[None]
+    whole = lights.direct_irradiance(square, at, up)
+    half = lights.direct_irradiance(square, at, up, lambda d: (d[:, 0] > 0.0).astype(float))
+    np.testing.assert_allclose(half, 0.5 * whole, rtol=1e-12)
+    point = make_light("POINT", intensity=np.ones(3))
+    dimmed = lights.direct_irradiance(point, at, up, lambda d: np.full(len(d), 0.25))
+    np.testing.assert_allclose(dimmed, 0.25 * lights.direct_irradiance(point, at, up))
