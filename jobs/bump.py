@@ -35,7 +35,7 @@ def shading_job(scene, settings: TracerSettings, resolution=None, all_modes: boo
             files[f"modes/{mode}.png"] = mode_result.image
         if mode == settings.shading:
             image, result = written, mode_result
-    bumped = [m.name for m in scene.materials if has_bump(m)]
+    bumped = [m.name for m in scene.read_materials if has_bump(m)]
     height, width = result.image.shape[:2]
     return JobSummary(
         message=f"shaded '{image.name}' ({settings.shading}); bump and normal maps on "

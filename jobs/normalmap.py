@@ -229,7 +229,7 @@ def plan_objects(context, values: dict, tgt: NormalMapTarget, base: NormalMapSet
                                                   lights=False, camera=False, world_render=False))
         # A material wired before is read as it was: the Bump node its map replaced.
         materials = {m.name: normal_maps.material_before_wiring(bpy.data.materials.get(m.name), m)
-                     for m in scene.materials}
+                     for m in scene.read_materials}
     pattern = None if tgt.source == "material" else _pattern_source(tgt)
     plans, skipped = [], []
     for obj in objects:

@@ -111,7 +111,7 @@ def texture_tile_job(context, settings: TextureBakeSettings, uv_name: str, uv_se
 def describe(summary: JobSummary, scene, bakes: dict, plan: dict) -> None:
     """In place: the summary's result, sizes and metrics.json sections of the bakes."""
     stats = texture_bake.stats(bakes)
-    textured = sorted({m.name for m in scene.materials if m.base_color_texture is not None})
+    textured = sorted({m.name for m in scene.read_materials if m.base_color_texture is not None})
     summary.result = stats
     summary.extra["lightmap_sizes"] = plan
     summary.sizes = {"objects": len(summary.lightmaps), "baked_texels": stats["texels"],

@@ -335,6 +335,14 @@ class Scene:
     # ray hits the variant of the maps' values at the hit (`shading/material_maps.py`).
     map_variants: tuple[MapVariants, ...] = ()
 
+    @property
+    def read_materials(self) -> tuple[Material, ...]:
+        """The materials as the snapshot read them, each counted once: a material's metallic /
+        roughness variants (`map_variants`) stand for it by their first, which keeps its index
+        and name. What reports and job summaries list."""
+        others = {int(k) for variants in self.map_variants for k in variants.ids.ravel()[1:]}
+        return tuple(m for k, m in enumerate(self.materials) if k not in others)
+
     @cached_property
     def variant_family(self) -> np.ndarray:
         """(M,) int64 per material: the index in `map_variants` of the family it is a variant

@@ -11,7 +11,7 @@ from ..outputs import UsageError
 def baked_sockets(scene) -> list[dict]:
     """The sockets the snapshot read through a Cycles bake of their node graph (the bridge's
     general fallback), one entry each: material, socket, read_as, seconds, cached, object."""
-    return [{"material": mat.name, **entry} for mat in scene.materials for entry in mat.fallbacks]
+    return [{"material": mat.name, **entry} for mat in scene.read_materials for entry in mat.fallbacks]
 
 
 def describe(scene) -> dict:

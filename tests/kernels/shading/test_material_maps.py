@@ -89,6 +89,8 @@ def test_metallic_and_roughness_textures_become_variants_per_triangle():
     (family,) = resolved.map_variants
     np.testing.assert_allclose(family.metallic, np.arange(9) / 8)
     np.testing.assert_allclose(family.roughness, [0.3125])
+    # Reports list the material once, under its own name, whatever its variants.
+    assert [m.name for m in resolved.read_materials] == ["(default)", "Asset"]
 
 
 def test_ray_hits_read_metallic_and_roughness_at_the_hit():
