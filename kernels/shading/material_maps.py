@@ -159,10 +159,10 @@ def resolve_material_maps(scene: Scene) -> Scene:
             else:
                 materials.append(replace(variant, name=f"{mat.name} ({n})"))
                 ids[i, j] = len(materials) - 1
-        metal = _level_index(triangle_means, scene, tri, mat.metallic_texture, metal_levels,
-                             METALLIC_STEP)
-        rough = _level_index(triangle_means, scene, tri, mat.roughness_texture, rough_levels,
-                             ROUGHNESS_STEP)
+        metal = _level_index(_means(scene, tri, mat.metallic_texture), metal_levels,
+                             METALLIC_STEP, len(tri))
+        rough = _level_index(_means(scene, tri, mat.roughness_texture), rough_levels,
+                             ROUGHNESS_STEP, len(tri))
         material_ids[tri] = ids[metal, rough]
         families.append(MapVariants(mat, metal_levels, rough_levels, ids))
         notes.append(f"material '{mat.name}': metallic / roughness textures read at each ray hit "
@@ -185,25 +185,32 @@ def hit_materials(scene: Scene, tri: np.ndarray, bary: np.ndarray,
         rows = np.flatnonzero(family == f)
         mv = scene.map_variants[f]
 
-        def at_hits(scene_, tri_, texture, rows=rows):
-            coords = corner_coords(scene_, tri_, texture)
-            return sample_texture(texture, np.einsum("nc,ncj->nj", bary[rows], coords))
+        def at_hits(texture, rows=rows):
+            if texture is None:
+                return None
+            coords = corner_coords(scene, tri[rows], texture)
+            return sample_texture(texture, np.einsum("nc,ncj->nj", bary[rows], coords))[:, 0]
 
-        metal = _level_index(at_hits, scene, tri[rows], mv.source.metallic_texture, mv.metallic,
-                             METALLIC_STEP)
-        rough = _level_index(at_hits, scene, tri[rows], mv.source.roughness_texture,
-                             mv.roughness, ROUGHNESS_STEP)
+        metal = _level_index(at_hits(mv.source.metallic_texture), mv.metallic, METALLIC_STEP,
+                             len(rows))
+        rough = _level_index(at_hits(mv.source.roughness_texture), mv.roughness,
+                             ROUGHNESS_STEP, len(rows))
         out[rows] = mv.ids[metal, rough]
     return out
 
 
-def _level_index(read, scene: Scene, tri: np.ndarray, texture: Texture | None,
-                 levels: np.ndarray, step: float) -> np.ndarray:
-    """(N,) int64 indices into `levels` of the quantised value `read(scene, tri, texture)[:, 0]`
-    (per triangle or per hit); 0 where there is no texture (one level, the constant)."""
-    if texture is None:
-        return np.zeros(len(tri), np.int64)
-    steps = np.round(np.clip(read(scene, tri, texture)[:, 0], 0.0, 1.0) / step)
+def _means(scene: Scene, tri: np.ndarray, texture: Texture | None) -> np.ndarray | None:
+    """(N,) a map's first channel's mean over each triangle of `tri`; None without a map."""
+    return None if texture is None else triangle_means(scene, tri, texture)[:, 0]
+
+
+def _level_index(values: np.ndarray | None, levels: np.ndarray, step: float,
+                 count: int) -> np.ndarray:
+    """(count,) int64 indices into `levels` of `values` (count,) rounded to `step`; zeros where
+    there are no values (no map: one level, the constant)."""
+    if values is None:
+        return np.zeros(count, np.int64)
+    steps = np.round(np.clip(values, 0.0, 1.0) / step)
     return np.clip(steps - np.round(levels[0] / step), 0, len(levels) - 1).astype(np.int64)
 
 
@@ -234,9 +241,9 @@ def _value_bounds(scene: Scene, tri: np.ndarray, texture: Texture) -> tuple[floa
         corners = np.column_stack([colours, np.ones(len(colours))])
     else:
         images = texture.udim.values() if texture.udim is not None else [texture.pixels]
-        flat = [np.asarray(p, np.float64).reshape(-1, p.shape[-1]) for p in images]
+        flat = [p.reshape(-1, p.shape[-1]) for p in images]  # extremes in the stored precision
         corners = np.stack([np.min([f.min(axis=0) for f in flat], axis=0),
-                            np.max([f.max(axis=0) for f in flat], axis=0)])
+                            np.max([f.max(axis=0) for f in flat], axis=0)]).astype(np.float64)
         if corners.shape[1] == 3:
             corners = np.column_stack([corners, np.ones(2)])
         if texture.encoding == "sRGB":

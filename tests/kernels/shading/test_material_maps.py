@@ -123,3 +123,18 @@ def test_emission_textures_emit_per_triangle_and_per_hit():
     np.testing.assert_allclose(triangle_emission(scene), [[0, 0, 0], [2.0, 1.0, 0.5]])
     at = emission_at(scene, np.array([0, 1]), np.full((2, 3), 1.0 / 3.0))
     np.testing.assert_allclose(at, [[0, 0, 0], [2.0, 1.0, 0.5]])
+
+
+def test_a_metallic_map_alone_keeps_the_constant_roughness():
+    mask = np.zeros((1, 2, 4), np.float32)
+    mask[0, 1, 2] = 1.0  # metallic 1 on the right half
+    metal = Texture(kind="IMAGE", name="m", pixels=mask, interpolation="CLOSEST",
+                    weights=np.array([0, 0, 1, 0], np.float32))
+    mat = Material(name="Trim", roughness=0.37, metallic_texture=metal)
+    scene = resolve_material_maps(_scene([[[0.0, 0.0], [1.0, 0.0], [0.5, 1.0]]], mat))
+    (family,) = scene.map_variants
+    np.testing.assert_allclose(family.roughness, [0.37])
+    hits = hit_materials(scene, np.array([0, 0]), np.array([[0.7, 0.1, 0.2], [0.1, 0.7, 0.2]]),
+                         scene.material_ids[[0, 0]])
+    assert [(scene.materials[k].metallic, scene.materials[k].roughness) for k in hits] == [
+        (0.0, 0.37), (1.0, 0.37)]
