@@ -160,19 +160,18 @@ def test_steep_normal_maps_reflect_about_a_valid_normal_as_cycles_does():
     4.5, whose Cycles shades steep reliefs a little differently); bending the normal for the
     diffuse base too gave 0.57. A Normal Map strength of 2, applied in tangent space as Cycles
     does: 0.0047 (blending the world normals instead: 0.032)."""
+    from blender_parts import principled
+
     from classic_bake.addon import cycles as cr
     from classic_bake.kernels.measure.metrics import rel_mse
     from classic_bake.kernels.trace.settings import auto_settings
     from classic_bake.kernels.trace.tracer import trace
 
     scene = bpy.context.scene
-    mat = bpy.data.materials.new("Tiles")
-    if bpy.app.version < (5, 0, 0):
-        mat.use_nodes = True
-    tree = mat.node_tree
-    bsdf = next(n for n in tree.nodes if n.type == "BSDF_PRINCIPLED")
-    bsdf.inputs["Base Color"].default_value = (0.5, 0.5, 0.5, 1.0)
+    mat, bsdf = principled("Tiles", base=(0.5, 0.5, 0.5))
+    bsdf.inputs["Specular IOR Level"].default_value = 0.5
     bsdf.inputs["Roughness"].default_value = 0.25
+    tree = mat.node_tree
     tex = tree.nodes.new("ShaderNodeTexImage")
     tex.image = _tilted_tiles(tilts=(1.0, -0.9))
     normal_map = tree.nodes.new("ShaderNodeNormalMap")

@@ -16,7 +16,7 @@ from dataclasses import fields, replace
 import bpy
 import numpy as np
 import pytest
-from blender_parts import overhead_sun
+from blender_parts import bare_material, overhead_sun
 
 from classic_bake.addon import bridge
 from classic_bake.addon import cycles as cr
@@ -43,17 +43,6 @@ def images():
     return _image("Colour"), _image("Normals")
 
 
-def _material(name: str):
-    """A material with an empty tree but its Material Output: (material, tree, output)."""
-    mat = bpy.data.materials.new(name)
-    if bpy.app.version < (5, 0, 0):
-        mat.use_nodes = True
-    tree = mat.node_tree
-    for node in [n for n in tree.nodes if n.type != "OUTPUT_MATERIAL"]:
-        tree.nodes.remove(node)
-    return mat, tree, next(n for n in tree.nodes if n.type == "OUTPUT_MATERIAL")
-
-
 def _texture(tree, image, output="Color"):
     node = tree.nodes.new("ShaderNodeTexImage")
     node.image = image
@@ -77,7 +66,7 @@ def _principled(tree, metallic=0.25, specular=0.3):
 def _flat(images):
     """The twin: a Principled BSDF, base colour from an image, roughness 0.35, a normal map."""
     colour, normals = images
-    mat, tree, output = _material("Flat")
+    mat, tree, output = bare_material("Flat")
     bsdf = _principled(tree)
     bsdf.inputs["Roughness"].default_value = 0.35
     tree.links.new(_texture(tree, colour), bsdf.inputs["Base Color"])
@@ -146,7 +135,7 @@ def _assert_same_material(ours: Material, twin: Material) -> None:
 
 def test_a_shader_inside_a_node_group_reads_as_its_flat_twin(images):
     twin = _read(_flat(images))
-    mat, tree, output = _material("Grouped")
+    mat, tree, output = bare_material("Grouped")
     node = _group_node(tree, _pbr_group(), images)
     tree.links.new(node.outputs["BSDF"], output.inputs["Surface"])
     ours = _read(mat)
@@ -168,7 +157,7 @@ def test_groups_inside_groups_pass_their_inputs_through(images):
     for name in ("Base Color", "Roughness", "Normal"):
         outer.links.new(o_in.outputs[name], wrapped.inputs[name])
     outer.links.new(wrapped.outputs["BSDF"], o_out.inputs["BSDF"])
-    mat, tree, output = _material("Nested")
+    mat, tree, output = bare_material("Nested")
     node = _group_node(tree, outer, images)
     tree.links.new(node.outputs["BSDF"], output.inputs["Surface"])
     _assert_same_material(_read(mat), twin)
@@ -193,7 +182,7 @@ def test_a_shader_passed_into_a_group_is_mixed_inside_it():
     group.interface.new_socket("Shader", in_out="OUTPUT", socket_type="NodeSocketShader")
     _tint(group, group.nodes.new("NodeGroupInput").outputs[0],
           group.nodes.new("NodeGroupOutput").inputs[0])
-    mat, tree, output = _material("Tinted")
+    mat, tree, output = bare_material("Tinted")
     bsdf = _principled(tree)
     bsdf.inputs["Base Color"].default_value = (0.1, 0.7, 0.2, 1.0)
     node = tree.nodes.new("ShaderNodeGroup")
@@ -201,7 +190,7 @@ def test_a_shader_passed_into_a_group_is_mixed_inside_it():
     tree.links.new(bsdf.outputs[0], node.inputs[0])
     tree.links.new(node.outputs[0], output.inputs["Surface"])
 
-    flat, f_tree, f_output = _material("TintedFlat")
+    flat, f_tree, f_output = bare_material("TintedFlat")
     f_bsdf = _principled(f_tree)
     f_bsdf.inputs["Base Color"].default_value = (0.1, 0.7, 0.2, 1.0)
     _tint(f_tree, f_bsdf.outputs[0], f_output.inputs["Surface"])
@@ -211,7 +200,7 @@ def test_a_shader_passed_into_a_group_is_mixed_inside_it():
 def _cut_out(colour, transparent_first: bool):
     """Mix Shader of a Transparent BSDF and a Principled BSDF whose base colour is `colour`, the
     Fac the image's alpha; `transparent_first`: the Transparent BSDF in the first slot."""
-    mat, tree, output = _material("CutOut")
+    mat, tree, output = bare_material("CutOut")
     bsdf = _principled(tree)
     tree.links.new(_texture(tree, colour), bsdf.inputs["Base Color"])
     clear = tree.nodes.new("ShaderNodeBsdfTransparent")
@@ -226,7 +215,7 @@ def _cut_out(colour, transparent_first: bool):
 
 def _alpha_twin(colour):
     """The Principled BSDF with the image's alpha in its own Alpha input."""
-    mat, tree, output = _material("AlphaTwin")
+    mat, tree, output = bare_material("AlphaTwin")
     bsdf = _principled(tree)
     tree.links.new(_texture(tree, colour), bsdf.inputs["Base Color"])
     tree.links.new(_texture(tree, colour, "Alpha"), bsdf.inputs["Alpha"])
@@ -247,7 +236,7 @@ def test_a_transparent_mix_reads_as_the_principled_alpha(images):
 
 
 def test_a_constant_transparent_mix_is_a_partial_alpha():
-    mat, tree, output = _material("Veil")
+    mat, tree, output = bare_material("Veil")
     clear = tree.nodes.new("ShaderNodeBsdfTransparent")
     grey = tree.nodes.new("ShaderNodeBsdfDiffuse")
     grey.inputs["Color"].default_value = (0.5, 0.4, 0.3, 1.0)
@@ -269,7 +258,7 @@ def _plane_under_a_sun(mat):
 
 
 def test_a_volume_shader_in_the_surface_slot_adds_nothing():
-    mat, tree, output = _material("Fog")
+    mat, tree, output = bare_material("Fog")
     bsdf = _principled(tree, metallic=0.0, specular=0.5)
     bsdf.inputs["Base Color"].default_value = (0.6, 0.5, 0.4, 1.0)
     tree.links.new(bsdf.outputs[0], output.inputs["Surface"])
@@ -298,7 +287,7 @@ def test_a_normal_map_inside_a_group_gets_its_tangent_frames(images):
     bsdf = _principled(group)
     group.links.new(_normal_map(group, normals), bsdf.inputs["Normal"])
     group.links.new(bsdf.outputs["BSDF"], group.nodes.new("NodeGroupOutput").inputs["BSDF"])
-    mat, tree, output = _material("Sealed")
+    mat, tree, output = bare_material("Sealed")
     node = tree.nodes.new("ShaderNodeGroup")
     node.node_tree = group
     tree.links.new(node.outputs["BSDF"], output.inputs["Surface"])
@@ -320,7 +309,7 @@ def test_a_group_from_a_missing_library_is_no_surface_as_cycles_renders_it(tmp_p
     bpy.ops.wm.read_factory_settings(use_empty=True)
     with bpy.data.libraries.load(str(tmp_path / "lib.blend"), link=True) as (source, target):
         target.node_groups = ["PBR"]
-    mat, tree, output = _material("Linked")
+    mat, tree, output = bare_material("Linked")
     node = tree.nodes.new("ShaderNodeGroup")
     node.node_tree = bpy.data.node_groups["PBR"]
     tree.links.new(node.outputs["BSDF"], output.inputs["Surface"])
@@ -348,7 +337,7 @@ def test_a_group_from_a_missing_library_is_no_surface_as_cycles_renders_it(tmp_p
 def test_a_missing_image_reads_magenta_as_cycles_renders_it():
     # An asset whose texture file did not come along: Cycles shades the Image Texture as colour
     # (1, 0, 1), alpha 1; the kernels read the same, so the traced view matches Cycles' render.
-    mat, tree, output = _material("Gone")
+    mat, tree, output = bare_material("Gone")
     bsdf = _principled(tree, metallic=0.0, specular=0.0)
     image = bpy.data.images.new("Gone", 4, 4)
     image.source = "FILE"
@@ -373,7 +362,7 @@ def test_an_emission_added_to_a_surface_reads_as_its_principled_emission(images)
     # Blender 2.8-3.x's glTF importer built emissive materials as an Add Shader of an Emission
     # and the Principled BSDF: the same as the Principled's own emission, its maps all kept.
     colour, normals = images
-    mat, tree, output = _material("Glowing")
+    mat, tree, output = bare_material("Glowing")
     bsdf = _principled(tree)
     tree.links.new(_texture(tree, colour), bsdf.inputs["Base Color"])
     tree.links.new(_texture(tree, normals, "Alpha"), bsdf.inputs["Roughness"])
@@ -385,7 +374,7 @@ def test_an_emission_added_to_a_surface_reads_as_its_principled_emission(images)
     tree.links.new(bsdf.outputs[0], add.inputs[1])
     tree.links.new(add.outputs[0], output.inputs["Surface"])
 
-    twin, t_tree, t_output = _material("GlowingTwin")
+    twin, t_tree, t_output = bare_material("GlowingTwin")
     t_bsdf = _principled(t_tree)
     t_tree.links.new(_texture(t_tree, colour), t_bsdf.inputs["Base Color"])
     t_tree.links.new(_texture(t_tree, normals, "Alpha"), t_bsdf.inputs["Roughness"])

@@ -11,6 +11,7 @@ import os
 import bpy
 import numpy as np
 import pytest
+from blender_parts import bare_material
 
 from classic_bake.addon import bridge
 from classic_bake.addon import cycles as cr
@@ -44,16 +45,11 @@ def udim_strip(folder, extension="REPEAT"):
                      [(i, i + 1, i + 6, i + 5) for i in range(4)])
     uv = [c for i in range(4) for c in (us[i], 0, us[i + 1], 0, us[i + 1], 1, us[i], 1)]
     mesh.uv_layers.new(name="UV").uv.foreach_set("vector", np.array(uv, np.float32))
-    mat = bpy.data.materials.new("Painted")
-    if bpy.app.version < (5, 0, 0):
-        mat.use_nodes = True
-    tree = mat.node_tree
-    for node in [n for n in tree.nodes if n.type != "OUTPUT_MATERIAL"]:
-        tree.nodes.remove(node)
+    mat, tree, output = bare_material("Painted")
     texture, emission = tree.nodes.new("ShaderNodeTexImage"), tree.nodes.new("ShaderNodeEmission")
     texture.image, texture.extension = image, extension
     tree.links.new(texture.outputs["Color"], emission.inputs["Color"])
-    tree.links.new(emission.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    tree.links.new(emission.outputs[0], output.inputs["Surface"])
     mesh.materials.append(mat)
     scene = bpy.context.scene
     scene.collection.objects.link(bpy.data.objects.new("Strip", mesh))

@@ -7,7 +7,7 @@ import math
 import bpy
 import numpy as np
 import pytest
-from blender_parts import colour_world, hdri_world, node_world
+from blender_parts import bare_material, colour_world, hdri_world, node_world
 
 from classic_bake.addon import bridge
 from classic_bake.addon import cycles as cr
@@ -291,12 +291,7 @@ def test_a_floor_of_mixed_shaders_bakes_as_cycles_does(kind):
     not modelled: the floor 5.9x and 4.1x, relMSE 11 and 8.7)."""
 
     scene = colour_world()
-    mat = bpy.data.materials.new("Mixed")
-    if bpy.app.version < (5, 0, 0):
-        mat.use_nodes = True
-    tree = mat.node_tree
-    for node in [n for n in tree.nodes if n.type != "OUTPUT_MATERIAL"]:
-        tree.nodes.remove(node)
+    mat, tree, output = bare_material("Mixed")
     diffuse = tree.nodes.new("ShaderNodeBsdfDiffuse")
     diffuse.inputs["Color"].default_value = (0.7, 0.1, 0.08, 1.0)
     glossy = tree.nodes.new("ShaderNodeBsdfGlossy")
@@ -307,7 +302,6 @@ def test_a_floor_of_mixed_shaders_bakes_as_cycles_does(kind):
         mix.inputs["Fac"].default_value = 0.3
     tree.links.new(diffuse.outputs[0], shaders[0])
     tree.links.new(glossy.outputs[0], shaders[1])
-    output = next(n for n in tree.nodes if n.type == "OUTPUT_MATERIAL")
     tree.links.new(mix.outputs[0], output.inputs["Surface"])
     ratios, error = _floor_and_box_against_cycles(scene, floor=mat)
     print(f"relMSE {error:.4f}")

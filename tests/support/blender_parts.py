@@ -22,6 +22,17 @@ def principled(name, base=BASE, metallic=0.0):
     return mat, bsdf
 
 
+def bare_material(name):
+    """A new material whose node tree holds its Material Output alone: (material, tree, output)."""
+    mat = bpy.data.materials.new(name)
+    if bpy.app.version < (5, 0, 0):
+        mat.use_nodes = True
+    tree = mat.node_tree
+    for node in [n for n in tree.nodes if n.type != "OUTPUT_MATERIAL"]:
+        tree.nodes.remove(node)
+    return mat, tree, next(n for n in tree.nodes if n.type == "OUTPUT_MATERIAL")
+
+
 def checker(mat, bsdf, scale=4.0, coordinates="UV"):
     """Drive the base colour with a white/black Checker Texture over the mesh's UVs, or with
     coordinates=None over what the node reads unlinked (Generated)."""
