@@ -7,9 +7,10 @@ GGX Distribution of Visible Normals", JCGT 2018): each such ray carries an equal
 lobe's albedo, the weight VNDF sampling gives up to the Fresnel and masking terms the albedo
 tables already hold (`specular_layer.py`).
 
-The points are a stratified set per hit (`lobe_points`), shifted by an offset hashed from the hit
-position (Cranley-Patterson rotation): deterministic, the same for a point wherever a tile of the
-view traces it, and without the pattern a shared set would stamp on every pixel.
+The points are a stratified set per pixel (`lobe_points`), shifted by an offset hashed from the
+pixel (Cranley-Patterson rotation): deterministic, the same wherever a tile of the view traces it,
+and without the pattern a shared set would stamp on every pixel; a pixel's sub-samples draw
+their rays from one set between them.
 """
 
 from __future__ import annotations
@@ -28,16 +29,22 @@ HASH_SCALE = 43758.5453
 MIN_ALPHA = 1e-4
 
 
-def lobe_points(counts: np.ndarray, positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def lobe_points(counts: np.ndarray, seeds: np.ndarray, part: np.ndarray | None = None,
+                parts: int = 1) -> tuple[np.ndarray, np.ndarray]:
     """For hits that each take counts[i] (N,) rays: (which hit (M,), points (M, 2) in [0, 1)^2),
-    M = counts.sum(); hit i's are a Fibonacci lattice of counts[i] points ((j + 1/2) / c,
-    j x GOLDEN_STEP) shifted by an offset hashed from its position (N, 3), modulo 1."""
+    M = counts.sum(). Hit i's are points part[i] x c .. part[i] x c + c - 1 (c = counts[i]) of
+    a Fibonacci lattice of parts x c points ((j + 1/2) / n, j x GOLDEN_STEP), shifted by an
+    offset hashed from seeds[i] (3,), modulo 1: with part None and parts 1 a lattice per hit;
+    the `parts` sub-samples of one pixel (the same seed, part their index) share one lattice
+    between them, stratified over all of them."""
     counts = np.asarray(counts, np.int64)
     which = np.repeat(np.arange(len(counts)), counts)
     j = np.arange(len(which)) - np.repeat(np.cumsum(counts) - counts, counts)
-    offset = np.sin(np.asarray(positions, np.float64) @ HASH_AXES.T) * HASH_SCALE
+    if part is not None:
+        j = j + np.asarray(part, np.int64)[which] * counts[which]
+    offset = np.sin(np.asarray(seeds, np.float64) @ HASH_AXES.T) * HASH_SCALE
     offset -= np.floor(offset)
-    points = np.stack([(j + 0.5) / counts[which], j * GOLDEN_STEP], axis=1) + offset[which]
+    points = np.stack([(j + 0.5) / (parts * counts[which]), j * GOLDEN_STEP], 1) + offset[which]
     return which, points - np.floor(points)
 
 

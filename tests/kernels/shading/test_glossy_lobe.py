@@ -50,3 +50,17 @@ def test_lobe_points_are_stratified_per_hit_and_fixed_by_position():
     assert sorted(np.floor(((points[:4, 0] - points[0, 0]) % 1.0) * 4).astype(int)) == [0, 1, 2, 3]
     _, again = lobe_points(np.array([2]), positions[1:])
     np.testing.assert_array_equal(again, points[4:])  # the same hit, alone, the same points
+
+
+def test_a_pixels_sub_samples_share_one_stratified_set():
+    """Four sub-samples of one pixel (one seed), two rays each: together the eight points of one
+    lattice, one in each eighth of u; a second pixel's set is shifted differently."""
+    seed = np.array([[12.0, 7.0, 0.0]])
+    together = np.concatenate([lobe_points(np.array([2]), seed, np.array([k]), 4)[1]
+                               for k in range(4)])
+    _, whole = lobe_points(np.array([8]), seed)
+    np.testing.assert_allclose(np.sort(together[:, 0]), np.sort(whole[:, 0]), atol=1e-12)
+    shift = (together[:, 0] - together[0, 0]) % 1.0
+    assert sorted(np.floor(shift * 8 + 1e-9).astype(int)) == list(range(8))
+    _, other = lobe_points(np.array([8]), np.array([[13.0, 7.0, 0.0]]))
+    assert not np.allclose(np.sort(other[:, 0]), np.sort(whole[:, 0]))
