@@ -13,11 +13,7 @@ import tempfile
 import bpy
 import numpy as np
 
-from ...kernels.shading.textures import MISSING_TEXEL, UDIM_ROW
-
-# Cycles reads an Image or Environment Texture node whose image is missing (its file not found)
-# or unset as MISSING_TEXEL, magenta (a world of it shows (1, 0, 1) x strength).
-MISSING_IMAGE_TEXEL = MISSING_TEXEL
+from ...kernels.shading.textures import UDIM_ROW
 
 # Blender's tokens for a UDIM tile in an image's path: <UDIM> is the tile number (1001 ...),
 # <UVTILE> u{tx + 1}_v{ty + 1}.
@@ -71,24 +67,30 @@ def tile_pixels(image, decode: bool = True) -> dict[int, np.ndarray]:
     packed = {p.tile_number: p.packed_file for p in image.packed_files}
     tiles = {}
     for tile in image.tiles:
-        with tempfile.TemporaryDirectory(prefix="classic_bake_tile_") as folder:
-            path = tile_path(image, tile.number)
-            if tile.number in packed:
-                path = os.path.join(folder, f"tile{os.path.splitext(path)[1]}")
-                with open(path, "wb") as f:
+        path = tile_path(image, tile.number)
+        if tile.number in packed:  # written out to be loaded as a file
+            with tempfile.TemporaryDirectory(prefix="classic_bake_tile_") as folder:
+                copy = os.path.join(folder, f"tile{os.path.splitext(path)[1]}")
+                with open(copy, "wb") as f:
                     f.write(packed[tile.number].data)
-            if not os.path.isfile(path):
-                continue
-            try:
-                loaded = bpy.data.images.load(path, check_existing=False)
-            except RuntimeError:  # not an image Blender reads
-                continue
-            try:
-                loaded.colorspace_settings.name = image.colorspace_settings.name
-                loaded.alpha_mode = image.alpha_mode
-                pixels = image_pixels(loaded, decode)
-            finally:
-                bpy.data.images.remove(loaded)
+                pixels = _file_pixels(copy, image, decode)
+        else:
+            pixels = _file_pixels(path, image, decode) if os.path.isfile(path) else None
         if pixels is not None:
             tiles[tile.number] = pixels
     return tiles
+
+
+def _file_pixels(path: str, like, decode: bool) -> np.ndarray | None:
+    """An image file's pixels read as `image_pixels` reads them, in the colour space and alpha
+    mode of the image `like`; None if Blender cannot read it. Nothing is left in bpy.data."""
+    try:
+        loaded = bpy.data.images.load(path, check_existing=False)
+    except RuntimeError:  # not an image Blender reads
+        return None
+    try:
+        loaded.colorspace_settings.name = like.colorspace_settings.name
+        loaded.alpha_mode = like.alpha_mode
+        return image_pixels(loaded, decode)
+    finally:
+        bpy.data.images.remove(loaded)

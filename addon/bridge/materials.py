@@ -22,7 +22,8 @@ import bpy
 import numpy as np
 
 from ...kernels.geometry.scene import Material, Texture
-from .images import MISSING_IMAGE_TEXEL, image_pixels, stored_srgb, tile_pixels
+from ...kernels.shading.textures import MISSING_TEXEL
+from .images import image_pixels, stored_srgb, tile_pixels
 from .nodes import active_output, follow_through, node_tree
 from .request import SnapshotRequest
 from .socket_fallback import BakeTarget, SocketFallback
@@ -658,7 +659,7 @@ class MaterialReader:
                 missing = "no image" if image is None else f"image '{image.name}' has no pixels"
                 ignored.append(f"{what}: {missing} (missing file?): magenta, as Cycles reads it")
                 return Texture(kind="IMAGE", name=f"{what}: missing image",
-                               pixels=np.array(MISSING_IMAGE_TEXEL, np.float32).reshape(1, 1, 4),
+                               pixels=np.array(MISSING_TEXEL, np.float32).reshape(1, 1, 4),
                                extension="EXTEND", interpolation="CLOSEST", uv_layer=uv_layer,
                                coordinates=coordinates, encoding="linear")
             return Texture(

@@ -7,8 +7,9 @@ from __future__ import annotations
 import numpy as np
 
 from ...kernels.geometry.scene import Texture
+from ...kernels.shading.textures import MISSING_TEXEL
 from ..cycles.world_map import render_world_map
-from .images import MISSING_IMAGE_TEXEL, image_pixels
+from .images import image_pixels
 from .nodes import active_output, follow, node_tree
 
 
@@ -56,7 +57,7 @@ def read_world(scene, mapped=None) -> tuple[np.ndarray, list[str]]:
                            "along world directions; what feeds its Vector (other than a Mapping "
                            "of Generated coordinates) is not modelled")
     elif color_node is not None and color_node.type == "TEX_ENVIRONMENT":
-        color = np.array(MISSING_IMAGE_TEXEL[:3], np.float32)
+        color = np.array(MISSING_TEXEL[:3], np.float32)
         what = "no image" if color_node.image is None else f"image '{color_node.image.name}'"
         ignored.append(f"world: the Environment Texture's {what} has no pixels (missing "
                        "file?): magenta, as Cycles renders it")
