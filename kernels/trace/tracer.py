@@ -283,11 +283,13 @@ class Tracer:
                 # taken along each direction a lamp's light comes from (an area lamp whose
                 # centre is under the tilted normal's horizon still lights it by its rest).
                 lit_e = e[sub]
-                if smooth is not None:
+                if smooth is not None and light.kind == "AREA":  # per grid sample of the lamp
                     s_sub, n_sub = smooth[sub], ns[sub]
                     lit_e = light_units.direct_irradiance(
                         light, p[sub], n_sub,
                         lambda to, s_sub=s_sub, n_sub=n_sub: bump_shadowing(s_sub, n_sub, to))
+                elif smooth is not None:  # one direction: the lamp's
+                    lit_e = lit_e * bump_shadowing(smooth[sub], ns[sub], to_l[sub])[:, None]
                 lambert[idx[sub]] += brdf_w[sub] * lit_e * vis[:, None]
             rows = idx[sub]
             cos_i = np.maximum(np.einsum("ij,ij->i", ns[sub], to_l[sub]), 1e-6)  # e's cosine
