@@ -317,8 +317,7 @@ class MaterialReader:
         output = active_output(tree, "OUTPUT_MATERIAL")
         if output is None:
             return Material(name=mat.name, ignored=("no Material Output node",))
-        if output.inputs["Volume"].is_linked:
-            ignored.append("volume shader")
+        absorption = self._absorption(output.inputs["Volume"], ignored)
         if output.inputs["Displacement"].is_linked:
             ignored.append("displacement (bump mapping reads Bump/Normal Map nodes only)")
         node, _, groups = follow_through(output.inputs["Surface"])
@@ -326,7 +325,32 @@ class MaterialReader:
             return Material(name=mat.name, base_color=np.zeros(3, np.float32),
                             ignored=tuple(ignored + ["no surface shader: black"]))
         with self._inside(groups):
-            return self._shader(mat.name, node, ignored)
+            material = self._shader(mat.name, node, ignored)
+        if absorption is None:
+            return material
+        if material.transmission <= 0.0:
+            ignored.append("a volume inside a surface that does not refract is not modelled")
+            return replace(material, ignored=tuple(ignored))
+        return replace(material, absorption=absorption)
+
+    def _absorption(self, socket, ignored: list) -> np.ndarray | None:
+        """The absorption coefficient (3,) 1/m of the medium a Volume Absorption in the Volume
+        slot `socket` fills the mesh with: (1 - Color) x Density, as Cycles' node sets it. None
+        when the slot is empty or holds another volume shader (noted: not modelled)."""
+        if not socket.is_linked:
+            return None
+        node, _, groups = follow_through(socket)
+        if node is None:
+            return None
+        if node.type != "VOLUME_ABSORPTION":
+            ignored.append(f"volume shader '{node.bl_idname}' in the Volume slot is not modelled "
+                           f"(a Volume Absorption is)")
+            return None
+        with self._inside(groups):
+            color, _ = self._color(node.inputs["Color"], ignored, textures=False)
+            density = self._value(node.inputs["Density"], ignored)
+        sigma = np.clip(1.0 - color, 0.0, None) * max(density, 0.0)
+        return sigma.astype(np.float32) if sigma.any() else None
 
     def _shader(self, name: str, node, ignored: list, depth: int = 0) -> Material:
         """The kernel `Material` of the shader node `node` (a BSDF, an emission, or a Mix or

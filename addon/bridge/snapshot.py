@@ -3,12 +3,12 @@ kernel `Scene`: geometry, the scene's material table, lights, camera and world."
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import fields, replace
 
 import bpy
 import numpy as np
 
-from ...kernels.geometry.scene import Light, Material, ObjectInfo, Scene
+from ...kernels.geometry.scene import Light, Material, ObjectInfo, Scene, Texture
 from ...kernels.shading.material_maps import resolve_material_maps
 from .attributes import material_attribute
 from .camera import read_camera
@@ -185,12 +185,19 @@ def _corner_colors(chunk, attribute_of: list) -> np.ndarray | None:
     return colors
 
 
+def _reads_uv(materials, slot_ids: np.ndarray) -> bool:
+    """Whether a material of these triangles (`slot_ids` into `materials`) looks a texture up by
+    UV: an object without UVs is worth a note only then."""
+    values = (getattr(materials[m], f.name) for m in np.unique(slot_ids) for f in fields(Material))
+    return any(isinstance(value, Texture) and value.coordinates == "UV" for value in values)
+
+
 def _assemble(chunks, materials, lights, camera, world, request, ignored) -> Scene:
     counts = [c.triangles.shape[0] for c in chunks]
     starts = np.concatenate([[0], np.cumsum(counts)]).astype(int)
     objects = []
     for k, chunk in enumerate(chunks):
-        if chunk.uv is None and request.uv:
+        if chunk.uv is None and request.uv and _reads_uv(materials, chunk.slot_ids):
             ignored.append(f"object '{chunk.name}' has no UV layer: textures read UV (0, 0)")
         objects.append(ObjectInfo(
             name=chunk.name, source_name=chunk.source_name, tri_start=int(starts[k]),

@@ -128,6 +128,9 @@ class Material:
     | alpha              | [0, 1]    | 1       | coverage: 0 a hole every ray passes, 1 opaque  |
     | alpha_texture      | Texture   | None    | coverage per texel (its first channel),        |
     |                    |           |         | replaces `alpha` (leaves, fences, decals)      |
+    | absorption         | [0, inf)^3| 0       | 1/m: the medium inside the closed mesh (a      |
+    |                    |           |         | Volume Absorption); a ray crossing d metres of |
+    |                    |           |         | it keeps exp(-absorption d) (Beer-Lambert)     |
 
     The per-texel textures other than the base colour's are resolved per triangle by
     `shading/material_maps.py` before a kernel runs (a snapshot does it): metallic and roughness
@@ -160,6 +163,9 @@ class Material:
     # pass with weight 1 - alpha (`shading/alpha.py`, `geometry/alpha_occlusion.py`).
     alpha: float = 1.0
     alpha_texture: Texture | None = None
+    # The medium inside the mesh: what glass holds (coloured glass, water). Only rays that refract
+    # in meet it; a ray's weight drops on its way to the back face it leaves through.
+    absorption: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))
     # What the bridge could not model on this material, one reason per entry.
     ignored: tuple[str, ...] = ()
     # Sockets the bridge read through a Cycles bake of their node graph, one dict each.

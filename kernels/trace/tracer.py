@@ -192,6 +192,9 @@ class Tracer:
         self.coat_f0 = np.array([layer_f0(m.coat_ior, 0.5) for m in mats], np.float64)
         self.coat_tint = np.array([m.coat_tint for m in mats], np.float64).reshape(-1, 3)
         self.coat_tables = coat_tables(mats) if self.coat.any() else None
+        # The media inside closed meshes (1/m); None when no material holds one.
+        absorption = np.array([m.absorption for m in mats], np.float64).reshape(-1, 3)
+        self.absorption = absorption if absorption.any() else None
         self.textured = np.array([m.base_color_texture is not None for m in mats], bool)
         self._frames: rd.TriangleFrames | None = None  # built when differentials are first carried
         self.black = np.array([m.base_color_texture is None and not np.any(m.base_color > 0)
@@ -502,6 +505,15 @@ class Tracer:
             self._frames = rd.TriangleFrames(self.scene)
         return self._frames
 
+    def _medium_transmittance(self, dirs: np.ndarray, hits) -> np.ndarray:
+        """(N, 3) what each ray keeps of the medium it crossed to reach its hit (Beer-Lambert,
+        exp(-absorption t), t in metres): a ray that meets a back face was inside that mesh
+        (closed meshes assumed, as for `entered`); 1 for rays that hit a front face."""
+        tri = hits.tri
+        leaving = np.einsum("ij,ij->i", dirs, self.tri_normals[tri]) > 0.0
+        sigma = self.absorption[self.scene.material_ids[tri]] * leaving[:, None]
+        return np.exp(-sigma * hits.t.astype(np.float64)[:, None])
+
     def _lobe_rays(self, child: tuple, strong: np.ndarray, h: SurfaceHits, wo: np.ndarray,
                    rough: np.ndarray, lobe_w: np.ndarray, diffuse: np.ndarray,
                    seeds: np.ndarray | None = None, strata: Strata | None = None) -> tuple:
@@ -666,6 +678,8 @@ class Tracer:
             hits = type(hits)(t=hits.t[keep], tri=hits.tri[keep], u=hits.u[keep], v=hits.v[keep])
             if len(origins) == 0:
                 break
+            if self.absorption is not None:  # what the medium it crossed left of the ray
+                weight = weight * self._medium_transmittance(dirs, hits)
             u, v = hits.u.astype(np.float64), hits.v.astype(np.float64)
             bary = np.stack([1.0 - u - v, u, v], axis=1)
             if depth > s.max_depth:  # one bounce past the limit: emission only, nothing lit

@@ -349,3 +349,27 @@ def test_a_coat_is_read_and_one_over_a_normal_map_is_noted_and_left_out():
     graph = next(m for m in bridge.snapshot().materials if m.name == "Graph")
     assert graph.coat == 0.0 and graph.normal_texture is not None
     assert any("Coat Weight over a normal or bump map" in why for why in graph.ignored)
+
+
+def test_a_volume_is_read_inside_glass_and_noted_where_it_is_not_modelled():
+    tree, bsdf = _plane_with_emission()
+    output = next(n for n in tree.nodes if n.type == "OUTPUT_MATERIAL")
+    volume = tree.nodes.new("ShaderNodeVolumeAbsorption")
+    volume.inputs["Color"].default_value = (0.5, 0.75, 1.0, 1.0)
+    volume.inputs["Density"].default_value = 4.0
+    tree.links.new(volume.outputs["Volume"], output.inputs["Volume"])
+
+    def graph():
+        return next(m for m in bridge.snapshot().materials if m.name == "Graph")
+
+    # behind an opaque surface no ray enters: no medium, and the note says so
+    assert not graph().absorption.any()
+    assert any("volume inside a surface that does not refract" in why for why in graph().ignored)
+    bsdf.inputs["Transmission Weight"].default_value = 1.0
+    np.testing.assert_allclose(graph().absorption, (2.0, 1.0, 0.0))  # (1 - Color) x Density
+    assert not graph().ignored
+    scatter = tree.nodes.new("ShaderNodeVolumePrincipled")
+    tree.links.new(scatter.outputs["Volume"], output.inputs["Volume"])
+    assert not graph().absorption.any()
+    assert any("'ShaderNodeVolumePrincipled' in the Volume slot is not modelled" in why
+               for why in graph().ignored)

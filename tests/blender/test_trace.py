@@ -213,3 +213,52 @@ def test_a_coated_plane_matches_cycles():
         print("relMSE against Cycles", rel_mse(ours, cycles), rel_mse(without[on_plane], cycles))
         assert rel_mse(ours, cycles) < 5e-3
         assert rel_mse(ours, cycles) < 0.1 * rel_mse(without[on_plane], cycles)
+
+
+def test_coloured_glass_absorbs_as_cycles_volume_does():
+    """A glass block (stretched 1.5x by its object scale) filled with a Volume Absorption
+    (Color (0.2, 0.6, 0.9), Density 2: 1/m per channel (1 - Color) x Density) on a white plane
+    under the sun and the blue world: rays crossing it keep exp(-sigma d) of the light, d in
+    world metres. Against Cycles' Whitted-model render (256 samples, 32 x 24): measured relMSE
+    2.5e-3 on the pixels that see the medium; without it 1.0."""
+    from dataclasses import replace
+
+    from blender_parts import bare_material, lit_scene, oblique_camera, plane, principled
+
+    from classic_bake.addon import cycles as cr
+    from classic_bake.kernels.measure.metrics import rel_mse
+    from classic_bake.kernels.trace.settings import TracerSettings
+    from classic_bake.kernels.trace.tracer import trace
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = lit_scene()
+    plane(principled("White", base=(0.8, 0.8, 0.8))[0], size=6.0)
+    glass, tree, output = bare_material("Coloured glass")
+    bsdf = tree.nodes.new("ShaderNodeBsdfGlass")
+    bsdf.inputs["Roughness"].default_value = 0.0
+    volume = tree.nodes.new("ShaderNodeVolumeAbsorption")
+    volume.inputs["Color"].default_value = (0.2, 0.6, 0.9, 1.0)
+    volume.inputs["Density"].default_value = 2.0
+    tree.links.new(bsdf.outputs["BSDF"], output.inputs["Surface"])
+    tree.links.new(volume.outputs["Volume"], output.inputs["Volume"])
+    bpy.ops.mesh.primitive_cube_add(size=0.8, location=(0.0, 0.0, 0.61))
+    block = bpy.context.active_object
+    block.scale = (1.0, 1.0, 1.5)
+    block.data.materials.append(glass)
+    oblique_camera(scene)
+    cycles, _ = cr.render_camera(scene, cr.whitted(8), 256, resolution=(32, 24))
+    snap = bridge.snapshot(resolution=(32, 24))
+    held = next(m for m in snap.materials if m.name == "Coloured glass")
+    np.testing.assert_allclose(held.absorption, [1.6, 0.8, 0.2], rtol=1e-6)
+    assert not held.ignored
+    settings = TracerSettings(max_depth=8)
+    ours = trace(snap, settings).image
+    clear = replace(snap, materials=tuple(replace(m, absorption=np.zeros(3, np.float32))
+                                          for m in snap.materials))
+    without = trace(clear, settings).image
+    through = np.abs(ours - without).sum(axis=2) > 1e-3  # the pixels that see the medium
+    assert through.sum() > 40
+    print("relMSE against Cycles", rel_mse(ours[through], cycles[through]),
+          rel_mse(without[through], cycles[through]))
+    assert rel_mse(ours[through], cycles[through]) < 1e-2
+    assert rel_mse(ours[through], cycles[through]) < 0.1 * rel_mse(without[through], cycles[through])
