@@ -70,9 +70,10 @@ def mix_materials(name: str, parts: list, ignored: list) -> Material:
     the emission exactly, and the three weights' shares; the metal parts keep their own tint
     (`Material.metal_color`: a white Glossy over a red Diffuse reflects white), the glass parts
     take the base colour, roughness and IOR their parts' weighted means, the specular layer the
-    diffuse parts' weighted level. A base texture is kept where its part is the only diffuse one
+    diffuse parts' weighted level, the sheens their weights' sum (`_sheen_fields`). A base texture is kept where its part is the only diffuse one
     (else the first textured part's, noted)."""
     weights = np.array([w for w, _ in parts], np.float64)
+    sheen = _sheen_fields(parts, ignored)
     d_w = np.array([w * (1.0 - m.metallic) * (1.0 - m.transmission) for w, m in parts])
     m_w = np.array([w * m.metallic for w, m in parts])
     t_w = np.array([w * (1.0 - m.metallic) * m.transmission for w, m in parts])
@@ -87,7 +88,7 @@ def mix_materials(name: str, parts: list, ignored: list) -> Material:
     if total <= 0.0:
         return Material(name=name, base_color=np.zeros(3, np.float32), specular=0.0,
                         emission=emission.astype(np.float32), emission_texture=emission_texture,
-                        ignored=tuple(ignored))
+                        ignored=tuple(ignored), **sheen)
 
     def mean(values: list, *by: np.ndarray):  # one value per part, weighted by the first of `by`
         w = next(x for x in by if x.sum() > 0.0)  # with a positive sum
@@ -136,7 +137,7 @@ def mix_materials(name: str, parts: list, ignored: list) -> Material:
         height_texture=None if normal is None else normal.height_texture,
         bump_strength=1.0 if normal is None else normal.bump_strength,
         bump_distance=1.0 if normal is None else normal.bump_distance,
-        ignored=tuple(ignored))
+        ignored=tuple(ignored), **sheen)
 
 
 def with_transparency(name: str, parts: list, ignored: list) -> Material:
@@ -149,6 +150,11 @@ def with_transparency(name: str, parts: list, ignored: list) -> Material:
     part is the whole mix."""
     if len(parts) == 1 and abs(parts[0][0] - 1.0) <= MIX_WEIGHT_EPS:
         return replace(parts[0][1], ignored=tuple(ignored))
+    fabric = [(w, m) for w, m in parts if _pure_sheen(m)]
+    if fabric and len(fabric) < len(parts):  # Sheen BSDFs beside the rest: their light added
+        surface = with_transparency(name, [(w, m) for w, m in parts if not _pure_sheen(m)], ignored)
+        sheen = _sheen_fields([(1.0, surface), *fabric], ignored)
+        return replace(surface, ignored=tuple(ignored), **sheen)
     glowing = _with_emitters(name, parts, ignored)
     if glowing is not None:
         return glowing
@@ -186,6 +192,29 @@ def _with_emitters(name: str, parts: list, ignored: list) -> Material | None:
         emission = np.zeros(3)
     return replace(surface, name=name, emission=emission.astype(np.float32),
                    emission_texture=texture, ignored=tuple(ignored))
+
+
+def _pure_sheen(m: Material) -> bool:
+    """Whether `m` is a Sheen BSDF alone: it reflects by its sheen only."""
+    return (m.sheen > 0.0 and _pure_emitter(m) and not m.emission.any()
+            and m.emission_texture is None)
+
+
+def _sheen_fields(parts: list, ignored: list) -> dict:
+    """The sheen `Material` fields of a sum of parts [(weight, Material)]: the weights add, tint
+    and roughness their weighted means; the first sheen's model and layering ({}: no sheen)."""
+    sheens = [(w * m.sheen, m) for w, m in parts if w * m.sheen > 0.0]
+    if not sheens:
+        return {}
+    if len({(m.sheen_model, m.sheen_layer) for _, m in sheens}) > 1:
+        ignored.append("sheens of different kinds in one mix: the first one's kind used")
+    total = sum(w for w, _ in sheens)
+    first = sheens[0][1]
+    return {"sheen": total,
+            "sheen_tint": (sum(w * m.sheen_tint.astype(np.float64) for w, m in sheens) / total
+                           ).astype(np.float32),
+            "sheen_roughness": sum(w * m.sheen_roughness for w, m in sheens) / total,
+            "sheen_model": first.sheen_model, "sheen_layer": first.sheen_layer}
 
 
 def _pure_emitter(m: Material) -> bool:
@@ -378,6 +407,13 @@ class MaterialReader:
             return Material(name=name, base_color=color, base_color_texture=tex, metallic=1.0,
                             roughness=self._value(node.inputs["Roughness"], ignored),
                             ignored=tuple(ignored))
+        if kind == "BSDF_SHEEN":  # added beside a surface, not layered over it
+            color, _ = self._color(node.inputs["Color"], ignored, textures=False)
+            rough = min(max(self._value(node.inputs["Roughness"], ignored), 0.0), 1.0)
+            return Material(name=name, base_color=np.zeros(3, np.float32), specular=0.0,
+                            sheen=1.0, sheen_tint=np.clip(color, 0.0, None).astype(np.float32),
+                            sheen_roughness=rough, sheen_model=node.distribution,
+                            sheen_layer=False, ignored=tuple(ignored))
         if kind == "BSDF_TRANSPARENT":
             color, _ = self._color(node.inputs["Color"], ignored, textures=False)
             if not np.allclose(color, 1.0):
@@ -478,11 +514,11 @@ class MaterialReader:
                                                 inputs["Emission Strength"], ignored)
         metallic, metallic_tex = self._number(inputs["Metallic"], ignored)
         roughness, roughness_tex = self._number(inputs["Roughness"], ignored)
-        for unmodelled in ("Subsurface Weight", "Sheen Weight"):
-            if unmodelled in inputs:
-                weight = self._read(inputs[unmodelled], [])  # through groups: their inputs' values
-                if weight is None or weight.texture is not None or weight.const[0] > 0.0:
-                    ignored.append(f"{unmodelled} is not modelled")
+        if "Subsurface Weight" in inputs:
+            weight = self._read(inputs["Subsurface Weight"], [])  # through groups: their values
+            if weight is None or weight.texture is not None or weight.const[0] > 0.0:
+                ignored.append("Subsurface Weight is not modelled")
+        sheen = self._sheen(inputs, ignored)
         alpha, alpha_tex = self._alpha(inputs["Alpha"], ignored) if "Alpha" in inputs else (1.0, None)
         relief = self._normal(inputs["Normal"], ignored)
         coat = self._coat(inputs, ignored, relief)
@@ -508,7 +544,22 @@ class MaterialReader:
             bump_distance=relief.bump_distance,
             ignored=tuple(ignored),
             **coat,
+            **sheen,
         )
+
+    def _sheen(self, inputs, ignored) -> dict:
+        """The Principled sheen's `Material` fields (a microfiber layer over the rest): weight,
+        tint and roughness as constants (a texture driving one is noted, its default used); {}
+        where there is none."""
+        if "Sheen Weight" not in inputs:
+            return {}
+        weight = max(self._value(inputs["Sheen Weight"], ignored), 0.0)
+        if weight <= 0.0:
+            return {}
+        tint, _ = self._color(inputs["Sheen Tint"], ignored, textures=False)
+        return {"sheen": weight, "sheen_tint": np.clip(tint, 0.0, None).astype(np.float32),
+                "sheen_roughness": min(max(self._value(inputs["Sheen Roughness"], ignored), 0.0),
+                                       1.0)}
 
     def _coat(self, inputs, ignored, relief: Relief) -> dict:
         """The Principled coat's `Material` fields: weight, roughness, IOR and tint as constants

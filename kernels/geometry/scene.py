@@ -122,6 +122,14 @@ class Material:
     | coat_roughness     | [0, 1]    | 0.03    | the coat's roughness                           |
     | coat_ior           | >= 1      | 1.5     | the coat's index of refraction                 |
     | coat_tint          | [0, 1]^3  | 1       | what the coat lets through at normal incidence |
+    | sheen              | [0, inf)  | 0       | sheen weight (`shading/sheen.py`): cloth's rim |
+    | sheen_tint         | [0, inf)^3| 1       | the sheen's colour                             |
+    | sheen_roughness    | [0, 1]    | 0.5     | microfiber roughness, or the velvet's sigma    |
+    | sheen_model        | str       | MICRO.. | "MICROFIBER" (Zeltner 2022) or "ASHIKHMIN"     |
+    |                    |           |         | (velvet)                                       |
+    | sheen_layer        | bool      | True    | True: a Principled layer, what lies under it   |
+    |                    |           |         | dimmed by its albedo; False: a Sheen BSDF      |
+    |                    |           |         | added beside the surface                       |
     | fallbacks          | dicts     | ()      | sockets read from a Cycles bake of their graph |
     |                    |           |         | (the bridge's general fallback): socket,       |
     |                    |           |         | read_as, seconds, cached, object               |
@@ -159,6 +167,11 @@ class Material:
     coat_roughness: float = 0.03
     coat_ior: float = 1.5
     coat_tint: np.ndarray = field(default_factory=lambda: np.ones(3, np.float32))
+    sheen: float = 0.0
+    sheen_tint: np.ndarray = field(default_factory=lambda: np.ones(3, np.float32))
+    sheen_roughness: float = 0.5
+    sheen_model: Literal["MICROFIBER", "ASHIKHMIN"] = "MICROFIBER"
+    sheen_layer: bool = True
     # Coverage (Principled Alpha): what a ray meets of this surface; shadow and visibility rays
     # pass with weight 1 - alpha (`shading/alpha.py`, `geometry/alpha_occlusion.py`).
     alpha: float = 1.0

@@ -48,6 +48,7 @@ from ..shading.bump import bump_shadowing, valid_reflection
 from ..shading.glossy_lobe import ggx_reflections, lobe_points
 from ..shading.material_maps import emission_at
 from ..shading.optics import fresnel_dielectric, reflect, refract
+from ..shading.sheen import microfiber, microfiber_albedo, velvet
 from ..shading.specular_layer import (
     coat_attenuation,
     coat_tables,
@@ -192,6 +193,13 @@ class Tracer:
         self.coat_f0 = np.array([layer_f0(m.coat_ior, 0.5) for m in mats], np.float64)
         self.coat_tint = np.array([m.coat_tint for m in mats], np.float64).reshape(-1, 3)
         self.coat_tables = coat_tables(mats) if self.coat.any() else None
+        # Sheen (`shading/sheen.py`): colour (weight x tint), roughness, model, layering.
+        self.sheen = np.array([m.sheen * np.asarray(m.sheen_tint, np.float64) for m in mats],
+                              np.float64).reshape(-1, 3)
+        self.has_sheen = self.sheen.max(axis=1) > 0.0
+        self.sheen_roughness = np.array([m.sheen_roughness for m in mats], np.float64)
+        self.velvet = np.array([m.sheen_model == "ASHIKHMIN" for m in mats], bool)
+        self.sheen_layer = np.array([m.sheen_layer for m in mats], bool)
         # The media inside closed meshes (1/m); None when no material holds one.
         absorption = np.array([m.absorption for m in mats], np.float64).reshape(-1, 3)
         self.absorption = absorption if absorption.any() else None
@@ -224,8 +232,8 @@ class Tracer:
                             self.alpha.opaque)
 
     def direct(self, h: SurfaceHits, wo: np.ndarray, diffuse_w: np.ndarray, lobes: list, rough,
-               strata: Strata | None = None, where: tuple | None = None
-               ) -> tuple[np.ndarray, np.ndarray]:
+               strata: Strata | None = None, where: tuple | None = None,
+               sheen: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Light from every light at the hits, shadow rays included: (radiance, lambert), each (N, 3).
 
         radiance = albedo * lambert + highlights; lambert is the diffuse part for a white base
@@ -235,11 +243,13 @@ class Tracer:
         lobe's mirror ray instead). strata: each hit's stratum and their count m, for area
         lights (`_area_direct`). where: each hit's triangle (N,) and barycentrics (N, 3), when
         known: a hit whose part of its triangle sees a light whole casts no shadow rays to it
-        (`shadow_shafts.py`).
+        (`shadow_shafts.py`). sheen: an (N, 3) array the hits' sheen light is added to (a layer
+        the caller weighs on its own), lit by lamps and emitters as the diffuse base is.
         """
         out = np.zeros_like(h.p)
         lambert = np.zeros_like(h.p)
-        shading = (diffuse_w > 0) | np.any([w > 0 for _, w in lobes], axis=0)
+        sheen_at = self.has_sheen[h.material] if sheen is not None else np.zeros(len(h.p), bool)
+        shading = (diffuse_w > 0) | np.any([w > 0 for _, w in lobes], axis=0) | sheen_at
         if not shading.any():
             return out, lambert
         idx = np.nonzero(shading)[0]
@@ -296,6 +306,14 @@ class Tracer:
                 lambert[idx[sub]] += brdf_w[sub] * lit_e * vis[:, None]
             rows = idx[sub]
             cos_i = np.maximum(np.einsum("ij,ij->i", ns[sub], to_l[sub]), 1e-6)  # e's cosine
+            if diffuse and sheen_at[rows].any():
+                pick = np.flatnonzero(sheen_at[rows])
+                fabric = self._sheen(h.material[rows[pick]], ns[sub[pick]], to_l[sub[pick]],
+                                     wo[rows[pick]])
+                if smooth is not None:
+                    fabric = fabric * bump_shadowing(smooth[sub[pick]], ns[sub[pick]],
+                                                     to_l[sub[pick]])[:, None]
+                sheen[rows[pick]] += fabric * e[sub[pick]] * (vis[pick] / cos_i[pick])[:, None]
             for f0, weight in lobes:
                 shine = ggx_highlight(gn[sub], to_l[sub], wo[rows], rough[rows], f0[rows])
                 out[rows] += shine * e[sub] * (weight[rows] * vis / cos_i)[:, None]
@@ -306,12 +324,27 @@ class Tracer:
                     whole = np.stack([self.shafts.clear(e, tri, bary) for e in range(areas)], 1)
             sub_strata = strata_rows(strata, idx)
             area_lobes = [(f0[idx], weight[idx]) for f0, weight in lobes]
+            fabric = None
+            if sheen_at.any():
+                fabric = (h.material[idx], sheen_at[idx], np.zeros((len(idx), 3)))
             diffuse, shine = self._area_direct(origin, ns, brdf_w, sub_strata, wo[idx], area_lobes,
-                                               rough[idx], smooth, whole, gn)
+                                               rough[idx], smooth, whole, gn, fabric)
             lambert[idx] += diffuse
             out[idx] += shine
+            if fabric is not None:
+                sheen[idx] += fabric[2]
         out += h.albedo * lambert
         return out, lambert
+
+    def _sheen(self, material: np.ndarray, n: np.ndarray, to_light: np.ndarray,
+               to_eye: np.ndarray) -> np.ndarray:
+        """(N, 3) the sheen's colour x f cos(theta_l) at hits of `material` (N,) with unit
+        shading normals, directions to the light and to the eye (N, 3): microfiber or velvet."""
+        rough, fuzz = self.sheen_roughness[material], self.velvet[material]
+        f = np.empty(len(material))
+        f[~fuzz] = microfiber(n[~fuzz], to_light[~fuzz], to_eye[~fuzz], rough[~fuzz])
+        f[fuzz] = velvet(n[fuzz], to_light[fuzz], to_eye[fuzz], rough[fuzz])
+        return self.sheen[material] * f[:, None]
 
     def gouraud_direct(self, h: SurfaceHits, hits, eye: np.ndarray, diffuse_w, lobes, rough,
                        strata: Strata | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -341,7 +374,7 @@ class Tracer:
 
     def _area_direct(self, origin, ns, brdf_d, strata: Strata | None = None, wo=None,
                      lobes: tuple | list = (), rough=None, smooth=None, whole=None,
-                     glossy=None) -> tuple[np.ndarray, np.ndarray]:
+                     glossy=None, sheen: tuple | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Light from area lights and emissive triangles: every emitter sample against every hit,
         EMITTER_BLOCK samples at a time, with one batch of shadow rays per block. Returns the
         diffuse part (N, 3) (brdf_d weighted) and the area lights' highlights in the glossy
@@ -355,6 +388,7 @@ class Tracer:
         sample count m does not divide keep every sample for every hit. whole (N, E) bool, when
         given: hit n sees emitter e whole (`shadow_shafts.py`) and casts no shadow rays to it.
         glossy (N, 3): the normals the lobes turn about (`SurfaceHits.spec`); None: ns.
+        sheen: (material (N,), has sheen (N,) bool, out (N, 3)): the sheen light is added to out.
         """
         em = self.emitters
         glossy = ns if glossy is None else glossy
@@ -400,6 +434,15 @@ class Tracer:
             relief = 1.0 if smooth is None else bump_shadowing(
                 smooth[n_idx], ns[n_idx], to_l[b_idx, n_idx])[:, None]
             _scatter_add(out, n_idx, brdf_d[n_idx] * weight * relief)
+            if sheen is not None:  # every emitter lights a sheen, as it does the base
+                material, sheen_at, sheen_out = sheen
+                pick = np.flatnonzero(sheen_at[n_idx])
+                if pick.size:
+                    rows, l_dir = n_idx[pick], to_l[b_idx[pick], n_idx[pick]]
+                    cos_r = np.maximum(np.einsum("ij,ij->i", ns[rows], l_dir), 1e-6)
+                    fabric = self._sheen(material[rows], ns[rows], l_dir, wo[rows])
+                    fabric = fabric * (relief if np.isscalar(relief) else relief[pick])
+                    _scatter_add(sheen_out, rows, fabric * weight[pick] / cos_r[:, None])
             lamp = ~em.area_two_sided[block][b_idx]  # area lamps: no rough lobe's ray meets them
             for f0, w in lobes:
                 pick = np.flatnonzero(lamp & (w[n_idx] > 0.0))
@@ -755,8 +798,9 @@ class Tracer:
                     lit, lambert = self.gouraud_direct(h, hits, origins, lit_w, lobes, rough,
                                                        hit_strata)
                 else:
+                    sheen_light = np.zeros_like(h.p) if self.has_sheen[m].any() else None
                     lit, lambert = self.direct(h, wo, lit_w, lobes, rough, hit_strata,
-                                               (hits.tri, bary))
+                                               (hits.tri, bary), sheen_light)
             if self.diffuse is not None:
                 with self.clock("diffuse lookup"):
                     reflected = self.diffuse(hits.tri, bary, dirs, h.front, entered == 0,
@@ -822,6 +866,16 @@ class Tracer:
                 with self.clock("environment"):
                     own = own + self._environment(hits.tri, h.p, r_dir, mirror_w, gn,
                                                   lit_w[:, None] * h.albedo)
+            # A Principled sheen over it all (`shading/sheen.py`): what lies under keeps 1 - the
+            # layer's albedo; a Sheen BSDF adds its light beside the surface (keep 1).
+            keep = None
+            if s.shading != "gouraud" and self.has_sheen[m].any():
+                layered = self.sheen_layer[m] & self.has_sheen[m]
+                mu_v = np.einsum("ij,ij->i", wo, h.ns)
+                layer_albedo = self.sheen[m] * microfiber_albedo(mu_v, self.sheen_roughness[m])[:, None]
+                keep = np.where(layered, np.clip(1.0 - max_of_three(layer_albedo), 0.0, 1.0), 1.0)
+                own = own * keep[:, None] + sheen_light
+                lambert = lambert * keep[:, None]
             _scatter_add(result, pixel, weight * own)
             if untextured is not None:  # white base colour where textures are filtered
                 flat_own = own
@@ -860,6 +914,10 @@ class Tracer:
                             base_lobe),
                            (refr_w, t_dir, -1.0, after_refraction, wrong, h.ng, None, None),
                            *coat_generation]
+            if keep is not None:  # all of them under the sheen
+                generations = [(w * keep[:, None], *rest[:-1],
+                                None if rest[-1] is None else rest[-1] * keep[:, None])
+                               for w, *rest in generations]
             # per generation spawned: (strong (N,) bool, side, bent (N,) bool, the normal the bent
             # rays turned about (N, 3)); and the roughness and albedo of the lobe it reflects
             # along (None: refraction)
@@ -897,6 +955,8 @@ class Tracer:
                 diffuse_reflectance = diffuse_w[:, None] * h.albedo
                 if under is not None:
                     diffuse_reflectance = diffuse_reflectance * under
+                if keep is not None:
+                    diffuse_reflectance = diffuse_reflectance * keep[:, None]
                 with self.clock("glossy lobes"):
                     children = [child if lobe_rough is None else
                                 self._lobe_rays(child, strong, h, wo, lobe_rough, lobe_w,

@@ -373,3 +373,32 @@ def test_a_volume_is_read_inside_glass_and_noted_where_it_is_not_modelled():
     assert not graph().absorption.any()
     assert any("'ShaderNodeVolumePrincipled' in the Volume slot is not modelled" in why
                for why in graph().ignored)
+
+
+def test_a_sheen_bsdf_beside_a_surface_adds_its_sheen_and_leaves_the_surface_whole():
+    from blender_parts import bare_material, plane
+
+    mat, tree, output = bare_material("Graph")
+    plane(mat)
+    glass = tree.nodes.new("ShaderNodeBsdfGlass")
+    glass.inputs["IOR"].default_value = 1.45
+    fuzz = tree.nodes.new("ShaderNodeBsdfSheen")
+    fuzz.inputs["Color"].default_value = (0.2, 0.4, 0.8, 1.0)
+    fuzz.inputs["Roughness"].default_value = 0.7
+    mix = tree.nodes.new("ShaderNodeMixShader")
+    mix.inputs["Fac"].default_value = 0.25
+    tree.links.new(glass.outputs["BSDF"], mix.inputs[1])
+    tree.links.new(fuzz.outputs["BSDF"], mix.inputs[2])
+    tree.links.new(mix.outputs["Shader"], output.inputs["Surface"])
+    graph = next(m for m in bridge.snapshot().materials if m.name == "Graph")
+    # the glass stays glass (its transmission not diluted by the sheen's black base)
+    assert graph.transmission == pytest.approx(1.0) and graph.ior == pytest.approx(1.45)
+    assert (graph.sheen, graph.sheen_roughness) == pytest.approx((0.25, 0.7))
+    np.testing.assert_allclose(graph.sheen_tint, (0.2, 0.4, 0.8), rtol=1e-6)
+    assert graph.sheen_model == "MICROFIBER" and not graph.sheen_layer
+    principled = tree.nodes.new("ShaderNodeBsdfPrincipled")
+    principled.inputs["Sheen Weight"].default_value = 0.5
+    tree.links.new(principled.outputs["BSDF"], mix.inputs[1])
+    graph = next(m for m in bridge.snapshot().materials if m.name == "Graph")
+    assert graph.specular == pytest.approx(0.5) and graph.sheen == pytest.approx(0.75 * 0.5 + 0.25)
+    assert any("sheens of different kinds" in why for why in graph.ignored)

@@ -262,3 +262,77 @@ def test_coloured_glass_absorbs_as_cycles_volume_does():
           rel_mse(without[through], cycles[through]))
     assert rel_mse(ours[through], cycles[through]) < 1e-2
     assert rel_mse(ours[through], cycles[through]) < 0.1 * rel_mse(without[through], cycles[through])
+
+
+def _sheen_sphere(mat):
+    """A smooth sphere of `mat` (bpy) at the origin under the sun and the blue world, traced and
+    rendered by Cycles' Whitted model (256 samples, 64 x 48): (ours, Cycles', the snapshot) on
+    the sphere's pixels."""
+    from blender_parts import lit_scene, oblique_camera
+
+    from classic_bake.addon import cycles as cr
+    from classic_bake.kernels.trace.settings import TracerSettings
+    from classic_bake.kernels.trace.tracer import trace
+
+    scene = lit_scene()
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=96, ring_count=48, radius=1.0)
+    sphere = bpy.context.active_object
+    bpy.ops.object.shade_smooth()
+    sphere.data.materials.append(mat)
+    oblique_camera(scene)
+    cycles, _ = cr.render_camera(scene, cr.whitted(2), 256, resolution=(64, 48))
+    snap = bridge.snapshot(resolution=(64, 48))
+    ours = trace(snap, TracerSettings(max_depth=2)).image
+    on_sphere = np.abs(ours - snap.world_color).sum(axis=2) > 1e-6
+    assert on_sphere.sum() > 400
+    return ours, cycles, on_sphere, snap
+
+
+def test_sheen_layers_and_velvet_match_cycles():
+    """Cloth's rim light: a Principled sheen (weight 1, tint (0.3, 0.6, 1), roughness 0.3 and
+    0.8: Zeltner et al.'s microfiber layer, dimming what lies under it) on a dark red base, and
+    an Ashikhmin velvet (Sheen BSDF, sigma 0.5) added to a Diffuse BSDF, on a sphere lit by the
+    sun. Against Cycles' Whitted-model render (256 samples, 64 x 48): measured relMSE 5.6e-4,
+    3.3e-4 and 3.8e-4 on the sphere; without the sheen 0.013, 0.24 and 0.17."""
+    from dataclasses import replace
+
+    from blender_parts import bare_material, principled
+
+    from classic_bake.kernels.measure.metrics import rel_mse
+    from classic_bake.kernels.trace.settings import TracerSettings
+    from classic_bake.kernels.trace.tracer import trace
+
+    def velvet_material():
+        mat, tree, output = bare_material("Velvet")
+        diffuse = tree.nodes.new("ShaderNodeBsdfDiffuse")
+        diffuse.inputs["Color"].default_value = (0.3, 0.05, 0.05, 1.0)
+        fuzz = tree.nodes.new("ShaderNodeBsdfSheen")
+        fuzz.distribution = "ASHIKHMIN"
+        fuzz.inputs["Color"].default_value = (0.9, 0.8, 0.6, 1.0)
+        fuzz.inputs["Roughness"].default_value = 0.5
+        add = tree.nodes.new("ShaderNodeAddShader")
+        tree.links.new(diffuse.outputs["BSDF"], add.inputs[0])
+        tree.links.new(fuzz.outputs["BSDF"], add.inputs[1])
+        tree.links.new(add.outputs["Shader"], output.inputs["Surface"])
+        return mat
+
+    def principled_sheen(roughness):
+        mat, bsdf = principled("Cloth", base=(0.3, 0.05, 0.05))
+        bsdf.inputs["Sheen Weight"].default_value = 1.0
+        bsdf.inputs["Sheen Tint"].default_value = (0.3, 0.6, 1.0, 1.0)
+        bsdf.inputs["Sheen Roughness"].default_value = roughness
+        return mat
+
+    for make, kind in ((lambda: principled_sheen(0.3), "MICROFIBER"),
+                       (lambda: principled_sheen(0.8), "MICROFIBER"), (velvet_material, "ASHIKHMIN")):
+        bpy.ops.wm.read_factory_settings(use_empty=True)
+        ours, cycles, on_sphere, snap = _sheen_sphere(make())
+        cloth = next(m for m in snap.materials if m.name in ("Cloth", "Velvet"))
+        assert cloth.sheen > 0.0 and cloth.sheen_model == kind and not cloth.ignored
+        assert cloth.sheen_layer == (kind == "MICROFIBER")
+        bare = replace(snap, materials=tuple(replace(m, sheen=0.0) for m in snap.materials))
+        without = trace(bare, TracerSettings(max_depth=2)).image
+        error = rel_mse(ours[on_sphere], cycles[on_sphere])
+        print(kind, "relMSE against Cycles", error, rel_mse(without[on_sphere], cycles[on_sphere]))
+        assert error < 5e-3
+        assert error < 0.1 * rel_mse(without[on_sphere], cycles[on_sphere])
