@@ -70,8 +70,9 @@ def mix_materials(name: str, parts: list, ignored: list) -> Material:
     the emission exactly, and the three weights' shares; the metal parts keep their own tint
     (`Material.metal_color`: a white Glossy over a red Diffuse reflects white), the glass parts
     take the base colour, roughness and IOR their parts' weighted means, the specular layer the
-    diffuse parts' weighted level, the sheens their weights' sum (`_sheen_fields`). A base texture is kept where its part is the only diffuse one
-    (else the first textured part's, noted)."""
+    diffuse parts' weighted level, the sheens their weights' sum (`_sheen_fields`). A base
+    texture is kept where its part is the only diffuse one (else the first textured part's,
+    noted)."""
     weights = np.array([w for w, _ in parts], np.float64)
     sheen = _sheen_fields(parts, ignored)
     d_w = np.array([w * (1.0 - m.metallic) * (1.0 - m.transmission) for w, m in parts])
