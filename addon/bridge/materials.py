@@ -22,7 +22,7 @@ import bpy
 import numpy as np
 
 from ...kernels.geometry.scene import Material, Texture
-from ...kernels.shading.textures import MISSING_TEXEL
+from ...kernels.shading.textures import MISSING_TEXEL, texture_mean
 from .images import image_pixels, stored_srgb, tile_pixels
 from .nodes import active_output, follow_through, node_tree
 from .request import SnapshotRequest
@@ -550,7 +550,7 @@ class MaterialReader:
 
     def _sheen(self, inputs, ignored) -> dict:
         """The Principled sheen's `Material` fields (a microfiber layer over the rest): weight,
-        tint and roughness as constants (a texture driving one is noted, its default used); {}
+        tint and roughness as constants (a texture driving one is noted, its mean used); {}
         where there is none."""
         if "Sheen Weight" not in inputs:
             return {}
@@ -564,7 +564,7 @@ class MaterialReader:
 
     def _coat(self, inputs, ignored, relief: Relief) -> dict:
         """The Principled coat's `Material` fields: weight, roughness, IOR and tint as constants
-        (a texture driving one is noted, its default used); {} where there is no coat, and over
+        (a texture driving one is noted, its mean used); {} where there is no coat, and over
         a normal or bump map, whose coat is noted and left out: there the coat's mirror ray
         made a ribbed glTF test asset further from Cycles (relMSE 0.051 -> 0.114) where a
         plain coated plane comes nearer (0.0067 -> 0.0010)."""
@@ -635,14 +635,13 @@ class MaterialReader:
         return radiance.astype(np.float32), scaled_texture(texture, factor)
 
     def _value(self, socket, ignored) -> float:
-        """A number: the socket's chain of constants, or its default where a texture drives it
-        (noted) or the chain is not modelled (noted by the reader)."""
+        """A number: the socket's chain of constants, the texture's mean where a texture drives
+        it (noted), or its default where the chain is not modelled (noted by the reader)."""
         value = self._read(socket, ignored)
         if value is None:
             return float(socket.default_value)
         if value.texture is not None:
-            ignored.append(f"'{socket.name}' driven by a texture is not modelled: its default used")
-            return float(socket.default_value)
+            return float(self._texture_constant(socket, value.texture, ignored)[0])
         return float(value.const[0])
 
     def _number(self, socket, ignored) -> tuple[float, Texture | None]:
@@ -666,7 +665,7 @@ class MaterialReader:
 
     def _color(self, socket, ignored, textures=True) -> tuple[np.ndarray, Texture | None]:
         """A colour that may come from a texture: (constant, None) or (default, texture); with
-        `textures` False a texture is noted and its default used."""
+        `textures` False a texture is noted and its mean used (`_texture_constant`)."""
         default = np.array(socket.default_value[:3], np.float32)
         value = self._read(socket, ignored, bake=textures)
         if value is None:
@@ -674,9 +673,22 @@ class MaterialReader:
         if value.texture is None:
             return value.const.astype(np.float32), None
         if not textures:
-            ignored.append(f"'{socket.name}' driven by a texture is not modelled: its default used")
-            return default, None
+            return self._texture_constant(socket, value.texture, ignored), None
         return default, value.texture
+
+    @staticmethod
+    def _texture_constant(socket, texture: Texture, ignored: list) -> np.ndarray:
+        """(3,) float32: what stands for a texture driving a socket the kernels take as a
+        constant: its mean over the image (`texture_mean`), noted; the socket's own value where
+        it has none (a colour attribute)."""
+        mean = texture_mean(texture)
+        if mean is None:
+            ignored.append(f"'{socket.name}' driven by a texture is not modelled: its default used")
+            value = socket.default_value
+            return np.array(value[:3] if hasattr(value, "__len__") else [value] * 3, np.float32)
+        ignored.append(f"'{socket.name}' driven by a texture is not modelled: the texture's mean "
+                       f"used")
+        return mean
 
     def _uv_layer(self, node, ignored, what, generated: bool
                   ) -> tuple[bool, str | None, str, np.ndarray | None]:

@@ -6,7 +6,7 @@ The four models
 mirrors and glass are followed up to `depth` glossy/transmission bounces, point and spot lights
 are true points (radius 0), suns are parallel (angle 0), no caustics and no glossy filter (both
 would change mirrors); alpha surfaces let rays through (up to 8 transparent bounces, Cycles' own
-default), as the kernels' alpha tests do (`geometry/alpha_occlusion.py`). The pixel filter is a
+default), as the kernels' seeing and shadow rays do (`geometry/alpha_occlusion.py`). The pixel filter is a
 1-px box: each pixel is the average over its area, the limit the tracer's n x n supersampling
 converges to.
 Remaining differences: Cycles' glass picks reflection or refraction at random with the Fresnel

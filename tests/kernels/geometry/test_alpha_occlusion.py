@@ -4,7 +4,12 @@ shadow map's alpha test (`shadow/cutouts.py`), against products of known alphas.
 import numpy as np
 from scene_builder import build, quad
 
-from classic_bake.kernels.geometry.alpha_occlusion import AlphaOccluder, clipped_hits, transmittance
+from classic_bake.kernels.geometry.alpha_occlusion import (
+    AlphaOccluder,
+    clipped_hits,
+    layered_hits,
+    transmittance,
+)
 from classic_bake.kernels.geometry.bvh import BVH
 from classic_bake.kernels.geometry.raster import Projection, look_at
 from classic_bake.kernels.geometry.scene import Material, Texture
@@ -111,3 +116,22 @@ def test_seeing_rays_pass_the_holes():
     np.testing.assert_array_equal(scene.object_ids[hits.tri[:4]], [0, 1, 1, 0])
     np.testing.assert_allclose(hits.t[:4], [1.0, 2.0, 2.0, 1.0], atol=1e-5)
     assert hits.tri[4] == -1
+
+
+def test_layers_weigh_each_surface_by_what_reaches_it():
+    """Cycles' blend a S + (1 - a) T, front to back: cards of alpha 0.5 and 0.25 over the ground
+    give weights 0.5, 0.5 x 0.25 and the rest 0.375 to the ground; a ray past the cards only
+    (beside the ground) ends in a miss of weight 0.375; a ray that meets nothing, a miss of 1."""
+    scene = build([_card(1.5, Material("a", alpha=0.5)), _card(1.0, Material("b", alpha=0.25)),
+                   _card(0.0, Material("ground"))])
+    alpha = scene_alpha(scene)
+    bvh = BVH.build(scene.triangles)
+    origins, dirs = _rays([[0.3, 0.3], [2.0, 2.0]])
+    layers = layered_hits(bvh, origins, dirs, 0.0, np.inf, alpha, OFFSET, alpha.opaque)
+    np.testing.assert_array_equal(layers.ray, [0, 1, 0, 0])  # layer by layer
+    np.testing.assert_allclose(layers.weight, [0.5, 1.0, 0.125, 0.375], atol=1e-12)
+    np.testing.assert_array_equal(scene.object_ids[layers.hits.tri[[0, 2, 3]]], [0, 1, 2])
+    assert layers.hits.tri[1] == -1
+    np.testing.assert_allclose(layers.hits.t[[0, 2, 3]], [0.5, 1.0, 2.0], atol=1e-5)
+    above = layered_hits(bvh, origins[:1], dirs[:1], 0.0, 1.9, alpha, OFFSET, alpha.opaque)
+    assert above.hits.tri[-1] == -1 and above.weight[-1] == 0.375  # the light left past 1.9

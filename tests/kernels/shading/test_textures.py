@@ -214,3 +214,23 @@ def test_udim_texture_boxes_read_each_tile_and_its_pyramid():
     got = sample_texture_box(tex, centre - half, centre + half)
     np.testing.assert_allclose(got, [(0, 0, 1), (0.5, 0, 0), (1, 0, 1)], atol=1e-6)
     np.testing.assert_allclose(sample_texture(tex, centre), sample_tiles(tex.udim, centre)[:, :3])
+
+
+def test_a_textures_mean_runs_its_node_chain_over_the_decoded_texels():
+    from classic_bake.kernels.shading.textures import MEAN_TEXELS, srgb_to_linear, texture_mean
+
+    rng = np.random.default_rng(3)
+    pixels = rng.uniform(0, 1, (512, 512, 4)).astype(np.float32)
+    assert pixels.shape[0] * pixels.shape[1] > MEAN_TEXELS  # a subset is read
+    alpha_x2 = Texture("IMAGE", pixels=pixels, weights=np.array([0, 0, 0, 1.0], np.float32),
+                       gain=np.full(3, 2.0, np.float32), offset=np.full(3, 0.1, np.float32))
+    np.testing.assert_allclose(texture_mean(alpha_x2), 2.0 * pixels[..., 3].mean() + 0.1,
+                               rtol=1e-2)
+    srgb = Texture("IMAGE", pixels=pixels, encoding="sRGB")
+    np.testing.assert_allclose(texture_mean(srgb),
+                               srgb_to_linear(pixels[..., :3]).reshape(-1, 3).mean(axis=0),
+                               rtol=1e-2)
+    checker = Texture("CHECKER", color1=np.array([1.0, 0.5, 0.0], np.float32),
+                      color2=np.zeros(3, np.float32))
+    np.testing.assert_allclose(texture_mean(checker), [0.5, 0.25, 0.0])
+    assert texture_mean(Texture("ATTRIBUTE")) is None

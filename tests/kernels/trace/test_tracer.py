@@ -98,6 +98,24 @@ def test_an_absorbing_slab_keeps_beer_lambert_of_each_crossing():
                                            rel=1e-6)
 
 
+def test_a_partly_covering_surface_blends_with_what_lies_behind():
+    # Cycles shades a surface of alpha a as a S + (1 - a) T. A white diffuse card of alpha 0.3
+    # under a point light, over an emitter of radiance 2 (which the card's shadow does not
+    # dim: emitters shine, they are not lit): 0.3 rho E / pi + 0.7 x 2 at every pixel.
+    rho, intensity, height, a = 0.5, 10.0, 1.0, 0.3
+    card = quad([(-2, -2, 0), (2, -2, 0), (2, 2, 0), (-2, 2, 0)])
+    glow = quad([(-3, -3, -1), (3, -3, -1), (3, 3, -1), (-3, 3, -1)])
+    cam = ortho_camera((0, 0, 5), (0, 0, -1), (0, 1, 0), 0.2, (2, 2))
+    light = point_light("P", (0.0, 0.0, height), np.full(3, intensity))
+    mat = Material(name="veil", base_color=np.full(3, rho, np.float32), specular=0.0, alpha=a)
+    scene = build([(card, mat), (glow, emitter(2.0))], cam, [light])
+    image = trace(scene, TracerSettings(max_depth=0, adaptive=0)).image
+    xs = (np.arange(2) + 0.5) / 2 * 0.2 - 0.1
+    d2 = xs[:, None] ** 2 + xs[None, :] ** 2 + height**2
+    lit = rho / np.pi * intensity * height / d2**1.5
+    np.testing.assert_allclose(image[..., 0], a * lit + (1 - a) * 2.0, rtol=1e-5)
+
+
 def prism_scene(ior):
     """A right-angle glass prism: light enters the top face, meets the hypotenuse at 45 degrees and
     leaves through the side face towards an emitter at x = -0.5."""
