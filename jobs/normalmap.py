@@ -15,6 +15,7 @@ import numpy as np
 
 from ..addon.bridge import normal_maps
 from ..addon.bridge.images import image_pixels
+from ..addon.bridge.render_state import render_state
 from ..addon.bridge.request import SnapshotRequest
 from ..addon.bridge.snapshot import snapshot
 from ..kernels.geometry.scene import triangle_areas
@@ -313,7 +314,8 @@ def normalmap_job(context, values: dict) -> Steps[JobSummary]:
     """Make every target object's normal map, then (after the last yield) write the images and,
     with wire, the materials. Closed before its end, it has changed nothing."""
     tgt, base = target(values), settings(values)
-    plans, skipped = plan_objects(context, values, tgt, base)
+    with render_state(context.scene):  # the surfaces Cycles would bake (render levels)
+        plans, skipped = plan_objects(context, values, tgt, base)
     if not plans:
         raise ValueError("no mesh with a relief to make a normal map of"
                          + (f" ({'; '.join(skipped)})" if skipped else ""))
@@ -391,15 +393,16 @@ def high_to_low_job(context, values: dict) -> Steps[JobSummary]:
     if base.size <= 0:
         raise ValueError("a high -> low bake needs a map size (Size > 0)")
     high_obj, lows = high_and_low_objects(context, values, tgt)
-    depsgraph = context.evaluated_depsgraph_get()
-    high = normal_maps.high_mesh(high_obj, depsgraph)
     plans, skipped = [], []
-    for obj in lows:
-        read = normal_maps.low_mesh(obj, depsgraph, tgt.uv_name or None)
-        if read is None:
-            skipped.append(f"{obj.name}: no UV layer '{tgt.uv_name or '(active render)'}'")
-            continue
-        plans.append((obj.name, *read))
+    with render_state(context.scene):  # the meshes Cycles would bake: render levels (multires)
+        depsgraph = context.evaluated_depsgraph_get()
+        high = normal_maps.high_mesh(high_obj, depsgraph)
+        for obj in lows:
+            read = normal_maps.low_mesh(obj, depsgraph, tgt.uv_name or None)
+            if read is None:
+                skipped.append(f"{obj.name}: no UV layer '{tgt.uv_name or '(active render)'}'")
+                continue
+            plans.append((obj.name, *read))
     if not plans:
         raise ValueError("no low mesh with a UV layer to bake into"
                          + (f" ({'; '.join(skipped)})" if skipped else ""))

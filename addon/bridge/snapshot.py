@@ -15,6 +15,7 @@ from .camera import read_camera
 from .lights import read_light
 from .materials import DEFAULT_MATERIAL, MaterialReader
 from .mesh import MeshChunk, mesh_chunk, triangles_problem
+from .render_state import render_state
 from .request import SnapshotRequest
 from .socket_fallback import BakeTarget
 from .transforms import matrix_array
@@ -29,18 +30,21 @@ UNIT_NORMAL_MAP_VERSION = (5, 0, 0)
 
 def snapshot(context=None, request: SnapshotRequest = DEFAULT_REQUEST,
              resolution: tuple[int, int] | None = None) -> Scene:
-    """Read the evaluated scene of `context` (default: bpy.context) into a kernel `Scene`."""
+    """Read the evaluated scene of `context` (default: bpy.context) into a kernel `Scene`, as
+    Cycles renders it: with the render settings of modifiers, subdivision levels, curves,
+    particles and objects disabled in viewports (`render_state`; the file is left as it was)."""
     context = context or bpy.context
+    with render_state(context.scene) as unswitched:
+        return _snapshot(context, request, resolution, list(unswitched))
+
+
+def _snapshot(context, request: SnapshotRequest, resolution: tuple[int, int] | None,
+              ignored: list[str]) -> Scene:
     scene = context.scene
     depsgraph = context.evaluated_depsgraph_get()
-    ignored: list[str] = []
     chunks: list[MeshChunk] = []
     lights: list[Light] = []
     instance_counts: dict[str, int] = {}
-
-    for original in scene.objects:
-        if original.hide_viewport and not original.hide_render:
-            ignored.append(f"object '{original.name}': disabled in viewports, so not evaluated")
 
     for inst in depsgraph.object_instances:
         obj = inst.object

@@ -14,6 +14,7 @@ import pytest
 from mathutils.geometry import area_tri
 
 from classic_bake.addon import bridge
+from classic_bake.addon.bridge.render_state import render_state
 from classic_bake.kernels.geometry.scene import geometric_normals, triangle_areas
 
 CURVE_LIKE = {"CURVE", "SURFACE", "META", "FONT"}
@@ -137,7 +138,8 @@ def test_curves_text_surfaces_and_metaballs_are_read_once():
     bpy.context.object.data.extrude = 0.1
     bpy.ops.curve.primitive_bezier_curve_add(location=(12.0, 0.0, 0.0))  # no bevel: no faces
     snap = bridge.snapshot()
-    count, area, per_object = blender_reference()
+    with render_state(bpy.context.scene):  # Cycles renders the metaball at its render resolution
+        count, area, per_object = blender_reference()
     assert snap.triangle_count == count
     assert triangle_areas(snap.triangles).sum() == pytest.approx(area, rel=1e-6)
     # One object each, named as in the outliner, none twice.
@@ -166,14 +168,32 @@ def test_material_ids_and_uvs_survive():
             np.testing.assert_allclose(snap.uv[t, c], uv[tri.loops[c]].vector, atol=0)
 
 
-def test_hidden_from_render_is_left_out_and_viewport_disabled_is_reported():
+def test_hidden_from_render_is_left_out_and_viewport_disabled_is_read_as_cycles_renders():
     cube_object("Seen")
     cube_object("Hidden").hide_render = True
     off = cube_object("Off")
     off.hide_viewport = True
     snap = bridge.snapshot()
-    assert [o.name for o in snap.objects] == ["Seen"]
-    assert any("Off" in why for why in snap.ignored)
+    assert sorted(o.name for o in snap.objects) == ["Off", "Seen"]
+    assert off.hide_viewport  # put back
+
+
+def test_modifiers_are_read_with_their_render_settings():
+    """Cycles renders a Subdivision Surface at its Render level (Blender's default modifier:
+    1 in viewports, 2 in renders) and leaves out a modifier shown in viewports only; the
+    snapshot reads the same geometry, and the file keeps its viewport settings."""
+    smooth = cube_object("Smooth")
+    subsurf = smooth.modifiers.new("Subdivision", "SUBSURF")
+    subsurf.levels, subsurf.render_levels = 1, 2
+    preview = cube_object("Preview")
+    only_viewport = preview.modifiers.new("Subdivision", "SUBSURF")
+    only_viewport.show_render = False
+    snap = bridge.snapshot()
+    counts = {o.name: o.tri_count for o in snap.objects}
+    assert counts == {"Smooth": 6 * 16 * 2, "Preview": 12}
+    assert (subsurf.levels, only_viewport.show_viewport) == (1, True)
+    dg = bpy.context.evaluated_depsgraph_get()
+    assert len(smooth.evaluated_get(dg).data.polygons) == 6 * 4  # the viewport's level again
 
 
 def test_request_limits_what_is_read():

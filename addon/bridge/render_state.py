@@ -1,0 +1,68 @@
+"""The scene as Cycles renders it, read through the viewport's depsgraph.
+
+Python has only the viewport's evaluated depsgraph (`Context.evaluated_depsgraph_get`), while
+Cycles renders from one evaluated with render settings: a Subdivision Surface modifier at its
+Render level (Blender's default modifier: 1 in viewports, 2 in renders), modifiers shown in
+renders only, objects disabled in viewports but not in renders, curves at their render
+resolution, every particle where viewports show a share. `render_state` copies those render
+settings onto their viewport twins while the snapshot reads the depsgraph, and puts every value
+back afterwards (on errors too), so the kernels see the geometry Cycles renders.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+
+@contextmanager
+def render_state(scene) -> Iterator[list[str]]:
+    """Within the block, `scene`'s viewport settings are its render settings (see the module);
+    restores every value on exit. Yields a list of the settings that could not be switched
+    (linked library data: left as they are), one line each."""
+    switched: list[tuple[object, str, object]] = []
+    notes: list[str] = []
+
+    def use(owner, attr: str, value, what: str) -> None:
+        old = getattr(owner, attr)
+        if old == value:
+            return
+        try:
+            setattr(owner, attr, value)
+        except (AttributeError, RuntimeError, TypeError):
+            notes.append(f"{what}: its render setting could not be applied (linked data), the "
+                         f"viewport's used")
+            return
+        switched.append((owner, attr, old))
+
+    try:
+        for obj in scene.objects:
+            if obj.hide_viewport and not obj.hide_render:
+                use(obj, "hide_viewport", False, f"object '{obj.name}'")
+            for mod in obj.modifiers:
+                what = f"object '{obj.name}' modifier '{mod.name}'"
+                use(mod, "show_viewport", mod.show_render, what)
+                if mod.type in ("SUBSURF", "MULTIRES"):
+                    use(mod, "levels", mod.render_levels, what)
+            for system in getattr(obj, "particle_systems", ()):
+                settings, what = system.settings, f"particle settings '{system.settings.name}'"
+                use(settings, "display_percentage", 100, what)
+                use(settings, "child_percent", settings.rendered_child_count, what)
+            data = obj.data
+            if obj.type in ("CURVE", "SURFACE", "FONT"):
+                for axis in ("u", "v"):
+                    render = getattr(data, f"render_resolution_{axis}")
+                    if render > 0:  # 0: the viewport resolution renders too
+                        use(data, f"resolution_{axis}", render, f"curve '{data.name}'")
+            elif obj.type == "META" and data.render_resolution > 0:
+                use(data, "resolution", data.render_resolution, f"metaball '{data.name}'")
+        settings = scene.render
+        if settings.use_simplify:
+            use(settings, "simplify_subdivision", settings.simplify_subdivision_render,
+                "scene simplify")
+            use(settings, "simplify_child_particles", settings.simplify_child_particles_render,
+                "scene simplify")
+        yield notes
+    finally:
+        for owner, attr, old in reversed(switched):
+            setattr(owner, attr, old)
