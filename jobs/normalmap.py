@@ -314,7 +314,8 @@ def normalmap_job(context, values: dict) -> Steps[JobSummary]:
     """Make every target object's normal map, then (after the last yield) write the images and,
     with wire, the materials. Closed before its end, it has changed nothing."""
     tgt, base = target(values), settings(values)
-    with render_state(context.scene):  # the surfaces Cycles would bake (render levels)
+    # the surfaces Cycles would bake (render levels: `render_state`)
+    with render_state(context.scene, context.view_layer):
         plans, skipped = plan_objects(context, values, tgt, base)
     if not plans:
         raise ValueError("no mesh with a relief to make a normal map of"
@@ -394,7 +395,8 @@ def high_to_low_job(context, values: dict) -> Steps[JobSummary]:
         raise ValueError("a high -> low bake needs a map size (Size > 0)")
     high_obj, lows = high_and_low_objects(context, values, tgt)
     plans, skipped = [], []
-    with render_state(context.scene):  # the meshes Cycles would bake: render levels (multires)
+    # the meshes Cycles would bake: render levels (multires sculpts; `render_state`)
+    with render_state(context.scene, context.view_layer):
         depsgraph = context.evaluated_depsgraph_get()
         high = normal_maps.high_mesh(high_obj, depsgraph)
         for obj in lows:

@@ -3,10 +3,11 @@
 Python has only the viewport's evaluated depsgraph (`Context.evaluated_depsgraph_get`), while
 Cycles renders from one evaluated with render settings: a Subdivision Surface modifier at its
 Render level (Blender's default modifier: 1 in viewports, 2 in renders), modifiers shown in
-renders only, objects disabled in viewports but not in renders, curves at their render
-resolution, every particle where viewports show a share. `render_state` copies those render
-settings onto their viewport twins while the snapshot reads the depsgraph, and puts every value
-back afterwards (on errors too), so the kernels see the geometry Cycles renders.
+renders only, objects and collections disabled or hidden in viewports but not in renders,
+curves at their render resolution, every particle where viewports show a share.
+`render_state` copies those render settings onto their viewport twins while the snapshot reads
+the depsgraph, and puts every value back afterwards (on errors too), so the kernels see the
+geometry Cycles renders.
 """
 
 from __future__ import annotations
@@ -14,12 +15,15 @@ from __future__ import annotations
 from collections.abc import Iterator
 from contextlib import contextmanager
 
+import bpy
+
 
 @contextmanager
-def render_state(scene) -> Iterator[list[str]]:
-    """Within the block, `scene`'s viewport settings are its render settings (see the module);
-    restores every value on exit. Yields a list of the settings that could not be switched
-    (linked library data: left as they are), one line each."""
+def render_state(scene, view_layer=None) -> Iterator[list[str]]:
+    """Within the block, `scene`'s viewport settings are its render settings (see the module),
+    in `view_layer` (default: the context's) for what view layers hide; restores every value
+    on exit. Yields a list of the settings that could not be switched (linked library data:
+    left as they are), one line each."""
     switched: list[tuple[object, str, object]] = []
     notes: list[str] = []
 
@@ -35,10 +39,20 @@ def render_state(scene) -> Iterator[list[str]]:
             return
         switched.append((owner, attr, old))
 
+    view_layer = view_layer or bpy.context.view_layer
+    shown = []  # objects hidden in the view layer (the eye icon), shown meanwhile
     try:
+        for collection in _collections(scene.collection):
+            if collection.hide_viewport and not collection.hide_render:
+                use(collection, "hide_viewport", False, f"collection '{collection.name}'")
+        for layer in _layer_collections(view_layer.layer_collection):
+            use(layer, "hide_viewport", False, f"collection '{layer.name}'")
         for obj in scene.objects:
             if obj.hide_viewport and not obj.hide_render:
                 use(obj, "hide_viewport", False, f"object '{obj.name}'")
+            if not obj.hide_render and obj.hide_get(view_layer=view_layer):
+                obj.hide_set(False, view_layer=view_layer)
+                shown.append(obj)
             for mod in obj.modifiers:
                 what = f"object '{obj.name}' modifier '{mod.name}'"
                 use(mod, "show_viewport", mod.show_render, what)
@@ -64,5 +78,25 @@ def render_state(scene) -> Iterator[list[str]]:
                 "scene simplify")
         yield notes
     finally:
+        for obj in shown:
+            obj.hide_set(True, view_layer=view_layer)
         for owner, attr, old in reversed(switched):
             setattr(owner, attr, old)
+
+
+def _collections(root) -> Iterator:
+    """Every collection under `root` (a scene's master collection), each once."""
+    seen, stack = set(), list(root.children)
+    while stack:
+        collection = stack.pop()
+        if collection.name_full not in seen:
+            seen.add(collection.name_full)
+            yield collection
+            stack.extend(collection.children)
+
+
+def _layer_collections(root) -> Iterator:
+    """Every layer collection under `root` (a view layer's), depth first."""
+    for child in root.children:
+        yield child
+        yield from _layer_collections(child)

@@ -34,7 +34,7 @@ def snapshot(context=None, request: SnapshotRequest = DEFAULT_REQUEST,
     Cycles renders it: with the render settings of modifiers, subdivision levels, curves,
     particles and objects disabled in viewports (`render_state`; the file is left as it was)."""
     context = context or bpy.context
-    with render_state(context.scene) as unswitched:
+    with render_state(context.scene, context.view_layer) as unswitched:
         return _snapshot(context, request, resolution, list(unswitched))
 
 

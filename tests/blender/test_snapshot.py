@@ -168,14 +168,30 @@ def test_material_ids_and_uvs_survive():
             np.testing.assert_allclose(snap.uv[t, c], uv[tri.loops[c]].vector, atol=0)
 
 
-def test_hidden_from_render_is_left_out_and_viewport_disabled_is_read_as_cycles_renders():
+def test_hidden_from_render_is_left_out_and_hidden_in_viewports_is_read_as_cycles_renders():
+    """Cycles renders what is hidden in viewports only: an object disabled in viewports or
+    hidden in the view layer (the eye), a collection disabled in viewports or hidden in the
+    view layer; it leaves out what is disabled in renders. Every flag is put back."""
     cube_object("Seen")
     cube_object("Hidden").hide_render = True
     off = cube_object("Off")
     off.hide_viewport = True
+    eye = cube_object("Eye")
+    eye.hide_set(True)
+    scene, layers = bpy.context.scene, bpy.context.view_layer.layer_collection
+    for name in ("Disabled", "Unseen"):
+        collection = bpy.data.collections.new(name)
+        scene.collection.children.link(collection)
+        inside = cube_object(f"In {name}")
+        scene.collection.objects.unlink(inside)
+        collection.objects.link(inside)
+    bpy.data.collections["Disabled"].hide_viewport = True
+    layers.children["Unseen"].hide_viewport = True
     snap = bridge.snapshot()
-    assert sorted(o.name for o in snap.objects) == ["Off", "Seen"]
-    assert off.hide_viewport  # put back
+    assert sorted(o.name for o in snap.objects) == ["Eye", "In Disabled", "In Unseen", "Off",
+                                                    "Seen"]
+    assert off.hide_viewport and eye.hide_get()  # put back
+    assert bpy.data.collections["Disabled"].hide_viewport and layers.children["Unseen"].hide_viewport
 
 
 def test_modifiers_are_read_with_their_render_settings():
