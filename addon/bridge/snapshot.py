@@ -45,6 +45,7 @@ def _snapshot(context, request: SnapshotRequest, resolution: tuple[int, int] | N
     chunks: list[MeshChunk] = []
     lights: list[Light] = []
     instance_counts: dict[str, int] = {}
+    visibility_read: set[str] = set()  # objects whose Cycles visibility was looked at
 
     for inst in depsgraph.object_instances:
         obj = inst.object
@@ -58,6 +59,9 @@ def _snapshot(context, request: SnapshotRequest, resolution: tuple[int, int] | N
         # stands for the object itself.
         if obj.type not in ("MESH", "LIGHT"):
             continue
+        if source.name_full not in visibility_read:
+            visibility_read.add(source.name_full)
+            ignored.extend(_ray_visibility(source))
         is_instance = inst.is_instance and not (holder == source and source.type != "MESH")
         matrix = matrix_array(inst.matrix_world)
         base = source.name if not is_instance else f"{holder.name}/{source.name}"
@@ -187,6 +191,24 @@ def _corner_colors(chunk, attribute_of: list) -> np.ndarray | None:
             rows = chunk.slot_ids == m
             colors[rows] = values[rows]
     return colors
+
+
+# Cycles' per-object ray visibility (Object Properties > Visibility > Ray Visibility).
+RAY_KINDS = ("camera", "diffuse", "glossy", "transmission", "shadow")
+
+
+def _ray_visibility(obj) -> list[str]:
+    """What Cycles' visibility settings of `obj` change that the kernels do not model (they see
+    every object with every ray), one note each; [] for the defaults."""
+    hidden = [kind for kind in RAY_KINDS if not getattr(obj, f"visible_{kind}", True)]
+    notes = []
+    if hidden:
+        notes.append(f"object '{obj.name}': Cycles hides it from {', '.join(hidden)} rays; "
+                     f"not modelled, the kernels see it with every ray")
+    for flag, what in (("is_holdout", "a holdout"), ("is_shadow_catcher", "a shadow catcher")):
+        if getattr(obj, flag, False):
+            notes.append(f"object '{obj.name}': {what} in Cycles; not modelled, read as a surface")
+    return notes
 
 
 def _reads_uv(materials, slot_ids: np.ndarray) -> bool:

@@ -324,3 +324,14 @@ def test_mixed_shaders_keep_diffuse_albedo_emission_and_shares():
     same = bridge.mix_materials("s", [(0.4, textured), (0.6, Material(name="g", metallic=1.0))],
                                 [])
     assert same.base_color_texture is checker and same.metallic == pytest.approx(0.6)
+
+
+def test_cycles_ray_visibility_and_holdouts_are_noted():
+    cube_object("Plain")
+    backdrop = cube_object("Backdrop")
+    backdrop.visible_camera = backdrop.visible_shadow = False
+    cube_object("Catcher").is_shadow_catcher = True
+    notes = bridge.snapshot().ignored
+    assert any("'Backdrop'" in why and "camera, shadow rays" in why for why in notes)
+    assert any("'Catcher'" in why and "shadow catcher" in why for why in notes)
+    assert not any("'Plain'" in why for why in notes)
