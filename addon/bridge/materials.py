@@ -732,6 +732,11 @@ class MaterialReader:
             ok, uv_layer, coordinates, uv_transform = self._uv_layer(node, ignored, what, generated)
             if not ok:
                 return None
+            if node.projection != "FLAT":
+                ignored.append(f"{what}: the image's {node.projection} projection is not "
+                               f"modelled: read flat")
+            if node.interpolation in ("Cubic", "Smart"):
+                ignored.append(f"{what}: {node.interpolation} interpolation read as Linear")
             image = node.image
             pixels = udim = None
             if image is not None:

@@ -402,3 +402,13 @@ def test_a_sheen_bsdf_beside_a_surface_adds_its_sheen_and_leaves_the_surface_who
     graph = next(m for m in bridge.snapshot().materials if m.name == "Graph")
     assert graph.specular == pytest.approx(0.5) and graph.sheen == pytest.approx(0.75 * 0.5 + 0.25)
     assert any("sheens of different kinds" in why for why in graph.ignored)
+
+
+def test_an_image_projection_or_interpolation_the_kernels_do_not_read_is_noted():
+    tree, bsdf = _plane_with_emission()
+    image = _image_node(tree, "sRGB")
+    tree.links.new(image.outputs["Color"], bsdf.inputs["Base Color"])
+    image.projection, image.interpolation = "BOX", "Cubic"
+    notes = next(m for m in bridge.snapshot().materials if m.name == "Graph").ignored
+    assert any("BOX projection is not modelled" in why for why in notes)
+    assert any("Cubic interpolation read as Linear" in why for why in notes)
