@@ -252,10 +252,10 @@ def _tile_boxes(texture: Texture, centre: np.ndarray, extent: np.ndarray) -> np.
 def _mip_mean(texture: Texture, uv: np.ndarray, texels: np.ndarray) -> np.ndarray:
     """RGB (N, 3) float64: the image's mean over boxes `texels` (N,) texels wide at uv (N, 2+),
     from the pyramid level of 2^k texels, k = log2(texels), interpolated between the two nearest
-    levels (trilinear). Exact for boxes of 2^k texels on the level's texel grid; the pyramid stops
-    at the first level with an odd side, and wider boxes read its last level."""
+    levels (trilinear). Exact for boxes of 2^k texels on the level's texel grid of an image whose
+    sides are powers of two; near that elsewhere (odd sides share their texels out by area)."""
     levels = _pyramid(texture)
-    if len(levels) == 1:  # an odd side: no pyramid, the centre as for a small box
+    if len(levels) == 1:  # a single texel: no pyramid
         return sample_texture(texture, uv).astype(np.float64)
     uv = _moved(texture, uv)
     lam = np.clip(np.log2(texels), 0.0, len(levels) - 1)
@@ -281,9 +281,9 @@ def _read_level(texture: Texture, levels: list, k: int, uv: np.ndarray) -> np.nd
 
 
 def _pyramid(texture: Texture) -> list[np.ndarray]:
-    """The image's mip levels: level 0 the image as stored, then (H / 2^k, W / 2^k, 3) float32
-    linear colour (decoded from sRGB), each texel the mean of the 2 x 2 below it, while both sides
-    stay even."""
+    """The image's mip levels: level 0 the image as stored, then (ceil(H / 2^k), ceil(W / 2^k), 3)
+    float32 linear colour (decoded from sRGB), each texel the area mean of what it covers below
+    (`_halved`), down to one texel."""
     key = id(texture.pixels)
     cached = _pyramids.get(key)
     if cached is not None and cached[0] is texture.pixels and cached[1] == texture.encoding:
@@ -291,15 +291,17 @@ def _pyramid(texture: Texture) -> list[np.ndarray]:
         return cached[2]
     levels = [texture.pixels]
     height, width = texture.pixels.shape[:2]
-    if height % 2 == 0 and width % 2 == 0:
-        first = np.empty((height // 2, width // 2, 3), np.float32)
-        for top in range(0, height, PYRAMID_BAND):  # decoded a band at a time
-            band = np.asarray(texture.pixels[top:top + PYRAMID_BAND, :, :3], np.float32)
+    if height > 1 or width > 1:
+        # decoded a band of rows at a time where the rows pair up (an even height)
+        band_rows = PYRAMID_BAND if height % 2 == 0 else height
+        first = np.empty(((height + 1) // 2, (width + 1) // 2, 3), np.float32)
+        for top in range(0, height, band_rows):
+            band = np.asarray(texture.pixels[top:top + band_rows, :, :3], np.float32)
             if texture.encoding == "sRGB":
                 band = srgb_to_linear(band)
-            first[top // 2:(top + len(band)) // 2] = _halved(band)
+            first[top // 2:(top + len(band) + 1) // 2] = _halved(band)
         levels.append(first)
-    while len(levels) > 1 and all(side % 2 == 0 for side in levels[-1].shape[:2]):
+    while max(levels[-1].shape[:2]) > 1:
         levels.append(_halved(levels[-1]))
     _pyramids[key] = (texture.pixels, texture.encoding, levels)
     while len(_pyramids) > PYRAMID_CACHE:
@@ -308,8 +310,35 @@ def _pyramid(texture: Texture) -> list[np.ndarray]:
 
 
 def _halved(a: np.ndarray) -> np.ndarray:
-    """The means of an (2h, 2w, C) array's 2 x 2 blocks: (h, w, C)."""
-    return 0.25 * (a[0::2, 0::2] + a[1::2, 0::2] + a[0::2, 1::2] + a[1::2, 1::2])
+    """The next mip level of an (H, W, C) array: (ceil(H / 2), ceil(W / 2), C), each texel the
+    area mean of the texels it covers: 2 x 2 blocks where both sides are even; an odd side's n
+    texels are shared out over ceil(n / 2), each spanning n / ceil(n / 2) of them."""
+    for axis in (0, 1):
+        a = _halved_along(a, axis)
+    return a
+
+
+def _halved_along(a: np.ndarray, axis: int) -> np.ndarray:
+    """`_halved` along one axis of `a`."""
+    n = a.shape[axis]
+    if n == 1:
+        return a
+    a = np.moveaxis(a, axis, 0)
+    if n % 2 == 0:
+        return np.moveaxis(0.5 * (a[0::2] + a[1::2]), 0, axis)
+    m = (n + 1) // 2
+    span = n / m  # input texels per output texel, in (1, 2)
+    lo = np.arange(m) * span  # output texel j covers [lo_j, lo_j + span) of the input
+    first = np.floor(lo).astype(np.int64)
+    out = np.zeros((m,) + a.shape[1:], np.float32)
+    shape = (m,) + (1,) * (a.ndim - 1)
+    for step in range(3):  # a span under 2 texels touches at most 3 of them
+        i = first + step
+        inside = i < n
+        i = np.minimum(i, n - 1)
+        overlap = np.clip(np.minimum(i + 1, lo + span) - np.maximum(i, lo), 0.0, None) * inside
+        out += (overlap / span).astype(np.float32).reshape(shape) * a[i]
+    return np.moveaxis(out, 0, axis)
 
 
 def srgb_to_linear(c: np.ndarray) -> np.ndarray:
