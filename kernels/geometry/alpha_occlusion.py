@@ -107,36 +107,6 @@ def transmittance(bvh: BVH, origins: np.ndarray, directions: np.ndarray, t_min, 
     return out
 
 
-def clipped_hits(bvh: BVH, origins: np.ndarray, directions: np.ndarray, t_min, t_max,
-                 coverage: Coverage, offset: float, opaque: Opaque | None = None,
-                 threshold: float = 0.5,
-                 settings: AnyHitSettings = AnyHitSettings()) -> Hits:  # noqa: B008
-    """Closest hits (`BVH.intersect`) that skip surfaces where alpha < `threshold` (the alpha
-    test: a ray seeing a leaf card passes its holes and meets what lies behind). Parameters as
-    `transmittance`; a ray past `settings.max_layers` holes keeps its last hit."""
-    bvh, origins, directions, t_lo, t_hi = _queries(bvh, origins, directions, t_min, t_max)
-    hits = bvh.intersect(origins, directions, t_lo, t_hi)
-    step = offset / np.maximum(np.linalg.norm(directions, axis=1), 1e-30)  # (R,) in t units
-    rays = np.flatnonzero(hits.tri >= 0)
-    for _ in range(settings.max_layers):
-        tri = hits.tri[rays].astype(np.int64)
-        if opaque is not None:
-            keep = ~opaque(tri)
-            rays, tri = rays[keep], tri[keep]
-        if rays.size == 0:
-            break
-        hole = coverage(tri, hits.u[rays], hits.v[rays]) < threshold
-        rays = rays[hole]
-        if rays.size == 0:
-            break
-        t_lo[rays] = hits.t[rays] + step[rays]
-        again = bvh.intersect(origins[rays], directions[rays], t_lo[rays], t_hi[rays])
-        hits.t[rays], hits.tri[rays] = again.t, again.tri
-        hits.u[rays], hits.v[rays] = again.u, again.v
-        rays = rays[again.tri >= 0]
-    return hits
-
-
 @dataclass(frozen=True, eq=False)
 class Layers:
     """The surfaces rays see through partly covered ones, front to back: K entries, each a hit
@@ -151,6 +121,23 @@ class Layers:
     ray: np.ndarray
     weight: np.ndarray
     hits: Hits
+
+    def first(self) -> np.ndarray:
+        """(K,) bool: the entries that are their ray's first (what the ray meets first)."""
+        out = np.zeros(len(self.ray), bool)
+        out[np.unique(self.ray, return_index=True)[1]] = True
+        return out
+
+    def front_hits(self, count: int) -> Hits:
+        """Hits of the `count` rays: each ray's first entry (a miss for a ray without one,
+        which lost its light in holes past `AnyHitSettings.max_layers`)."""
+        first = np.flatnonzero(self.first())
+        rays = self.ray[first]
+        hits = Hits(np.full(count, np.inf, np.float32), np.full(count, -1, np.int32),
+                    np.zeros(count, np.float32), np.zeros(count, np.float32))
+        for name in ("t", "tri", "u", "v"):
+            getattr(hits, name)[rays] = getattr(self.hits, name)[first]
+        return hits
 
 
 def layered_hits(bvh: BVH, origins: np.ndarray, directions: np.ndarray, t_min, t_max,

@@ -232,15 +232,7 @@ class Tracer:
             return self.bvh.intersect(origins, dirs, t_min, np.inf), None
         layers = layered_hits(self.bvh, origins, dirs, t_min, np.inf, self.alpha, self.offset,
                               self.alpha.opaque)
-        front = np.full(len(origins), -1)
-        front[layers.ray[::-1]] = np.arange(len(layers.ray))[::-1]  # each ray's first entry
-        t, tri = np.full(len(origins), np.inf, np.float32), np.full(len(origins), -1, np.int32)
-        u, v = np.zeros(len(origins), np.float32), np.zeros(len(origins), np.float32)
-        seen = front >= 0
-        for out, src in ((t, layers.hits.t), (tri, layers.hits.tri), (u, layers.hits.u),
-                         (v, layers.hits.v)):
-            out[seen] = src[front[seen]]
-        return Hits(t, tri, u, v), layers
+        return layers.front_hits(len(origins)), layers
 
     def direct(self, h: SurfaceHits, wo: np.ndarray, diffuse_w: np.ndarray, lobes: list, rough,
                strata: Strata | None = None, where: tuple | None = None,
@@ -705,9 +697,7 @@ class Tracer:
                 primary_t[...] = np.where(hits.tri < 0, np.inf, hits.t)
             front = None  # (N,) bool, with layers: the entries that are their ray's front one
             if layers is not None:  # a ray per surface it sees, weighted by what reaches it
-                src = layers.ray
-                front = np.zeros(len(src), bool)
-                front[np.unique(src, return_index=True)[1]] = True
+                src, front = layers.ray, layers.first()
                 origins, dirs, pixel, sharp, entered = (origins[src], dirs[src], pixel[src],
                                                         sharp[src], entered[src])
                 weight, t_min = weight[src] * layers.weight[:, None], t_min[src]

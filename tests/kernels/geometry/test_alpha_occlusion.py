@@ -6,7 +6,6 @@ from scene_builder import build, quad
 
 from classic_bake.kernels.geometry.alpha_occlusion import (
     AlphaOccluder,
-    clipped_hits,
     layered_hits,
     transmittance,
 )
@@ -106,13 +105,16 @@ def test_shadow_map_alpha_test_keeps_the_texture_shape():
 
 
 def test_seeing_rays_pass_the_holes():
-    """Closest hits alpha-tested at 0.5: through a hole the ground, on the leaf the card."""
+    """Through a hole (alpha 0) the ground, on the leaf (alpha 1) the card: each ray's front
+    surface, nothing behind an opaque one, a miss where there is nothing."""
     scene = build([_card(1.0, Material("leaf", alpha_texture=_checker_alpha())),
                    _card(0.0, Material("ground"))])
     alpha = scene_alpha(scene)
     origins, dirs = _rays([[0.25, 0.75], [0.25, 0.25], [0.75, 0.75], [0.75, 0.25], [3.0, 3.0]])
-    hits = clipped_hits(BVH.build(scene.triangles), origins, dirs, 0.0, np.inf, alpha, OFFSET,
-                        alpha.opaque)
+    layers = layered_hits(BVH.build(scene.triangles), origins, dirs, 0.0, np.inf, alpha, OFFSET,
+                          alpha.opaque)
+    np.testing.assert_array_equal(np.sort(layers.ray), np.arange(5))  # one surface each
+    hits = layers.front_hits(5)
     np.testing.assert_array_equal(scene.object_ids[hits.tri[:4]], [0, 1, 1, 0])
     np.testing.assert_allclose(hits.t[:4], [1.0, 2.0, 2.0, 1.0], atol=1e-5)
     assert hits.tri[4] == -1
