@@ -193,21 +193,27 @@ def _corner_colors(chunk, attribute_of: list) -> np.ndarray | None:
     return colors
 
 
-# Cycles' per-object ray visibility (Object Properties > Visibility > Ray Visibility).
-RAY_KINDS = ("camera", "diffuse", "glossy", "transmission", "shadow")
+# Cycles' per-object ray visibility (Object Properties > Visibility > Ray Visibility): what a
+# mesh can be hidden from, and what a lamp's light can (a lamp object's other flags, camera and
+# shadow catcher among them, are unused by Cycles and read False / True in a new file).
+RAY_KINDS = {"MESH": ("camera", "diffuse", "glossy", "transmission", "shadow"),
+             "LIGHT": ("diffuse", "glossy", "transmission")}
 
 
 def _ray_visibility(obj) -> list[str]:
     """What Cycles' visibility settings of `obj` change that the kernels do not model (they see
     every object with every ray), one note each; [] for the defaults."""
-    hidden = [kind for kind in RAY_KINDS if not getattr(obj, f"visible_{kind}", True)]
+    hidden = [kind for kind in RAY_KINDS.get(obj.type, ())
+              if not getattr(obj, f"visible_{kind}", True)]
     notes = []
     if hidden:
         notes.append(f"object '{obj.name}': Cycles hides it from {', '.join(hidden)} rays; "
                      f"not modelled, the kernels see it with every ray")
-    for flag, what in (("is_holdout", "a holdout"), ("is_shadow_catcher", "a shadow catcher")):
-        if getattr(obj, flag, False):
-            notes.append(f"object '{obj.name}': {what} in Cycles; not modelled, read as a surface")
+    if obj.type == "MESH":
+        for flag, what in (("is_holdout", "a holdout"), ("is_shadow_catcher", "a shadow catcher")):
+            if getattr(obj, flag, False):
+                notes.append(f"object '{obj.name}': {what} in Cycles; not modelled, read as a "
+                             f"surface")
     return notes
 
 

@@ -331,7 +331,10 @@ def test_cycles_ray_visibility_and_holdouts_are_noted():
     backdrop = cube_object("Backdrop")
     backdrop.visible_camera = backdrop.visible_shadow = False
     cube_object("Catcher").is_shadow_catcher = True
+    # a new lamp object reads visible_camera False and is_shadow_catcher True: unused for lamps
+    bpy.context.scene.collection.objects.link(
+        bpy.data.objects.new("Lamp", bpy.data.lights.new("Lamp", "POINT")))
     notes = bridge.snapshot().ignored
     assert any("'Backdrop'" in why and "camera, shadow rays" in why for why in notes)
     assert any("'Catcher'" in why and "shadow catcher" in why for why in notes)
-    assert not any("'Plain'" in why for why in notes)
+    assert not any("'Plain'" in why or "'Lamp'" in why for why in notes)
