@@ -203,7 +203,8 @@ def _pure_sheen(m: Material) -> bool:
 
 def _sheen_fields(parts: list, ignored: list) -> dict:
     """The sheen `Material` fields of a sum of parts [(weight, Material)]: the weights add, tint
-    and roughness their weighted means; the first sheen's model and layering ({}: no sheen)."""
+    and roughness their weighted means; the first sheen's textures, model and layering ({}: no
+    sheen)."""
     sheens = [(w * m.sheen, m) for w, m in parts if w * m.sheen > 0.0]
     if not sheens:
         return {}
@@ -215,6 +216,8 @@ def _sheen_fields(parts: list, ignored: list) -> dict:
             "sheen_tint": (sum(w * m.sheen_tint.astype(np.float64) for w, m in sheens) / total
                            ).astype(np.float32),
             "sheen_roughness": sum(w * m.sheen_roughness for w, m in sheens) / total,
+            "sheen_tint_texture": first.sheen_tint_texture,
+            "sheen_roughness_texture": first.sheen_roughness_texture,
             "sheen_model": first.sheen_model, "sheen_layer": first.sheen_layer}
 
 
@@ -409,11 +412,13 @@ class MaterialReader:
                             roughness=self._value(node.inputs["Roughness"], ignored),
                             ignored=tuple(ignored))
         if kind == "BSDF_SHEEN":  # added beside a surface, not layered over it
-            color, _ = self._color(node.inputs["Color"], ignored, textures=False)
-            rough = min(max(self._value(node.inputs["Roughness"], ignored), 0.0), 1.0)
+            color, color_texture = self._color(node.inputs["Color"], ignored)
+            rough, rough_texture = self._number(node.inputs["Roughness"], ignored)
             return Material(name=name, base_color=np.zeros(3, np.float32), specular=0.0,
                             sheen=1.0, sheen_tint=np.clip(color, 0.0, None).astype(np.float32),
-                            sheen_roughness=rough, sheen_model=node.distribution,
+                            sheen_tint_texture=color_texture,
+                            sheen_roughness=min(max(rough, 0.0), 1.0),
+                            sheen_roughness_texture=rough_texture, sheen_model=node.distribution,
                             sheen_layer=False, ignored=tuple(ignored))
         if kind == "BSDF_TRANSPARENT":
             color, _ = self._color(node.inputs["Color"], ignored, textures=False)
@@ -549,18 +554,19 @@ class MaterialReader:
         )
 
     def _sheen(self, inputs, ignored) -> dict:
-        """The Principled sheen's `Material` fields (a microfiber layer over the rest): weight,
-        tint and roughness as constants (a texture driving one is noted, its mean used); {}
-        where there is none."""
+        """The Principled sheen's `Material` fields (a microfiber layer over the rest): weight
+        (a constant: a texture driving it is noted, its mean used), tint and roughness (constants
+        or textures); {} where there is none."""
         if "Sheen Weight" not in inputs:
             return {}
         weight = max(self._value(inputs["Sheen Weight"], ignored), 0.0)
         if weight <= 0.0:
             return {}
-        tint, _ = self._color(inputs["Sheen Tint"], ignored, textures=False)
+        tint, tint_texture = self._color(inputs["Sheen Tint"], ignored)
+        rough, rough_texture = self._number(inputs["Sheen Roughness"], ignored)
         return {"sheen": weight, "sheen_tint": np.clip(tint, 0.0, None).astype(np.float32),
-                "sheen_roughness": min(max(self._value(inputs["Sheen Roughness"], ignored), 0.0),
-                                       1.0)}
+                "sheen_tint_texture": tint_texture, "sheen_roughness": min(max(rough, 0.0), 1.0),
+                "sheen_roughness_texture": rough_texture}
 
     def _coat(self, inputs, ignored, relief: Relief) -> dict:
         """The Principled coat's `Material` fields: weight, roughness, IOR and tint as constants

@@ -125,6 +125,10 @@ class Material:
     | sheen              | [0, inf)  | 0       | sheen weight (`shading/sheen.py`): cloth's rim |
     | sheen_tint         | [0, inf)^3| 1       | the sheen's colour                             |
     | sheen_roughness    | [0, 1]    | 0.5     | microfiber roughness, or the velvet's sigma    |
+    | sheen_tint_texture | Texture   | None    | the sheen's colour per texel, replaces         |
+    |                    |           |         | `sheen_tint` (traced views read it per hit)    |
+    | sheen_roughness_.. | Texture   | None    | sheen_roughness_texture: roughness per texel   |
+    |                    |           |         | (its first channel), replaces the constant     |
     | sheen_model        | str       | MICRO.. | "MICROFIBER" (Zeltner 2022) or "ASHIKHMIN"     |
     |                    |           |         | (velvet)                                       |
     | sheen_layer        | bool      | True    | True: a Principled layer, what lies under it   |
@@ -170,6 +174,8 @@ class Material:
     sheen: float = 0.0
     sheen_tint: np.ndarray = field(default_factory=lambda: np.ones(3, np.float32))
     sheen_roughness: float = 0.5
+    sheen_tint_texture: Texture | None = None
+    sheen_roughness_texture: Texture | None = None
     sheen_model: Literal["MICROFIBER", "ASHIKHMIN"] = "MICROFIBER"
     sheen_layer: bool = True
     # Coverage (Principled Alpha): what a ray meets of this surface; shadow and visibility rays

@@ -28,6 +28,7 @@ light them directly.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -109,3 +110,48 @@ def velvet(n: np.ndarray, to_light: np.ndarray, to_eye: np.ndarray,
     sin2 = np.maximum(1.0 - cos_h * cos_h, VELVET_EDGE)
     d = np.exp(-cos_h * cos_h / sin2 * inv_s2) * inv_s2 / (np.pi * sin2 * sin2)
     return np.where(valid, 0.25 * d * g / np.maximum(cos_v, VELVET_EDGE), 0.0)
+
+
+@dataclass(frozen=True, eq=False)
+class Fabric:
+    """The sheen at N hits.
+
+    | field     | shape | meaning                                                          |
+    |-----------|-------|------------------------------------------------------------------|
+    | color     | (N, 3)| weight x tint (0: no sheen there)                                |
+    | roughness | (N,)  | microfiber roughness in [0, 1], or the velvet's sigma            |
+    | velvet    | (N,)  | bool: Ashikhmin's velvet, else the microfiber                    |
+    | layer     | (N,)  | bool: a Principled layer over the rest, else added beside it     |
+    """
+
+    color: np.ndarray
+    roughness: np.ndarray
+    velvet: np.ndarray
+    layer: np.ndarray
+
+    @property
+    def present(self) -> np.ndarray:
+        """(N,) bool: the hits with a sheen."""
+        return self.color.max(axis=1) > 0.0
+
+    def take(self, rows: np.ndarray) -> Fabric:
+        """The sheen at hits `rows` only."""
+        return Fabric(self.color[rows], self.roughness[rows], self.velvet[rows], self.layer[rows])
+
+    def brdf_cos(self, rows: np.ndarray, n: np.ndarray, to_light: np.ndarray,
+                 to_eye: np.ndarray) -> np.ndarray:
+        """(k, 3) colour x f cos(theta_l) at hits `rows` (k,) with unit shading normals and
+        directions to the light and to the eye (k, 3): a lamp of irradiance E (cosine included)
+        adds this times E / cos(theta_l)."""
+        fuzz, rough = self.velvet[rows], self.roughness[rows]
+        f = np.empty(len(rows))
+        f[~fuzz] = microfiber(n[~fuzz], to_light[~fuzz], to_eye[~fuzz], rough[~fuzz])
+        f[fuzz] = velvet(n[fuzz], to_light[fuzz], to_eye[fuzz], rough[fuzz])
+        return self.color[rows] * f[:, None]
+
+    def under(self, mu_v: np.ndarray) -> np.ndarray:
+        """(N,) what a layered sheen leaves of the light of what lies under it, seen at view
+        cosines mu_v (N,): 1 - max over channels of colour x R(mu_v) (Cycles' layering); 1
+        where the sheen is added beside the surface or absent."""
+        albedo = self.color * microfiber_albedo(mu_v, self.roughness)[:, None]
+        return np.where(self.layer, np.clip(1.0 - albedo.max(axis=1), 0.0, 1.0), 1.0)

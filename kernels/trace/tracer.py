@@ -47,9 +47,9 @@ from ..shading import lights as light_units
 from ..shading.alpha import scene_alpha
 from ..shading.bump import bump_shadowing, valid_reflection
 from ..shading.glossy_lobe import ggx_reflections, lobe_points
-from ..shading.material_maps import emission_at
+from ..shading.material_maps import emission_at, material_values
 from ..shading.optics import fresnel_dielectric, reflect, refract
-from ..shading.sheen import microfiber, microfiber_albedo, velvet
+from ..shading.sheen import Fabric
 from ..shading.specular_layer import (
     coat_attenuation,
     coat_tables,
@@ -194,11 +194,10 @@ class Tracer:
         self.coat_f0 = np.array([layer_f0(m.coat_ior, 0.5) for m in mats], np.float64)
         self.coat_tint = np.array([m.coat_tint for m in mats], np.float64).reshape(-1, 3)
         self.coat_tables = coat_tables(mats) if self.coat.any() else None
-        # Sheen (`shading/sheen.py`): colour (weight x tint), roughness, model, layering.
-        self.sheen = np.array([m.sheen * np.asarray(m.sheen_tint, np.float64) for m in mats],
-                              np.float64).reshape(-1, 3)
-        self.has_sheen = self.sheen.max(axis=1) > 0.0
-        self.sheen_roughness = np.array([m.sheen_roughness for m in mats], np.float64)
+        # Sheen (`shading/sheen.py`): per material, its weight, model and layering (colour and
+        # roughness per hit, `_fabric`).
+        self.sheen_weight = np.array([m.sheen for m in mats], np.float64)
+        self.has_sheen = self.sheen_weight > 0.0
         self.velvet = np.array([m.sheen_model == "ASHIKHMIN" for m in mats], bool)
         self.sheen_layer = np.array([m.sheen_layer for m in mats], bool)
         # The media inside closed meshes (1/m); None when no material holds one.
@@ -236,7 +235,8 @@ class Tracer:
 
     def direct(self, h: SurfaceHits, wo: np.ndarray, diffuse_w: np.ndarray, lobes: list, rough,
                strata: Strata | None = None, where: tuple | None = None,
-               sheen: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+               fabric: Fabric | None = None, sheen: np.ndarray | None = None
+               ) -> tuple[np.ndarray, np.ndarray]:
         """Light from every light at the hits, shadow rays included: (radiance, lambert), each (N, 3).
 
         radiance = albedo * lambert + highlights; lambert is the diffuse part for a white base
@@ -246,12 +246,12 @@ class Tracer:
         lobe's mirror ray instead). strata: each hit's stratum and their count m, for area
         lights (`_area_direct`). where: each hit's triangle (N,) and barycentrics (N, 3), when
         known: a hit whose part of its triangle sees a light whole casts no shadow rays to it
-        (`shadow_shafts.py`). sheen: an (N, 3) array the hits' sheen light is added to (a layer
-        the caller weighs on its own), lit by lamps and emitters as the diffuse base is.
+        (`shadow_shafts.py`). fabric: the hits' sheen, lit by lamps and emitters as the diffuse
+        base is, its light added to `sheen` (N, 3) (a layer the caller weighs on its own).
         """
         out = np.zeros_like(h.p)
         lambert = np.zeros_like(h.p)
-        sheen_at = self.has_sheen[h.material] if sheen is not None else np.zeros(len(h.p), bool)
+        sheen_at = fabric.present if fabric is not None else np.zeros(len(h.p), bool)
         shading = (diffuse_w > 0) | np.any([w > 0 for _, w in lobes], axis=0) | sheen_at
         if not shading.any():
             return out, lambert
@@ -311,12 +311,11 @@ class Tracer:
             cos_i = np.maximum(np.einsum("ij,ij->i", ns[sub], to_l[sub]), 1e-6)  # e's cosine
             if diffuse and sheen_at[rows].any():
                 pick = np.flatnonzero(sheen_at[rows])
-                fabric = self._sheen(h.material[rows[pick]], ns[sub[pick]], to_l[sub[pick]],
-                                     wo[rows[pick]])
+                fuzz = fabric.brdf_cos(rows[pick], ns[sub[pick]], to_l[sub[pick]], wo[rows[pick]])
                 if smooth is not None:
-                    fabric = fabric * bump_shadowing(smooth[sub[pick]], ns[sub[pick]],
-                                                     to_l[sub[pick]])[:, None]
-                sheen[rows[pick]] += fabric * e[sub[pick]] * (vis[pick] / cos_i[pick])[:, None]
+                    fuzz = fuzz * bump_shadowing(smooth[sub[pick]], ns[sub[pick]],
+                                                 to_l[sub[pick]])[:, None]
+                sheen[rows[pick]] += fuzz * e[sub[pick]] * (vis[pick] / cos_i[pick])[:, None]
             for f0, weight in lobes:
                 shine = ggx_highlight(gn[sub], to_l[sub], wo[rows], rough[rows], f0[rows])
                 out[rows] += shine * e[sub] * (weight[rows] * vis / cos_i)[:, None]
@@ -327,27 +326,29 @@ class Tracer:
                     whole = np.stack([self.shafts.clear(e, tri, bary) for e in range(areas)], 1)
             sub_strata = strata_rows(strata, idx)
             area_lobes = [(f0[idx], weight[idx]) for f0, weight in lobes]
-            fabric = None
-            if sheen_at.any():
-                fabric = (h.material[idx], sheen_at[idx], np.zeros((len(idx), 3)))
+            cloth = (fabric.take(idx), np.zeros((len(idx), 3))) if sheen_at.any() else None
             diffuse, shine = self._area_direct(origin, ns, brdf_w, sub_strata, wo[idx], area_lobes,
-                                               rough[idx], smooth, whole, gn, fabric)
+                                               rough[idx], smooth, whole, gn, cloth)
             lambert[idx] += diffuse
             out[idx] += shine
-            if fabric is not None:
-                sheen[idx] += fabric[2]
+            if cloth is not None:
+                sheen[idx] += cloth[1]
         out += h.albedo * lambert
         return out, lambert
 
-    def _sheen(self, material: np.ndarray, n: np.ndarray, to_light: np.ndarray,
-               to_eye: np.ndarray) -> np.ndarray:
-        """(N, 3) the sheen's colour x f cos(theta_l) at hits of `material` (N,) with unit
-        shading normals, directions to the light and to the eye (N, 3): microfiber or velvet."""
-        rough, fuzz = self.sheen_roughness[material], self.velvet[material]
-        f = np.empty(len(material))
-        f[~fuzz] = microfiber(n[~fuzz], to_light[~fuzz], to_eye[~fuzz], rough[~fuzz])
-        f[fuzz] = velvet(n[fuzz], to_light[fuzz], to_eye[fuzz], rough[fuzz])
-        return self.sheen[material] * f[:, None]
+    def _fabric(self, tri: np.ndarray, bary: np.ndarray, material: np.ndarray) -> Fabric | None:
+        """The sheen at hits (triangles (N,), barycentrics (N, 3), materials (N,)): colour and
+        roughness from the materials' textures where they have them (`material_values`), else
+        their constants; None where no hit has a sheen."""
+        if not self.has_sheen[material].any():
+            return None
+        tint = material_values(self.scene, tri, bary, lambda m: m.sheen_tint_texture,
+                               lambda m: m.sheen_tint)
+        rough = material_values(self.scene, tri, bary, lambda m: m.sheen_roughness_texture,
+                                lambda m: np.full(3, m.sheen_roughness))[:, 0]
+        return Fabric(color=self.sheen_weight[material][:, None] * np.clip(tint, 0.0, None),
+                      roughness=np.clip(rough, 0.0, 1.0), velvet=self.velvet[material],
+                      layer=self.sheen_layer[material])
 
     def gouraud_direct(self, h: SurfaceHits, hits, eye: np.ndarray, diffuse_w, lobes, rough,
                        strata: Strata | None = None) -> tuple[np.ndarray, np.ndarray]:
@@ -391,7 +392,7 @@ class Tracer:
         sample count m does not divide keep every sample for every hit. whole (N, E) bool, when
         given: hit n sees emitter e whole (`shadow_shafts.py`) and casts no shadow rays to it.
         glossy (N, 3): the normals the lobes turn about (`SurfaceHits.spec`); None: ns.
-        sheen: (material (N,), has sheen (N,) bool, out (N, 3)): the sheen light is added to out.
+        sheen: (Fabric of the N hits, out (N, 3)): the sheen's light is added to out.
         """
         em = self.emitters
         glossy = ns if glossy is None else glossy
@@ -438,14 +439,14 @@ class Tracer:
                 smooth[n_idx], ns[n_idx], to_l[b_idx, n_idx])[:, None]
             _scatter_add(out, n_idx, brdf_d[n_idx] * weight * relief)
             if sheen is not None:  # every emitter lights a sheen, as it does the base
-                material, sheen_at, sheen_out = sheen
-                pick = np.flatnonzero(sheen_at[n_idx])
+                fabric, sheen_out = sheen
+                pick = np.flatnonzero(fabric.present[n_idx])
                 if pick.size:
                     rows, l_dir = n_idx[pick], to_l[b_idx[pick], n_idx[pick]]
                     cos_r = np.maximum(np.einsum("ij,ij->i", ns[rows], l_dir), 1e-6)
-                    fabric = self._sheen(material[rows], ns[rows], l_dir, wo[rows])
-                    fabric = fabric * (relief if np.isscalar(relief) else relief[pick])
-                    _scatter_add(sheen_out, rows, fabric * weight[pick] / cos_r[:, None])
+                    fuzz = fabric.brdf_cos(rows, ns[rows], l_dir, wo[rows])
+                    fuzz = fuzz * (relief if np.isscalar(relief) else relief[pick])
+                    _scatter_add(sheen_out, rows, fuzz * weight[pick] / cos_r[:, None])
             lamp = ~em.area_two_sided[block][b_idx]  # area lamps: no rough lobe's ray meets them
             for f0, w in lobes:
                 pick = np.flatnonzero(lamp & (w[n_idx] > 0.0))
@@ -808,14 +809,16 @@ class Tracer:
             lit_w = np.where(dark, 0.0, diffuse_w)
             if self.diffuse is not None:
                 lit_w = np.zeros_like(lit_w)  # the solution's diffuse light replaces it below
+            fabric = None  # the hits' sheen (`_fabric`); Gouraud shading draws none
             with self.clock("light sampling"):
                 if s.shading == "gouraud":
                     lit, lambert = self.gouraud_direct(h, hits, origins, lit_w, lobes, rough,
                                                        hit_strata)
                 else:
-                    sheen_light = np.zeros_like(h.p) if self.has_sheen[m].any() else None
+                    fabric = self._fabric(hits.tri, bary, m)
+                    sheen_light = None if fabric is None else np.zeros_like(h.p)
                     lit, lambert = self.direct(h, wo, lit_w, lobes, rough, hit_strata,
-                                               (hits.tri, bary), sheen_light)
+                                               (hits.tri, bary), fabric, sheen_light)
             if self.diffuse is not None:
                 with self.clock("diffuse lookup"):
                     reflected = self.diffuse(hits.tri, bary, dirs, h.front, entered == 0,
@@ -884,11 +887,8 @@ class Tracer:
             # A Principled sheen over it all (`shading/sheen.py`): what lies under keeps 1 - the
             # layer's albedo; a Sheen BSDF adds its light beside the surface (keep 1).
             keep = None
-            if s.shading != "gouraud" and self.has_sheen[m].any():
-                layered = self.sheen_layer[m] & self.has_sheen[m]
-                mu_v = np.einsum("ij,ij->i", wo, h.ns)
-                layer_albedo = self.sheen[m] * microfiber_albedo(mu_v, self.sheen_roughness[m])[:, None]
-                keep = np.where(layered, np.clip(1.0 - max_of_three(layer_albedo), 0.0, 1.0), 1.0)
+            if fabric is not None:
+                keep = fabric.under(np.einsum("ij,ij->i", wo, h.ns))
                 own = own * keep[:, None] + sheen_light
                 lambert = lambert * keep[:, None]
             _scatter_add(result, pixel, weight * own)
