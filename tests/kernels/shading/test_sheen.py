@@ -63,3 +63,21 @@ def test_velvet_matches_its_closed_form_and_vanishes_below_the_horizon():
     g = min(1.0, 2 * cos_h / cos_hv * 0.8)
     assert got[1] == pytest.approx(d * g / (4 * 0.8), rel=1e-9)
     assert got[2] == 0.0
+
+
+def test_a_layered_sheen_dims_what_lies_under_it_by_its_albedo_and_an_added_one_does_not():
+    from classic_bake.kernels.shading.sheen import Fabric
+
+    mu = np.array([0.15, 0.15, 0.9])
+    fabric = Fabric(color=np.array([[1.0, 0.5, 0.2], [1.0, 0.5, 0.2], [0.0, 0.0, 0.0]]),
+                    roughness=np.full(3, 0.5), velvet=np.zeros(3, bool),
+                    layer=np.array([True, False, True]))
+    albedo = microfiber_albedo(mu[:1], np.array([0.5]))[0]
+    np.testing.assert_allclose(fabric.under(mu), [1.0 - albedo, 1.0, 1.0])  # max channel: 1.0
+    np.testing.assert_array_equal(fabric.present, [True, True, False])
+    n = np.tile([0.0, 0.0, 1.0], (3, 1))
+    eye = np.array([[np.sqrt(1 - 0.15**2), 0.0, 0.15]] * 3)
+    light = np.array([[0.0, 0.6, 0.8]] * 3)
+    got = fabric.brdf_cos(np.arange(3), n, light, eye)
+    expected = microfiber(n, light, eye, np.full(3, 0.5))[:, None] * fabric.color
+    np.testing.assert_allclose(got, expected)
