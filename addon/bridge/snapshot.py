@@ -200,14 +200,35 @@ RAY_KINDS = {"MESH": ("camera", "diffuse", "glossy", "transmission", "shadow"),
              "LIGHT": ("diffuse", "glossy", "transmission")}
 
 
+# The ray kinds traced views honour (`ObjectInfo.hidden_from`); other kernels see the object.
+TRACED_KINDS = ("camera", "shadow")
+
+
+def hidden_from(obj) -> tuple[str, ...]:
+    """The ray kinds Cycles hides `obj` from (`RAY_KINDS` of its type whose visible_ flag is
+    off); () for the defaults."""
+    return tuple(kind for kind in RAY_KINDS.get(obj.type, ())
+                 if not getattr(obj, f"visible_{kind}", True))
+
+
+def _hidden_from_name(name: str) -> tuple[str, ...]:
+    """`hidden_from` of the object named `name` (() when there is none by that name)."""
+    obj = bpy.data.objects.get(name)
+    return () if obj is None else hidden_from(obj)
+
+
 def _ray_visibility(obj) -> list[str]:
-    """What Cycles' visibility settings of `obj` change that the kernels do not model (they see
-    every object with every ray), one note each; [] for the defaults."""
-    hidden = [kind for kind in RAY_KINDS.get(obj.type, ())
-              if not getattr(obj, f"visible_{kind}", True)]
+    """What Cycles' visibility settings of `obj` change that the kernels do not model, one note
+    each; [] for the defaults."""
+    hidden = hidden_from(obj)
+    traced = [kind for kind in hidden if kind in TRACED_KINDS]
+    others = [kind for kind in hidden if kind not in TRACED_KINDS]
     notes = []
-    if hidden:
-        notes.append(f"object '{obj.name}': Cycles hides it from {', '.join(hidden)} rays; "
+    if traced:
+        notes.append(f"object '{obj.name}': Cycles hides it from {', '.join(traced)} rays; "
+                     f"traced views do too, other techniques see it")
+    if others:
+        notes.append(f"object '{obj.name}': Cycles hides it from {', '.join(others)} rays; "
                      f"not modelled, the kernels see it with every ray")
     if obj.type == "MESH":
         for flag, what in (("is_holdout", "a holdout"), ("is_shadow_catcher", "a shadow catcher")):
@@ -236,7 +257,7 @@ def _assemble(chunks, materials, lights, camera, world, request, ignored) -> Sce
             tri_count=counts[k], has_uv=chunk.uv is not None,
             has_lightmap_uv=chunk.lightmap_uv is not None,
             topology_matches_original=chunk.topology_matches_original,
-            is_instance=chunk.is_instance))
+            is_instance=chunk.is_instance, hidden_from=_hidden_from_name(chunk.source_name)))
 
     def stack(attr, shape, dtype):
         parts = [getattr(c, attr) if getattr(c, attr) is not None else np.zeros((n,) + shape, dtype)

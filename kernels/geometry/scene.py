@@ -280,6 +280,9 @@ class ObjectInfo:
     # results can be written back onto the original mesh.
     topology_matches_original: bool
     is_instance: bool = False
+    # Cycles' ray visibility turned off for this object: "camera", "shadow" (rays the traced
+    # views honour), "diffuse", "glossy", "transmission" (listed, not modelled)
+    hidden_from: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True, eq=False)
@@ -397,6 +400,17 @@ class Scene:
     @property
     def triangle_count(self) -> int:
         return int(self.triangles.shape[0])
+
+    def ray_hidden(self, kind: str) -> np.ndarray | None:
+        """(T,) bool: the triangles of objects Cycles hides from rays of `kind` ("camera",
+        "shadow", ...: `ObjectInfo.hidden_from`); None when no object is."""
+        owners = [o for o in self.objects if kind in o.hidden_from]
+        if not owners:
+            return None
+        out = np.zeros(self.triangle_count, bool)
+        for o in owners:
+            out[o.tri_start:o.tri_start + o.tri_count] = True
+        return out
 
     def object_slice(self, index: int) -> slice:
         info = self.objects[index]

@@ -64,6 +64,34 @@ class SceneAlpha:
         return ~self.per_material[self.scene.material_ids[np.asarray(tri, np.int64)]]
 
 
+class HiddenCoverage:
+    """A coverage look-up (`SceneAlpha`'s signature) for rays Cycles does not let see some
+    objects (`Scene.ray_hidden`): their triangles have coverage 0, the others `base`'s (1
+    without one)."""
+
+    def __init__(self, base: SceneAlpha | None, hidden: np.ndarray):
+        self.base, self.hidden = base, hidden
+
+    def __call__(self, tri: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+        tri = np.asarray(tri, np.int64)
+        out = np.ones(len(tri)) if self.base is None else self.base(tri, u, v)
+        return np.where(self.hidden[tri], 0.0, out)
+
+    def opaque(self, tri: np.ndarray) -> np.ndarray:
+        """(N,) bool: triangles a ray meeting stops at (neither hidden nor partly covered)."""
+        tri = np.asarray(tri, np.int64)
+        opaque = np.ones(len(tri), bool) if self.base is None else self.base.opaque(tri)
+        return opaque & ~self.hidden[tri]
+
+
+def ray_coverage(scene: Scene, kind: str) -> SceneAlpha | HiddenCoverage | None:
+    """The coverage rays of `kind` ("camera", "shadow") meet: the scene's alpha, with the objects
+    Cycles hides from such rays fully transparent; None when every surface is opaque to them."""
+    hidden = scene.ray_hidden(kind)
+    alpha = scene_alpha(scene)
+    return alpha if hidden is None else HiddenCoverage(alpha, hidden)
+
+
 def scene_alpha(scene: Scene) -> SceneAlpha | None:
     """The scene's coverage look-up, or None when every surface is opaque."""
     return SceneAlpha(scene) if has_alpha(scene) else None

@@ -44,7 +44,7 @@ from ..geometry.vec import max_of_three
 from ..measure.phase_clock import PhaseClock
 from ..progress import Steps, drain
 from ..shading import lights as light_units
-from ..shading.alpha import scene_alpha
+from ..shading.alpha import ray_coverage, scene_alpha
 from ..shading.bump import bump_shadowing, valid_reflection
 from ..shading.glossy_lobe import ggx_reflections, lobe_points
 from ..shading.material_maps import emission_at, material_values
@@ -149,6 +149,10 @@ class Tracer:
         # Surfaces with alpha (leaf cards): shadow rays pass them with weight 1 - alpha; None
         # when every surface is opaque (shadow rays are then a plain any-hit test).
         self.alpha = scene_alpha(scene)
+        # What camera and shadow rays meet: the alpha, with the objects Cycles hides from such
+        # rays (Object > Visibility > Ray Visibility) fully transparent to them.
+        self.camera_cover = ray_coverage(scene, "camera")
+        self.shadow_cover = ray_coverage(scene, "shadow")
         self.tri_normals = geometric_normals(scene.triangles)
         self.emitters = scene_emitters(scene, settings)
         # Hits whose triangle (or part of it) sees an area emitter or a lamp whole cast no shadow
@@ -218,19 +222,22 @@ class Tracer:
     def _visible(self, origins, directions, t_max) -> np.ndarray:
         self.stats.shadow_rays += len(origins)
         with self.clock("shadow traversal"):
-            if self.alpha is not None:  # (N,) float transmittance
+            cover = self.shadow_cover
+            if cover is not None:  # (N,) float transmittance
                 return transmittance(self.shadow_bvh, origins, directions, 0.0, t_max,
-                                     self.alpha, self.offset, self.alpha.opaque)
+                                     cover, self.offset, cover.opaque)
             return ~self.shadow_bvh.occluded(origins, directions, 0.0, t_max)
 
-    def _hits(self, origins, dirs, t_min) -> tuple[Hits, Layers | None]:
-        """Closest hits of the rays that see, and None; in scenes with alpha, the layers each
-        ray sees through partly covered surfaces (`layered_hits`: a surface of coverage a shows
-        a S + (1 - a) T, as Cycles blends it) and, as the hits, each ray's front one."""
-        if self.alpha is None:
+    def _hits(self, origins, dirs, t_min, camera: bool) -> tuple[Hits, Layers | None]:
+        """Closest hits of the rays that see (`camera`: the camera's), and None; in scenes with
+        alpha (or objects hidden from the camera), the layers each ray sees through partly
+        covered surfaces (`layered_hits`: a surface of coverage a shows a S + (1 - a) T, as
+        Cycles blends it) and, as the hits, each ray's front one."""
+        cover = self.camera_cover if camera else self.alpha
+        if cover is None:
             return self.bvh.intersect(origins, dirs, t_min, np.inf), None
-        layers = layered_hits(self.bvh, origins, dirs, t_min, np.inf, self.alpha, self.offset,
-                              self.alpha.opaque)
+        layers = layered_hits(self.bvh, origins, dirs, t_min, np.inf, cover, self.offset,
+                              cover.opaque)
         return layers.front_hits(len(origins)), layers
 
     def direct(self, h: SurfaceHits, wo: np.ndarray, diffuse_w: np.ndarray, lobes: list, rough,
@@ -691,7 +698,7 @@ class Tracer:
             if depth > 0:
                 self.stats.secondary_rays += len(origins)
             with self.clock("traversal"):
-                hits, layers = self._hits(origins, dirs, t_min)
+                hits, layers = self._hits(origins, dirs, t_min, camera=depth == 0)
             if depth == 0 and primary_ids is not None:
                 primary_ids[...] = self.hit_ids(hits.tri)
             if depth == 0 and primary_t is not None:

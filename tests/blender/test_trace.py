@@ -403,3 +403,38 @@ def test_a_textured_sheen_tint_is_read_per_hit():
     print("relMSE against Cycles", error, rel_mse(mean_tint[on_sphere], cycles[on_sphere]))
     assert error < 1e-2
     assert error < 0.1 * rel_mse(mean_tint[on_sphere], cycles[on_sphere])
+
+
+def test_objects_hidden_from_camera_or_shadow_rays_are_traced_as_cycles_renders_them():
+    """Cycles' ray visibility: a card hidden from the camera still casts its shadow on the floor,
+    a card hidden from shadow rays is seen but casts none. Against Cycles' Whitted-model render
+    (256 samples, 32 x 24): measured relMSE 3.5e-4 over the view; seeing both cards and both
+    shadows (the flags ignored) 0.045."""
+    from dataclasses import replace
+
+    from blender_parts import lit_scene, oblique_camera, plane, principled
+
+    from classic_bake.addon import cycles as cr
+    from classic_bake.kernels.measure.metrics import rel_mse
+    from classic_bake.kernels.trace.settings import TracerSettings
+    from classic_bake.kernels.trace.tracer import trace
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = lit_scene()
+    plane(principled("Floor", base=(0.8, 0.8, 0.8))[0], size=6.0)
+    unseen = plane(principled("Unseen", base=(0.8, 0.1, 0.1))[0], size=1.0)
+    unseen.location = (-0.8, 0.0, 0.5)
+    unseen.visible_camera = False
+    shadowless = plane(principled("Shadowless", base=(0.1, 0.1, 0.8))[0], size=1.0)
+    shadowless.location = (0.8, 0.0, 0.5)
+    shadowless.visible_shadow = False
+    oblique_camera(scene)
+    cycles, _ = cr.render_camera(scene, cr.whitted(2), 256, resolution=(32, 24))
+    snap = bridge.snapshot(resolution=(32, 24))
+    assert {o.name: o.hidden_from for o in snap.objects}["Plane.001"] == ("camera",)
+    ours = trace(snap, TracerSettings(max_depth=2)).image
+    plain = replace(snap, objects=tuple(replace(o, hidden_from=()) for o in snap.objects))
+    flags_ignored = trace(plain, TracerSettings(max_depth=2)).image
+    print("relMSE against Cycles", rel_mse(ours, cycles), rel_mse(flags_ignored, cycles))
+    assert rel_mse(ours, cycles) < 5e-3
+    assert rel_mse(ours, cycles) < 0.1 * rel_mse(flags_ignored, cycles)

@@ -137,3 +137,27 @@ def test_layers_weigh_each_surface_by_what_reaches_it():
     np.testing.assert_allclose(layers.hits.t[[0, 2, 3]], [0.5, 1.0, 2.0], atol=1e-5)
     above = layered_hits(bvh, origins[:1], dirs[:1], 0.0, 1.9, alpha, OFFSET, alpha.opaque)
     assert above.hits.tri[-1] == -1 and above.weight[-1] == 0.375  # the light left past 1.9
+
+
+def test_rays_pass_objects_hidden_from_them_whatever_their_alpha():
+    """Cycles' ray visibility (`Scene.ray_hidden`, `shading/alpha.ray_coverage`): a card hidden
+    from camera rays is transparent to them (the ground behind it is seen) and still blocks
+    shadow rays; a half-transparent card in front stays half seen."""
+    from dataclasses import replace
+
+    from classic_bake.kernels.shading.alpha import ray_coverage
+
+    scene = build([_card(1.5, Material("veil", alpha=0.5)), _card(1.0, Material("card")),
+                   _card(0.0, Material("ground"))])
+    scene = replace(scene, objects=tuple(replace(o, hidden_from=("camera",)) if k == 1 else o
+                                         for k, o in enumerate(scene.objects)))
+    bvh = BVH.build(scene.triangles)
+    origins, dirs = _rays([[0.3, 0.3]])
+    seen = ray_coverage(scene, "camera")
+    layers = layered_hits(bvh, origins, dirs, 0.0, np.inf, seen, OFFSET, seen.opaque)
+    np.testing.assert_array_equal(scene.object_ids[layers.hits.tri], [0, 2])  # the card skipped
+    np.testing.assert_allclose(layers.weight, [0.5, 0.5])
+    shadow = ray_coverage(scene, "shadow")  # the alpha alone: the card blocks
+    assert transmittance(bvh, origins, dirs, 0.0, 1.9, shadow, OFFSET, shadow.opaque)[0] == 0.0
+    opaque = build([_card(1.0, Material("card")), _card(0.0, Material("ground"))])
+    assert ray_coverage(opaque, "camera") is None  # nothing hidden, nothing covered: plain hits
