@@ -29,6 +29,7 @@ light them directly.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -129,9 +130,9 @@ class Fabric:
     velvet: np.ndarray
     layer: np.ndarray
 
-    @property
+    @cached_property
     def present(self) -> np.ndarray:
-        """(N,) bool: the hits with a sheen."""
+        """(N,) bool: the hits with a sheen (found once: the area lights' blocks each ask)."""
         return self.color.max(axis=1) > 0.0
 
     def take(self, rows: np.ndarray) -> Fabric:

@@ -240,32 +240,37 @@ class Tracer:
                               cover.opaque)
         return layers.front_hits(len(origins)), layers
 
-    def direct(self, h: SurfaceHits, wo: np.ndarray, diffuse_w: np.ndarray, lobes: list, rough,
+    def direct(self, h: SurfaceHits, wo: np.ndarray, diffuse_w: np.ndarray, lobes: list,
                strata: Strata | None = None, where: tuple | None = None,
                fabric: Fabric | None = None, sheen: np.ndarray | None = None
                ) -> tuple[np.ndarray, np.ndarray]:
         """Light from every light at the hits, shadow rays included: (radiance, lambert), each (N, 3).
 
         radiance = albedo * lambert + highlights; lambert is the diffuse part for a white base
-        colour (diffuse weight / pi * sum of shadowed irradiance). lobes: the rough glossy lobes
-        lit directly, [(F0 (N, 3), weight (N,))] (a specular layer's, a metal's), GGX of each
-        hit's roughness (N,): lamps' and area lights' highlights (emissive meshes are met by the
-        lobe's mirror ray instead). strata: each hit's stratum and their count m, for area
-        lights (`_area_direct`). where: each hit's triangle (N,) and barycentrics (N, 3), when
-        known: a hit whose part of its triangle sees a light whole casts no shadow rays to it
-        (`shadow_shafts.py`). fabric: the hits' sheen, lit by lamps and emitters as the diffuse
-        base is, its light added to `sheen` (N, 3) (a layer the caller weighs on its own).
+        colour (diffuse weight (N,) or (N, 3) / pi * sum of shadowed irradiance). lobes: the
+        rough glossy lobes lit directly, [(F0 (N, 3), weight (N, 3), roughness (N,))] (a
+        specular layer's, a metal's, a coat's), GGX: lamps' and area lights' highlights
+        (emissive meshes are met by the lobe's mirror ray instead). strata: each hit's stratum
+        and their count m, for area lights (`_area_direct`). where: each hit's triangle (N,) and
+        barycentrics (N, 3), when known: a hit whose part of its triangle sees a light whole
+        casts no shadow rays to it (`shadow_shafts.py`). fabric: the hits' sheen, lit by lamps
+        and emitters as the diffuse base is, its light added to `sheen` (N, 3) (a layer the
+        caller weighs on its own).
         """
         out = np.zeros_like(h.p)
         lambert = np.zeros_like(h.p)
         sheen_at = fabric.present if fabric is not None else np.zeros(len(h.p), bool)
-        shading = (diffuse_w > 0) | np.any([w > 0 for _, w in lobes], axis=0) | sheen_at
+        diffuse_w = np.broadcast_to(np.asarray(diffuse_w, np.float64).reshape(len(h.p), -1),
+                                    (len(h.p), 3))
+        shading = (max_of_three(diffuse_w) > 0) | sheen_at
+        for _, weight, _ in lobes:
+            shading |= max_of_three(weight) > 0
         if not shading.any():
             return out, lambert
         idx = np.nonzero(shading)[0]
         p, ng, ns, gn = h.p[idx], h.ng[idx], h.ns[idx], h.glossy_normal[idx]
         origin = p + ng * self.offset
-        brdf_w = np.repeat(diffuse_w[idx, None] / np.pi, 3, axis=1)  # white base colour
+        brdf_w = diffuse_w[idx] / np.pi  # white base colour
         smooth = None if h.smooth is None else h.smooth[idx]
         # The lamps light the diffuse base and the lobes; a world map's suns only the lobes (the
         # world is hidden from diffuse rays in this model, but glossy ones see it).
@@ -304,7 +309,11 @@ class Tracer:
             if diffuse:
                 # The relief's facets hide part of a low light from the diffuse base (Cycles),
                 # taken along each direction a lamp's light comes from (an area lamp whose
-                # centre is under the tilted normal's horizon still lights it by its rest).
+                # centre is under the tilted normal's horizon still lights it by its rest); a
+                # sheen takes it along the lamp's one direction.
+                relief = None
+                if smooth is not None and (light.kind != "AREA" or sheen_at[idx[sub]].any()):
+                    relief = bump_shadowing(smooth[sub], ns[sub], to_l[sub])[:, None]
                 lit_e = e[sub]
                 if smooth is not None and light.kind == "AREA":  # per grid sample of the lamp
                     s_sub, n_sub = smooth[sub], ns[sub]
@@ -312,30 +321,29 @@ class Tracer:
                         light, p[sub], n_sub,
                         lambda to, s_sub=s_sub, n_sub=n_sub: bump_shadowing(s_sub, n_sub, to))
                 elif smooth is not None:  # one direction: the lamp's
-                    lit_e = lit_e * bump_shadowing(smooth[sub], ns[sub], to_l[sub])[:, None]
+                    lit_e = lit_e * relief
                 lambert[idx[sub]] += brdf_w[sub] * lit_e * vis[:, None]
             rows = idx[sub]
             cos_i = np.maximum(np.einsum("ij,ij->i", ns[sub], to_l[sub]), 1e-6)  # e's cosine
             if diffuse and sheen_at[rows].any():
                 pick = np.flatnonzero(sheen_at[rows])
                 fuzz = fabric.brdf_cos(rows[pick], ns[sub[pick]], to_l[sub[pick]], wo[rows[pick]])
-                if smooth is not None:
-                    fuzz = fuzz * bump_shadowing(smooth[sub[pick]], ns[sub[pick]],
-                                                 to_l[sub[pick]])[:, None]
+                if relief is not None:
+                    fuzz = fuzz * relief[pick]
                 sheen[rows[pick]] += fuzz * e[sub[pick]] * (vis[pick] / cos_i[pick])[:, None]
-            for f0, weight in lobes:
+            for f0, weight, rough in lobes:
                 shine = ggx_highlight(gn[sub], to_l[sub], wo[rows], rough[rows], f0[rows])
-                out[rows] += shine * e[sub] * (weight[rows] * vis / cos_i)[:, None]
+                out[rows] += shine * e[sub] * weight[rows] * (vis / cos_i)[:, None]
         if len(self.emitters.area_points):
             whole = None  # (n, E) bool: the hit sees area emitter e whole
             if tri is not None:
                 with self.clock("shafts"):
                     whole = np.stack([self.shafts.clear(e, tri, bary) for e in range(areas)], 1)
             sub_strata = strata_rows(strata, idx)
-            area_lobes = [(f0[idx], weight[idx]) for f0, weight in lobes]
+            area_lobes = [(f0[idx], weight[idx], rough[idx]) for f0, weight, rough in lobes]
             cloth = (fabric.take(idx), np.zeros((len(idx), 3))) if sheen_at.any() else None
             diffuse, shine = self._area_direct(origin, ns, brdf_w, sub_strata, wo[idx], area_lobes,
-                                               rough[idx], smooth, whole, gn, cloth)
+                                               smooth, whole, gn, cloth)
             lambert[idx] += diffuse
             out[idx] += shine
             if cloth is not None:
@@ -357,7 +365,7 @@ class Tracer:
                       roughness=np.clip(rough, 0.0, 1.0), velvet=self.velvet[material],
                       layer=self.sheen_layer[material])
 
-    def gouraud_direct(self, h: SurfaceHits, hits, eye: np.ndarray, diffuse_w, lobes, rough,
+    def gouraud_direct(self, h: SurfaceHits, hits, eye: np.ndarray, diffuse_w, lobes,
                        strata: Strata | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Gouraud (per-vertex) shading: `direct` evaluated at the hit triangle's three corners,
         with their own normals, shadow rays and view directions (towards `eye`, each ray's
@@ -377,19 +385,19 @@ class Tracer:
             wo = eye - p
             wo /= np.maximum(np.linalg.norm(wo, axis=1, keepdims=True), 1e-12)
             corner = SurfaceHits(p, h.ng, n, h.front, h.material, h.albedo, h.emission)
-            lit_k, lambert_k = self.direct(corner, wo, diffuse_w, lobes, rough, strata,
+            lit_k, lambert_k = self.direct(corner, wo, diffuse_w, lobes, strata,
                                            (hits.tri, np.broadcast_to(np.eye(3)[k], (len(p), 3))))
             lit += w[:, None] * lit_k
             lambert += w[:, None] * lambert_k
         return lit, lambert
 
     def _area_direct(self, origin, ns, brdf_d, strata: Strata | None = None, wo=None,
-                     lobes: tuple | list = (), rough=None, smooth=None, whole=None,
+                     lobes: tuple | list = (), smooth=None, whole=None,
                      glossy=None, sheen: tuple | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Light from area lights and emissive triangles: every emitter sample against every hit,
         EMITTER_BLOCK samples at a time, with one batch of shadow rays per block. Returns the
         diffuse part (N, 3) (brdf_d weighted) and the area lights' highlights in the glossy
-        `lobes` (as `direct`'s; view directions wo (N, 3), roughness (N,)). smooth (N, 3), when
+        `lobes` (as `direct`'s; view directions wo (N, 3)). smooth (N, 3), when
         given: the normals before the relief, for the diffuse part's bump shadowing.
 
         strata (stratum (N,), m): the hits are m sub-samples of their pixels, and a hit in
@@ -455,13 +463,13 @@ class Tracer:
                     fuzz = fuzz * (relief if np.isscalar(relief) else relief[pick])
                     _scatter_add(sheen_out, rows, fuzz * weight[pick] / cos_r[:, None])
             lamp = ~em.area_two_sided[block][b_idx]  # area lamps: no rough lobe's ray meets them
-            for f0, w in lobes:
-                pick = np.flatnonzero(lamp & (w[n_idx] > 0.0))
+            for f0, w, rough in lobes:
+                pick = np.flatnonzero(lamp & (max_of_three(w[n_idx]) > 0.0))
                 if pick.size:
                     rows, l_dir = n_idx[pick], to_l[b_idx[pick], n_idx[pick]]
                     brdf_cos = ggx_highlight(glossy[rows], l_dir, wo[rows], rough[rows], f0[rows])
                     cos_r = np.maximum(np.einsum("ij,ij->i", ns[rows], l_dir), 1e-6)
-                    _scatter_add(shine, rows, brdf_cos * (weight[pick] * (w[rows] / cos_r)[:, None]))
+                    _scatter_add(shine, rows, brdf_cos * weight[pick] * w[rows] / cos_r[:, None])
         return out, shine
 
     def _area_lamp_hits(self, origins: np.ndarray, dirs: np.ndarray, t_hit: np.ndarray
@@ -798,14 +806,17 @@ class Tracer:
             has_spec = (dielectric > 0) & (spec_level > 0) & (rough >= s.mirror_roughness)
             f0_dielectric = self.layer_f0[m]
             # Rough glossy lobes lit directly: the specular layer's and a rough metal's.
+            # (F0 (N, 3), weight (N, 3), roughness (N,)) each; the coat's below
             lobes = []
             if has_spec.any():
                 lobes.append((np.where(has_spec[:, None], f0_dielectric[:, None], 0.0)
-                              * np.ones((1, 3)), np.where(has_spec, dielectric, 0.0)))
+                              * np.ones((1, 3)), np.where(has_spec, dielectric, 0.0)[:, None]
+                              * np.ones((1, 3)), rough))
             rough_metal = (metallic > 0) & (rough >= s.mirror_roughness)
             f0_metal = np.where(self.tinted[m][:, None], self.metal_color[m], h.albedo)
             if rough_metal.any():
-                lobes.append((f0_metal, np.where(rough_metal, metallic, 0.0)))
+                lobes.append((f0_metal, np.where(rough_metal, metallic, 0.0)[:, None]
+                              * np.ones((1, 3)), rough))
             hit_strata = strata_rows(strata, pixel)
             # A black base reflects nothing diffusely: no shadow rays for it. A dark texel of a
             # coloured or textured material keeps them at the camera hits when the white-base
@@ -816,45 +827,45 @@ class Tracer:
             lit_w = np.where(dark, 0.0, diffuse_w)
             if self.diffuse is not None:
                 lit_w = np.zeros_like(lit_w)  # the solution's diffuse light replaces it below
-            fabric = None  # the hits' sheen (`_fabric`); Gouraud shading draws none
-            with self.clock("light sampling"):
-                if s.shading == "gouraud":
-                    lit, lambert = self.gouraud_direct(h, hits, origins, lit_w, lobes, rough,
-                                                       hit_strata)
-                else:
-                    fabric = self._fabric(hits.tri, bary, m)
-                    sheen_light = None if fabric is None else np.zeros_like(h.p)
-                    lit, lambert = self.direct(h, wo, lit_w, lobes, rough, hit_strata,
-                                               (hits.tri, bary), fabric, sheen_light)
-            if self.diffuse is not None:
-                with self.clock("diffuse lookup"):
-                    reflected = self.diffuse(hits.tri, bary, dirs, h.front, entered == 0,
-                                             hit_strata)
-                lit = lit + reflected
-                # A white base's share, for edge detection (the `untextured` image).
-                lambert = reflected / np.maximum(h.albedo, ALBEDO_FLOOR)
-            own = h.emission + lit
             # A coat over it all: what lies under shows through less the coat's albedo (and its
-            # tint); the coat adds its own highlights and, below, its own reflected ray.
+            # tint), so the base's light and lobes are weighed by `under`; the coat adds its own
+            # highlights (a lobe lit with the others) and, below, its own reflected ray.
             coat_w = self.coat[m]
             coated = coat_w > 0.0
             under = coat_e = None
+            base_lit_w = lit_w
             if coated.any():
                 mu_coat = np.einsum("ij,ij->i", dirs, gn)
                 coat_e = np.where(coated, 1.0 - view_factors(self.coat_tables, m, mu_coat), 0.0)
                 under = coat_attenuation(coat_w, coat_e, self.coat_tint[m], self.coat_ior[m],
                                          mu_coat)
-                own = own * under
-                lambert = lambert * under
+                base_lit_w = lit_w[:, None] * under
+                lobes = [(f0, weight * under, lobe_rough) for f0, weight, lobe_rough in lobes]
                 coat_rough = self.coat_roughness[m]
                 coat_lobe = np.where(coated & (coat_rough >= s.mirror_roughness), coat_w, 0.0)
                 if coat_lobe.any() and s.shading != "gouraud":
-                    with self.clock("light sampling"):
-                        shine, _ = self.direct(h, wo, np.zeros(len(m)),
-                                               [(self.coat_f0[m][:, None] * np.ones((1, 3)),
-                                                 coat_lobe)], coat_rough, hit_strata,
-                                               (hits.tri, bary))
-                    own = own + shine
+                    lobes.append((self.coat_f0[m][:, None] * np.ones((1, 3)),
+                                  coat_lobe[:, None] * np.ones((1, 3)), coat_rough))
+            fabric = None  # the hits' sheen (`_fabric`); Gouraud shading draws none
+            with self.clock("light sampling"):
+                if s.shading == "gouraud":
+                    lit, lambert = self.gouraud_direct(h, hits, origins, base_lit_w, lobes,
+                                                       hit_strata)
+                else:
+                    fabric = self._fabric(hits.tri, bary, m)
+                    sheen_light = None if fabric is None else np.zeros_like(h.p)
+                    lit, lambert = self.direct(h, wo, base_lit_w, lobes, hit_strata,
+                                               (hits.tri, bary), fabric, sheen_light)
+            if self.diffuse is not None:
+                with self.clock("diffuse lookup"):
+                    reflected = self.diffuse(hits.tri, bary, dirs, h.front, entered == 0,
+                                             hit_strata)
+                if under is not None:
+                    reflected = reflected * under
+                lit = lit + reflected
+                # A white base's share, for edge detection (the `untextured` image).
+                lambert = reflected / np.maximum(h.albedo, ALBEDO_FLOOR)
+            own = h.emission * (1.0 if under is None else under) + lit
             smooth = rough < s.mirror_roughness
             # Mirror and refraction directions about the (smooth) shading normal; where that would
             # send the ray to the wrong side of the surface, about a normal bent towards the
