@@ -79,7 +79,9 @@ def cycles_model(recorded: dict):
     from ..addon.cycles import models
 
     depth = int(recorded.get("tracer", {}).get("max_depth", 8))
-    return models.global_illumination(max(depth, 8))
+    # Pass 1 lights the solve with the world unless its rays are off, as the radiosity bake does.
+    world = int(recorded.get("radiosity", {}).get("world_rays", 0)) > 0
+    return models.global_illumination(max(depth, 8), world_lighting=world)
 
 
 RECORD = Technique(
