@@ -61,6 +61,7 @@ def hybrid_job(scene, hybrid: HybridSettings, resolution=None) -> Steps[JobSumma
                 f"{result.trace_stats.camera_rays} camera and {result.trace_stats.secondary_rays} "
                 f"mirror and glass rays in {result.seconds['trace']:.2f} s",
         scene=scene, render=result.image, images={IMAGE_NAME: image}, result=result,
+        notes=list(result.radiosity.notes),
         settings={"radiosity": asdict(hybrid.radiosity), "tracer": asdict(hybrid.tracer)},
         sizes={"width": width, "height": height, "triangles": scene.triangle_count,
                "patches": stats["patches"]},

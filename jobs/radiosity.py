@@ -77,6 +77,7 @@ def radiosity_bake_job(context, settings: RadiositySettings, uv_name: str, uv_se
 def describe(summary: JobSummary, scene, result, bakes: dict, plan: dict) -> None:
     """In place: the summary's result, sizes and metrics.json sections of a solve and its bakes."""
     summary.result = result
+    summary.notes.extend(result.notes)
     summary.extra["lightmap_sizes"] = plan
     stats = result.stats
     filtered = sum(b.filtered_texels for b in bakes.values())

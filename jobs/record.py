@@ -110,6 +110,7 @@ class JobSummary:
     # object name -> (lightmap texels (H, W, 3) linear, mask (H, W) bool)
     lightmaps: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
     skipped: list[str] = field(default_factory=list)  # one reason per object not written
+    notes: list[str] = field(default_factory=list)  # what the kernels took otherwise than read
     files: dict[str, np.ndarray] = field(default_factory=dict)
     settings: dict = field(default_factory=dict)
     sizes: dict = field(default_factory=dict)

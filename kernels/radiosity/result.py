@@ -11,6 +11,7 @@ from ..geometry.scene import Scene, triangle_emission
 from . import final_gather
 from . import patches as patching
 from .final_gather import FinalGather
+from .sources import MAX_REFLECTANCE
 
 
 @dataclass(frozen=True, eq=False)
@@ -41,6 +42,13 @@ class RadiosityResult:
     stats: dict = field(default_factory=dict)
     gather: FinalGather | None = None
     back_of: np.ndarray | None = None
+
+    @property
+    def notes(self) -> tuple[str, ...]:
+        """What the solve took otherwise than the scene has it, one line each."""
+        return tuple(f"material '{name}': a diffuse reflectance of 1 or more; the radiosity solve "
+                     f"takes it at {MAX_REFLECTANCE} (the iteration needs some light kept back)"
+                     for name in self.stats.get("capped_reflectance", ()))
 
     def exitance_at(self, tri: np.ndarray, bary: np.ndarray, reflected_only: bool = False,
                     interpolated: bool = False, known: final_gather.Visibility | None = None,

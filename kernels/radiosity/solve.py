@@ -58,6 +58,7 @@ from .result import RadiosityResult
 from .settings import RadiositySettings
 from .sheets import sheet_backs, with_sheet_backs
 from .sources import (
+    capped_materials,
     exchanging_triangles,
     gather_settings,
     layer_factors,
@@ -200,6 +201,7 @@ def _result(ctx: SolveContext, solution: PatchSolution, stats: dict, t0: float
                  shadow_splits=settings.shadow_splits, near_splits=settings.near_splits)
     # The world as a light: its rays per patch (0: black or off) and the suns taken from its map.
     lit_by_world = settings.world_rays if world_lit(scene) else 0
+    stats["capped_reflectance"] = capped_materials(scene, patches, solution.reflectance)
     stats["world"] = {"rays_per_patch": int(lit_by_world),
                       "map_suns": sum(light.name.startswith(WORLD_SUN_NAME)
                                       for light in scene.lights)}

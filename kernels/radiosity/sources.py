@@ -27,6 +27,12 @@ from .form_factors.sampling import sample_patches
 from .lamps import near_lamp_scale, shadowed_irradiance, shadowing_lamps
 from .settings import RadiositySettings, gather_settings
 
+# The largest diffuse reflectance the solve takes. At 1 a patch keeps back none of the light it
+# receives and the iteration need not converge (a closed room of such walls never does); Cycles
+# renders a base colour of 1 as given (its bounces stop at a count), so the solve takes it at
+# this, 0.1% less per bounce, and names the material (`capped_materials`).
+MAX_REFLECTANCE = 0.999
+
 
 def patch_reflectance(scene: Scene, patches: patching.Patches) -> np.ndarray:
     """(N, 3) diffuse reflectance at each patch centre (`direct_light.diffuse_at`: base colour,
@@ -41,20 +47,17 @@ def patch_reflectance(scene: Scene, patches: patching.Patches) -> np.ndarray:
     texels alone, as at level 0 (0.00184). Only the texels (`RadiosityResult.radiance_at`) show
     the base under the layer.
 
-    Raises ValueError naming the material when any channel is >= 1 (no convergence)."""
-    for mat in scene.materials:
-        weight = diffuse_weight(mat, under_layer=False)
-        if mat.base_color_texture is None and np.any(weight * np.asarray(mat.base_color) >= 1.0):
-            raise ValueError(
-                f"material '{mat.name}' has a diffuse reflectance of "
-                f"{weight * np.max(mat.base_color):.3g} >= 1: radiosity needs reflectance < 1 in "
-                "every channel (a surface reflecting all light never lets a closed scene converge)")
+    Channels at or above 1 (a white base colour, a texture's white texels) are taken at
+    `MAX_REFLECTANCE`, which the solvers need below 1."""
     rho = diffuse_at(scene, patches.parent, patches.bary.mean(axis=1), under_layer=False)
-    if np.any(rho >= 1.0):
-        bad = scene.materials[int(scene.material_ids[patches.parent[np.argmax(rho.max(1))]])]
-        raise ValueError(f"material '{bad.name}': its texture reaches reflectance >= 1; "
-                         "radiosity needs reflectance < 1 in every channel")
-    return rho.astype(np.float64)
+    return np.minimum(rho.astype(np.float64), MAX_REFLECTANCE)
+
+
+def capped_materials(scene: Scene, patches: patching.Patches, rho: np.ndarray) -> list[str]:
+    """Names of the materials whose patches' reflectance (N, 3) `patch_reflectance` capped."""
+    capped = np.any(rho >= MAX_REFLECTANCE, axis=1)
+    ids = np.unique(scene.material_ids[patches.parent[capped]])
+    return [scene.materials[int(k)].name for k in ids] if scene.materials else []
 
 
 def layer_factors(scene: Scene) -> np.ndarray:

@@ -109,7 +109,7 @@ def technique_command(technique) -> Command:
         if summary.scene is not None:
             # What the snapshot did not model (per material: each socket read from a default
             # and why), in every run's metrics.json as in `info`.
-            ctx.record.extra["ignored"] = list(summary.scene.ignored)
+            ctx.record.extra["ignored"] = [*summary.scene.ignored, *summary.notes]
             from .info import baked_sockets  # and what it read through a Cycles bake
 
             ctx.record.extra["fallbacks"] = baked_sockets(summary.scene)

@@ -1,5 +1,5 @@
 """Radiosity end to end on hand-built scenes: patching, first shot, furnace, one bounce, refinement,
-the camera view and the refusal of reflectance >= 1."""
+the camera view and reflectance of 1 taken just below it."""
 
 from __future__ import annotations
 
@@ -117,10 +117,22 @@ def test_first_shot_is_the_direct_irradiance_and_shadow_rays_block_it():
     assert np.all(dark == 0.0)
 
 
-def test_refuses_reflectance_of_one():
-    scene = build([(inward_box(), grey(1.0, emission=1.0, name="Snow"))])
-    with pytest.raises(ValueError, match="Snow.*>= 1"):
-        solve_radiosity(scene, RadiositySettings(patch_budget=24, refine_levels=0))
+def test_a_reflectance_of_one_is_solved_just_below_it_and_named():
+    """A base colour of 1 (Cycles renders it as given) is taken at MAX_REFLECTANCE, which the
+    solvers need below 1, and its material named in the result's notes; a lone floor of it under
+    a 3 W/m^2 sun then has B = 3 MAX_REFLECTANCE exactly. A floor of 0.5 beside it is named
+    nowhere."""
+    from classic_bake.kernels.radiosity.sources import MAX_REFLECTANCE
+
+    scene = build([(floor_quad(), grey(1.0, name="Snow")), (floor_quad(lo=2.0, hi=3.0), grey(0.5))],
+                  lights=(sun_down(3.0),))
+    result = solve_radiosity(scene, RadiositySettings(patch_budget=24, refine_levels=0, **FAST))
+    snow = result.patches.object_ids == 0
+    np.testing.assert_allclose(result.reflectance[snow], MAX_REFLECTANCE)
+    np.testing.assert_allclose(result.radiosity[snow], 3.0 * MAX_REFLECTANCE, rtol=1e-6)
+    np.testing.assert_allclose(result.radiosity[~snow], 1.5, rtol=1e-6)
+    assert result.stats["capped_reflectance"] == ["Snow"]
+    assert len(result.notes) == 1 and "'Snow'" in result.notes[0]
 
 
 def test_metal_and_glass_reflect_nothing_diffusely():
