@@ -6,25 +6,28 @@ looked at (energy conservation: what the layer reflects the base never receives)
 
     diffuse colour = base x (1 - metallic) x (1 - transmission) x (1 - E(mu))
 
-    E(mu) = integral over the outgoing hemisphere of f_spec(i, o) cos(theta_o) do,
+    E(mu) = k(mu) x integral over the outgoing hemisphere of f_spec(i, o) cos(theta_o) do,
     f_spec = D(h) G2(i, o) F(i.h) / (4 cos(theta_i) cos(theta_o))        (single scattering)
 
 with D the GGX (Trowbridge-Reitz) distribution of alpha = roughness^2, G2 Smith's
 height-correlated masking-shadowing 1 / (1 + Lambda(i) + Lambda(o)), F the exact dielectric
-Fresnel reflectance (`optics.fresnel_dielectric`) and mu = cos(theta_i). A bake looks at every
-texel along its normal (mu = 1: `addon/cycles/models.py`, "albedo()"). "Specular IOR Level"
-s scales the layer's normal-incidence reflectance F0 = ((ior - 1) / (ior + 1))^2 by 2 s (0.5:
-none, 0: no layer, exactly Lambertian), through the IOR that has that F0.
+Fresnel reflectance (`optics.fresnel_dielectric`) and mu = cos(theta_i). k
+(`energy_compensation`) restores the light that scatters more than once among the microfacets,
+as Cycles' GGX does (Kulla and Conty 2017): a lobe of F = 1 then reflects everything, so a layer
+of F0 = 1 (an IOR of 0) hides the base. A bake looks at every texel along its normal (mu = 1:
+`addon/cycles/models.py`, "albedo()"). "Specular IOR Level" s scales the layer's
+normal-incidence reflectance F0 = ((ior - 1) / (ior + 1))^2 by 2 s (0.5: none, 0: no layer,
+exactly Lambertian), through the IOR that has that F0.
 
 Measured against Cycles 5.2.3 (ALBEDO bakes of a plane of IOR 1.5, level 0.5), the base is
-darkened by 4.0% at roughness 0, 3.7% at 0.5 and 1.4% at 1; this integral gives 4.0%, 3.70% and
-1.27% (tests/kernels/test_specular_layer.py).
+darkened by 4.0% at roughness 0, 3.7% at 0.5 and 1.4% at 1; this gives 4.0%, 3.73% and 1.38%
+(1.27% in single scattering alone; tests/kernels/test_specular_layer.py).
 
 Substituting the half vector (do = 4 (o.h) dh) and GGX's own distribution of it
 (D(h) cos(theta_h) dh = du dphi / 2 pi, tan^2 theta_h = alpha^2 u / (1 - u)) turns E into an
 integral over the unit square whose integrand is smooth at every roughness, 0 included:
 
-    E(mu) = integral of G2(i, o) F(i.h) (i.h) / (mu cos(theta_h)) du dphi / (2 pi)
+    E(mu) = k(mu) x integral of G2(i, o) F(i.h) (i.h) / (mu cos(theta_h)) du dphi / (2 pi)
 """
 
 from __future__ import annotations
@@ -46,6 +49,9 @@ MU_STEPS = 65
 # Below this roughness a layer is a mirror: a point light's highlight shrinks to a point that no
 # pixel sees (Cycles draws none either), and the tracer follows the mirror ray instead.
 MIRROR_ROUGHNESS = 0.1
+# Roughness steps of the table of lobe albedos with F = 1 (`lobe_albedo`), with MU_STEPS views:
+# bilinear reads are within 2e-3 of the integral between the steps.
+ROUGHNESS_STEPS = 33
 
 
 def layer_f0(ior: float, level: float) -> float:
@@ -91,7 +97,10 @@ def albedo_curve(mu: np.ndarray, roughness: float, f0: float) -> np.ndarray:
     root = np.sqrt(min(f0, 1.0 - 1e-9))
     eta = (1.0 + root) / (1.0 - root)  # the IOR whose F0 this is
     terms, i_dot_h = _lobe_terms(mu, roughness)
-    return (terms * fresnel_dielectric(i_dot_h, 1.0 / eta)).mean(axis=(1, 2))
+    single = (terms * fresnel_dielectric(i_dot_h, 1.0 / eta)).mean(axis=(1, 2))
+    # with the light scattered more than once among the microfacets, as Cycles' lobe keeps it
+    return single * energy_compensation(mu, np.full(mu.shape, float(roughness)),
+                                        np.full((mu.size, 1), f0))[:, 0]
 
 
 def schlick_grazing_curve(mu: np.ndarray, roughness: float) -> np.ndarray:
@@ -140,10 +149,56 @@ def view_factors(tables: np.ndarray, material: np.ndarray, mu: np.ndarray) -> np
     return tables[material, lo] * (1.0 - frac) + tables[material, lo + 1] * frac
 
 
+@lru_cache(maxsize=1)
+def _lobe_albedo_table() -> tuple[np.ndarray, np.ndarray]:
+    """(ROUGHNESS_STEPS, MU_STEPS) E(mu) with F = 1 at roughness 0, 1 / 32, ..., 1 and
+    sqrt(mu) = 0, 1 / 64, ..., 1, and (ROUGHNESS_STEPS,) its cosine-weighted mean E_avg =
+    2 integral E(mu) mu dmu (= 4 integral E x^3 dx over x = sqrt(mu), trapezoids)."""
+    x = np.linspace(0.0, 1.0, MU_STEPS)
+    table = np.array([_lobe_terms(np.clip(x * x, 1e-4, 1.0), r)[0].mean(axis=(1, 2))
+                      for r in np.linspace(0.0, 1.0, ROUGHNESS_STEPS)])
+    weighted = 4.0 * table * x ** 3
+    mean = ((weighted[:, 1:] + weighted[:, :-1]) * 0.5 * np.diff(x)).sum(axis=1)
+    return table, mean
+
+
+def lobe_albedo(mu: np.ndarray, roughness: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A GGX lobe's single-scattering albedo with F = 1, E(mu) (N,), at views |cos| = mu (N,) and
+    Blender roughness (N,), and its cosine-weighted mean over views E_avg (N,) (bilinear in the
+    table of `_lobe_albedo_table`)."""
+    table, mean = _lobe_albedo_table()
+    r = np.clip(np.asarray(roughness, np.float64), 0.0, 1.0) * (ROUGHNESS_STEPS - 1)
+    r0 = np.minimum(r.astype(np.int64), ROUGHNESS_STEPS - 2)
+    fr = r - r0
+    x = np.sqrt(np.clip(np.abs(np.asarray(mu, np.float64)), 0.0, 1.0)) * (MU_STEPS - 1)
+    x0 = np.minimum(x.astype(np.int64), MU_STEPS - 2)
+    fx = x - x0
+    rows = table[r0] * (1.0 - fr)[:, None] + table[r0 + 1] * fr[:, None]
+    e = np.take_along_axis(rows, x0[:, None], 1)[:, 0] * (1.0 - fx) + \
+        np.take_along_axis(rows, x0[:, None] + 1, 1)[:, 0] * fx
+    return e, mean[r0] * (1.0 - fr) + mean[r0 + 1] * fr
+
+
+def energy_compensation(mu: np.ndarray, roughness: np.ndarray, f0: np.ndarray) -> np.ndarray:
+    """(N, 3) the factor Cycles scales a GGX lobe's single-scattering BRDF by to keep the light
+    that scatters more than once among the microfacets (Kulla and Conty 2017; Cycles'
+    `microfacet_ggx_preserve_energy`): 1 + F_ms (1 - E) / E, with E, E_avg the lobe's albedo at
+    the view |cos| = mu (N,) and over views (`lobe_albedo`), F_ms = F_ss E_avg / (1 - F_ss
+    (1 - E_avg)) and F_ss = F0 + (1 - F0) / 21 Schlick's mean over the hemisphere (F0 (N, 3)).
+    1 at roughness 0; at roughness 1 a white metal's highlight seen head on x 1.3."""
+    e, e_avg = lobe_albedo(mu, roughness)
+    e = np.maximum(e, 1e-3)[:, None]
+    f_ss = np.asarray(f0, np.float64) + (1.0 - np.asarray(f0, np.float64)) / 21.0
+    f_ms = f_ss * e_avg[:, None] / (1.0 - f_ss * (1.0 - e_avg[:, None]))
+    return 1.0 + f_ms * (1.0 - e) / e
+
+
 def ggx_highlight(n, wi, wo, roughness, f0) -> np.ndarray:
     """A glossy lobe's GGX microfacet BRDF (Trowbridge-Reitz D, separable Smith G, Schlick F) times
     cos_i, (N, 3), for unit normals n, light directions wi and view directions wo (N, 3),
-    Blender roughness (N,) and F0 (N, 3): a lamp's highlight is this times E / cos_i."""
+    Blender roughness (N,) and F0 (N, 3), with the light scattered more than once among the
+    microfacets restored as Cycles does (`energy_compensation`): a lamp's highlight is this
+    times E / cos_i."""
     alpha2 = np.maximum(roughness, 1e-3) ** 4  # Blender: alpha = roughness^2
     h = wi + wo
     h /= np.maximum(np.linalg.norm(h, axis=1, keepdims=True), 1e-12)
@@ -157,7 +212,8 @@ def ggx_highlight(n, wi, wo, roughness, f0) -> np.ndarray:
 
     g = g1(cos_i) * g1(cos_o)
     f = fresnel_schlick(np.einsum("ij,ij->i", wi, h), f0)
-    return f * (d * g / (4.0 * cos_o))[:, None]
+    kept = energy_compensation(cos_o, np.broadcast_to(roughness, cos_o.shape), f0)
+    return f * kept * (d * g / (4.0 * cos_o))[:, None]
 
 
 def lamp_highlights(materials, material: np.ndarray, normals: np.ndarray, wo: np.ndarray,

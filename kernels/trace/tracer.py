@@ -53,8 +53,10 @@ from ..shading.sheen import Fabric
 from ..shading.specular_layer import (
     coat_attenuation,
     coat_tables,
+    energy_compensation,
     ggx_highlight,
     layer_f0,
+    lobe_albedo,
     metal_tables,
     view_factors,
     view_tables,
@@ -891,6 +893,13 @@ class Tracer:
                                view_factors(self.metal_tables, m, cos_o))
             metal_w = np.where((metallic > 0)[:, None], metallic[:, None] * (
                 f0_metal + (1.0 - f0_metal) * grazing[:, None]), 0.0)
+            if rough_metal.any():
+                # what Cycles' restored multiple scattering keeps of it: E + F_ms (1 - E), less
+                # than all for a coloured metal (each bounce among the facets takes its tint)
+                rows = np.flatnonzero(rough_metal)
+                e, _ = lobe_albedo(cos_o[rows], rough[rows])
+                metal_w[rows] *= e[:, None] * energy_compensation(cos_o[rows], rough[rows],
+                                                                  f0_metal[rows])
             # The dielectric specular layer of opaque surfaces reflects its surroundings along
             # the mirror direction with its albedo at this view, what the base lost under it:
             # exact Fresnel at the level-scaled F0 when smooth (`specular_layer.py`). A rough

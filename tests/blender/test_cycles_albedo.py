@@ -65,19 +65,22 @@ def test_albedo_bake_is_base_colour_times_one_minus_metallic_under_any_light():
     np.testing.assert_allclose(corners["Plane"], np.broadcast_to(expected, (4, 3)), atol=EXACT)
 
 
-# Cycles' diffuse colour under the layer against the kernel's single-scattering integral: they
-# differ by at most 0.11% (roughness 1: 0.98621 against 0.98730); exact at roughness 0.
-LAYER_RTOL = 2e-3
+# Cycles' diffuse colour under the layer against the kernel's integral (multiple scattering
+# restored): they differ by at most 0.045% (IOR 3, roughness 1: 0.89903 against 0.89863; in
+# single scattering alone 0.11% at IOR 1.5, roughness 1); exact at roughness 0.
+LAYER_RTOL = 1e-3
 
 
 @pytest.mark.parametrize("roughness, level, ior", [(0.0, 0.5, 1.5), (0.5, 0.5, 1.5),
                                                    (1.0, 0.5, 1.5), (0.3, 1.0, 1.5),
-                                                   (0.2, 0.5, 2.0)])
+                                                   (0.2, 0.5, 2.0), (1.0, 0.5, 3.0),
+                                                   (0.5, 0.5, 0.0)])
 def test_albedo_bake_under_the_specular_layer_is_the_kernels(roughness, level, ior):
     """With a specular layer (Specular IOR Level above 0) Cycles' diffuse colour is the base
     less the layer's directional albedo along the normal (kernels/specular_layer.py): 4.0% at
-    roughness 0, IOR 1.5 and the default level, 11% at IOR 2. The material goes through the
-    bridge, as every bake reads it."""
+    roughness 0, IOR 1.5 and the default level, 11% at IOR 2, all of it at an IOR of 0 (F0 = 1:
+    Cycles shows 4e-5 of the base; single scattering alone left 8%). The material goes through
+    the bridge, as every bake reads it."""
     lit_scene()
     mat, bsdf = principled("Layered")
     bsdf.inputs["Specular IOR Level"].default_value = level
@@ -89,7 +92,7 @@ def test_albedo_bake_under_the_specular_layer_is_the_kernels(roughness, level, i
     expected = np.multiply(BASE, diffuse_weight(material))
     assert diffuse_weight(material) < 0.99  # the layer is there
     np.testing.assert_allclose(images["Plane"][masks["Plane"]], np.broadcast_to(expected, (64, 3)),
-                               rtol=LAYER_RTOL)
+                               rtol=LAYER_RTOL, atol=1e-4)
 
 
 def test_albedo_bake_maps_a_checker_texture_through_the_uvs():

@@ -134,12 +134,17 @@ def lamp_room_with_ball():
 def mirror_highlight(roughness: float, f0: float, strength: float, degrees: float) -> float:
     """Radiance of a sun of `strength` W/m^2 reflected by a GGX layer (Blender roughness, F0)
     seen in the mirror direction, both `degrees` off the normal (half vector = normal):
-    F D G1^2 S / (4 cos) with D = 1 / (pi alpha^2), Smith's G1, Schlick's F (the tracer's lobe)."""
+    F D G1^2 S / (4 cos) with D = 1 / (pi alpha^2), Smith's G1, Schlick's F (the tracer's lobe),
+    times Cycles' factor for light scattered more than once among the microfacets
+    (`specular_layer.energy_compensation`, tested against the white furnace on its own)."""
+    from classic_bake.kernels.shading.specular_layer import energy_compensation
+
     alpha2 = roughness ** 4
     c = np.cos(np.radians(degrees))
     g1 = 2.0 * c / (c + np.sqrt(alpha2 + (1.0 - alpha2) * c * c))
     fresnel = f0 + (1.0 - f0) * (1.0 - c) ** 5
-    return fresnel / (np.pi * alpha2) * g1 * g1 * strength / (4.0 * c)
+    kept = energy_compensation(np.array([c]), np.array([roughness]), np.full((1, 3), f0))[0, 0]
+    return fresnel / (np.pi * alpha2) * g1 * g1 * strength / (4.0 * c) * kept
 
 
 def mirror_view(degrees: float, width: float = 0.5, resolution=(4, 4)):

@@ -9,7 +9,9 @@ from classic_bake.kernels.shading.optics import fresnel_dielectric
 from classic_bake.kernels.shading.specular_layer import (
     diffuse_factor,
     directional_albedo,
+    energy_compensation,
     layer_f0,
+    lobe_albedo,
     schlick_grazing_curve,
 )
 
@@ -30,7 +32,7 @@ def test_albedo_matches_cycles_measured_darkening():
     it through the bridge."""
     got = [directional_albedo(1.0, r, F0_GLASS) for r in (0.0, 0.5, 1.0)]
     np.testing.assert_allclose(got[:2], [0.040, 0.037], atol=5e-4)
-    assert abs(got[2] - 0.014) < 2e-3
+    assert abs(got[2] - 0.014) < 5e-4
 
 
 def test_the_level_scales_f0_and_zero_is_lambertian():
@@ -154,3 +156,40 @@ def test_schlicks_grazing_term_over_a_lobe():
     wide = schlick_grazing_curve(mu, 0.5)
     assert wide[-1] < 0.5 * (1.0 - mu[-1]) ** 5
     assert np.all(np.diff(wide) > 0.0)  # still rising towards grazing
+
+
+def test_the_lobe_albedo_table_is_the_integral_sampled_another_way():
+    """E(mu) of a GGX lobe with F = 1 (`lobe_albedo`) against a Monte Carlo estimate over
+    uniformly sampled outgoing directions (2^21, seeded): within 1% (roughness 1 seen head on
+    keeps only 0.31 of the light in one scattering)."""
+    rng = np.random.default_rng(7)
+    n = 1 << 21
+    z, phi = rng.random(n), 2.0 * np.pi * rng.random(n)
+    out = np.stack([np.sqrt(1.0 - z * z) * np.cos(phi), np.sqrt(1.0 - z * z) * np.sin(phi), z], 1)
+    for roughness, mu in ((0.5, 1.0), (0.75, 0.5), (1.0, 1.0), (1.0, 0.2)):
+        a2 = roughness ** 4
+        view = np.array([np.sqrt(1.0 - mu * mu), 0.0, mu])
+        h = out + view
+        h /= np.linalg.norm(h, axis=1, keepdims=True)
+        d = a2 / (np.pi * (h[:, 2] ** 2 * (a2 - 1.0) + 1.0) ** 2)
+
+        def lam(c, a2=a2):
+            return 0.5 * (np.sqrt(1.0 + a2 * (1.0 - c * c) / (c * c)) - 1.0)
+
+        brute = np.mean(d / (1.0 + lam(mu) + lam(z)) / (4.0 * mu)) * 2.0 * np.pi
+        e, _ = lobe_albedo(np.array([mu]), np.array([roughness]))
+        np.testing.assert_allclose(e[0], brute, rtol=1e-2)
+
+
+@pytest.mark.parametrize("roughness", [0.2, 0.5, 0.8, 1.0])
+def test_a_white_lobe_with_its_lost_light_restored_keeps_all_of_it(roughness):
+    """The white furnace: a lobe of F = 1 reflects all it receives once the light scattered more
+    than once is restored, E(mu) x energy_compensation = 1 at every view (within the tables'
+    interpolation, 3e-3); a darker F0 keeps less than that but more than single scattering."""
+    mu = np.linspace(0.05, 1.0, 12)
+    r = np.full(mu.shape, roughness)
+    e, _ = lobe_albedo(mu, r)
+    np.testing.assert_allclose(e * energy_compensation(mu, r, np.ones((12, 3)))[:, 0], 1.0,
+                               atol=3e-3)
+    grey = energy_compensation(mu, r, np.full((12, 3), 0.5))[:, 0]
+    assert np.all(grey >= 1.0) and np.all(e * grey < 1.0)
