@@ -58,6 +58,12 @@ CLUSTER_AREA_SHARE = 1.0 / 16.0
 # shadows.blend's ball (960 triangles, one grid cell) baked with relMSE 0.067 against Cycles at
 # 24 directions (2 cells), 0.035 at 54 (3), 0.027 with every triangle a patch.
 NORMAL_CELLS = 3
+# An object less than this share of the patch size across (no larger than a patch cut from a
+# large triangle, about half the size asked for) is grouped by the six cube faces alone (one
+# cell each), whichever grid cells its parts fall in: the solve resolves indirect light no
+# finer than a patch. 240 bevelled cubes (62 triangles, 0.25 patch sizes across) made 4181
+# groups at 54 directions, 13 per cube (the clustered solve 216 s).
+SMALL_OBJECT_SHARE = 0.5
 # Nor does a group mix a refinement's children (patches split across a shadow edge, level > 0)
 # whose direct irradiance, known once the lamps have shot, lies in different octaves below the
 # brightest patch's, down to this many; darker and unlit ones have buckets of their own
@@ -127,8 +133,12 @@ def group_patches(patches: patching.Patches, size: float,
     if small.any():
         centroid = patches.corners[small].mean(axis=1)
         keys[small, 1] = patches.object_ids[small]
-        keys[small, 2:5] = np.floor(centroid / max(size, 1e-300)).astype(np.int64)
-        keys[small, 5] = normal_bucket(patches.normals[small])
+        tiny = _object_extents(patches)[patches.object_ids[small]] < SMALL_OBJECT_SHARE * size
+        # a tiny object is one cell of the grid, wherever its parts fall
+        cells = np.floor(centroid / max(size, 1e-300)).astype(np.int64)
+        keys[small, 2:5] = np.where(tiny[:, None], 0, cells)
+        keys[small, 5] = np.where(tiny, normal_bucket(patches.normals[small], 1),
+                                  normal_bucket(patches.normals[small]))
         keys[small, 6] = -1
         split = small & (patches.level > 0)
         if direct is not None and split.any():
@@ -149,18 +159,29 @@ def light_bucket(direct: np.ndarray) -> np.ndarray:
     return np.where(lum > 0.0, octave, LIGHT_OCTAVES + 1).astype(np.int64)
 
 
-def normal_bucket(normals: np.ndarray) -> np.ndarray:
+def _object_extents(patches: patching.Patches) -> np.ndarray:
+    """(objects,) the diagonal (m) of each object's patches' bounding box, by object id."""
+    count = int(patches.object_ids.max(initial=-1)) + 1
+    lo = np.full((count, 3), np.inf)
+    hi = np.full((count, 3), -np.inf)
+    np.minimum.at(lo, patches.object_ids, patches.corners.min(axis=1))
+    np.maximum.at(hi, patches.object_ids, patches.corners.max(axis=1))
+    return np.linalg.norm(np.maximum(hi - lo, 0.0), axis=1)
+
+
+def normal_bucket(normals: np.ndarray, cells: int = NORMAL_CELLS) -> np.ndarray:
     """(M,) int64 the cube-map cell unit normals (M, 3) point into: the face of their largest
-    component (six), then NORMAL_CELLS x NORMAL_CELLS cells of that face's (s, t) square."""
+    component (six), then cells x cells cells of that face's (s, t) square (ids below
+    6 x NORMAL_CELLS^2 at any cells up to NORMAL_CELLS)."""
     axis = np.abs(normals).argmax(axis=1)
     rows = np.arange(len(axis))
     major = normals[rows, axis]
     face = 2 * axis + (major < 0.0)
     s = normals[rows, (axis + 1) % 3] / np.abs(major)  # in [-1, 1]
     t = normals[rows, (axis + 2) % 3] / np.abs(major)
-    cell = lambda c: np.minimum(((c + 1.0) * 0.5 * NORMAL_CELLS).astype(np.int64),  # noqa: E731
-                                NORMAL_CELLS - 1)
-    return (face * NORMAL_CELLS + cell(s)) * NORMAL_CELLS + cell(t)
+    cell = lambda c: np.minimum(((c + 1.0) * 0.5 * cells).astype(np.int64),  # noqa: E731
+                                cells - 1)
+    return (face * cells + cell(s)) * cells + cell(t)
 
 
 def receiver_points(patches: patching.Patches, groups: Groups, side: int

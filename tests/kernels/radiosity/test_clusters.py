@@ -67,6 +67,31 @@ def test_groups_keep_to_one_object_cell_and_side():
                                                                normals[g].shape))
 
 
+def test_an_object_smaller_than_half_a_patch_groups_by_the_six_faces():
+    """A finely tessellated ball a quarter of the patch size across (0.43 of it on its box's
+    diagonal) is grouped by the six faces of the cube map alone, one group each wherever its
+    parts fall in the grid: the solve resolves indirect light no finer than a patch. The same
+    ball four times larger keeps the finer directions (more than six groups on one side)."""
+    from scene_builder import uv_sphere
+
+    size = 1.0
+    floor = quad([[-4, -4, 0], [4, -4, 0], [4, 4, 0], [-4, 4, 0]])
+    for radius, tiny in ((0.125, True), (0.5, False)):
+        # centred on a grid corner, so that its parts fall in eight cells
+        ball = uv_sphere((0.0, 0.0, 2.0), radius, rings=12, segments=24)
+        scene = build([(floor, grey(0.5)), (ball, grey(0.5))])
+        patches = patching.make_patches(scene, size)
+        groups = clusters.group_patches(patches, size)
+        of_ball = np.unique(groups.of_patch[patches.object_ids == 1])
+        assert len(of_ball) == 6 if tiny else len(of_ball) > 6
+        if tiny:  # each group holds the normals of one dominant axis and sign
+            for g in of_ball:
+                members = groups.members[groups.starts[g]:groups.starts[g + 1]]
+                n = patches.normals[members]
+                axis = np.abs(n).argmax(axis=1)
+                assert len(set(zip(axis, n[np.arange(len(n)), axis] > 0, strict=True))) == 1
+
+
 def test_split_children_group_apart_by_their_direct_light():
     """A refinement's children (level > 0) lit in different octaves, or unlit, never share a
     group, so a shadow edge's split stays split in the clustered solve; first meshings group as
