@@ -58,11 +58,14 @@ CLUSTER_AREA_SHARE = 1.0 / 16.0
 # shadows.blend's ball (960 triangles, one grid cell) baked with relMSE 0.067 against Cycles at
 # 24 directions (2 cells), 0.035 at 54 (3), 0.027 with every triangle a patch.
 NORMAL_CELLS = 3
-# An object less than this share of the patch size across (no larger than a patch cut from a
-# large triangle, about half the size asked for) is grouped by the six cube faces alone (one
-# cell each), whichever grid cells its parts fall in: the solve resolves indirect light no
-# finer than a patch. 240 bevelled cubes (62 triangles, 0.25 patch sizes across) made 4181
-# groups at 54 directions, 13 per cube (the clustered solve 216 s).
+# Coarse groups (`group_patches(coarse=True)`, where auto has no other solver than a matrix over
+# more patches than AUTO_MATRIX_MAX_PATCHES): an object less than this share of the patch size
+# across (no larger than a patch cut from a large triangle, about half the size asked for) is
+# grouped by the six cube faces alone, whichever grid cells its parts fall in: the solve
+# resolves indirect light no finer than a patch. 240 bevelled cubes (62 triangles, 0.25 patch
+# sizes across, 10k patches) made 4181 groups at 54 directions, 13 per cube, too many to
+# cluster: progressive refinement ran over 7 minutes, the clustered solve 216 s. Where the
+# hierarchy can run it stays: a glTF robot clustered so baked 1.48e-2 against its 9.7e-3.
 SMALL_OBJECT_SHARE = 0.5
 # Nor does a group mix a refinement's children (patches split across a shadow edge, level > 0)
 # whose direct irradiance, known once the lamps have shot, lies in different octaves below the
@@ -120,11 +123,12 @@ class Groups:
 
 
 def group_patches(patches: patching.Patches, size: float,
-                  direct: np.ndarray | None = None) -> Groups:
+                  direct: np.ndarray | None = None, coarse: bool = False) -> Groups:
     """Patches under CLUSTER_AREA_SHARE x size^2 m^2 grouped by object, cell of a grid `size` m
     wide (by centroid), the cube-map cell their normal points into and, when their direct
     irradiance (N, 3) W/m^2 is given, its octave (`light_bucket`); every other patch alone
-    (module docstring)."""
+    (module docstring). `coarse`: objects under SMALL_OBJECT_SHARE x size across by the six
+    cube faces alone, in one cell."""
     count = len(patches)
     small = patches.areas < CLUSTER_AREA_SHARE * size * size
     keys = np.zeros((count, 7), np.int64)
@@ -134,6 +138,7 @@ def group_patches(patches: patching.Patches, size: float,
         centroid = patches.corners[small].mean(axis=1)
         keys[small, 1] = patches.object_ids[small]
         tiny = _object_extents(patches)[patches.object_ids[small]] < SMALL_OBJECT_SHARE * size
+        tiny &= coarse
         # a tiny object is one cell of the grid, wherever its parts fall
         cells = np.floor(centroid / max(size, 1e-300)).astype(np.int64)
         keys[small, 2:5] = np.where(tiny[:, None], 0, cells)

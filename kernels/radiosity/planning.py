@@ -174,11 +174,21 @@ def clustering_pays(patch_count: int, groups: clusters.Groups | None,
 
 
 def patch_groups(patches: patching.Patches, size: float, settings: RadiositySettings,
-                 direct: np.ndarray | None = None) -> clusters.Groups | None:
+                 direct: np.ndarray | None = None, coarse: bool = False) -> clusters.Groups | None:
     """`clusters.group_patches` where auto or the clustered solver may use them, else None."""
     if settings.method == "raycast" and settings.solver in ("auto", "clustered"):
-        return clusters.group_patches(patches, size, direct)
+        return clusters.group_patches(patches, size, direct, coarse)
     return None
+
+
+def coarse_groups_pay(patches: patching.Patches, size: float, settings: RadiositySettings
+                      ) -> clusters.Groups | None:
+    """The coarse groups (`clusters.SMALL_OBJECT_SHARE`) when auto, left with a matrix solver over
+    more than AUTO_MATRIX_MAX_PATCHES patches, would cluster them (`clustering_pays`), else None."""
+    if settings.solver != "auto" or len(patches) <= AUTO_MATRIX_MAX_PATCHES:
+        return None
+    groups = patch_groups(patches, size, settings, coarse=True)
+    return groups if clustering_pays(len(patches), groups, settings) else None
 
 
 def split_levels(settings: RadiositySettings) -> int:

@@ -52,7 +52,13 @@ from .hierarchical import TreeLevels
 from .levels import LevelLight, Levels, SolveContext, level_light
 from .near_field import near_field
 from .patch_levels import PatchLevels
-from .planning import clustering_pays, hierarchical_plan, patch_groups, resolve_auto
+from .planning import (
+    clustering_pays,
+    coarse_groups_pay,
+    hierarchical_plan,
+    patch_groups,
+    resolve_auto,
+)
 from .refine import first_splits, refine_splits
 from .result import RadiosityResult
 from .settings import RadiositySettings
@@ -118,6 +124,10 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
                             plan.memory)
     else:
         settings = resolve_auto(scene, settings, hierarchical=False)
+        coarse = None if clustering_pays(len(patches), groups, settings) else coarse_groups_pay(
+            patches, size, settings)
+        if coarse is not None:  # small objects by their six faces, not a matrix over them all
+            groups = coarse
         if settings.solver == "auto" and clustering_pays(len(patches), groups, settings):
             # Decided on the first patches, for every level: splits and light octaves add
             # groups, and a dense matrix over the patches they would hand on to costs O(N^2)
@@ -130,7 +140,8 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
         # near field, refinement) are there to hold variation that a group's one value would
         # flatten (a wall 16 cm behind a plate, its 0.25 m children grouped: the light on it
         # flat where it falls off fourfold).
-        levels = PatchLevels(ctx, patches, groups if settings.solver == "clustered" else None)
+        levels = PatchLevels(ctx, patches, groups if settings.solver == "clustered" else None,
+                             coarse=coarse is not None)
     yield 0.02
     solved = yield from _level_steps(ctx, levels)
     light = solved.light

@@ -67,11 +67,12 @@ def test_groups_keep_to_one_object_cell_and_side():
                                                                normals[g].shape))
 
 
-def test_an_object_smaller_than_half_a_patch_groups_by_the_six_faces():
-    """A finely tessellated ball a quarter of the patch size across (0.43 of it on its box's
-    diagonal) is grouped by the six faces of the cube map alone, one group each wherever its
-    parts fall in the grid: the solve resolves indirect light no finer than a patch. The same
-    ball four times larger keeps the finer directions (more than six groups on one side)."""
+def test_coarse_groups_put_an_object_under_half_a_patch_in_six():
+    """Coarse groups (what auto falls back to rather than a matrix over thousands of patches): a
+    finely tessellated ball a quarter of the patch size across (0.43 of it on its box's diagonal)
+    is grouped by the six faces of the cube map alone, one group each wherever its parts fall in
+    the grid: the solve resolves indirect light no finer than a patch. The same ball four times
+    larger keeps the finer directions, as both do in the groups auto tries first."""
     from scene_builder import uv_sphere
 
     size = 1.0
@@ -81,8 +82,10 @@ def test_an_object_smaller_than_half_a_patch_groups_by_the_six_faces():
         ball = uv_sphere((0.0, 0.0, 2.0), radius, rings=12, segments=24)
         scene = build([(floor, grey(0.5)), (ball, grey(0.5))])
         patches = patching.make_patches(scene, size)
-        groups = clusters.group_patches(patches, size)
+        groups = clusters.group_patches(patches, size, coarse=True)
         of_ball = np.unique(groups.of_patch[patches.object_ids == 1])
+        fine = clusters.group_patches(patches, size)
+        assert len(np.unique(fine.of_patch[patches.object_ids == 1])) > 6
         assert len(of_ball) == 6 if tiny else len(of_ball) > 6
         if tiny:  # each group holds the normals of one dominant axis and sign
             for g in of_ball:
@@ -162,3 +165,24 @@ def test_auto_clusters_only_what_cuts_the_unknowns_fourfold():
     assert solve_radiosity(coarse, settings).stats["solver"] != "clustered"
     with pytest.raises(ValueError, match="ray-cast"):
         RadiositySettings(solver="clustered", method="hemicube")
+
+
+def test_auto_takes_the_coarse_groups_only_past_the_matrix_solvers_cap():
+    """60 small tessellated boxes (108 triangles each, a tenth of the patch size across): past
+    AUTO_MATRIX_MAX_PATCHES patches auto may take the coarse groups (six per box; the solve
+    takes them where the finer ones do not pay); 20 such boxes stay under the cap and get none,
+    nor does a solver other than auto."""
+    from classic_bake.kernels.radiosity.planning import AUTO_MATRIX_MAX_PATCHES, coarse_groups_pay
+
+    def boxes(count: int):
+        box = tessellated_box(3, 0.1)[:, ::-1]  # outward
+        return build([(box + np.array([0.3 * (k % 10), 0.3 * (k // 10), 0.0]), grey(0.5))
+                      for k in range(count)])
+
+    size = 1.0
+    many = patching.make_patches(boxes(60), size)
+    assert len(many) > AUTO_MATRIX_MAX_PATCHES
+    groups = coarse_groups_pay(many, size, RadiositySettings())
+    assert groups is not None and groups.count == 60 * 6
+    assert coarse_groups_pay(many, size, RadiositySettings(solver="progressive")) is None
+    assert coarse_groups_pay(patching.make_patches(boxes(20), size), size, RadiositySettings()) is None
