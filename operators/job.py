@@ -61,6 +61,7 @@ class JobOperator:
     def execute(self, context):
         began = time.perf_counter()
         apply_thread_preference(context)
+        self._leave_edit_mode(context)
         try:
             summary = drain(self.start(context))
         except ValueError as exc:
@@ -68,6 +69,13 @@ class JobOperator:
             return {"CANCELLED"}
         self.finished(context, summary, time.perf_counter() - began)
         return {"FINISHED"}
+
+    def _leave_edit_mode(self, context) -> None:
+        """Object Mode before the job, so that what it writes into meshes stays there."""
+        from ..addon.bridge.object_mode import leave_edit_mode
+
+        for line in leave_edit_mode(context):
+            self.report({"INFO"}, f"{self.job_label}: {line}")
 
     # --- modal path -------------------------------------------------------------------------------
 
@@ -90,6 +98,7 @@ class JobOperator:
         self._began = time.perf_counter()
         self._timer = None
         apply_thread_preference(context)
+        self._leave_edit_mode(context)
         try:
             self._job = self.start(context)
         except ValueError as exc:

@@ -82,8 +82,11 @@ def check_blend(path: Path) -> Path:
     return path.resolve()
 
 
-def open_blend(path: Path) -> None:
-    """Open a .blend with script auto-execution off (drivers and registered scripts do not run)."""
+def open_blend(path: Path) -> list[str]:
+    """Open a .blend with script auto-execution off (drivers and registered scripts do not run),
+    in Object Mode: a file saved in Edit Mode is left for Object Mode, as a user would before a
+    bake, so that what is written into its meshes stays there (Edit Mode's mesh would overwrite
+    it, on saving result.blend too). Returns what it did, one line each."""
     import bpy
 
     try:
@@ -91,6 +94,9 @@ def open_blend(path: Path) -> None:
     except RuntimeError as exc:
         first = str(exc).strip().splitlines()[-1] if str(exc).strip() else "unknown error"
         raise UsageError(f"cannot open {path}: {first}") from exc
+    from ..addon.bridge.object_mode import leave_edit_mode
+
+    return [f"{line}: the file was saved in it" for line in leave_edit_mode(bpy.context)]
 
 
 def versions() -> dict:
@@ -374,7 +380,8 @@ def _run_command(cmd: Command, args: argparse.Namespace) -> int:
     ctx = RunContext(cmd, args, staging, timer)
     try:
         with timer.phase("open"), interrupts_deferred():
-            open_blend(scene_path)
+            for line in open_blend(scene_path):
+                ctx.say(f"  {line}")
         check_camera(cmd)
         with timer.phase("estimate"):
             check_estimates(cmd, args, ctx)

@@ -78,10 +78,18 @@ def _snapshot(context, request: SnapshotRequest, resolution: tuple[int, int] | N
             continue
         slot_materials = [slot.material for slot in obj.material_slots]
         original_mesh = source.data if source.type == "MESH" and not is_instance else None
-        with np.errstate(over="ignore", invalid="ignore"):  # judged just below
-            chunk = mesh_chunk(name, source.name, is_instance, obj.data, matrix, request,
-                               original_mesh, slot_materials,
-                               source.data if source.type == "MESH" else None)
+        # An object in Edit Mode (a file saved so): its evaluated data is the edit mesh's
+        # wrapper, whose arrays read empty; Cycles renders its mesh, which to_mesh gives.
+        editing = source.mode == "EDIT" and obj.type == "MESH"
+        try:
+            with np.errstate(over="ignore", invalid="ignore"):  # judged just below
+                chunk = mesh_chunk(name, source.name, is_instance,
+                                   obj.to_mesh() if editing else obj.data, matrix, request,
+                                   original_mesh, slot_materials,
+                                   source.data if source.type == "MESH" else None)
+        finally:
+            if editing:
+                obj.to_mesh_clear()
         why = triangles_problem(chunk.triangles)
         if why is not None:  # a partly usable scene: the object is left out, by name
             ignored.append(f"object '{name}' {why}; skipped")

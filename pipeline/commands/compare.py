@@ -15,7 +15,7 @@ from pathlib import Path
 from ...jobs.techniques import BY_NAME
 from ..command import Command, RunContext
 from ..outputs import UsageError
-from ..run import command_args, run_command
+from ..run import command_args, open_blend, run_command
 from .technique import technique_command
 
 # The techniques with a camera view, a matched Cycles model and a quality ladder.
@@ -105,7 +105,7 @@ def run(ctx: RunContext) -> None:
                     else {}
                 reference = cache.reference(scene_path, model, "render", resolution=ctx.resolution,
                                             **cap)
-            bpy.ops.wm.open_mainfile(filepath=str(scene_path), load_ui=False, use_scripts=False)
+            open_blend(scene_path)
         if step < len(counts):
             with ctx.phase("cycles"):
                 image, seconds = runner.render_camera(bpy.context.scene, model, counts[step],
@@ -118,7 +118,7 @@ def run(ctx: RunContext) -> None:
     from ...addon.bridge import SnapshotRequest, snapshot
     from ..quality import record_ladder, scene_features
 
-    bpy.ops.wm.open_mainfile(filepath=str(scene_path), load_ui=False, use_scripts=False)
+    open_blend(scene_path)
     # The features read geometry, lights and materials: no world shader is rendered for them.
     features = scene_features(snapshot(request=SnapshotRequest(world_render=False),
                                        resolution=ctx.resolution), ctx.resolution)

@@ -82,6 +82,52 @@ def test_the_scene_file_is_never_written(tmp_path):
     assert meshes and all("Lightmap" in o.data.uv_layers for o in meshes)
 
 
+def test_a_file_saved_in_edit_mode_is_baked_in_object_mode(tmp_path):
+    """A .blend saved with its only mesh in Edit Mode, whose evaluated data then reads empty
+    (the edit mesh's wrapper): the run says it leaves Edit Mode, sees the mesh (it was skipped
+    as "no faces"), and what it writes into the mesh stays in result.blend, where Edit Mode's
+    mesh would have overwritten it."""
+    import math
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    bpy.ops.mesh.primitive_plane_add(size=2.0)
+    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
+    scene.collection.objects.link(sun)
+    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
+    cam.location, cam.rotation_euler = (0.0, -3.0, 2.0), (math.radians(55.0), 0.0, 0.0)
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    bpy.ops.object.mode_set(mode="EDIT")
+    path = tmp_path / "editing.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    done = run_cli("radiosity", path, "--out", tmp_path / "out", "--save-blend", "--resolution",
+                   "16", "12", "--patches", "20", "--lightmap-size", "16")
+    assert done.returncode == 0, done.stderr
+    assert "left Edit Mesh mode for Object Mode" in done.stdout
+    metrics = json.loads((tmp_path / "out" / "metrics.json").read_text())
+    assert not any("no faces" in why for why in metrics["ignored"])
+    bpy.ops.wm.open_mainfile(filepath=str(tmp_path / "out" / "result.blend"), load_ui=False,
+                             use_scripts=False)
+    plane = bpy.data.objects["Plane"]
+    assert plane.mode == "OBJECT" and "Radiosity" in plane.data.color_attributes
+
+
+def test_a_mesh_in_edit_mode_is_read_as_cycles_renders_it():
+    """The snapshot reads a mesh in Edit Mode through its evaluated mesh (to_mesh), in place:
+    the same triangles as in Object Mode, and the mode left as it was."""
+    from classic_bake.addon import bridge
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.mesh.primitive_cube_add(size=1.0)
+    objects = bridge.snapshot().triangles
+    bpy.ops.object.mode_set(mode="EDIT")
+    editing = bridge.snapshot().triangles
+    assert bpy.context.mode == "EDIT_MESH"
+    assert objects.shape == editing.shape == (12, 3, 3)
+    assert (objects == editing).all()
+
+
 def test_in_process_entry_point_matches(tmp_path, capsys):
     # What `blender -c classic_bake ...` calls (registered by the extension).
     assert main(["info", str(CORNELL), "--out", str(tmp_path)]) == 0

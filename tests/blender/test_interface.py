@@ -525,3 +525,16 @@ def test_a_script_is_told_what_the_scene_lacks(addon):
         bpy.ops.classic_bake.trace()
     with pytest.raises(RuntimeError, match="The scene has no meshes"):
         bpy.ops.classic_bake.radiosity()
+
+
+def test_a_bake_started_in_edit_mode_runs_in_object_mode(enabled_addon, open_sample):
+    """The texture bake pressed with a mesh in Edit Mode: the operator leaves Edit Mode first
+    (reporting it), so the colour attribute it writes stays in the mesh (Edit Mode's mesh would
+    overwrite it on leaving)."""
+    scene = prepare(open_sample, "classic_bake.texture")
+    mesh = next(o for o in scene.objects if o.type == "MESH")
+    bpy.context.view_layer.objects.active = mesh
+    bpy.ops.object.mode_set(mode="EDIT")
+    assert bpy.ops.classic_bake.texture() == {"FINISHED"}
+    assert bpy.context.mode == "OBJECT"
+    assert any("Albedo" in o.data.color_attributes for o in scene.objects if o.type == "MESH")
