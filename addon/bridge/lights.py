@@ -20,20 +20,35 @@ def light_power(light) -> tuple[float, np.ndarray]:
     return power, color
 
 
-def _light_nodes_are_default(tree) -> bool:
-    """True if a light's node tree only passes an untouched Emission (colour 1, strength 1) out."""
-    if tree is None:
-        return True
-    output = active_output(tree, "OUTPUT_LIGHT")
-    if output is None:
-        return True
-    node, _ = follow(output.inputs["Surface"])
+def light_node_factor(tree) -> tuple[np.ndarray, str | None]:
+    """What a light's node tree multiplies its light by, (3,), as Cycles renders it: the Emission
+    node's colour times its strength (1 without a tree or an Emission). Read: constant sockets,
+    a Color from an RGB node, a Strength from a Light Falloff's Quadratic output of Smooth 0 (its
+    Strength: Blender's lamps fall off as 1/d^2 already). Anything else: (1, 1, 1) and why."""
+    ones = np.ones(3)
+    output = None if tree is None else active_output(tree, "OUTPUT_LIGHT")
+    node = None if output is None else follow(output.inputs["Surface"])[0]
     if node is None:
-        return True
-    if node.type != "EMISSION" or any(s.is_linked for s in node.inputs):
-        return False
-    color = tuple(node.inputs["Color"].default_value[:3])
-    return np.allclose(color, 1.0) and np.isclose(node.inputs["Strength"].default_value, 1.0)
+        return ones, None
+    if node.type != "EMISSION":
+        return ones, f"light nodes ({node.bl_label} into the output) are not modelled"
+    color, strength = node.inputs["Color"], node.inputs["Strength"]
+    value = np.array(color.default_value[:3], np.float64)
+    if color.is_linked:
+        source, _ = follow(color)
+        if source is None or source.type != "RGB":
+            return ones, "light nodes (a Color not from an RGB node) are not modelled"
+        value = np.array(source.outputs[0].default_value[:3], np.float64)
+    scale = float(strength.default_value)
+    if strength.is_linked:
+        source, socket = follow(strength)
+        if (source is None or source.type != "LIGHT_FALLOFF" or socket.name != "Quadratic"
+                or any(s.is_linked for s in source.inputs)
+                or float(source.inputs["Smooth"].default_value) != 0.0):
+            return ones, ("light nodes (a Strength other than a Light Falloff's Quadratic of "
+                          "Smooth 0) are not modelled")
+        scale = float(source.inputs["Strength"].default_value)
+    return value * scale, None
 
 
 def read_light(name: str, light, matrix: np.ndarray) -> tuple[Light, list[str]]:
@@ -47,8 +62,10 @@ def read_light(name: str, light, matrix: np.ndarray) -> tuple[Light, list[str]]:
     power, color = light_power(light)
     common = dict(name=name, position=position, direction=direction, axis_x=axis_x, axis_y=axis_y,
                   cast_shadow=bool(getattr(light, "use_shadow", True)))
-    if not _light_nodes_are_default(node_tree(light)):
-        ignored.append(f"light '{name}': light nodes are not modelled")
+    factor, why = light_node_factor(node_tree(light))
+    color = color * factor
+    if why is not None:
+        ignored.append(f"light '{name}': {why}")
     kind = light.type
     if kind in ("POINT", "SPOT"):
         extra = {}

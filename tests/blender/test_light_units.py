@@ -115,3 +115,46 @@ def test_area_light_radiance_matches_cycles(normalize, tmp_path):
     (light,) = snap.lights
     predicted = direct_irradiance(light, np.zeros((1, 3)), np.array([[0.0, 0.0, 1.0]]))[0, 0]
     assert cycles_irradiance(scene, (0, 0), tmp_path) == pytest.approx(predicted, rel=TOLERANCE)
+
+
+def _light_nodes(obj, falloff_output="Quadratic"):
+    """The light's node tree: an RGB node (0.2, 0.6, 1) into the Emission colour, a Light
+    Falloff (strength 3) output into its strength."""
+    data = obj.data
+    if hasattr(data, "use_nodes"):
+        data.use_nodes = True
+    tree = data.node_tree
+    emission = next(n for n in tree.nodes if n.type == "EMISSION")
+    rgb = tree.nodes.new("ShaderNodeRGB")
+    rgb.outputs[0].default_value = (0.2, 0.6, 1.0, 1.0)
+    falloff = tree.nodes.new("ShaderNodeLightFalloff")
+    falloff.inputs["Strength"].default_value = 3.0
+    tree.links.new(rgb.outputs[0], emission.inputs["Color"])
+    tree.links.new(falloff.outputs[falloff_output], emission.inputs["Strength"])
+
+
+def test_a_lights_emission_nodes_scale_its_light_as_in_cycles(tmp_path):
+    """A point light whose node tree colours its Emission with an RGB node and sets its strength
+    by a Light Falloff's Quadratic output (glTF-IO's Cycles lamp test does): the light is
+    multiplied by colour x strength, every channel within 2% of Cycles (it was read white, 1x,
+    and noted). A Linear falloff (distance-dependent) is noted and left out."""
+    scene = build_plane_scene()
+    _light_nodes(add_light("POINT", (0, 0, 2), energy=100.0, shadow_soft_size=0.0))
+    snap = bridge.snapshot(request=bridge.SnapshotRequest(textures=False, camera=False))
+    assert not any("light nodes" in why for why in snap.ignored)
+    predicted = direct_irradiance(snap.lights[0], np.array([[0.5, 0.0, 0.0]]),
+                                  np.array([[0.0, 0.0, 1.0]]))[0]
+    scene.camera.location = (0.5, 0.0, 5.0)
+    scene.render.filepath = str(tmp_path / "probe.exr")
+    scene.render.image_settings.file_format = "OPEN_EXR"
+    bpy.ops.render.render(write_still=True)
+    img = bpy.data.images.load(str(tmp_path / "probe.exr"))
+    measured = math.pi * np.array(img.pixels[:]).reshape(-1, 4)[:, :3].mean(axis=0)
+    np.testing.assert_allclose(predicted, measured, rtol=TOLERANCE)
+    np.testing.assert_allclose(predicted / predicted[2], (0.2, 0.6, 1.0), rtol=1e-6)
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    build_plane_scene()
+    _light_nodes(add_light("POINT", (0, 0, 2), energy=100.0), falloff_output="Linear")
+    snap = bridge.snapshot(request=bridge.SnapshotRequest(textures=False, camera=False))
+    assert any("Light Falloff" in why for why in snap.ignored)
