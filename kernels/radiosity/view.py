@@ -162,36 +162,66 @@ def _area_lamp_points(light, points: np.ndarray, normals: np.ndarray, origins: n
 
 def _world_highlights(scene: Scene, tri: np.ndarray, bary: np.ndarray, points: np.ndarray,
                       dirs: np.ndarray, frame: tuple) -> np.ndarray:
-    """(M, 3) radiance W/(m^2 sr) the world leaves toward a camera looking along dirs (M, 3) by
-    the rough glossy lobes of surface points (triangles, barycentrics, world points (M, 3)), as
-    Cycles lights them directly from the world at the camera's first hit (the sky is a light; no
-    glossy bounce is needed): one ray along each point's mirror direction stands for the lobe,
-    the world's radiance there if it escapes, times the lobe's reflectance at the view: the
-    specular layer's directional albedo E(mu) (weight (1 - metallic)(1 - transmission)) and a
-    metal's base colour (weight metallic; its Fresnel rise at grazing views left out). Smooth
-    lobes (roughness below MIRROR_ROUGHNESS) reflect the world only along a glossy bounce, which
-    this model does not follow, as `_lamp_highlights` leaves them out. frame: `_front_frame`."""
+    """(M, 3) radiance W/(m^2 sr) the glossy lobes of surface points (triangles, barycentrics,
+    world points (M, 3)) send toward a camera looking along dirs (M, 3) from what emits, as
+    Cycles shows them at the camera's first hit with no glossy bounces left: one ray along each
+    point's mirror direction. A rough lobe (roughness at least MIRROR_ROUGHNESS) takes the
+    world's radiance there if the ray escapes (the sky is a light, sampled directly; its lamps
+    are `_lamp_highlights`). A smooth lobe takes what its ray meets first, which Cycles' glossy
+    ray still collects before it ends at the next surface (PATH_RAY_TERMINATE_AFTER_TRANSPARENT):
+    the world where it escapes, an area lamp, an emissive surface's front. Weights: the specular
+    layer's albedo at the view E(mu) (weight (1 - metallic)(1 - transmission)) and a metal's
+    reflectance, its base colour (Schlick's rise at the view when smooth; weight metallic).
+    frame: `_front_frame`."""
     out = np.zeros((len(tri), 3))
     mats = scene.materials
+    smooth_m = np.array([m.roughness < MIRROR_ROUGHNESS for m in mats])
     layer_w = np.array([(1.0 - m.metallic) * (1.0 - m.transmission)
-                        if m.roughness >= MIRROR_ROUGHNESS and layer_f0(m.ior, m.specular) > 0.0
-                        else 0.0 for m in mats])
-    metal_w = np.array([m.metallic if m.roughness >= MIRROR_ROUGHNESS else 0.0 for m in mats])
+                        if layer_f0(m.ior, m.specular) > 0.0 else 0.0 for m in mats])
+    metal_w = np.array([m.metallic for m in mats], np.float64)
+    lamps = [light for light in scene.lights if light.kind == "AREA"]
+    emission = triangle_emission(scene)
+    emissive = bool(np.any(emission > 0.0))
+    world = world_lit(scene)
     mids = scene.material_ids[tri]
-    rows = np.flatnonzero((layer_w[mids] > 0.0) | (metal_w[mids] > 0.0))
-    if not world_lit(scene) or rows.size == 0:
+    sees = np.where(smooth_m, world or bool(lamps) or emissive, world)[mids]
+    rows = np.flatnonzero(((layer_w[mids] > 0.0) | (metal_w[mids] > 0.0)) & sees)
+    if rows.size == 0:
         return out
     t, b, d, m = tri[rows], bary[rows], dirs[rows], mids[rows]
     geometric, normals, bvh, offset = frame
     geometric, normals = geometric[rows], normals[rows]
     r = reflect(d, normals)
     up = np.einsum("ij,ij->i", r, geometric) > 0.0  # a mirror direction into the surface: none
-    sky = np.zeros(len(rows), bool)
-    sky[up] = ~bvh.occluded(points[rows][up] + offset * geometric[up], r[up])
-    if not sky.any():
-        return out
-    albedo = 1.0 - view_factors(view_tables(mats), m, np.einsum("ij,ij->i", normals, d))
-    weight = (layer_w[m] * albedo)[:, None] + metal_w[m][:, None] * metal_f0(
-        scene, t, albedo_at(scene, t, b))
-    out[rows[sky]] = weight[sky] * world_radiance(scene, r[sky])
+    origins = points[rows] + offset * geometric
+    smooth = smooth_m[m]
+    seen = np.zeros((len(rows), 3))
+    rough_rows = np.flatnonzero(up & ~smooth)
+    if world and rough_rows.size:
+        sky = ~bvh.occluded(origins[rough_rows], r[rough_rows])
+        seen[rough_rows[sky]] = world_radiance(scene, r[rough_rows[sky]])
+    smooth_rows = np.flatnonzero(up & smooth)
+    if smooth_rows.size:
+        hits = bvh.intersect(origins[smooth_rows], r[smooth_rows])
+        missed = hits.tri < 0
+        if world and missed.any():
+            seen[smooth_rows[missed]] = world_radiance(scene, r[smooth_rows[missed]])
+        # an emissive triangle's front (the gather's BVH may hold sheets' copies past T)
+        own = (hits.tri >= 0) & (hits.tri < scene.triangle_count)
+        if emissive and own.any():
+            k = np.flatnonzero(own)
+            hit = hits.tri[k]
+            front = np.einsum("ij,ij->i", r[smooth_rows[k]],
+                              geometric_normals(scene.triangles[hit])) < 0.0
+            seen[smooth_rows[k[front]]] += emission[hit[front]]
+        if lamps:
+            t_hit = np.where(missed, np.inf, hits.t.astype(np.float64))
+            seen[smooth_rows] += light_units.area_lamps_seen(lamps, origins[smooth_rows],
+                                                             r[smooth_rows], t_hit)[0]
+    cos = np.einsum("ij,ij->i", normals, d)
+    albedo = 1.0 - view_factors(view_tables(mats), m, cos)
+    base = metal_f0(scene, t, albedo_at(scene, t, b))
+    rise = np.where(smooth, (1.0 - np.clip(np.abs(cos), 0.0, 1.0)) ** 5, 0.0)[:, None]
+    weight = (layer_w[m] * albedo)[:, None] + metal_w[m][:, None] * (base + (1.0 - base) * rise)
+    out[rows] = weight * seen
     return out

@@ -153,3 +153,26 @@ def _area_irradiance(light: Light, points: np.ndarray, normals: np.ndarray,
             cos_r = cos_r * direction_weight(delta * inv_d[:, None])
         total += cos_r * cos_e / d2
     return (total * d_area)[:, None] * np.asarray(light.radiance, np.float64)[None, :]
+
+
+def area_lamps_seen(lamps, origins: np.ndarray, dirs: np.ndarray, t_hit: np.ndarray
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """(N, 3) radiance W/(m^2 sr) of the area lamps (kernel `Light`s of kind AREA) that rays
+    (origins, unit dirs (N, 3), m) meet before their hit distance t_hit (N,) (inf: none), on
+    the lamp's emitting side (its -Z), summed, and the distance (N,) to the nearest one met (inf:
+    none). Lamps are in no BVH: each is a rectangle or an ellipse tested here."""
+    out = np.zeros((len(origins), 3))
+    nearest = np.full(len(origins), np.inf)
+    for lamp in lamps:
+        facing = dirs @ lamp.direction  # < 0: the ray meets the emitting side
+        t = np.divide((lamp.position - origins) @ lamp.direction, facing,
+                      out=np.full(len(origins), -1.0), where=facing < 0.0)
+        q = origins + t[:, None] * dirs - lamp.position
+        x = (q @ lamp.axis_x) / max(lamp.size_x, 1e-12)
+        y = (q @ lamp.axis_y) / max(lamp.size_y, 1e-12)
+        inside = (x * x + y * y <= 0.25) if lamp.shape in ("DISK", "ELLIPSE") else (
+            (np.abs(x) <= 0.5) & (np.abs(y) <= 0.5))
+        seen = inside & (t > 0.0) & (t < t_hit)
+        out[seen] += np.asarray(lamp.radiance, np.float64)
+        nearest[seen] = np.minimum(nearest[seen], t[seen])
+    return out, nearest

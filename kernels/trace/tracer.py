@@ -476,24 +476,8 @@ class Tracer:
 
     def _area_lamp_hits(self, origins: np.ndarray, dirs: np.ndarray, t_hit: np.ndarray
                         ) -> tuple[np.ndarray, np.ndarray]:
-        """(N, 3) radiance of the area lamps rays (origins, unit dirs (N, 3)) meet before their
-        hit distance t_hit (N,) (inf: none), on the lamp's emitting side (its -Z), and the
-        distance (N,) to the nearest lamp met (inf: none)."""
-        out = np.zeros((len(origins), 3))
-        nearest = np.full(len(origins), np.inf)
-        for lamp in self.area_lamps:
-            facing = dirs @ lamp.direction  # < 0: the ray meets the emitting side
-            t = np.divide((lamp.position - origins) @ lamp.direction, facing,
-                          out=np.full(len(origins), -1.0), where=facing < 0.0)
-            q = origins + t[:, None] * dirs - lamp.position
-            x = (q @ lamp.axis_x) / max(lamp.size_x, 1e-12)
-            y = (q @ lamp.axis_y) / max(lamp.size_y, 1e-12)
-            inside = (x * x + y * y <= 0.25) if lamp.shape in ("DISK", "ELLIPSE") else (
-                (np.abs(x) <= 0.5) & (np.abs(y) <= 0.5))
-            seen = inside & (t > 0.0) & (t < t_hit)
-            out[seen] += np.asarray(lamp.radiance, np.float64)
-            nearest[seen] = np.minimum(nearest[seen], t[seen])
-        return out, nearest
+        """`lights.area_lamps_seen` of the scene's area lamps."""
+        return light_units.area_lamps_seen(self.area_lamps, origins, dirs, t_hit)
 
     def _mapped(self, tri: np.ndarray) -> np.ndarray:
         """(N,) bool: which hit triangles belong to an environment-mapped object."""
