@@ -474,11 +474,6 @@ class Tracer:
                     _scatter_add(shine, rows, brdf_cos * weight[pick] * w[rows] / cos_r[:, None])
         return out, shine
 
-    def _area_lamp_hits(self, origins: np.ndarray, dirs: np.ndarray, t_hit: np.ndarray
-                        ) -> tuple[np.ndarray, np.ndarray]:
-        """`lights.area_lamps_seen` of the scene's area lamps."""
-        return light_units.area_lamps_seen(self.area_lamps, origins, dirs, t_hit)
-
     def _mapped(self, tri: np.ndarray) -> np.ndarray:
         """(N,) bool: which hit triangles belong to an environment-mapped object."""
         return np.isin(self.scene.object_ids[tri], list(self.environment))
@@ -509,7 +504,8 @@ class Tracer:
                 out[rows] += mirror_w[rows] * lookup(p[rows], r_dir[rows], rough[rows])
                 rows = rows[rough[rows] < self.settings.mirror_roughness]
                 if self.area_lamps and len(rows):
-                    lamp, t = self._area_lamp_hits(p[rows], r_dir[rows], np.full(len(rows), np.inf))
+                    lamp, t = light_units.area_lamps_seen(self.area_lamps, p[rows], r_dir[rows],
+                                                          np.full(len(rows), np.inf))
                     meet = np.flatnonzero(np.isfinite(t))
                     if meet.size:
                         at = rows[meet]
@@ -709,8 +705,8 @@ class Tracer:
             miss = hits.tri < 0
             if depth > 0 and sharp.any() and self.area_lamps:
                 rows = np.flatnonzero(sharp)
-                lamps, _ = self._area_lamp_hits(origins[rows], dirs[rows],
-                                                np.where(miss[rows], np.inf, hits.t[rows]))
+                lamps, _ = light_units.area_lamps_seen(self.area_lamps, origins[rows], dirs[rows],
+                                                       np.where(miss[rows], np.inf, hits.t[rows]))
                 _scatter_add(result, pixel[rows], weight[rows] * lamps)
             if s.output == "albedo":
                 background = 0.0
