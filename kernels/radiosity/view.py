@@ -56,7 +56,7 @@ def render_steps(scene: Scene, result: RadiosityResult, resolution=None,
                                      result.radiance_at(t, b, known=known))
             values[front] += _lamp_highlights(lit, result, t, b, f.points[front], f.dirs[front],
                                               frame)
-            values[front] += _world_highlights(lit, t, b, f.points[front], f.dirs[front], frame)
+            values[front] += _reflected_emitters(lit, t, b, f.points[front], f.dirs[front], frame)
         if back.any():
             values[back] = result.back_radiance_at(scene, f.tri[back], f.bary[back])
         return values
@@ -160,7 +160,7 @@ def _area_lamp_points(light, points: np.ndarray, normals: np.ndarray, origins: n
         yield to[k], total * (share[k] * visible[k])[:, None]
 
 
-def _world_highlights(scene: Scene, tri: np.ndarray, bary: np.ndarray, points: np.ndarray,
+def _reflected_emitters(scene: Scene, tri: np.ndarray, bary: np.ndarray, points: np.ndarray,
                       dirs: np.ndarray, frame: tuple) -> np.ndarray:
     """(M, 3) radiance W/(m^2 sr) the glossy lobes of surface points (triangles, barycentrics,
     world points (M, 3)) send toward a camera looking along dirs (M, 3) from what emits, as

@@ -153,7 +153,7 @@ def test_the_radiosity_view_shows_the_world_in_the_glossy_layer(base, roughness,
     """A Principled plane (Specular IOR Level 0.5) under the blue-grey world alone, seen at
     50-85 degrees: Cycles lights its glossy layer straight from the world (no glossy bounce
     needed), which the radiosity camera view draws along each pixel's mirror direction times
-    the layer's E(mu) (`_world_highlights`). Mean over the plane against a 128-sample
+    the layer's E(mu) (`_reflected_emitters`). Mean over the plane against a 128-sample
     render: measured 1.0006 (grey, roughness 0.5; 0.83 without the layer's world light) and
     0.985 (black, roughness 0.3, where the layer is all there is)."""
     from blender_parts import principled
