@@ -161,7 +161,7 @@ def _area_lamp_points(light, points: np.ndarray, normals: np.ndarray, origins: n
 
 
 def _reflected_emitters(scene: Scene, tri: np.ndarray, bary: np.ndarray, points: np.ndarray,
-                      dirs: np.ndarray, frame: tuple) -> np.ndarray:
+                        dirs: np.ndarray, frame: tuple) -> np.ndarray:
     """(M, 3) radiance W/(m^2 sr) the glossy lobes of surface points (triangles, barycentrics,
     world points (M, 3)) send toward a camera looking along dirs (M, 3) from what emits, as
     Cycles shows them at the camera's first hit with no glossy bounces left: one ray along each
