@@ -62,6 +62,8 @@ class MeshChunk:
     # (T, 3, 3) float32: per triangle, the attribute its material reads (set by the snapshot
     # once materials are read); None: no material reads one.
     colors: np.ndarray | None = None
+    # The ray kinds Cycles hides the object from (`snapshot.hidden_from`), set by the snapshot.
+    hidden_from: tuple = ()
 
 
 def mesh_triangles(mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

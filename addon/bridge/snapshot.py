@@ -45,7 +45,7 @@ def _snapshot(context, request: SnapshotRequest, resolution: tuple[int, int] | N
     chunks: list[MeshChunk] = []
     lights: list[Light] = []
     instance_counts: dict[str, int] = {}
-    visibility_read: set[str] = set()  # objects whose Cycles visibility was looked at
+    hidden: dict[str, tuple[str, ...]] = {}  # source object -> the rays Cycles hides it from
 
     for inst in depsgraph.object_instances:
         obj = inst.object
@@ -59,9 +59,9 @@ def _snapshot(context, request: SnapshotRequest, resolution: tuple[int, int] | N
         # stands for the object itself.
         if obj.type not in ("MESH", "LIGHT"):
             continue
-        if source.name_full not in visibility_read:
-            visibility_read.add(source.name_full)
-            ignored.extend(_ray_visibility(source))
+        if source.name_full not in hidden:
+            hidden[source.name_full] = hidden_from(source)
+            ignored.extend(_ray_visibility(source, hidden[source.name_full]))
         is_instance = inst.is_instance and not (holder == source and source.type != "MESH")
         matrix = matrix_array(inst.matrix_world)
         base = source.name if not is_instance else f"{holder.name}/{source.name}"
@@ -90,6 +90,7 @@ def _snapshot(context, request: SnapshotRequest, resolution: tuple[int, int] | N
         finally:
             if editing:
                 obj.to_mesh_clear()
+        chunk.hidden_from = hidden[source.name_full]
         why = triangles_problem(chunk.triangles)
         if why is not None:  # a partly usable scene: the object is left out, by name
             ignored.append(f"object '{name}' {why}; skipped")
@@ -219,16 +220,9 @@ def hidden_from(obj) -> tuple[str, ...]:
                  if not getattr(obj, f"visible_{kind}", True))
 
 
-def _hidden_from_name(name: str) -> tuple[str, ...]:
-    """`hidden_from` of the object named `name` (() when there is none by that name)."""
-    obj = bpy.data.objects.get(name)
-    return () if obj is None else hidden_from(obj)
-
-
-def _ray_visibility(obj) -> list[str]:
-    """What Cycles' visibility settings of `obj` change that the kernels do not model, one note
-    each; [] for the defaults."""
-    hidden = hidden_from(obj)
+def _ray_visibility(obj, hidden: tuple[str, ...]) -> list[str]:
+    """What Cycles' visibility settings of `obj` (the rays it is `hidden` from) change that the
+    kernels do not model, one note each; [] for the defaults."""
     traced = [kind for kind in hidden if kind in TRACED_KINDS]
     others = [kind for kind in hidden if kind not in TRACED_KINDS]
     notes = []
@@ -265,7 +259,7 @@ def _assemble(chunks, materials, lights, camera, world, request, ignored) -> Sce
             tri_count=counts[k], has_uv=chunk.uv is not None,
             has_lightmap_uv=chunk.lightmap_uv is not None,
             topology_matches_original=chunk.topology_matches_original,
-            is_instance=chunk.is_instance, hidden_from=_hidden_from_name(chunk.source_name)))
+            is_instance=chunk.is_instance, hidden_from=chunk.hidden_from))
 
     def stack(attr, shape, dtype):
         parts = [getattr(c, attr) if getattr(c, attr) is not None else np.zeros((n,) + shape, dtype)
