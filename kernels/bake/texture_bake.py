@@ -46,6 +46,7 @@ import numpy as np
 from ..geometry.scene import Scene
 from ..progress import Steps
 from ..shading.direct_light import diffuse_at, diffuse_weight
+from ..shading.material_maps import hit_materials
 from ..shading.textures import checker_box, sample_texture
 
 # Image texels one sub-texel cell may span. A cell takes the bilinear look-up at its centre, and
@@ -214,10 +215,12 @@ def _texture_uv(scene: Scene, tri: np.ndarray, bary: np.ndarray) -> np.ndarray:
     return np.einsum("pc,pcj->pj", bary, scene.texture_coords[tri])
 
 
-def _cell_albedo(scene: Scene, tri: np.ndarray, uv: np.ndarray, half: np.ndarray) -> np.ndarray:
-    """(P, 3) diffuse albedo at cells of triangles tri (P,) centred at texture coordinates uv
-    (P, 3), each the mean over a texture-space box of half extents `half` (P, 3) around it
-    (checker: exact; image: bilinear at the centre)."""
+def _cell_albedo(scene: Scene, tri: np.ndarray, bary: np.ndarray, uv: np.ndarray, half: np.ndarray
+                 ) -> np.ndarray:
+    """(P, 3) diffuse albedo at cells of triangles tri (P,) centred at barycentrics bary (P, 3),
+    texture coordinates uv (P, 3): the base colour's mean over a texture-space box of half
+    extents `half` (P, 3) around it (checker: exact; image: bilinear at the centre) times the
+    diffuse weight of the material at the centre (metallic maps read there)."""
     out = np.empty((len(tri), 3))
     mids = scene.material_ids[tri]
     weight = np.array([diffuse_weight(m) for m in scene.materials])
@@ -233,7 +236,7 @@ def _cell_albedo(scene: Scene, tri: np.ndarray, uv: np.ndarray, half: np.ndarray
                                     texture.color2, texture.scale)
         else:
             out[rows] = sample_texture(texture, uv[rows])
-    return out * weight[mids][:, None]
+    return out * weight[hit_materials(scene, tri, bary, mids)][:, None]
 
 
 def _cell_half_extents(jac: np.ndarray, n: np.ndarray, size: tuple[int, int]) -> np.ndarray:
@@ -268,7 +271,7 @@ def texel_albedo(scene: Scene, targets, settings: TextureBakeSettings = TextureB
     for k in np.unique(n[n > 1]):
         which = np.flatnonzero(n == k)
         owner, cell_tri, bary = subtexel_points(scene, targets, which, int(k))
-        cells = _cell_albedo(scene, cell_tri, _texture_uv(scene, cell_tri, bary),
+        cells = _cell_albedo(scene, cell_tri, bary, _texture_uv(scene, cell_tri, bary),
                              half[which[owner]])
         sums = np.zeros((len(which), 3))
         np.add.at(sums, owner, cells)
@@ -281,7 +284,7 @@ def texel_albedo(scene: Scene, targets, settings: TextureBakeSettings = TextureB
     rows = np.flatnonzero(single)
     shift = np.array(SAMPLE_SHIFT) / np.array(size, np.float64)  # lightmap uv
     centre = _texture_uv(scene, tri[rows], targets.bary[rows]) - jac[rows] @ shift
-    values[rows] = _cell_albedo(scene, tri[rows], centre, half[rows])
+    values[rows] = _cell_albedo(scene, tri[rows], targets.bary[rows], centre, half[rows])
     return values, n
 
 

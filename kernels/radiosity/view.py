@@ -13,6 +13,7 @@ from ..geometry.scene import Scene, geometric_normals, interpolated_normals, tri
 from ..progress import Steps
 from ..shading import lights as light_units
 from ..shading.direct_light import albedo_at, metal_f0
+from ..shading.material_maps import emission_at, emission_detail, hit_materials
 from ..shading.optics import reflect
 from ..shading.specular_layer import (
     MIRROR_ROUGHNESS,
@@ -33,7 +34,8 @@ def render_steps(scene: Scene, result: RadiosityResult, resolution=None,
                  ) -> Steps[np.ndarray]:
     """The scene camera's view of the solution: outgoing radiance B / pi at the surface each
     pixel centre sees (rasterised), the world colour elsewhere; a surface seen from behind shows
-    its back (`RadiosityResult.back_radiance_at`). Edge pixels (silhouettes, folds, hard shadow
+    its back (`RadiosityResult.back_radiance_at`); emission textures show texel by texel
+    (`material_maps.emission_detail`). Edge pixels (silhouettes, folds, hard shadow
     edges: `camera_view.edge_pixels`) are then the mean of edge_samples x edge_samples rays
     through them (`camera_view.supersample_edges`), as Cycles' 1-px box filter averages a pixel
     (0 or 1: the centres only). Yields progress, returns (H, W, 3)."""
@@ -51,15 +53,18 @@ def render_steps(scene: Scene, result: RadiosityResult, resolution=None,
         if front.any():
             t, b = f.tri[front], f.bary[front]
             frame = _front_frame(scene, result, t, b)
+            mids = hit_materials(scene, t, b, scene.material_ids[t])  # metallic / roughness maps
             known = result.gather.opened(np.ones(len(t), bool)) if open_camera else None
-            values[front] = _at_view(scene, t, b, f.dirs[front],
+            values[front] = _at_view(scene, t, b, mids, f.dirs[front],
                                      result.radiance_at(t, b, known=known))
-            values[front] += _lamp_highlights(lit, result, t, b, f.points[front], f.dirs[front],
-                                              frame)
-            values[front] += _reflected_emitters(lit, t, b, f.points[front], f.dirs[front], frame)
+            values[front] += _lamp_highlights(lit, result, t, b, mids, f.points[front],
+                                              f.dirs[front], frame)
+            values[front] += _reflected_emitters(lit, t, b, mids, f.points[front], f.dirs[front],
+                                                 frame)
         if back.any():
             values[back] = result.back_radiance_at(scene, f.tri[back], f.bary[back])
-        return values
+        detail = emission_detail(scene, f.tri, f.bary)  # the patches emit triangles' means
+        return values if detail is None else values + detail
 
     if len(f):
         image[f.rows, f.cols] = shade(f)
@@ -73,14 +78,14 @@ def render_steps(scene: Scene, result: RadiosityResult, resolution=None,
     return image
 
 
-def _at_view(scene: Scene, tri: np.ndarray, bary: np.ndarray, dirs: np.ndarray,
+def _at_view(scene: Scene, tri: np.ndarray, bary: np.ndarray, mids: np.ndarray, dirs: np.ndarray,
              radiance: np.ndarray) -> np.ndarray:
-    """(M, 3) radiance (M, 3) W/(m^2 sr) of surface points (triangles, barycentrics) as a
-    camera looking along dirs (M, 3) sees it: the reflected part, which the texels show under
+    """(M, 3) radiance (M, 3) W/(m^2 sr) of surface points (triangles, barycentrics, their
+    materials mids (M,): `material_maps.hit_materials`) as a camera looking along dirs (M, 3)
+    sees it: the reflected part, which the texels show under
     the specular layer along the normal (`layer_factors`), rescaled to the layer at the view
     angle (`specular_layer.view_factors`), as Cycles' diffuse lobe darkens towards grazing.
     The layer's own highlights are not drawn."""
-    mids = scene.material_ids[tri]
     tables = view_tables(scene.materials)
     if not (tables < 1.0).any():  # no layer anywhere
         return radiance
@@ -106,10 +111,11 @@ def _front_frame(scene: Scene, result: RadiosityResult, tri: np.ndarray, bary: n
 
 
 def _lamp_highlights(scene: Scene, result: RadiosityResult, tri: np.ndarray, bary: np.ndarray,
-                     points: np.ndarray, dirs: np.ndarray, frame: tuple) -> np.ndarray:
+                     mids: np.ndarray, points: np.ndarray, dirs: np.ndarray, frame: tuple
+                     ) -> np.ndarray:
     """(M, 3) radiance W/(m^2 sr) the lamps' light leaves toward a camera looking along dirs
     (M, 3) by the rough glossy lobes (specular layers, metals) of surface points (triangles,
-    barycentrics, world points (M, 3)): each lamp's shadowed irradiance (an area lamp's grid
+    barycentrics, materials (M,), world points (M, 3)): each lamp's shadowed irradiance (an area lamp's grid
     point by point, `_area_lamp_points`) times the GGX lobes
     (`specular_layer.lamp_highlights`), as Cycles lights the glossy lobes directly at the
     camera's first hit. Emissive meshes draw none. frame: `_front_frame` of the points."""
@@ -121,7 +127,6 @@ def _lamp_highlights(scene: Scene, result: RadiosityResult, tri: np.ndarray, bar
     geometric, normals, bvh, offset = frame
     samples = result.gather.area_samples_per_side if result.gather is not None else 4
     base = metal_f0(scene, tri, albedo_at(scene, tri, bary))
-    mids = scene.material_ids[tri]
     for light in scene.lights:
         if light.kind == "AREA":  # its highlight spread over the emitter, point by point
             for to_light, e in _area_lamp_points(light, points, normals,
@@ -160,10 +165,10 @@ def _area_lamp_points(light, points: np.ndarray, normals: np.ndarray, origins: n
         yield to[k], total * (share[k] * visible[k])[:, None]
 
 
-def _reflected_emitters(scene: Scene, tri: np.ndarray, bary: np.ndarray, points: np.ndarray,
-                        dirs: np.ndarray, frame: tuple) -> np.ndarray:
+def _reflected_emitters(scene: Scene, tri: np.ndarray, bary: np.ndarray, mids: np.ndarray,
+                        points: np.ndarray, dirs: np.ndarray, frame: tuple) -> np.ndarray:
     """(M, 3) radiance W/(m^2 sr) the glossy lobes of surface points (triangles, barycentrics,
-    world points (M, 3)) send toward a camera looking along dirs (M, 3) from what emits, as
+    materials (M,), world points (M, 3)) send toward a camera looking along dirs (M, 3) from what emits, as
     Cycles shows them at the camera's first hit with no glossy bounces left: one ray along each
     point's mirror direction. A rough lobe (roughness at least MIRROR_ROUGHNESS) takes the
     world's radiance there if the ray escapes (the sky is a light, sampled directly; its lamps
@@ -183,7 +188,6 @@ def _reflected_emitters(scene: Scene, tri: np.ndarray, bary: np.ndarray, points:
     emission = triangle_emission(scene)
     emissive = bool(np.any(emission > 0.0))
     world = world_lit(scene)
-    mids = scene.material_ids[tri]
     sees = np.where(smooth_m, world or bool(lamps) or emissive, world)[mids]
     rows = np.flatnonzero(((layer_w[mids] > 0.0) | (metal_w[mids] > 0.0)) & sees)
     if rows.size == 0:
@@ -213,7 +217,9 @@ def _reflected_emitters(scene: Scene, tri: np.ndarray, bary: np.ndarray, points:
             hit = hits.tri[k]
             front = np.einsum("ij,ij->i", r[smooth_rows[k]],
                               geometric_normals(scene.triangles[hit])) < 0.0
-            seen[smooth_rows[k[front]]] += emission[hit[front]]
+            u, v = hits.u[k[front]].astype(np.float64), hits.v[k[front]].astype(np.float64)
+            seen[smooth_rows[k[front]]] += emission_at(scene, hit[front],
+                                                       np.stack([1.0 - u - v, u, v], 1))
         if lamps:
             t_hit = np.where(missed, np.inf, hits.t.astype(np.float64))
             seen[smooth_rows] += light_units.area_lamps_seen(lamps, origins[smooth_rows],

@@ -32,7 +32,7 @@ from ..shadow.views import fit_sun, plan_shadow_map, potential_casters
 from . import lights as light_units
 from .alpha import alpha_materials, has_alpha, surface_alpha
 from .bump import scene_normals
-from .material_maps import emission_at, material_values
+from .material_maps import emission_at, hit_materials, material_values
 from .specular_layer import diffuse_factor, lamp_highlights, view_factors, view_tables
 
 MIN_MAP = 256  # below this a map cannot place even a coarse shadow edge
@@ -229,9 +229,12 @@ def diffuse_weight(material, under_layer: bool = True) -> float:
 def diffuse_at(scene: Scene, tri: np.ndarray, bary: np.ndarray, under_layer: bool = True
                ) -> np.ndarray:
     """(N, 3) diffuse reflectance at barycentric points of triangles: the base colour
-    (`albedo_at`) times its material's `diffuse_weight`."""
+    (`albedo_at`) times the `diffuse_weight` of the material at each point (metallic and
+    roughness maps read there, `material_maps.hit_materials`: a painted metal trim reflects
+    nothing diffusely where it is painted)."""
     weight = np.array([diffuse_weight(m, under_layer) for m in scene.materials], np.float64)
-    return albedo_at(scene, tri, bary) * weight[scene.material_ids[tri]][:, None]
+    mids = hit_materials(scene, tri, bary, scene.material_ids[tri])
+    return albedo_at(scene, tri, bary) * weight[mids][:, None]
 
 
 # --- the camera view ------------------------------------------------------------------------------
@@ -288,7 +291,7 @@ def _shade(scene: Scene, maps: list, f, receivers: Receivers | None = None) -> n
     e = irradiance_per_light(scene, points, normals)
     # What reflects diffusely toward the eye: no metal or glass, and the base under the specular
     # layer darkened at this view (`specular_layer.py`), as Cycles' diffuse lobe.
-    mids = scene.material_ids[tri]
+    mids = hit_materials(scene, tri, bary, scene.material_ids[tri])  # metallic / roughness maps
     weight = np.array([diffuse_weight(m, under_layer=False) for m in scene.materials])[mids]
     weight = weight * view_factors(view_tables(scene.materials), mids,
                                    np.einsum("ij,ij->i", normals, d))

@@ -26,7 +26,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..geometry.scene import MapVariants, Material, Scene, Texture
+from ..geometry.scene import MapVariants, Material, Scene, Texture, triangle_emission
 from .textures import sample_texture, srgb_to_linear
 
 # Metallic and roughness per triangle are rounded to these steps before triangles are grouped
@@ -115,6 +115,16 @@ def emission_at(scene: Scene, tri: np.ndarray, bary: np.ndarray) -> np.ndarray:
     """(N, 3) float64 emitted radiance W/(m^2 sr) at barycentric points (N, 3) of triangles
     `tri`: the material's constant, or its emission texture looked up there."""
     return material_values(scene, tri, bary, lambda m: m.emission_texture, lambda m: m.emission)
+
+
+def emission_detail(scene: Scene, tri: np.ndarray, bary: np.ndarray) -> np.ndarray | None:
+    """(N, 3) what emission textures show at barycentric points (N, 3) of triangles `tri` beyond
+    their triangles' means (`emission_at` less `triangle_emission`), W/(m^2 sr): what a camera
+    view or a bake adds to values that carry each triangle's mean (radiosity's patches). None
+    when no material has an emission texture."""
+    if not any(m.emission_texture is not None for m in scene.materials):
+        return None
+    return emission_at(scene, tri, bary) - triangle_emission(scene)[tri]
 
 
 def _quantised(values: np.ndarray, step: float) -> np.ndarray:

@@ -6,8 +6,10 @@ import pytest
 from scene_builder import build
 
 from classic_bake.kernels.geometry.scene import Material, Texture, triangle_emission
+from classic_bake.kernels.shading.direct_light import diffuse_at
 from classic_bake.kernels.shading.material_maps import (
     emission_at,
+    emission_detail,
     hit_materials,
     lattice_points,
     resolve_material_maps,
@@ -138,3 +140,31 @@ def test_a_metallic_map_alone_keeps_the_constant_roughness():
                          scene.material_ids[[0, 0]])
     assert [(scene.materials[k].metallic, scene.materials[k].roughness) for k in hits] == [
         (0.0, 0.37), (1.0, 0.37)]
+
+
+def test_diffuse_reflectance_and_glow_are_read_at_the_point():
+    """One triangle across a metal mask's edge and a glow's: the diffuse reflectance is the base
+    colour's where the map paints no metal and 0 where it does (not the triangle's half-metal
+    mean), and `emission_detail` adds to the triangle's mean glow what the point shows."""
+    mask = np.zeros((1, 2, 4), np.float32)
+    mask[0, 1, 2] = 1.0  # blue: metallic 1 on the right half
+    metal = Texture(kind="IMAGE", name="m", pixels=mask, interpolation="CLOSEST",
+                    weights=np.array([0, 0, 1, 0], np.float32))
+    glow = np.zeros((1, 2, 4), np.float32)
+    glow[0, 0, :3] = (3.0, 2.0, 1.0)  # the left half glows
+    mat = Material(name="Trim", base_color=np.array([0.6, 0.4, 0.2], np.float32), specular=0.0,
+                   metallic_texture=metal,
+                   emission_texture=Texture(kind="IMAGE", name="g", pixels=glow,
+                                            interpolation="CLOSEST"))
+    scene = resolve_material_maps(_scene([[[0.0, 0.0], [1.0, 0.0], [0.5, 1.0]]], mat))
+    bary = np.array([[0.7, 0.1, 0.2], [0.1, 0.7, 0.2]])  # u = 0.2 and u = 0.8
+    tri = np.array([0, 0])
+    np.testing.assert_allclose(diffuse_at(scene, tri, bary), [[0.6, 0.4, 0.2], [0.0, 0.0, 0.0]],
+                               atol=1e-6)
+    mean = triangle_emission(scene)[0]
+    assert 0.0 < mean[0] < 3.0
+    detail = emission_detail(scene, tri, bary)
+    np.testing.assert_allclose(mean + detail, [[3.0, 2.0, 1.0], [0.0, 0.0, 0.0]], atol=1e-6)
+    plain = resolve_material_maps(_scene([[[0.0, 0.0], [1.0, 0.0], [0.5, 1.0]]],
+                                         Material(name="Plain")))
+    assert emission_detail(plain, tri, bary) is None
