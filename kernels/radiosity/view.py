@@ -8,13 +8,11 @@ import numpy as np
 
 from ..bake.camera_view import EDGE_SAMPLES, background_and_fragments, supersample_edges
 from ..geometry.bvh import BVH
-from ..geometry.frames import RAY_OFFSET_REL
 from ..geometry.scene import Scene, geometric_normals, interpolated_normals, triangle_emission
 from ..progress import Steps
 from ..shading import lights as light_units
-from ..shading.direct_light import albedo_at, metal_f0
-from ..shading.material_maps import emission_at, emission_detail, hit_materials
-from ..shading.optics import reflect
+from ..shading.material_maps import albedo_at, emission_detail, hit_materials, metal_f0
+from ..shading.reflected_emitters import ray_offset, reflected_emitters
 from ..shading.specular_layer import (
     MIRROR_ROUGHNESS,
     lamp_highlights,
@@ -22,7 +20,6 @@ from ..shading.specular_layer import (
     view_factors,
     view_tables,
 )
-from ..shading.world_light import world_lit, world_radiance
 from .final_gather import camera_enclosed
 from .lamps import light_visibility, shadowed_irradiance
 from .result import RadiosityResult
@@ -59,8 +56,8 @@ def render_steps(scene: Scene, result: RadiosityResult, resolution=None,
                                      result.radiance_at(t, b, known=known))
             values[front] += _lamp_highlights(lit, result, t, b, mids, f.points[front],
                                               f.dirs[front], frame)
-            values[front] += _reflected_emitters(lit, t, b, mids, f.points[front], f.dirs[front],
-                                                 frame)
+            values[front] += reflected_emitters(lit, t, b, mids, f.points[front], f.dirs[front],
+                                                *frame)
         if back.any():
             values[back] = result.back_radiance_at(scene, f.tri[back], f.bary[back])
         detail = emission_detail(scene, f.tri, f.bary)  # the patches emit triangles' means
@@ -105,9 +102,7 @@ def _front_frame(scene: Scene, result: RadiosityResult, tri: np.ndarray, bary: n
     normals[np.einsum("ij,ij->i", normals, geometric) < 0.0] *= -1.0
     if result.gather is not None:
         return geometric, normals, result.gather.bvh, result.gather.offset
-    flat = scene.triangles.reshape(-1, 3).astype(np.float64)
-    offset = RAY_OFFSET_REL * float(np.linalg.norm(flat.max(axis=0) - flat.min(axis=0)))
-    return geometric, normals, BVH.build(scene.triangles), offset
+    return geometric, normals, BVH.build(scene.triangles), ray_offset(scene)
 
 
 def _lamp_highlights(scene: Scene, result: RadiosityResult, tri: np.ndarray, bary: np.ndarray,
@@ -163,71 +158,3 @@ def _area_lamp_points(light, points: np.ndarray, normals: np.ndarray, origins: n
         visible = light_visibility(light, origins, occluded, samples, per_target=True)
     for k in range(len(targets)):
         yield to[k], total * (share[k] * visible[k])[:, None]
-
-
-def _reflected_emitters(scene: Scene, tri: np.ndarray, bary: np.ndarray, mids: np.ndarray,
-                        points: np.ndarray, dirs: np.ndarray, frame: tuple) -> np.ndarray:
-    """(M, 3) radiance W/(m^2 sr) the glossy lobes of surface points (triangles, barycentrics,
-    materials (M,), world points (M, 3)) send toward a camera looking along dirs (M, 3) from what emits, as
-    Cycles shows them at the camera's first hit with no glossy bounces left: one ray along each
-    point's mirror direction. A rough lobe (roughness at least MIRROR_ROUGHNESS) takes the
-    world's radiance there if the ray escapes (the sky is a light, sampled directly; its lamps
-    are `_lamp_highlights`). A smooth lobe takes what its ray meets first, which Cycles' glossy
-    ray still collects before it ends at the next surface (PATH_RAY_TERMINATE_AFTER_TRANSPARENT):
-    the world where it escapes, an area lamp, an emissive surface's front. Weights: the specular
-    layer's albedo at the view E(mu) (weight (1 - metallic)(1 - transmission)) and a metal's
-    reflectance, its base colour (Schlick's rise at the view when smooth; weight metallic).
-    frame: `_front_frame`."""
-    out = np.zeros((len(tri), 3))
-    mats = scene.materials
-    smooth_m = np.array([m.roughness < MIRROR_ROUGHNESS for m in mats])
-    layer_w = np.array([(1.0 - m.metallic) * (1.0 - m.transmission)
-                        if layer_f0(m.ior, m.specular) > 0.0 else 0.0 for m in mats])
-    metal_w = np.array([m.metallic for m in mats], np.float64)
-    lamps = [light for light in scene.lights if light.kind == "AREA"]
-    emission = triangle_emission(scene)
-    emissive = bool(np.any(emission > 0.0))
-    world = world_lit(scene)
-    sees = np.where(smooth_m, world or bool(lamps) or emissive, world)[mids]
-    rows = np.flatnonzero(((layer_w[mids] > 0.0) | (metal_w[mids] > 0.0)) & sees)
-    if rows.size == 0:
-        return out
-    t, b, d, m = tri[rows], bary[rows], dirs[rows], mids[rows]
-    geometric, normals, bvh, offset = frame
-    geometric, normals = geometric[rows], normals[rows]
-    r = reflect(d, normals)
-    up = np.einsum("ij,ij->i", r, geometric) > 0.0  # a mirror direction into the surface: none
-    origins = points[rows] + offset * geometric
-    smooth = smooth_m[m]
-    seen = np.zeros((len(rows), 3))
-    rough_rows = np.flatnonzero(up & ~smooth)
-    if world and rough_rows.size:
-        sky = ~bvh.occluded(origins[rough_rows], r[rough_rows])
-        seen[rough_rows[sky]] = world_radiance(scene, r[rough_rows[sky]])
-    smooth_rows = np.flatnonzero(up & smooth)
-    if smooth_rows.size:
-        hits = bvh.intersect(origins[smooth_rows], r[smooth_rows])
-        missed = hits.tri < 0
-        if world and missed.any():
-            seen[smooth_rows[missed]] = world_radiance(scene, r[smooth_rows[missed]])
-        # an emissive triangle's front (the gather's BVH may hold sheets' copies past T)
-        own = (hits.tri >= 0) & (hits.tri < scene.triangle_count)
-        if emissive and own.any():
-            k = np.flatnonzero(own)
-            hit = hits.tri[k]
-            front = np.einsum("ij,ij->i", r[smooth_rows[k]],
-                              geometric_normals(scene.triangles[hit])) < 0.0
-            u, v = hits.u[k[front]].astype(np.float64), hits.v[k[front]].astype(np.float64)
-            seen[smooth_rows[k[front]]] += emission_at(scene, hit[front],
-                                                       np.stack([1.0 - u - v, u, v], 1))
-        if lamps:
-            t_hit = np.where(missed, np.inf, hits.t.astype(np.float64))
-            seen[smooth_rows] += light_units.area_lamps_seen(lamps, origins[smooth_rows],
-                                                             r[smooth_rows], t_hit)[0]
-    cos = np.einsum("ij,ij->i", normals, d)
-    albedo = 1.0 - view_factors(view_tables(mats), m, cos)
-    base = metal_f0(scene, t, albedo_at(scene, t, b))
-    rise = np.where(smooth, (1.0 - np.clip(np.abs(cos), 0.0, 1.0)) ** 5, 0.0)[:, None]
-    weight = (layer_w[m] * albedo)[:, None] + metal_w[m][:, None] * (base + (1.0 - base) * rise)
-    out[rows] = weight * seen
-    return out

@@ -20,6 +20,7 @@ import numpy as np
 
 from ..bake.bake_targets import BakeTargets
 from ..bake.camera_view import EDGE_SAMPLES, background_and_fragments, supersample_edges
+from ..geometry.bvh import BVH
 from ..geometry.scene import Scene, interpolated_normals
 from ..geometry.vec import bounds, row_norms
 from ..measure.metrics import REC709_LUMINANCE
@@ -32,7 +33,8 @@ from ..shadow.views import fit_sun, plan_shadow_map, potential_casters
 from . import lights as light_units
 from .alpha import alpha_materials, has_alpha, surface_alpha
 from .bump import scene_normals
-from .material_maps import emission_at, hit_materials, material_values
+from .material_maps import albedo_at, emission_at, hit_materials, metal_f0
+from .reflected_emitters import ray_offset, rays_needed, reflected_emitters
 from .specular_layer import diffuse_factor, lamp_highlights, view_factors, view_tables
 
 MIN_MAP = 256  # below this a map cannot place even a coarse shadow edge
@@ -195,26 +197,6 @@ def shadow_mask(irradiance: np.ndarray, visibility: np.ndarray) -> np.ndarray:
     return np.where(total > 0, arrived / np.where(total > 0, total, 1.0), 0.0).astype(np.float32)
 
 
-def albedo_at(scene: Scene, tri: np.ndarray, bary: np.ndarray) -> np.ndarray:
-    """Base colour (N, 3) at barycentric points of triangles, textures sampled through their
-    coordinates (UVs or Generated)."""
-    return material_values(scene, tri, bary, lambda m: m.base_color_texture,
-                           lambda m: m.base_color)
-
-
-def metal_f0(scene: Scene, tri: np.ndarray, base: np.ndarray) -> np.ndarray:
-    """(N, 3) a metal's reflectance at normal incidence at points of triangles `tri`: their base
-    colour `base` (`albedo_at`), or their material's `metal_color` where it has one."""
-    tints = [(k, m.metal_color) for k, m in enumerate(scene.materials) if m.metal_color is not None]
-    if not tints:
-        return base
-    out = np.array(base, np.float64, copy=True)
-    mids = scene.material_ids[tri]
-    for k, tint in tints:
-        out[mids == k] = tint
-    return out
-
-
 def diffuse_weight(material, under_layer: bool = True) -> float:
     """The Principled BSDF's diffuse weight, (1 - metallic)(1 - transmission): how much of the
     base colour a surface reflects diffusely. A metal or a glass reflects nothing diffusely: its
@@ -259,14 +241,15 @@ def render_steps(scene: Scene, settings: DirectLightSettings, resolution=None,
     spacing = texel * (float(np.median(f.depth)) if camera.kind == "PERSP" else 1.0)
     receivers = _seen_receivers(f)  # plans the maps and reads them at the pixel centres
     maps = yield from scaled(shadow_maps_steps(scene, receivers, spacing, settings), 0.2, 0.6)
-    image[f.rows, f.cols] = _shade(scene, maps, f, receivers)
+    rays = rays_needed(scene, area_lamps=False)  # the glossy lobes' rays to the sky, emitters
+    bvh = BVH.build(scene.triangles) if rays or edge_samples > 1 else None
+    mirror = (bvh, ray_offset(scene)) if rays else None
+    image[f.rows, f.cols] = _shade(scene, maps, f, receivers, mirror)
     yield 0.8
     if edge_samples > 1:
-        from ..geometry.bvh import BVH
-
         # The maps planned for the pixel centres serve their sub-pixel rays too.
-        supersample_edges(scene, image, f, lambda g: _shade(scene, maps, g),
-                          BVH.build(scene.triangles), edge_samples)
+        supersample_edges(scene, image, f, lambda g: _shade(scene, maps, g, mirror=mirror),
+                          bvh, edge_samples)
     return image
 
 
@@ -278,10 +261,13 @@ def _seen_receivers(f) -> Receivers:
     return Receivers.of(f.points, geo)
 
 
-def _shade(scene: Scene, maps: list, f, receivers: Receivers | None = None) -> np.ndarray:
+def _shade(scene: Scene, maps: list, f, receivers: Receivers | None = None,
+           mirror: tuple | None = None) -> np.ndarray:
     """(M, 3) radiance of fragments f (`Fragments`; `receivers`: `_seen_receivers(f)` when the
     caller has it): emission plus each light's diffuse light times its shadow-map visibility
-    (`maps`, `shadow_maps_steps`) and the rough lobes' highlights."""
+    (`maps`, `shadow_maps_steps`) and the rough lobes' highlights; with `mirror` (the scene's
+    BVH, the rays' offset m), what the glossy lobes show of the sky and of emissive surfaces
+    (`reflected_emitters`: Cycles' direct model lights them from the world too)."""
     tri, bary, points, d = f.tri, f.bary, f.points, f.dirs
     normals = scene_normals(scene, tri, bary, interpolated_normals(scene, tri, bary))
     normals[np.einsum("ij,ij->i", normals, d) > 0] *= -1
@@ -306,6 +292,10 @@ def _shade(scene: Scene, maps: list, f, receivers: Receivers | None = None) -> n
         to_light, _ = light_units.light_vectors(light, points)
         shine += lamp_highlights(scene.materials, mids, normals, -d, to_light, e[k],
                                  f0) * vis[k, :, None]
+    if mirror is not None:
+        geometric = np.where(f.back[:, None], -f.geometric, f.geometric)
+        shine += reflected_emitters(scene, tri, bary, mids, points, d, geometric, normals,
+                                    *mirror, area_lamps=False)
     return emission + albedo / np.pi * np.einsum("lnc,ln->nc", e, vis) + shine
 
 

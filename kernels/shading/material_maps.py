@@ -111,6 +111,26 @@ def material_values(scene: Scene, tri: np.ndarray, bary: np.ndarray,
     return out
 
 
+def albedo_at(scene: Scene, tri: np.ndarray, bary: np.ndarray) -> np.ndarray:
+    """Base colour (N, 3) at barycentric points of triangles, textures sampled through their
+    coordinates (UVs or Generated)."""
+    return material_values(scene, tri, bary, lambda m: m.base_color_texture,
+                           lambda m: m.base_color)
+
+
+def metal_f0(scene: Scene, tri: np.ndarray, base: np.ndarray) -> np.ndarray:
+    """(N, 3) a metal's reflectance at normal incidence at points of triangles `tri`: their base
+    colour `base` (`albedo_at`), or their material's `metal_color` where it has one."""
+    tints = [(k, m.metal_color) for k, m in enumerate(scene.materials) if m.metal_color is not None]
+    if not tints:
+        return base
+    out = np.array(base, np.float64, copy=True)
+    mids = scene.material_ids[tri]
+    for k, tint in tints:
+        out[mids == k] = tint
+    return out
+
+
 def emission_at(scene: Scene, tri: np.ndarray, bary: np.ndarray) -> np.ndarray:
     """(N, 3) float64 emitted radiance W/(m^2 sr) at barycentric points (N, 3) of triangles
     `tri`: the material's constant, or its emission texture looked up there."""

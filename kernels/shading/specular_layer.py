@@ -194,6 +194,25 @@ def energy_compensation(mu: np.ndarray, roughness: np.ndarray, f0: np.ndarray) -
     return 1.0 + f_ms * (1.0 - e) / e
 
 
+def metal_reflectance(tables: np.ndarray, material: np.ndarray, mu: np.ndarray, f0: np.ndarray,
+                      roughness: np.ndarray, smooth: np.ndarray) -> np.ndarray:
+    """(N, 3) the share of the light around it a metal's lobe reflects toward a view at
+    |cos| = mu (N,), F0 (N, 3) its base colour: Schlick's at the view where `smooth` (N,) bool;
+    else F0 + (1 - F0) x the lobe's mean grazing term (`schlick_grazing_curve`, `tables` of
+    `metal_tables` and rows `material` (N,)) times what Cycles' restored multiple scattering keeps
+    of the lobe (E + F_ms (1 - E), `energy_compensation`: less than all for a coloured metal, each
+    bounce among the facets takes its tint) at Blender roughness (N,)."""
+    mu = np.asarray(mu, np.float64)
+    grazing = np.where(smooth, (1.0 - np.clip(np.abs(mu), 0.0, 1.0)) ** 5,
+                       view_factors(tables, material, mu))
+    out = f0 + (1.0 - f0) * grazing[:, None]
+    rows = np.flatnonzero(~np.asarray(smooth, bool))
+    if rows.size:
+        e, _ = lobe_albedo(mu[rows], roughness[rows])
+        out[rows] *= e[:, None] * energy_compensation(mu[rows], roughness[rows], f0[rows])
+    return out
+
+
 def ggx_highlight(n, wi, wo, roughness, f0) -> np.ndarray:
     """A glossy lobe's GGX microfacet BRDF (Trowbridge-Reitz D, separable Smith G, Schlick F) times
     cos_i, (N, 3), for unit normals n, light directions wi and view directions wo (N, 3),

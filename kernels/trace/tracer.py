@@ -53,10 +53,9 @@ from ..shading.sheen import Fabric
 from ..shading.specular_layer import (
     coat_attenuation,
     coat_tables,
-    energy_compensation,
     ggx_highlight,
     layer_f0,
-    lobe_albedo,
+    metal_reflectance,
     metal_tables,
     view_factors,
     view_tables,
@@ -867,19 +866,13 @@ class Tracer:
             cos_o = np.einsum("ij,ij->i", wo, gn)
             # Metals: a tinted mirror (Schlick with F0 = base colour); a rough metal's one ray
             # stands for its lobe, as a rough layer's does (its lamps' highlights: `direct`),
-            # with Schlick's grazing term averaged over the lobe (`schlick_grazing_curve`: a
-            # wide lobe keeps the tint at grazing views).
-            grazing = np.where(smooth, (1.0 - np.clip(np.abs(cos_o), 0.0, 1.0)) ** 5,
-                               view_factors(self.metal_tables, m, cos_o))
-            metal_w = np.where((metallic > 0)[:, None], metallic[:, None] * (
-                f0_metal + (1.0 - f0_metal) * grazing[:, None]), 0.0)
-            if rough_metal.any():
-                # what Cycles' restored multiple scattering keeps of it: E + F_ms (1 - E), less
-                # than all for a coloured metal (each bounce among the facets takes its tint)
-                rows = np.flatnonzero(rough_metal)
-                e, _ = lobe_albedo(cos_o[rows], rough[rows])
-                metal_w[rows] *= e[:, None] * energy_compensation(cos_o[rows], rough[rows],
-                                                                  f0_metal[rows])
+            # with Schlick's grazing term averaged over the lobe (a wide lobe keeps the tint at
+            # grazing views) and the energy multiple scattering keeps (`metal_reflectance`).
+            metal_w = np.zeros((len(m), 3))
+            metal = np.flatnonzero(metallic > 0)
+            metal_w[metal] = metallic[metal, None] * metal_reflectance(
+                self.metal_tables, m[metal], cos_o[metal], f0_metal[metal], rough[metal],
+                smooth[metal])
             # The dielectric specular layer of opaque surfaces reflects its surroundings along
             # the mirror direction with its albedo at this view, what the base lost under it:
             # exact Fresnel at the level-scaled F0 when smooth (`specular_layer.py`). A rough

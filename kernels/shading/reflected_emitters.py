@@ -1,0 +1,153 @@
+"""What glossy lobes show of the emitters along their mirror direction, at a camera's first hit,
+when no glossy bounce is left (`reflected_emitters`).
+
+Cycles lights a glossy lobe directly from every light, the world among them, so a metal or a
+specular layer shows the sky even in a render that bounces no light (the radiosity model's
+glossy bounces 0, the direct model's max bounces 0); a smooth lobe's ray still collects the
+emission it meets before the path ends (PATH_RAY_TERMINATE_AFTER_TRANSPARENT, Cycles'
+path_state.h). The views that draw no reflections of their own (radiosity, shadow maps) add this
+term; the tracer follows mirrors itself.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..geometry.frames import RAY_OFFSET_REL
+from ..geometry.scene import Scene, geometric_normals, triangle_emission
+from . import lights as light_units
+from .glossy_lobe import ggx_reflections, lobe_points
+from .material_maps import albedo_at, emission_at, metal_f0
+from .optics import reflect
+from .specular_layer import (
+    MIRROR_ROUGHNESS,
+    layer_f0,
+    metal_reflectance,
+    metal_tables,
+    view_factors,
+    view_tables,
+)
+from .world_light import world_lit, world_radiance
+
+# Rays across a rough lobe of reflectance 1 (`_lobe_sky`), as the tracer's default lobe_rays.
+LOBE_RAYS = 8
+
+
+def ray_offset(scene: Scene) -> float:
+    """The rays' start off surfaces, m: RAY_OFFSET_REL of the scene's bounding-box diagonal."""
+    flat = scene.triangles.reshape(-1, 3).astype(np.float64)
+    return RAY_OFFSET_REL * float(np.linalg.norm(flat.max(axis=0) - flat.min(axis=0)))
+
+
+def rays_needed(scene: Scene, area_lamps: bool = True) -> bool:
+    """Whether `reflected_emitters` can draw anything in `scene`: a glossy lobe (a specular layer
+    or a metal) and something for it to show (the world, emissive triangles, `area_lamps`)."""
+    glossy = any(m.metallic > 0.0 or (layer_f0(m.ior, m.specular) > 0.0 and m.transmission < 1.0)
+                 for m in scene.materials)
+    lamps = area_lamps and any(light.kind == "AREA" for light in scene.lights)
+    return glossy and (world_lit(scene) or lamps or bool(np.any(triangle_emission(scene) > 0.0)))
+
+
+def reflected_emitters(scene: Scene, tri: np.ndarray, bary: np.ndarray, mids: np.ndarray,
+                       points: np.ndarray, dirs: np.ndarray, geometric: np.ndarray,
+                       normals: np.ndarray, bvh, offset: float, area_lamps: bool = True
+                       ) -> np.ndarray:
+    """(M, 3) radiance W/(m^2 sr) the glossy lobes of surface points send toward a camera from
+    what emits: rays along each point's mirror direction or across its lobe.
+
+    | parameter  | shape / range | unit        | meaning                                        |
+    |------------|---------------|-------------|------------------------------------------------|
+    | tri, bary  | (M,), (M, 3)  |             | the points' triangles and barycentrics         |
+    | mids       | (M,)          |             | their materials (`material_maps.hit_materials`)|
+    | points     | (M, 3)        | m, world    | the points                                     |
+    | dirs       | (M, 3)        | unit        | camera to point                                |
+    | geometric  | (M, 3)        | unit        | face normals on the side the camera sees       |
+    | normals    | (M, 3)        | unit        | shading normals on that side                   |
+    | bvh        | over at least scene.triangles | | the rays' scene (`BVH.intersect`, `occluded`) |
+    | offset     | > 0           | m           | the rays' start off the surface                |
+    | area_lamps | bool, True    |             | smooth lobes see area lamps (False: a model    |
+    |            |               |             | that shrinks them to points, `cycles.direct`)  |
+
+    A rough lobe (roughness at least MIRROR_ROUGHNESS) takes the world's radiance over the lobe
+    where its rays escape (`_lobe_sky`: the sky is a light, sampled directly; lamps are the
+    views' own highlights). A smooth
+    lobe takes what its ray meets first: the world where it escapes, an area lamp, an emissive
+    surface's front (its emission texture read at the hit). Weights: the specular layer's albedo
+    at the view E(mu) (weight (1 - metallic)(1 - transmission)) and a metal's reflectance at the
+    view from its base colour (`specular_layer.metal_reflectance`; weight metallic)."""
+    out = np.zeros((len(tri), 3))
+    mats = scene.materials
+    smooth_m = np.array([m.roughness < MIRROR_ROUGHNESS for m in mats])
+    layer_w = np.array([(1.0 - m.metallic) * (1.0 - m.transmission)
+                        if layer_f0(m.ior, m.specular) > 0.0 else 0.0 for m in mats])
+    metal_w = np.array([m.metallic for m in mats], np.float64)
+    lamps = [light for light in scene.lights if light.kind == "AREA"] if area_lamps else []
+    emissive = bool(np.any(triangle_emission(scene) > 0.0))
+    world = world_lit(scene)
+    sees = np.where(smooth_m, world or bool(lamps) or emissive, world)[mids]
+    rows = np.flatnonzero(((layer_w[mids] > 0.0) | (metal_w[mids] > 0.0)) & sees)
+    if rows.size == 0:
+        return out
+    t, b, d, m = tri[rows], bary[rows], dirs[rows], mids[rows]
+    geometric, normals = geometric[rows], normals[rows]
+    smooth = smooth_m[m]
+    cos = np.einsum("ij,ij->i", normals, d)
+    albedo = 1.0 - view_factors(view_tables(mats), m, cos)
+    weight = np.repeat((layer_w[m] * albedo)[:, None], 3, axis=1)
+    roughness = np.array([mat.roughness for mat in mats], np.float64)[m]
+    metal = np.flatnonzero(metal_w[m] > 0.0)
+    if metal.size:
+        base = metal_f0(scene, t[metal], albedo_at(scene, t[metal], b[metal]))
+        weight[metal] += metal_w[m[metal]][:, None] * metal_reflectance(
+            metal_tables(mats), m[metal], cos[metal], base, roughness[metal], smooth[metal])
+    origins = points[rows] + offset * geometric
+    seen = np.zeros((len(rows), 3))
+    rough_rows = np.flatnonzero(~smooth)
+    if world and rough_rows.size:
+        seen[rough_rows] = _lobe_sky(scene, bvh, origins[rough_rows], -d[rough_rows],
+                                     normals[rough_rows], geometric[rough_rows],
+                                     roughness[rough_rows], weight[rough_rows])
+    r = reflect(d, normals)
+    up = np.einsum("ij,ij->i", r, geometric) > 0.0  # a mirror direction into the surface: none
+    smooth_rows = np.flatnonzero(up & smooth)
+    if smooth_rows.size:
+        hits = bvh.intersect(origins[smooth_rows], r[smooth_rows])
+        missed = hits.tri < 0
+        if world and missed.any():
+            seen[smooth_rows[missed]] = world_radiance(scene, r[smooth_rows[missed]])
+        # an emissive triangle's front (a radiosity gather's BVH may hold sheets' copies past T)
+        own = (hits.tri >= 0) & (hits.tri < scene.triangle_count)
+        if emissive and own.any():
+            k = np.flatnonzero(own)
+            hit = hits.tri[k]
+            front = np.einsum("ij,ij->i", r[smooth_rows[k]],
+                              geometric_normals(scene.triangles[hit])) < 0.0
+            u, v = hits.u[k[front]].astype(np.float64), hits.v[k[front]].astype(np.float64)
+            seen[smooth_rows[k[front]]] += emission_at(scene, hit[front],
+                                                       np.stack([1.0 - u - v, u, v], 1))
+        if lamps:
+            t_hit = np.where(missed, np.inf, hits.t.astype(np.float64))
+            seen[smooth_rows] += light_units.area_lamps_seen(lamps, origins[smooth_rows],
+                                                             r[smooth_rows], t_hit)[0]
+    out[rows] = weight * seen
+    return out
+
+
+def _lobe_sky(scene: Scene, bvh, origins: np.ndarray, wo: np.ndarray, normals: np.ndarray,
+              geometric: np.ndarray, roughness: np.ndarray, weight: np.ndarray) -> np.ndarray:
+    """(N, 3) the world's radiance over rough glossy lobes less what the scene hides of it: the
+    mean over the rays across each lobe that leave the surface (GGX's visible normals,
+    `glossy_lobe.ggx_reflections`, at points hashed from the origins, `lobe_points`), 0 where
+    none does. Rays from origins (N, 3) toward wo (N, 3, unit, to the viewer) about shading
+    normals (N, 3), kept above the geometric ones (N, 3); Blender roughness (N,); a lobe of
+    reflectance `weight` (N, 3) takes ceil(max(weight) x LOBE_RAYS) rays (a faint specular layer
+    one, a bright metal all: the noise left is in proportion to what the lobe shows)."""
+    count = np.clip(np.ceil(weight.max(axis=1) * LOBE_RAYS), 1, LOBE_RAYS).astype(np.int64)
+    which, points = lobe_points(count, origins)
+    dirs = ggx_reflections(normals[which], wo[which], roughness[which], points)
+    above = np.flatnonzero(np.einsum("ij,ij->i", dirs, geometric[which]) > 0.0)
+    clear = above[~bvh.occluded(origins[which[above]], dirs[above])]
+    sky = world_radiance(scene, dirs[clear])
+    total = np.stack([np.bincount(which[clear], sky[:, c], len(origins)) for c in range(3)], 1)
+    leaving = np.bincount(which[above], minlength=len(origins))
+    return total / np.maximum(leaving, 1)[:, None]
