@@ -436,11 +436,13 @@ def back_exitance(gather: FinalGather, tri: np.ndarray, bary: np.ndarray, reflec
         lit = np.flatnonzero(rho.max(axis=1) > 0.0)  # black ones cast no ray, as in `exitance`
         inset, points = _inset_points(scene, t[lit], b[lit])
         front = gather.triangle_normals[t[lit]]
-        normals = -shading_normals(scene, t[lit], inset, front)
+        normals, smooth = shading_normals(scene, t[lit], inset, front)
+        normals = -normals
         h = emitter_irradiance(gather.emitters, points, normals, occluded, gather.offset, rng,
                                lift=-front)
         h += lamp_irradiance(scene, points, normals, occluded, gather.offset,
-                             gather.area_samples_per_side, lift=-front)
+                             gather.area_samples_per_side, lift=-front,
+                             smooth=None if smooth is None else -smooth)
         if gather.settings.world_rays:
             h += back_bounce(gather, points, -front, reflected, rng)
         value = gather.emission[t]
@@ -493,17 +495,23 @@ def _inset_points(scene: Scene, t: np.ndarray, b: np.ndarray) -> tuple[np.ndarra
 
 
 def shading_normals(scene: Scene, tri: np.ndarray, bary: np.ndarray, geometric: np.ndarray
-                    ) -> np.ndarray:
+                    ) -> tuple[np.ndarray, np.ndarray | None]:
     """(M, 3) unit shading normals at receivers (triangles (M,), barycentrics (M, 3)): the
     corner normals interpolated, as Cycles shades a smooth mesh (its DIFFUSE bake weighs light by
     the cosine to this normal, not the facet's), perturbed by the material's Bump or Normal Map
     node as Cycles' bake does (`bump.scene_normals`), turned to the side of the geometric
     normals (M, 3) where they point behind the face (a corner normal can, at a sharp fold). Flat
-    faces' corner normals are their face normal, so nothing changes there."""
-    normals = scene_normals(scene, tri, bary, interpolated_normals(scene, tri, bary, geometric))
+    faces' corner normals are their face normal, so nothing changes there. Also the normals
+    before the perturbation (M, 3), which `lamps.lamp_irradiance` weighs the relief's shadowing
+    by, or None where no receiver's material has relief."""
+    smooth = interpolated_normals(scene, tri, bary, geometric)
+    normals = scene_normals(scene, tri, bary, smooth)
     back = np.einsum("mc,mc->m", normals, geometric) < 0.0
     normals[back] *= -1.0
-    return normals
+    if normals is smooth:
+        return normals, None
+    smooth[np.einsum("mc,mc->m", smooth, geometric) < 0.0] *= -1.0
+    return normals, smooth
 
 
 def _irradiance(gather: FinalGather, t: np.ndarray, b: np.ndarray, known: Visibility | None,
@@ -515,7 +523,7 @@ def _irradiance(gather: FinalGather, t: np.ndarray, b: np.ndarray, known: Visibi
     found = Visibility.unknown(len(t), len(gather.emitters.triangles))
     inset, points = _inset_points(scene, t, b)
     geometric = gather.triangle_normals[t]
-    normals = shading_normals(scene, t, inset, geometric)
+    normals, smooth = shading_normals(scene, t, inset, geometric)
     # Located at the inset point: the one the rays leave from must lie in the patch whose shaft
     # clears it.
     patch, local = patching.locate(gather.patches, t, inset)
@@ -547,7 +555,8 @@ def _irradiance(gather: FinalGather, t: np.ndarray, b: np.ndarray, known: Visibi
     found.emitters[outside] = states
     h[outside] += lamp_irradiance(scene, points[outside], normals[outside], occluded,
                                   gather.offset, gather.area_samples_per_side,
-                                  lift=geometric[outside], strata=shared)
+                                  lift=geometric[outside], strata=shared,
+                                  smooth=None if smooth is None else smooth[outside])
     h[outside] += patching.interpolate(gather.corner_indirect, element[outside], local[outside])
     np.maximum(h, 0.0, out=h)
     return h, found

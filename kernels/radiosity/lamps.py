@@ -8,6 +8,7 @@ import numpy as np
 from ..geometry.camera import Strata, strata_rows
 from ..geometry.scene import Scene
 from ..shading import lights as light_units
+from ..shading.bump import relief_shadowing
 
 # Shadow rays stop this fraction short of a point light (it has no surface to hit).
 LIGHT_END_REL = 1e-6
@@ -15,13 +16,13 @@ LIGHT_END_REL = 1e-6
 
 def shadowed_irradiance(light, points: np.ndarray, normals: np.ndarray, origins: np.ndarray,
                         occluded, area_samples_per_side: int,
-                        strata: Strata | None = None
+                        strata: Strata | None = None, direction_weight=None
                         ) -> tuple[np.ndarray, np.ndarray]:
     """(M, 3) direct irradiance W/m^2 of `light` at points with unit normals, times its visible
     fraction from `origins` (the points lifted off their surface), and that fraction (M,): 1 where
     the light does not reach, casts no shadow, or `occluded` is None (no shadows). strata: as
-    `light_visibility`'s."""
-    e = light_units.direct_irradiance(light, points, normals)
+    `light_visibility`'s; direction_weight: as `lights.direct_irradiance`'s."""
+    e = light_units.direct_irradiance(light, points, normals, direction_weight)
     lit = np.flatnonzero(e.max(axis=1) > 0.0)
     vis = np.ones(len(points))
     if occluded is not None and light.cast_shadow and lit.size:
@@ -110,14 +111,18 @@ def shadowing_lamps(scene: Scene) -> list:
 
 def lamp_irradiance(scene: Scene, points: np.ndarray, normals: np.ndarray, occluded, offset: float,
                     area_samples_per_side: int, lift: np.ndarray | None = None,
-                    strata: Strata | None = None) -> np.ndarray:
+                    strata: Strata | None = None, smooth: np.ndarray | None = None
+                    ) -> np.ndarray:
     """(M, 3) irradiance W/m^2 of the scene's lamps (point, spot, sun, area) with shadow rays, as
     the radiosity first shot computes it for patch points; rays leave along `lift` (M, 3) when
     given (`emitters.emitter_irradiance`); strata: pixels' sub-samples that share out the area
-    lamps' points (`light_visibility`)."""
+    lamps' points (`light_visibility`). smooth (M, 3): the normals before a relief tilted them
+    to `normals`, whose facets then hide part of a low lamp (`bump.bump_shadowing`, as Cycles
+    weighs diffuse light under a Bump or Normal Map)."""
     out = np.zeros((len(points), 3))
     origins = points + offset * (normals if lift is None else lift)
+    weight = None if smooth is None else relief_shadowing(smooth, normals)
     for light in scene.lights:
         out += shadowed_irradiance(light, points, normals, origins, occluded,
-                                   area_samples_per_side, strata)[0]
+                                   area_samples_per_side, strata, weight)[0]
     return out

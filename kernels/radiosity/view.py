@@ -11,10 +11,12 @@ from ..geometry.bvh import BVH
 from ..geometry.scene import Scene, geometric_normals, interpolated_normals, triangle_emission
 from ..progress import Steps
 from ..shading import lights as light_units
+from ..shading.bump import scene_normals
 from ..shading.material_maps import albedo_at, emission_detail, hit_materials, metal_f0
 from ..shading.reflected_emitters import ray_offset, reflected_emitters
 from ..shading.specular_layer import (
     MIRROR_ROUGHNESS,
+    coat_layer,
     lamp_highlights,
     layer_f0,
     view_factors,
@@ -54,6 +56,10 @@ def render_steps(scene: Scene, result: RadiosityResult, resolution=None,
             known = result.gather.opened(np.ones(len(t), bool)) if open_camera else None
             values[front] = _at_view(scene, t, b, mids, f.dirs[front],
                                      result.radiance_at(t, b, known=known))
+            coat = coat_layer(scene.materials, mids,
+                              np.einsum("ij,ij->i", frame[1], f.dirs[front]))
+            if coat is not None:  # what the coat lets through of the base's light
+                values[front] *= coat.under
             values[front] += _lamp_highlights(lit, result, t, b, mids, f.points[front],
                                               f.dirs[front], frame)
             values[front] += reflected_emitters(lit, t, b, mids, f.points[front], f.dirs[front],
@@ -95,10 +101,11 @@ def _at_view(scene: Scene, tri: np.ndarray, bary: np.ndarray, mids: np.ndarray, 
 def _front_frame(scene: Scene, result: RadiosityResult, tri: np.ndarray, bary: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray, object, float]:
     """What the view's highlights need of front-facing surface points (triangles, barycentrics):
-    their face normals (M, 3), interpolated shading normals turned to the face's side (M, 3),
-    the BVH for their rays (the gather's, else built) and the rays' offset off surfaces, m."""
+    their face normals (M, 3), shading normals (interpolated, then bump and normal maps:
+    `bump.scene_normals`) turned to the face's side (M, 3), the BVH for their rays (the
+    gather's, else built) and the rays' offset off surfaces, m."""
     geometric = geometric_normals(scene.triangles[tri])
-    normals = interpolated_normals(scene, tri, bary, geometric)
+    normals = scene_normals(scene, tri, bary, interpolated_normals(scene, tri, bary, geometric))
     normals[np.einsum("ij,ij->i", normals, geometric) < 0.0] *= -1.0
     if result.gather is not None:
         return geometric, normals, result.gather.bvh, result.gather.offset
@@ -115,8 +122,9 @@ def _lamp_highlights(scene: Scene, result: RadiosityResult, tri: np.ndarray, bar
     (`specular_layer.lamp_highlights`), as Cycles lights the glossy lobes directly at the
     camera's first hit. Emissive meshes draw none. frame: `_front_frame` of the points."""
     out = np.zeros((len(tri), 3))
-    shiny = [m.roughness >= MIRROR_ROUGHNESS and (m.metallic > 0.0 or (
-        layer_f0(m.ior, m.specular) > 0.0 and m.transmission < 1.0)) for m in scene.materials]
+    shiny = [(m.roughness >= MIRROR_ROUGHNESS and (m.metallic > 0.0 or (
+        layer_f0(m.ior, m.specular) > 0.0 and m.transmission < 1.0)))
+        or (m.coat > 0.0 and m.coat_roughness >= MIRROR_ROUGHNESS) for m in scene.materials]
     if not scene.lights or not any(shiny) or not len(tri):
         return out
     geometric, normals, bvh, offset = frame

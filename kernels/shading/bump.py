@@ -234,6 +234,22 @@ def valid_reflection(ng: np.ndarray, wo: np.ndarray, n: np.ndarray) -> np.ndarra
     return out
 
 
+def relief_shadowing(smooth: np.ndarray, bumped: np.ndarray):
+    """`bump_shadowing` of points with smooth and bumped unit normals (N, 3) as a function of
+    the unit directions to a light (N, 3) -> (N,): the direction weight
+    `lights.direct_irradiance` takes, evaluated at the tilted points only (an area lamp calls it
+    once per point of its grid)."""
+    tilted = np.flatnonzero(np.einsum("ij,ij->i", smooth, bumped) < 1.0)
+    smooth_t, bumped_t = smooth[tilted], bumped[tilted]
+
+    def weight(to_light: np.ndarray) -> np.ndarray:
+        out = np.ones(len(smooth))
+        out[tilted] = bump_shadowing(smooth_t, bumped_t, to_light[tilted])
+        return out
+
+    return weight
+
+
 def bump_shadowing(smooth: np.ndarray, bumped: np.ndarray, to_light: np.ndarray) -> np.ndarray:
     """(N,) factor in [0, 1] on the diffuse light arriving from unit directions to_light (N, 3)
     at points whose smooth (interpolated, unperturbed) unit normals are smooth (N, 3) and whose

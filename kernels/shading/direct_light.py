@@ -32,10 +32,10 @@ from ..shadow.shadowmap import Receivers, ShadowMap, ShadowMapSettings
 from ..shadow.views import fit_sun, plan_shadow_map, potential_casters
 from . import lights as light_units
 from .alpha import alpha_materials, has_alpha, surface_alpha
-from .bump import scene_normals
+from .bump import relief_shadowing, scene_normals
 from .material_maps import albedo_at, emission_at, hit_materials, metal_f0
 from .reflected_emitters import ray_offset, rays_needed, reflected_emitters
-from .specular_layer import diffuse_factor, lamp_highlights, view_factors, view_tables
+from .specular_layer import coat_layer, diffuse_factor, lamp_highlights, view_factors, view_tables
 
 MIN_MAP = 256  # below this a map cannot place even a coarse shadow edge
 MAX_MAP = 8192  # 256 MiB of float32 depth per face: the memory bound of one map
@@ -181,11 +181,14 @@ def maps_visibility(maps: list, receivers: Receivers, out: np.ndarray) -> np.nda
     return out
 
 
-def irradiance_per_light(scene: Scene, points, normals) -> np.ndarray:
-    """(L, N, 3) unshadowed irradiance of each light at the receivers, W/m^2."""
+def irradiance_per_light(scene: Scene, points, normals, smooth=None) -> np.ndarray:
+    """(L, N, 3) unshadowed irradiance of each light at the receivers, W/m^2. smooth (N, 3):
+    the normals before a relief tilted them to `normals`, whose facets then hide part of a low
+    light from the diffuse base (`bump.bump_shadowing`, as Cycles weighs diffuse light)."""
+    weight = None if smooth is None else relief_shadowing(smooth, normals)
     out = np.zeros((len(scene.lights), len(points), 3))
     for k, light in enumerate(scene.lights):
-        out[k] = light_units.direct_irradiance(light, points, normals)
+        out[k] = light_units.direct_irradiance(light, points, normals, weight)
     return out
 
 
@@ -269,12 +272,17 @@ def _shade(scene: Scene, maps: list, f, receivers: Receivers | None = None,
     BVH, the rays' offset m), what the glossy lobes show of the sky and of emissive surfaces
     (`reflected_emitters`: Cycles' direct model lights them from the world too)."""
     tri, bary, points, d = f.tri, f.bary, f.points, f.dirs
-    normals = scene_normals(scene, tri, bary, interpolated_normals(scene, tri, bary))
+    smooth = interpolated_normals(scene, tri, bary)
+    normals = scene_normals(scene, tri, bary, smooth)
+    relief = normals is not smooth
     normals[np.einsum("ij,ij->i", normals, d) > 0] *= -1
+    if relief:
+        smooth[np.einsum("ij,ij->i", smooth, d) > 0] *= -1
     if receivers is None:
         receivers = _seen_receivers(f)
     vis = maps_visibility(maps, receivers, np.ones((len(scene.lights), len(points)), np.float32))
-    e = irradiance_per_light(scene, points, normals)
+    e = irradiance_per_light(scene, points, normals)  # the lobes' (no relief shadowing)
+    e_diffuse = irradiance_per_light(scene, points, normals, smooth) if relief else e
     # What reflects diffusely toward the eye: no metal or glass, and the base under the specular
     # layer darkened at this view (`specular_layer.py`), as Cycles' diffuse lobe.
     mids = hit_materials(scene, tri, bary, scene.material_ids[tri])  # metallic / roughness maps
@@ -296,7 +304,10 @@ def _shade(scene: Scene, maps: list, f, receivers: Receivers | None = None,
         geometric = np.where(f.back[:, None], -f.geometric, f.geometric)
         shine += reflected_emitters(scene, tri, bary, mids, points, d, geometric, normals,
                                     *mirror, area_lamps=False)
-    return emission + albedo / np.pi * np.einsum("lnc,ln->nc", e, vis) + shine
+    diffuse = emission + albedo / np.pi * np.einsum("lnc,ln->nc", e_diffuse, vis)
+    coat = coat_layer(scene.materials, mids, np.einsum("ij,ij->i", normals, d))
+    # what a coat lets through of the base's light (its own and the lobes' are in `shine`)
+    return (diffuse if coat is None else diffuse * coat.under) + shine
 
 
 # --- baking the shadow mask -----------------------------------------------------------------------

@@ -11,6 +11,8 @@ term; the tracer follows mirrors itself.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from ..geometry.frames import RAY_OFFSET_REL
@@ -21,6 +23,7 @@ from .material_maps import albedo_at, emission_at, metal_f0
 from .optics import reflect
 from .specular_layer import (
     MIRROR_ROUGHNESS,
+    coat_layer,
     layer_f0,
     metal_reflectance,
     metal_tables,
@@ -74,50 +77,98 @@ def reflected_emitters(scene: Scene, tri: np.ndarray, bary: np.ndarray, mids: np
     lobe takes what its ray meets first: the world where it escapes, an area lamp, an emissive
     surface's front (its emission texture read at the hit). Weights: the specular layer's albedo
     at the view E(mu) (weight (1 - metallic)(1 - transmission)) and a metal's reflectance at the
-    view from its base colour (`specular_layer.metal_reflectance`; weight metallic)."""
+    view from its base colour (`specular_layer.metal_reflectance`; weight metallic), both times
+    what a coat leaves them; a coat's own (`specular_layer.coat_layer`: weight x its albedo at
+    the view), smooth or rough by its own roughness."""
     out = np.zeros((len(tri), 3))
     mats = scene.materials
-    smooth_m = np.array([m.roughness < MIRROR_ROUGHNESS for m in mats])
-    layer_w = np.array([(1.0 - m.metallic) * (1.0 - m.transmission)
-                        if layer_f0(m.ior, m.specular) > 0.0 else 0.0 for m in mats])
-    metal_w = np.array([m.metallic for m in mats], np.float64)
     lamps = [light for light in scene.lights if light.kind == "AREA"] if area_lamps else []
     emissive = bool(np.any(triangle_emission(scene) > 0.0))
     world = world_lit(scene)
-    sees = np.where(smooth_m, world or bool(lamps) or emissive, world)[mids]
-    rows = np.flatnonzero(((layer_w[mids] > 0.0) | (metal_w[mids] > 0.0)) & sees)
-    if rows.size == 0:
+    shown = _Shown(scene, bvh, points + offset * geometric, dirs, normals, geometric, world,
+                   lamps, emissive)
+    cos = np.einsum("ij,ij->i", normals, dirs)
+    coat = coat_layer(mats, mids, cos)
+    # The specular layer and the metal, under the coat if any.
+    roughness_m = np.array([m.roughness for m in mats], np.float64)
+    smooth_m = roughness_m < MIRROR_ROUGHNESS
+    layer_w = np.array([(1.0 - m.metallic) * (1.0 - m.transmission)
+                        if layer_f0(m.ior, m.specular) > 0.0 else 0.0 for m in mats])
+    metal_w = np.array([m.metallic for m in mats], np.float64)
+    rows = np.flatnonzero(((layer_w[mids] > 0.0) | (metal_w[mids] > 0.0))
+                          & shown.sees(smooth_m[mids]))
+    if rows.size:
+        m = mids[rows]
+        weight = np.repeat((layer_w[m] * (1.0 - view_factors(view_tables(mats), m, cos[rows]))
+                            )[:, None], 3, axis=1)
+        metal = np.flatnonzero(metal_w[m] > 0.0)
+        if metal.size:
+            t, b = tri[rows[metal]], bary[rows[metal]]
+            weight[metal] += metal_w[m[metal]][:, None] * metal_reflectance(
+                metal_tables(mats), m[metal], cos[rows[metal]], metal_f0(scene, t, albedo_at(
+                    scene, t, b)), roughness_m[m[metal]], smooth_m[m[metal]])
+        if coat is not None:
+            weight *= coat.under[rows]
+        out[rows] = weight * shown.at(rows, smooth_m[m], roughness_m[m], weight)
+    if coat is None:
         return out
-    t, b, d, m = tri[rows], bary[rows], dirs[rows], mids[rows]
-    geometric, normals = geometric[rows], normals[rows]
-    smooth = smooth_m[m]
-    cos = np.einsum("ij,ij->i", normals, d)
-    albedo = 1.0 - view_factors(view_tables(mats), m, cos)
-    weight = np.repeat((layer_w[m] * albedo)[:, None], 3, axis=1)
-    roughness = np.array([mat.roughness for mat in mats], np.float64)[m]
-    metal = np.flatnonzero(metal_w[m] > 0.0)
-    if metal.size:
-        base = metal_f0(scene, t[metal], albedo_at(scene, t[metal], b[metal]))
-        weight[metal] += metal_w[m[metal]][:, None] * metal_reflectance(
-            metal_tables(mats), m[metal], cos[metal], base, roughness[metal], smooth[metal])
-    origins = points[rows] + offset * geometric
-    seen = np.zeros((len(rows), 3))
-    rough_rows = np.flatnonzero(~smooth)
-    if world and rough_rows.size:
-        seen[rough_rows] = _lobe_sky(scene, bvh, origins[rough_rows], -d[rough_rows],
-                                     normals[rough_rows], geometric[rough_rows],
-                                     roughness[rough_rows], weight[rough_rows])
-    r = reflect(d, normals)
-    up = np.einsum("ij,ij->i", r, geometric) > 0.0  # a mirror direction into the surface: none
-    smooth_rows = np.flatnonzero(up & smooth)
-    if smooth_rows.size:
-        hits = bvh.intersect(origins[smooth_rows], r[smooth_rows])
+    # The coat's own reflection, of its roughness.
+    coat_rough = np.array([m.coat_roughness for m in mats], np.float64)[mids]
+    smooth = coat_rough < MIRROR_ROUGHNESS
+    rows = np.flatnonzero((coat.albedo > 0.0) & shown.sees(smooth))
+    if rows.size:
+        weight = np.repeat(coat.albedo[rows, None], 3, axis=1)
+        out[rows] += weight * shown.at(rows, smooth[rows], coat_rough[rows], weight)
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class _Shown:
+    """What glossy lobes of points (origins (M, 3) already off their surfaces, camera directions
+    (M, 3), shading and geometric normals (M, 3) on the seen side) find along their rays: the
+    world (where `world` lights), area `lamps`, emissive surfaces (`emissive`)."""
+
+    scene: Scene
+    bvh: object
+    origins: np.ndarray
+    dirs: np.ndarray
+    normals: np.ndarray
+    geometric: np.ndarray
+    world: bool
+    lamps: list
+    emissive: bool
+
+    def sees(self, smooth: np.ndarray) -> np.ndarray:
+        """(K,) bool: lobes, smooth or not (K,), that can find anything."""
+        return np.where(smooth, self.world or bool(self.lamps) or self.emissive, self.world)
+
+    def at(self, rows: np.ndarray, smooth: np.ndarray, roughness: np.ndarray, weight: np.ndarray
+           ) -> np.ndarray:
+        """(K, 3) radiance W/(m^2 sr) the lobes of points `rows` (K,), smooth (K,) bool, of
+        Blender roughness (K,) and reflectance `weight` (K, 3), find: a rough one the sky over
+        its lobe (`_lobe_sky`); a smooth one what its mirror ray meets first (the world where it
+        escapes, an area lamp, an emissive surface's front, its emission texture read at the
+        hit)."""
+        scene, origins, d = self.scene, self.origins[rows], self.dirs[rows]
+        normals, geometric = self.normals[rows], self.geometric[rows]
+        seen = np.zeros((len(rows), 3))
+        rough_rows = np.flatnonzero(~smooth)
+        if self.world and rough_rows.size:
+            seen[rough_rows] = _lobe_sky(scene, self.bvh, origins[rough_rows], -d[rough_rows],
+                                         normals[rough_rows], geometric[rough_rows],
+                                         roughness[rough_rows], weight[rough_rows])
+        r = reflect(d, normals)
+        up = np.einsum("ij,ij->i", r, geometric) > 0.0  # a mirror direction into the surface: none
+        smooth_rows = np.flatnonzero(up & smooth)
+        if smooth_rows.size == 0:
+            return seen
+        hits = self.bvh.intersect(origins[smooth_rows], r[smooth_rows])
         missed = hits.tri < 0
-        if world and missed.any():
+        if self.world and missed.any():
             seen[smooth_rows[missed]] = world_radiance(scene, r[smooth_rows[missed]])
         # an emissive triangle's front (a radiosity gather's BVH may hold sheets' copies past T)
         own = (hits.tri >= 0) & (hits.tri < scene.triangle_count)
-        if emissive and own.any():
+        if self.emissive and own.any():
             k = np.flatnonzero(own)
             hit = hits.tri[k]
             front = np.einsum("ij,ij->i", r[smooth_rows[k]],
@@ -125,12 +176,11 @@ def reflected_emitters(scene: Scene, tri: np.ndarray, bary: np.ndarray, mids: np
             u, v = hits.u[k[front]].astype(np.float64), hits.v[k[front]].astype(np.float64)
             seen[smooth_rows[k[front]]] += emission_at(scene, hit[front],
                                                        np.stack([1.0 - u - v, u, v], 1))
-        if lamps:
+        if self.lamps:
             t_hit = np.where(missed, np.inf, hits.t.astype(np.float64))
-            seen[smooth_rows] += light_units.area_lamps_seen(lamps, origins[smooth_rows],
+            seen[smooth_rows] += light_units.area_lamps_seen(self.lamps, origins[smooth_rows],
                                                              r[smooth_rows], t_hit)[0]
-    out[rows] = weight * seen
-    return out
+        return seen
 
 
 def _lobe_sky(scene: Scene, bvh, origins: np.ndarray, wo: np.ndarray, normals: np.ndarray,

@@ -32,6 +32,7 @@ integral over the unit square whose integrand is smooth at every roughness, 0 in
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
@@ -244,7 +245,9 @@ def lamp_highlights(materials, material: np.ndarray, normals: np.ndarray, wo: np
     eye wo and to the lamp (N, 3), and the lamp's irradiance there (N, 3, cosine included).
     Lobes of roughness >= MIRROR_ROUGHNESS: the specular layer over a dielectric base (F0 from
     the IOR and level, weight (1 - metallic)(1 - transmission)) and a metal's (F0 the base colour,
-    `base` (N, 3) where textures set it, weight metallic); glass lobes are not drawn."""
+    `base` (N, 3) where textures set it, weight metallic), and a coat's over both (F0 from its
+    IOR, its own roughness, weight coat), which leaves the two under it what it lets through
+    (`coat_layer`); glass lobes are not drawn."""
     rough = np.array([m.roughness for m in materials], np.float64)[material]
     glossy = np.array([m.roughness >= MIRROR_ROUGHNESS for m in materials])[material]
     layer_w = np.array([(1.0 - m.metallic) * (1.0 - m.transmission) for m in materials])[material]
@@ -253,15 +256,50 @@ def lamp_highlights(materials, material: np.ndarray, normals: np.ndarray, wo: np
     if base is None:
         base = np.array([m.base_color for m in materials], np.float64).reshape(-1, 3)[material]
     out = np.zeros((len(material), 3))
-    lobes = ((layer_w * (layer_f > 0.0), np.repeat(layer_f[:, None], 3, axis=1)),
-             (metal_w, np.asarray(base, np.float64)))
-    for weight, f0 in lobes:
-        rows = np.flatnonzero(glossy & (weight > 0.0))
+    lobes = [(glossy, layer_w * (layer_f > 0.0), np.repeat(layer_f[:, None], 3, axis=1), rough),
+             (glossy, metal_w, np.asarray(base, np.float64), rough)]
+    coat = coat_layer(materials, material, np.einsum("ij,ij->i", normals, wo))
+    if coat is not None:
+        coat_rough = np.array([m.coat_roughness for m in materials], np.float64)[material]
+        coat_f = np.array([layer_f0(m.coat_ior, 0.5) for m in materials])[material]
+        lobes.append((coat_rough >= MIRROR_ROUGHNESS, coat.weight,
+                      np.repeat(coat_f[:, None], 3, axis=1), coat_rough))
+    for k, (lit, weight, f0, roughness) in enumerate(lobes):
+        rows = np.flatnonzero(lit & (weight > 0.0))
         if rows.size:
             cos_i = np.einsum("ij,ij->i", normals[rows], to_light[rows])
-            brdf = ggx_highlight(normals[rows], to_light[rows], wo[rows], rough[rows], f0[rows])
+            brdf = ggx_highlight(normals[rows], to_light[rows], wo[rows], roughness[rows],
+                                 f0[rows])
+            if coat is not None and k < 2:  # the layers under the coat
+                brdf = brdf * coat.under[rows]
             out[rows] += (weight[rows] / np.maximum(cos_i, 1e-6))[:, None] * brdf * irradiance[rows]
     return out
+
+
+@dataclass(frozen=True, eq=False)
+class CoatLayer:
+    """The Principled coat of N surface points seen at some view.
+
+    weight (N,)    the coat's weight (0 where a material has none)
+    under  (N, 3)  what it leaves of the light of the layers under it (`coat_attenuation`)
+    albedo (N,)    weight x its albedo E at the view: the share it reflects itself
+    """
+
+    weight: np.ndarray
+    under: np.ndarray
+    albedo: np.ndarray
+
+
+def coat_layer(materials, material: np.ndarray, mu: np.ndarray) -> CoatLayer | None:
+    """The coat of surfaces of `material` (N,) (rows of `materials`) seen at cos = mu (N,), or
+    None when no material has one (`CoatLayer`)."""
+    if not any(m.coat > 0.0 for m in materials):
+        return None
+    weight = np.array([m.coat for m in materials], np.float64)[material]
+    tint = np.array([m.coat_tint for m in materials], np.float64).reshape(-1, 3)[material]
+    ior = np.array([m.coat_ior for m in materials], np.float64)[material]
+    e = np.where(weight > 0.0, 1.0 - view_factors(coat_tables(materials), material, mu), 0.0)
+    return CoatLayer(weight, coat_attenuation(weight, e, tint, ior, mu), weight * e)
 
 
 @lru_cache(maxsize=64)

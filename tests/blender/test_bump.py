@@ -9,6 +9,7 @@ from pathlib import Path
 
 import bpy
 import numpy as np
+from blender_parts import tilted_tiles
 
 from classic_bake.addon import bridge
 from classic_bake.kernels.measure.exr import read_exr
@@ -100,22 +101,6 @@ def test_bump_node_settings_reach_the_kernel(open_sample):
     assert any("chained" in why for why in mat.ignored)
 
 
-def _tilted_tiles(size: int = 128, tilts=(0.5, -0.3)):
-    """A Non-Color tangent-space normal map of tiles tilted `tilts` rad (two, alternating),
-    along u or v."""
-    i, j = np.mgrid[0:size, 0:size]
-    angle = np.where(((i // 16) + (j // 16)) % 2 == 0, *tilts)
-    along_u = (j // 32) % 2 == 0
-    nx, ny = np.sin(angle) * along_u, np.sin(angle) * ~along_u
-    pixels = np.ones((size, size, 4), np.float32)
-    pixels[..., 0], pixels[..., 1] = 0.5 + 0.5 * nx, 0.5 + 0.5 * ny
-    pixels[..., 2] = 0.5 + 0.5 * np.sqrt(1 - nx**2 - ny**2)
-    image = bpy.data.images.new("Tiles", size, size, float_buffer=True)
-    image.colorspace_settings.name = "Non-Color"
-    image.pixels.foreach_set(pixels[::-1].ravel())  # Blender's rows run bottom-up
-    return image
-
-
 def test_normal_map_nodes_match_cycles(open_sample):
     """bump.blend with its Bump nodes replaced by a tangent-space Normal Map of tilted tiles (x
     along u, y along v; Non-Color): the kernel's normal-mapped view against Cycles (`whitted`,
@@ -127,7 +112,7 @@ def test_normal_map_nodes_match_cycles(open_sample):
     from classic_bake.kernels.trace.tracer import trace
 
     open_sample("bump")
-    image = _tilted_tiles()
+    image = tilted_tiles()
     for name in ("Bricks", "OrangePeel"):
         tree = bpy.data.materials[name].node_tree
         for node in [n for n in tree.nodes if n.type == "BUMP"]:
@@ -173,7 +158,7 @@ def test_steep_normal_maps_reflect_about_a_valid_normal_as_cycles_does():
     bsdf.inputs["Roughness"].default_value = 0.25
     tree = mat.node_tree
     tex = tree.nodes.new("ShaderNodeTexImage")
-    tex.image = _tilted_tiles(tilts=(1.0, -0.9))
+    tex.image = tilted_tiles(tilts=(1.0, -0.9))
     normal_map = tree.nodes.new("ShaderNodeNormalMap")
     tree.links.new(tex.outputs["Color"], normal_map.inputs["Color"])
     tree.links.new(normal_map.outputs["Normal"], bsdf.inputs["Normal"])
@@ -215,7 +200,7 @@ def test_a_bump_on_a_normal_map_matches_cycles(open_sample):
     from classic_bake.kernels.trace.tracer import trace
 
     open_sample("bump")
-    image = _tilted_tiles()
+    image = tilted_tiles()
     names = ("Bricks", "OrangePeel")
     for name in names:
         tree = bpy.data.materials[name].node_tree

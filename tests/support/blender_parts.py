@@ -130,3 +130,21 @@ def hdri_world(pixels, strength=1.0):
     background.inputs["Strength"].default_value = strength
     tree.links.new(env.outputs["Color"], background.inputs["Color"])
     return scene
+
+
+def tilted_tiles(size: int = 128, tilts=(0.5, -0.3)):
+    """A Non-Color tangent-space normal map of tiles tilted `tilts` rad (two, alternating),
+    along u or v."""
+    import numpy as np
+
+    i, j = np.mgrid[0:size, 0:size]
+    angle = np.where(((i // 16) + (j // 16)) % 2 == 0, *tilts)
+    along_u = (j // 32) % 2 == 0
+    nx, ny = np.sin(angle) * along_u, np.sin(angle) * ~along_u
+    pixels = np.ones((size, size, 4), np.float32)
+    pixels[..., 0], pixels[..., 1] = 0.5 + 0.5 * nx, 0.5 + 0.5 * ny
+    pixels[..., 2] = 0.5 + 0.5 * np.sqrt(1 - nx**2 - ny**2)
+    image = bpy.data.images.new("Tiles", size, size, float_buffer=True)
+    image.colorspace_settings.name = "Non-Color"
+    image.pixels.foreach_set(pixels[::-1].ravel())  # Blender's rows run bottom-up
+    return image
