@@ -38,6 +38,7 @@ from ..bake.camera_view import edge_pixels, pixel_patterns
 from ..geometry.bvh import BVH
 from ..geometry.scene import Scene, triangle_areas, triangle_emission
 from ..progress import Steps, drain, scaled
+from ..shading.material_maps import emission_at
 from ..trace.settings import TraceResult, TracerSettings
 from ..trace.tracer import Tracer, trace_steps
 from .cubemap import (  # noqa: F401 (sample_bordered, bordered_directions re-exported)
@@ -490,12 +491,14 @@ def seen_emission(scene: Scene, bvh: BVH, centre: np.ndarray, size: int,
     """(F, S, S, 3) float32: the emitted radiance of what each texel centre's ray from `centre`
     meets in `bvh` (0 for the world) on the cube faces `faces` (all six by default), or None when
     no triangle glows."""
-    glow = triangle_emission(scene)
-    if not np.any(glow > 0.0):
+    if not np.any(triangle_emission(scene) > 0.0):
         return None
     dirs = texel_directions(size)[list(faces)].reshape(-1, 3)
     hits = bvh.intersect(np.broadcast_to(centre, dirs.shape).copy(), dirs)
-    out = np.where((hits.tri >= 0)[:, None], glow[np.maximum(hits.tri, 0)], 0.0)
+    out = np.zeros((len(dirs), 3))
+    hit = np.flatnonzero(hits.tri >= 0)
+    u, v = hits.u[hit].astype(np.float64), hits.v[hit].astype(np.float64)
+    out[hit] = emission_at(scene, hits.tri[hit], np.stack([1.0 - u - v, u, v], 1))
     return out.reshape(len(faces), size, size, 3).astype(np.float32)
 
 
