@@ -33,7 +33,7 @@ class UnwrapCrash(ValueError):
 
 
 # xatlas flattens each chart as a whole, in time that grows much faster than the chart's size: a
-# smooth 62.5k-triangle sphere grown into 6 charts took 26 s a pass (two passes per unwrap), a
+# smooth 62.5k-triangle sphere grown into 6 charts took 26 s a pass (one charting pass per unwrap), a
 # gently rolling 20k-triangle terrain as one chart 42 s. Meshes of more triangles than this get
 # charts of at most (their area x this / their triangle count), about this many triangles each:
 # 49 charts and 2.5 s a pass on that sphere, 19 charts and 1 s on that terrain; flat regions stay
@@ -217,31 +217,38 @@ def _unwrap(positions: np.ndarray, triangles: np.ndarray, settings: LightmapUVSe
             f"{settings.padding} texels of padding; raise the resolution or lower the padding"
         )
 
-    atlas = fitted(lambda a: a.add_mesh(positions, triangles))
+    # Chart once; every packing after that (the density fit, polygons made whole) packs the
+    # charts as a UV mesh, which xatlas does not chart or flatten again: 0.1 s a packing against
+    # 5 s a full pass on a 63k-triangle subdivided head.
+    charted = generate(lambda a: a.add_mesh(positions, triangles), 0.0)
+    if charted.chart_count == 0 or max(charted.width, charted.height) == 0:
+        return no_charts  # every triangle has zero area: nothing to chart
+    corner_uv, chart_ids = _corners(charted)
+    degenerate = chart_ids < 0
+    # In m (atlas texels / density): the charts' own scale, for packing them again.
+    metres = (corner_uv * np.array([charted.width, charted.height]) / charted.texels_per_unit
+              ).astype(np.float64)
+    polygons = None if polygons is None else np.asarray(polygons, np.int64)
+    whole = polygons is not None and _moved(positions, triangles, polygons, chart_ids)[0].any()
+    if whole:
+        metres = _polygons_whole(positions, triangles, polygons, chart_ids, metres)
+    # Corners of one vertex at one UV are one vertex of the UV mesh: its islands are the charts
+    # again (whole polygons where they were cut).
+    key = np.concatenate([triangles.reshape(-1, 1).astype(np.float64), metres.reshape(-1, 2)],
+                         axis=1)
+    _, shared = np.unique(key, axis=0, return_inverse=True)
+    island_uv = np.zeros((int(shared.max()) + 1, 2), np.float32)
+    island_uv[shared.ravel()] = metres.reshape(-1, 2)
+    island_tris = np.ascontiguousarray(shared.reshape(-1, 3), np.uint32)
+    atlas = fitted(lambda a: a.add_uv_mesh(island_uv, island_tris))
     if atlas is None:
         return no_charts
     corner_uv, chart_ids = _corners(atlas)
-    polygons = None if polygons is None else np.asarray(polygons, np.int64)
-    if polygons is not None and _moved(positions, triangles, polygons, chart_ids)[0].any():
-        # In m (atlas texels / density): the charts' own scale, for packing them again.
-        metres = corner_uv * np.array([atlas.width, atlas.height]) / atlas.texels_per_unit
-        whole = _polygons_whole(positions, triangles, polygons, chart_ids, metres)
-        # Corners of one vertex at one UV are one vertex of the UV mesh: its islands are the
-        # charts again, now whole polygons.
-        key = np.concatenate([triangles.reshape(-1, 1).astype(np.float64),
-                              whole.reshape(-1, 2)], axis=1)
-        _, shared = np.unique(key, axis=0, return_inverse=True)
-        island_uv = np.zeros((int(shared.max()) + 1, 2), np.float32)
-        island_uv[shared] = whole.reshape(-1, 2)
-        island_tris = np.ascontiguousarray(shared.reshape(-1, 3), np.uint32)
-        atlas = fitted(lambda a: a.add_uv_mesh(island_uv, island_tris))
-        if atlas is None:
-            return no_charts
-        degenerate = chart_ids < 0
-        corner_uv, chart_ids = _corners(atlas)
-        # xatlas packs a zero-area UV triangle's lone corner anywhere: unfolded again onto the
-        # packed edge it shares (zero area in UV too, no texel), it keeps chart -1.
-        chart_ids[degenerate] = -1
+    # xatlas packs a zero-area UV triangle's lone corner anywhere: back at (0, 0), or unfolded
+    # again onto the packed edge it shares (zero area in UV too, no texel); chart -1 either way.
+    chart_ids[degenerate] = -1
+    corner_uv[degenerate] = 0.0
+    if whole:
         corner_uv = _polygons_whole(positions, triangles, polygons, chart_ids,
                                     corner_uv).astype(np.float32)
     return LightmapUV(corner_uv, chart_ids, int(atlas.chart_count), float(atlas.utilization))

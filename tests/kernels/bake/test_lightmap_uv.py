@@ -265,3 +265,34 @@ def test_large_curved_meshes_get_charts_of_bounded_size_and_flat_ones_stay_whole
     assert flat.chart_count == 1
     small = unwrap(*_terrain(30, 0.15), LightmapUVSettings(resolution=256))  # under the bound
     assert small.chart_count <= 2
+
+
+def test_a_mesh_is_charted_once_and_packed_as_charts_after(monkeypatch):
+    """The density fit packs again and again: xatlas charts and flattens the mesh in the first
+    pass only (add_mesh once); every later pass packs those charts as a UV mesh (add_uv_mesh),
+    and what comes out is a valid atlas of the same charts."""
+    import xatlas
+
+    calls = {"mesh": 0, "uv": 0}
+
+    class Counted(xatlas.Atlas):
+        def add_mesh(self, *args, **kwargs):
+            calls["mesh"] += 1
+            return super().add_mesh(*args, **kwargs)
+
+        def add_uv_mesh(self, *args, **kwargs):
+            calls["uv"] += 1
+            return super().add_uv_mesh(*args, **kwargs)
+
+    monkeypatch.setattr(xatlas, "Atlas", Counted)
+    pos, tris = terrain(40)
+    result = unwrap(pos, tris, LightmapUVSettings(resolution=128, padding=2))
+    assert calls["mesh"] == 1 and calls["uv"] >= 2  # the estimate, then at least one fit
+    assert result.chart_count > 0 and (result.chart_ids >= 0).all()
+    assert 0.0 <= result.corner_uv.min() and result.corner_uv.max() <= 1.0
+    # No two charts share a texel (at the packing's padding).
+    owner = np.full((128, 128), -1)
+    for chart in range(result.chart_count):
+        mask = footprint(result.corner_uv[result.chart_ids == chart], 128)
+        assert not (mask & (owner >= 0)).any()
+        owner[mask] = chart
