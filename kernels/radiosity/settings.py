@@ -103,7 +103,9 @@ class RadiositySettings:
     |                             |                     |          | its share of open sky, lit |
     |                             |                     |          | by the world colour        |
     |                             |                     |          | (world_light.py; 0: the    |
-    |                             |                     |          | world lights no surface)   |
+    |                             |                     |          | world lights no surface;   |
+    |                             |                     |          | fewer past a budget:       |
+    |                             |                     |          | sources.WORLD_RAY_BUDGET)  |
     | seed                        | int                 | 0        | RNG seed of the estimators |
     | clusters                    | bool                | True     | auto may solve the patches |
     |                             |                     |          | of finely tessellated      |

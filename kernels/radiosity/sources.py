@@ -181,16 +181,36 @@ def with_world_suns(scene: Scene) -> Scene:
     return replace(scene, lights=tuple(scene.lights) + suns, world_texture=residual)
 
 
+# A dense mesh's patches are small, their share of open sky changes little from one to the next,
+# and the final gather reads it at the patches' corners, averaged over the patches around them:
+# past this many sky rays in all, each patch takes fewer (`world_rays_per_patch`). On a
+# subdivided head of 68k patches under a white world, 8 rays a patch gave the view's relMSE
+# against Cycles of 64 (2.61e-3 and 2.63e-3) in 114 s instead of 189 s.
+WORLD_RAY_BUDGET = 64 * 8192
+# Fewest sky rays a patch takes under the budget.
+MIN_WORLD_RAYS = 8
+
+
+def world_rays_per_patch(settings: RadiositySettings, patches: int) -> int:
+    """Sky rays each of `patches` patches takes: `world_rays`, fewer (not under MIN_WORLD_RAYS)
+    where that would pass WORLD_RAY_BUDGET rays in all; 0 with `world_rays` 0."""
+    if settings.world_rays == 0:
+        return 0
+    return min(settings.world_rays, max(MIN_WORLD_RAYS, WORLD_RAY_BUDGET // max(patches, 1)))
+
+
 def world_shot(scene: Scene, patches: patching.Patches, bvh, settings: RadiositySettings,
                scale: float) -> np.ndarray:
     """(N, 3) W/m^2: the world's irradiance on every patch, pi L_w times its share of open sky
-    (`world_light.py`, `world_rays` rays each). The solver carries it as it carries the first
-    shot, but the final gather counts it as indirect light, so it stays out of `direct`. Zero
-    for a black world or `world_rays` 0. bvh: `kernels.geometry.bvh.BVH` over the scene's triangles."""
+    (`world_light.py`, `world_rays_per_patch` rays each). The solver carries it as it carries
+    the first shot, but the final gather counts it as indirect light, so it stays out of
+    `direct`. Zero for a black world or `world_rays` 0. bvh: `kernels.geometry.bvh.BVH` over the
+    scene's triangles."""
     if not world_lit(scene):
         return np.zeros((len(patches), 3))
     return world_irradiance(world_source(scene), patches.corners, patches.normals,
-                            patches.parent, bvh.occluded, scale, settings.world_rays,
+                            patches.parent, bvh.occluded, scale,
+                            world_rays_per_patch(settings, len(patches)),
                             np.random.default_rng(settings.seed + 3))
 
 

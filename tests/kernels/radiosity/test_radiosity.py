@@ -44,7 +44,13 @@ from classic_bake.kernels.radiosity.planning import (
 from classic_bake.kernels.radiosity.refine import refine_splits
 from classic_bake.kernels.radiosity.settings import RadiositySettings
 from classic_bake.kernels.radiosity.solve import solve_radiosity
-from classic_bake.kernels.radiosity.sources import first_shot, shadow_edges
+from classic_bake.kernels.radiosity.sources import (
+    MIN_WORLD_RAYS,
+    WORLD_RAY_BUDGET,
+    first_shot,
+    shadow_edges,
+    world_rays_per_patch,
+)
 from classic_bake.kernels.radiosity.view import render_steps
 from classic_bake.kernels.shading.lights import direct_irradiance
 from classic_bake.kernels.shading.specular_layer import albedo_curve, diffuse_factor
@@ -844,3 +850,17 @@ def test_the_quick_pair_test_runs_on_small_scenes_only():
         result = solve_radiosity(scene, settings)
         assert (result.stats["memory_estimate"]["quick_test"] > 0) is quick
         np.testing.assert_allclose(result.radiosity, np.pi / 0.7, rtol=0.02)
+
+
+def test_a_dense_mesh_patches_share_a_budget_of_sky_rays():
+    """Up to WORLD_RAY_BUDGET sky rays in all each patch takes `world_rays`; past it fewer, not
+    under MIN_WORLD_RAYS; none when the setting is 0."""
+    settings = RadiositySettings()
+    assert world_rays_per_patch(settings, 1000) == settings.world_rays
+    assert world_rays_per_patch(settings, WORLD_RAY_BUDGET // settings.world_rays) == \
+        settings.world_rays
+    assert world_rays_per_patch(settings, 4 * WORLD_RAY_BUDGET // settings.world_rays) == \
+        settings.world_rays // 4
+    assert world_rays_per_patch(settings, 10 ** 7) == MIN_WORLD_RAYS
+    assert world_rays_per_patch(replace(settings, world_rays=0), 10) == 0
+    assert world_rays_per_patch(replace(settings, world_rays=4), 10 ** 7) == 4  # never more
