@@ -9,7 +9,7 @@ from pathlib import Path
 
 import bpy
 import numpy as np
-from blender_parts import tilted_tiles
+from blender_parts import tiles_for_bumps, tilted_tiles
 
 from classic_bake.addon import bridge
 from classic_bake.kernels.measure.exr import read_exr
@@ -112,17 +112,7 @@ def test_normal_map_nodes_match_cycles(open_sample):
     from classic_bake.kernels.trace.tracer import trace
 
     open_sample("bump")
-    image = tilted_tiles()
-    for name in ("Bricks", "OrangePeel"):
-        tree = bpy.data.materials[name].node_tree
-        for node in [n for n in tree.nodes if n.type == "BUMP"]:
-            tree.nodes.remove(node)
-        tex = tree.nodes.new("ShaderNodeTexImage")
-        tex.image = image
-        normal_map = tree.nodes.new("ShaderNodeNormalMap")
-        tree.links.new(tex.outputs["Color"], normal_map.inputs["Color"])
-        bsdf = next(n for n in tree.nodes if n.type == "BSDF_PRINCIPLED")
-        tree.links.new(normal_map.outputs["Normal"], bsdf.inputs["Normal"])
+    tiles_for_bumps(("Bricks", "OrangePeel"))
     resolution = (80, 60)
     snap = bridge.snapshot(resolution=resolution)
     assert all(m.normal_texture is not None for m in snap.materials if m.name in ("Bricks",

@@ -99,6 +99,21 @@ def _painted_image(name: str, colour_of, colorspace: str):
     return image
 
 
+def _view_error(technique: str):
+    """(snapshot, relMSE) of the scene's radiosity or shadow-map view at RESOLUTION against a
+    256-sample Cycles render of the technique's model."""
+    snap = bridge.snapshot(resolution=RESOLUTION)
+    if technique == "radiosity":
+        ours = drain(render_steps(snap, solve_radiosity(snap, RadiositySettings()), RESOLUTION))
+        model = cr.radiosity(world_lighting=True)
+    else:
+        ours = drain(direct_light.render_steps(snap, direct_light.DirectLightSettings(),
+                                               RESOLUTION))
+        model = cr.direct()
+    theirs, _ = cr.render_camera(bpy.context.scene, model, 256, RESOLUTION)
+    return snap, rel_mse(ours, theirs)
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("technique", ["radiosity", "shadowmap"])
 def test_painted_metal_and_glow_show_inside_a_triangle(technique):
@@ -132,17 +147,8 @@ def test_painted_metal_and_glow_show_inside_a_triangle(technique):
     bsdf.inputs["Emission Strength"].default_value = 1.0
     plane(mat, size=4.0)
     oblique_camera(scene)
-    snap = bridge.snapshot(resolution=RESOLUTION)
+    snap, error = _view_error(technique)
     assert snap.triangle_count == 2
-    if technique == "radiosity":
-        ours = drain(render_steps(snap, solve_radiosity(snap, RadiositySettings()), RESOLUTION))
-        model = cr.radiosity(world_lighting=True)
-    else:
-        ours = drain(direct_light.render_steps(snap, direct_light.DirectLightSettings(),
-                                               RESOLUTION))
-        model = cr.direct(world_lighting=True)
-    theirs, _ = cr.render_camera(scene, model, 256, RESOLUTION)
-    error = rel_mse(ours, theirs)
     print(f"{technique}: painted quad relMSE {error:.5f}")
     assert error < 0.005
 
@@ -183,30 +189,11 @@ def test_normal_mapped_views_weigh_diffuse_light_by_the_reliefs_shadowing(open_s
     the shadow-map view's). relMSE against 256-sample renders of the models under 0.0022
     (measured on 5.2: radiosity 0.0015, shadow map 0.0019; without the shadowing term 0.0025
     and 0.0027)."""
-    from blender_parts import tilted_tiles
+    from blender_parts import tiles_for_bumps
 
     open_sample("bump")
-    image = tilted_tiles()
-    for name in ("Bricks", "OrangePeel"):
-        tree = bpy.data.materials[name].node_tree
-        for node in [n for n in tree.nodes if n.type == "BUMP"]:
-            tree.nodes.remove(node)
-        tex = tree.nodes.new("ShaderNodeTexImage")
-        tex.image = image
-        normal_map = tree.nodes.new("ShaderNodeNormalMap")
-        tree.links.new(tex.outputs["Color"], normal_map.inputs["Color"])
-        bsdf = next(n for n in tree.nodes if n.type == "BSDF_PRINCIPLED")
-        tree.links.new(normal_map.outputs["Normal"], bsdf.inputs["Normal"])
-    snap = bridge.snapshot(resolution=RESOLUTION)
-    if technique == "radiosity":
-        ours = drain(render_steps(snap, solve_radiosity(snap, RadiositySettings()), RESOLUTION))
-        model = cr.radiosity(world_lighting=True)
-    else:
-        ours = drain(direct_light.render_steps(snap, direct_light.DirectLightSettings(),
-                                               RESOLUTION))
-        model = cr.direct()
-    theirs, _ = cr.render_camera(bpy.context.scene, model, 256, RESOLUTION)
-    error = rel_mse(ours, theirs)
+    tiles_for_bumps(("Bricks", "OrangePeel"))
+    _, error = _view_error(technique)
     print(f"{technique}: normal-mapped relMSE {error:.5f}")
     assert error < 0.0022
 
@@ -230,15 +217,6 @@ def test_a_coat_reflects_and_dims_what_lies_under_it(technique, coat_roughness):
     bsdf.inputs["Coat Tint"].default_value = (0.8, 0.9, 1.0, 1.0)
     plane(mat, size=6.0)
     oblique_camera(scene)
-    snap = bridge.snapshot(resolution=RESOLUTION)
-    if technique == "radiosity":
-        ours = drain(render_steps(snap, solve_radiosity(snap, RadiositySettings()), RESOLUTION))
-        model = cr.radiosity(world_lighting=True)
-    else:
-        ours = drain(direct_light.render_steps(snap, direct_light.DirectLightSettings(),
-                                               RESOLUTION))
-        model = cr.direct()
-    theirs, _ = cr.render_camera(scene, model, 256, RESOLUTION)
-    error = rel_mse(ours, theirs)
+    _, error = _view_error(technique)
     print(f"{technique}: coat of roughness {coat_roughness} relMSE {error:.5f}")
     assert error < 0.001

@@ -148,3 +148,19 @@ def tilted_tiles(size: int = 128, tilts=(0.5, -0.3)):
     image.colorspace_settings.name = "Non-Color"
     image.pixels.foreach_set(pixels[::-1].ravel())  # Blender's rows run bottom-up
     return image
+
+
+def tiles_for_bumps(names):
+    """Replace the Bump nodes of materials `names` by a tangent-space Normal Map of
+    `tilted_tiles` on the Principled BSDF's Normal."""
+    image = tilted_tiles()
+    for name in names:
+        tree = bpy.data.materials[name].node_tree
+        for node in [n for n in tree.nodes if n.type == "BUMP"]:
+            tree.nodes.remove(node)
+        tex = tree.nodes.new("ShaderNodeTexImage")
+        tex.image = image
+        normal_map = tree.nodes.new("ShaderNodeNormalMap")
+        tree.links.new(tex.outputs["Color"], normal_map.inputs["Color"])
+        bsdf = next(n for n in tree.nodes if n.type == "BSDF_PRINCIPLED")
+        tree.links.new(normal_map.outputs["Normal"], bsdf.inputs["Normal"])
