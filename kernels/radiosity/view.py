@@ -56,8 +56,9 @@ def render_steps(scene: Scene, result: RadiosityResult, resolution=None,
             known = result.gather.opened(np.ones(len(t), bool)) if open_camera else None
             values[front] = _at_view(scene, t, b, mids, f.dirs[front],
                                      result.radiance_at(t, b, known=known))
+            shading_normals = frame[1]
             coat = coat_layer(scene.materials, mids,
-                              np.einsum("ij,ij->i", frame[1], f.dirs[front]))
+                              np.einsum("ij,ij->i", shading_normals, f.dirs[front]))
             if coat is not None:  # what the coat lets through of the base's light
                 values[front] *= coat.under
             values[front] += _lamp_highlights(lit, result, t, b, mids, f.points[front],
@@ -117,8 +118,8 @@ def _lamp_highlights(scene: Scene, result: RadiosityResult, tri: np.ndarray, bar
                      ) -> np.ndarray:
     """(M, 3) radiance W/(m^2 sr) the lamps' light leaves toward a camera looking along dirs
     (M, 3) by the rough glossy lobes (specular layers, metals) of surface points (triangles,
-    barycentrics, materials (M,), world points (M, 3)): each lamp's shadowed irradiance (an area lamp's grid
-    point by point, `_area_lamp_points`) times the GGX lobes
+    barycentrics, materials (M,), world points (M, 3)): each lamp's shadowed irradiance (an
+    area lamp's grid point by point, `_area_lamp_points`) times the GGX lobes
     (`specular_layer.lamp_highlights`), as Cycles lights the glossy lobes directly at the
     camera's first hit. Emissive meshes draw none. frame: `_front_frame` of the points."""
     out = np.zeros((len(tri), 3))

@@ -43,10 +43,10 @@ def ray_offset(scene: Scene) -> float:
 
 
 def rays_needed(scene: Scene, area_lamps: bool = True) -> bool:
-    """Whether `reflected_emitters` can draw anything in `scene`: a glossy lobe (a specular layer
-    or a metal) and something for it to show (the world, emissive triangles, `area_lamps`)."""
-    glossy = any(m.metallic > 0.0 or (layer_f0(m.ior, m.specular) > 0.0 and m.transmission < 1.0)
-                 for m in scene.materials)
+    """Whether `reflected_emitters` can draw anything in `scene`: a glossy lobe (a specular layer,
+    a metal, a coat) and something for it to show (the world, emissive triangles, `area_lamps`)."""
+    glossy = any(m.metallic > 0.0 or m.coat > 0.0 or (
+        layer_f0(m.ior, m.specular) > 0.0 and m.transmission < 1.0) for m in scene.materials)
     lamps = area_lamps and any(light.kind == "AREA" for light in scene.lights)
     return glossy and (world_lit(scene) or lamps or bool(np.any(triangle_emission(scene) > 0.0)))
 

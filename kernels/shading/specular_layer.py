@@ -256,23 +256,24 @@ def lamp_highlights(materials, material: np.ndarray, normals: np.ndarray, wo: np
     if base is None:
         base = np.array([m.base_color for m in materials], np.float64).reshape(-1, 3)[material]
     out = np.zeros((len(material), 3))
-    lobes = [(glossy, layer_w * (layer_f > 0.0), np.repeat(layer_f[:, None], 3, axis=1), rough),
-             (glossy, metal_w, np.asarray(base, np.float64), rough)]
-    coat = coat_layer(materials, material, np.einsum("ij,ij->i", normals, wo))
-    if coat is not None:
-        coat_rough = np.array([m.coat_roughness for m in materials], np.float64)[material]
-        coat_f = np.array([layer_f0(m.coat_ior, 0.5) for m in materials])[material]
-        lobes.append((coat_rough >= MIRROR_ROUGHNESS, coat.weight,
-                      np.repeat(coat_f[:, None], 3, axis=1), coat_rough))
-    for k, (lit, weight, f0, roughness) in enumerate(lobes):
+
+    def add(lit, weight, f0, roughness):
         rows = np.flatnonzero(lit & (weight > 0.0))
         if rows.size:
             cos_i = np.einsum("ij,ij->i", normals[rows], to_light[rows])
             brdf = ggx_highlight(normals[rows], to_light[rows], wo[rows], roughness[rows],
                                  f0[rows])
-            if coat is not None and k < 2:  # the layers under the coat
-                brdf = brdf * coat.under[rows]
             out[rows] += (weight[rows] / np.maximum(cos_i, 1e-6))[:, None] * brdf * irradiance[rows]
+
+    add(glossy, layer_w * (layer_f > 0.0), np.repeat(layer_f[:, None], 3, axis=1), rough)
+    add(glossy, metal_w, np.asarray(base, np.float64), rough)
+    coat = coat_layer(materials, material, np.einsum("ij,ij->i", normals, wo))
+    if coat is not None:
+        out *= coat.under  # the two lobes under the coat, then the coat's own
+        coat_rough = np.array([m.coat_roughness for m in materials], np.float64)[material]
+        coat_f = np.array([layer_f0(m.coat_ior, 0.5) for m in materials])[material]
+        add(coat_rough >= MIRROR_ROUGHNESS, coat.weight, np.repeat(coat_f[:, None], 3, axis=1),
+            coat_rough)
     return out
 
 
