@@ -166,14 +166,16 @@ def _level_steps(ctx: SolveContext, levels: Levels) -> Steps[Solved]:
     # closer than their own size (`near_splits`) split before the first solve; each pass tests
     # the children of the last.
     for split in range(max(settings.shadow_splits, settings.near_splits)):
+        room = (settings.max_patches - levels.count) // 3  # a split adds three patches
+        if room <= 0:  # a dense mesh's triangles alone fill the budget: nothing may split
+            break
         tested = levels.untested()
         wanted = np.zeros(len(tested), bool)
         if split < settings.shadow_splits:
             wanted |= shadow_edges(scene, tested, ctx.occluded, settings, scale)
         if split < settings.near_splits:
             wanted |= near_field(tested, ctx.occluded, scale)
-        mask = first_splits(wanted, patch_emission(scene, tested), tested.areas,
-                            (settings.max_patches - levels.count) // 3)
+        mask = first_splits(wanted, patch_emission(scene, tested), tested.areas, room)
         if not mask.any():
             break
         levels.split_untested(mask)

@@ -864,3 +864,26 @@ def test_a_dense_mesh_patches_share_a_budget_of_sky_rays():
     assert world_rays_per_patch(settings, 10 ** 7) == MIN_WORLD_RAYS
     assert world_rays_per_patch(replace(settings, world_rays=0), 10) == 0
     assert world_rays_per_patch(replace(settings, world_rays=4), 10 ** 7) == 4  # never more
+
+
+def test_patches_that_fill_the_budget_are_not_tested_for_splits(monkeypatch):
+    """A mesh whose triangles alone reach `max_patches` (a dense asset) leaves no room for a
+    split: the shadow-edge and near-field tests, which cast rays, are not run, and the solve
+    is the one they would have left unsplit."""
+    from classic_bake.kernels.radiosity import solve as solving
+
+    scene = build([(floor_quad(), grey(0.5)), (floor_quad(0.3, 0.3, 0.6), grey(0.5))],
+                  lights=(sun_down(3.0),))
+    settings = RadiositySettings(patch_size=10.0, max_patches=4, shadow_splits=1, near_splits=1,
+                                 **FAST)
+    expected = solve_radiosity(scene, replace(settings, shadow_splits=0, near_splits=0))
+
+    def untouched(*args, **kwargs):
+        raise AssertionError("a split test ran with no room to split")
+
+    monkeypatch.setattr(solving, "shadow_edges", untouched)
+    monkeypatch.setattr(solving, "near_field", untouched)
+    got = solve_radiosity(scene, settings)
+    assert len(got.patches) == len(expected.patches)
+    np.testing.assert_allclose(got.radiance_at(np.arange(4), np.full((4, 3), 1.0 / 3.0)),
+                               expected.radiance_at(np.arange(4), np.full((4, 3), 1.0 / 3.0)))
