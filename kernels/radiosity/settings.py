@@ -75,6 +75,9 @@ class RadiositySettings:
     | hemicube_resolution         | even >= 2           | 32       | hemicube top-face pixels   |
     | light_samples_per_side      | >= 1                | 3        | points per patch side for  |
     |                             |                     |          | the lights' first shot     |
+    |                             |                     |          | (fewer past a budget with  |
+    |                             |                     |          | the final gather: sources. |
+    |                             |                     |          | LIGHT_POINT_BUDGET)        |
     | area_light_samples_per_side | >= 1                | 4        | emitter grid for area-light|
     |                             |                     |          | shadow rays                |
     | smooth_angle                | [0, pi]             | 0.5236   | rad; corners average the   |

@@ -45,9 +45,11 @@ from classic_bake.kernels.radiosity.refine import refine_splits
 from classic_bake.kernels.radiosity.settings import RadiositySettings
 from classic_bake.kernels.radiosity.solve import solve_radiosity
 from classic_bake.kernels.radiosity.sources import (
+    LIGHT_POINT_BUDGET,
     MIN_WORLD_RAYS,
     WORLD_RAY_BUDGET,
     first_shot,
+    light_points_per_side,
     shadow_edges,
     world_rays_per_patch,
 )
@@ -887,3 +889,15 @@ def test_patches_that_fill_the_budget_are_not_tested_for_splits(monkeypatch):
     assert len(got.patches) == len(expected.patches)
     np.testing.assert_allclose(got.radiance_at(np.arange(4), np.full((4, 3), 1.0 / 3.0)),
                                expected.radiance_at(np.arange(4), np.full((4, 3), 1.0 / 3.0)))
+
+
+def test_a_dense_mesh_patches_share_a_budget_of_first_shot_points():
+    """With the final gather, up to LIGHT_POINT_BUDGET points in all each patch takes n x n
+    (`light_samples_per_side`); past it fewer per side, not under 1; without the gather (the
+    patches are what the views show) always n x n."""
+    settings = RadiositySettings()
+    n = settings.light_samples_per_side
+    assert light_points_per_side(settings, LIGHT_POINT_BUDGET // (n * n)) == n
+    assert light_points_per_side(settings, LIGHT_POINT_BUDGET // (n * n) + 1) == n - 1
+    assert light_points_per_side(settings, LIGHT_POINT_BUDGET + 1) == 1
+    assert light_points_per_side(replace(settings, final_gather=False), 10 ** 7) == n
