@@ -282,7 +282,12 @@ def _shade(scene: Scene, maps: list, f, receivers: Receivers | None = None,
         receivers = _seen_receivers(f)
     vis = maps_visibility(maps, receivers, np.ones((len(scene.lights), len(points)), np.float32))
     e = irradiance_per_light(scene, points, normals)  # the lobes' (no relief shadowing)
-    e_diffuse = irradiance_per_light(scene, points, normals, smooth) if relief else e
+    e_diffuse = e
+    if relief:  # the diffuse base's on the relief's tilted points
+        tilted = np.flatnonzero(np.einsum("ij,ij->i", smooth, normals) < 1.0)
+        e_diffuse = e.copy()
+        e_diffuse[:, tilted] = irradiance_per_light(scene, points[tilted], normals[tilted],
+                                                    smooth[tilted])
     # What reflects diffusely toward the eye: no metal or glass, and the base under the specular
     # layer darkened at this view (`specular_layer.py`), as Cycles' diffuse lobe.
     mids = hit_materials(scene, tri, bary, scene.material_ids[tri])  # metallic / roughness maps
