@@ -298,11 +298,15 @@ def estimate_memory(cmd: Command, args, sizes: dict | None = None) -> list[tuple
     if technique is not None and "lightmap_size" in {o.name for o in technique.all_options()}:
         from ..jobs.lightmaps import lightmap_plan, lightmap_settings, mesh_objects
 
-        _, uv_settings = lightmap_settings(technique.values_from_args(args))
+        uv_name, uv_settings = lightmap_settings(technique.values_from_args(args))
         objects = [o for o in mesh_objects(bpy.context)
                    if bridge_mesh.object_problem(o) is None]
         texels = sum(size * size for size in lightmap_plan(objects, uv_settings).values())
         sizes["texels"] = texels
+        unwrap = sum(len(bridge_mesh.mesh_triangles(mesh)[0]) for mesh in
+                     {o.data for o in objects if uv_name not in o.data.uv_layers})
+        if unwrap:  # the bake charts these first (xatlas)
+            sizes["unwrap_triangles"] = unwrap
         out.append((texels * LIGHTMAP_BYTES_PER_TEXEL, f"the lightmaps of {len(objects)} objects "
                     f"({texels:,} texels)", "a smaller --lightmap-size"))
     if cmd.name in ("radiosity", "hybrid"):  # the hybrid's first pass is the radiosity solve

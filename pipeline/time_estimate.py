@@ -53,12 +53,14 @@ LOWER_WITH = {
     "texels": "a smaller --lightmap-size",
     "triangles": "fewer triangles",
     "patches": "a larger --patch-size or fewer --patches",
+    "unwrap_triangles": "lightmap UVs made beforehand (the lightmap-uv command)",
 }
 
 
 def estimate_seconds(technique: str, sizes: dict) -> list[tuple[float, str, str]]:
     """[(seconds, what, the flag that lowers it)] of a run of `technique` over `sizes`: rays,
-    texels, triangles, patches (each optional; what `pipeline/run.estimate_memory` planned)."""
+    texels, triangles, the triangles of meshes still without lightmap UVs (unwrap_triangles),
+    patches (each optional; what `pipeline/run.estimate_memory` planned)."""
     parts = [(START_SECONDS, "starting up", "")]
     for key, rates, default, what in (
             ("rays", SECONDS_PER_RAY, DEFAULT_SECONDS_PER_RAY, "camera rays"),
@@ -68,6 +70,11 @@ def estimate_seconds(technique: str, sizes: dict) -> list[tuple[float, str, str]
         if count:
             parts.append((count * rates.get(technique, default), f"{count:,} {what}",
                           LOWER_WITH[key]))
+    unwrap = sizes.get("unwrap_triangles", 0)
+    if unwrap:  # the lightmap UVs a bake makes first, at lightmap-uv's rate
+        parts.append((unwrap * SECONDS_PER_TRIANGLE["lightmap-uv"],
+                      f"{unwrap:,} triangles to chart into lightmap UVs",
+                      LOWER_WITH["unwrap_triangles"]))
     patches = sizes.get("patches", 0)
     if patches:
         # Every triangle is at least one patch: with as many patches as triangles, only fewer

@@ -5,10 +5,10 @@ from classic_bake.pipeline.time_estimate import LOWER_WITH, estimate_seconds, ro
 
 
 def test_the_estimate_grows_with_each_part_of_the_work():
-    small = sum(s for s, _, _ in estimate_seconds("radiosity", {"rays": 100, "texels": 100,
-                                                                "triangles": 10, "patches": 10}))
-    for key in ("rays", "texels", "triangles", "patches"):
-        sizes = {"rays": 100, "texels": 100, "triangles": 10, "patches": 10, key: 10 ** 6}
+    base = {"rays": 100, "texels": 100, "triangles": 10, "patches": 10, "unwrap_triangles": 10}
+    small = sum(s for s, _, _ in estimate_seconds("radiosity", base))
+    for key in base:
+        sizes = {**base, key: 10 ** 6}
         parts = estimate_seconds("radiosity", sizes)
         assert sum(s for s, _, _ in parts) > small
         seconds, what, flag = max(parts)
