@@ -303,7 +303,7 @@ def estimate_memory(cmd: Command, args, sizes: dict | None = None) -> list[tuple
                    if bridge_mesh.object_problem(o) is None]
         texels = sum(size * size for size in lightmap_plan(objects, uv_settings).values())
         sizes["texels"] = texels
-        unwrap = sum(len(bridge_mesh.mesh_triangles(mesh)[0]) for mesh in
+        unwrap = sum(len(mesh.loop_triangles) for mesh in
                      {o.data for o in objects if uv_name not in o.data.uv_layers})
         if unwrap:  # the bake charts these first (xatlas)
             sizes["unwrap_triangles"] = unwrap
