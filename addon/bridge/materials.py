@@ -75,6 +75,10 @@ def mix_materials(name: str, parts: list, ignored: list) -> Material:
     noted)."""
     weights = np.array([w for w, _ in parts], np.float64)
     sheen = _sheen_fields(parts, ignored)
+    unlit = [m.camera_only for _, m in parts]
+    if any(unlit) and not all(unlit):
+        ignored.append("a mix of an unlit shader (seen by the camera alone) with others: the "
+                       "mix read as seen by every ray")
     d_w = np.array([w * (1.0 - m.metallic) * (1.0 - m.transmission) for w, m in parts])
     m_w = np.array([w * m.metallic for w, m in parts])
     t_w = np.array([w * (1.0 - m.metallic) * m.transmission for w, m in parts])
@@ -89,7 +93,7 @@ def mix_materials(name: str, parts: list, ignored: list) -> Material:
     if total <= 0.0:
         return Material(name=name, base_color=np.zeros(3, np.float32), specular=0.0,
                         emission=emission.astype(np.float32), emission_texture=emission_texture,
-                        ignored=tuple(ignored), **sheen)
+                        camera_only=all(unlit), ignored=tuple(ignored), **sheen)
 
     def mean(values: list, *by: np.ndarray):  # one value per part, weighted by the first of `by`
         w = next(x for x in by if x.sum() > 0.0)  # with a positive sum
@@ -138,7 +142,7 @@ def mix_materials(name: str, parts: list, ignored: list) -> Material:
         height_texture=None if normal is None else normal.height_texture,
         bump_strength=1.0 if normal is None else normal.bump_strength,
         bump_distance=1.0 if normal is None else normal.bump_distance,
-        ignored=tuple(ignored), **sheen)
+        camera_only=all(unlit), ignored=tuple(ignored), **sheen)
 
 
 def with_transparency(name: str, parts: list, ignored: list) -> Material:
@@ -460,6 +464,9 @@ class MaterialReader:
                 source = None
             sources.append((source, groups))
         if node.type != "ADD_SHADER":
+            unlit = self._unlit(name, node.inputs["Fac"], sources, ignored, depth)
+            if unlit is not None:
+                return unlit
             cut_out = self._cut_out(name, node.inputs["Fac"], sources, ignored, depth)
             if cut_out is not None:
                 return cut_out
@@ -475,6 +482,24 @@ class MaterialReader:
             with self._inside(groups):
                 parts.append((weight, self._shader(name, source, ignored, depth + 1)))
         return with_transparency(name, parts, ignored)
+
+    def _unlit(self, name: str, fac_socket, sources: list, ignored: list,
+               depth: int) -> Material | None:
+        """A Mix Shader whose Fac is a Light Path's Is Camera Ray, of a Transparent BSDF (what
+        every other ray meets) and a shader (what the camera's meets): that shader, seen by
+        camera rays alone (`Material.camera_only`), as glTF's unlit materials import. None for
+        any other mix."""
+        feed, out, _ = follow_through(fac_socket, self._groups)
+        if feed is None or feed.type != "LIGHT_PATH" or out.identifier != "Is Camera Ray":
+            return None
+        (others, other_groups), (seen, groups) = sources  # Fac 0: other rays, 1: the camera's
+        if others is None or others.type != "BSDF_TRANSPARENT" or seen is None:
+            return None
+        with self._inside(other_groups):
+            self._shader(name, others, ignored, depth + 1)  # its notes (a tint)
+        with self._inside(groups):
+            surface = self._shader(name, seen, ignored, depth + 1)
+        return replace(surface, camera_only=True, ignored=tuple(ignored))
 
     def _cut_out(self, name: str, fac_socket, sources: list, ignored: list,
                  depth: int) -> Material | None:

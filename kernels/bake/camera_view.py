@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..geometry.alpha_occlusion import layered_hits
 from ..geometry.camera import camera_rays, pixel_rays
 from ..geometry.raster import Projection, rasterize
 from ..geometry.scene import Camera, Scene, geometric_normals
@@ -211,6 +212,66 @@ def _reversed_bits(values: np.ndarray, bits: int) -> np.ndarray:
     return out
 
 
+def blend_partial_cover(scene: Scene, image: np.ndarray, fragments: Fragments, shade, bvh
+                        ) -> int:
+    """In place: every pixel of `image` (H, W, 3) whose centre sees a partly covered surface
+    first (alpha below 1: a leaf card, a fence, a glass-like blend; `shading/alpha.py`) shows
+    what Cycles blends there, a S + (1 - a) T through each such surface to the first opaque one
+    or the world (`alpha_occlusion.layered_hits`), where the z-buffer kept the front surface
+    alone. shade(Fragments) -> (M, 3) and `bvh` (over scene.triangles) as in
+    `supersample_edges`; `fragments` the covered pixels. Returns the number of pixels blended."""
+    from ..shading.alpha import ray_coverage
+
+    cover = ray_coverage(scene, "camera")
+    if cover is None or not len(fragments):
+        return 0
+    sel = np.flatnonzero(~cover.opaque(fragments.tri))
+    if sel.size == 0:
+        return 0
+    rows, cols = fragments.rows[sel], fragments.cols[sel]
+    d = fragments.dirs[sel]
+    o = fragments.points[sel] - d * fragments.depth[sel, None]
+    image[rows, cols] = seen_along(scene, o, d, shade, bvh, cover, rows, cols)
+    return int(sel.size)
+
+
+def seen_along(scene: Scene, o: np.ndarray, d: np.ndarray, shade, bvh, cover, rows: np.ndarray,
+               cols: np.ndarray) -> np.ndarray:
+    """(N, 3) what camera rays o + t d (N, 3 each, d unit) through pixels (rows, cols) see:
+    the surface each meets first shaded by shade(Fragments), the world's colour where it
+    escapes; through partly covered surfaces their blend (`layered_hits`) when `cover` (the
+    camera's coverage, `ray_coverage`) is given."""
+    from ..shading.reflected_emitters import ray_offset
+    from ..shading.world_light import world_radiance
+
+    if cover is None:
+        hits = bvh.intersect(o, d)
+        ray, weight = np.arange(len(o)), np.ones(len(o))
+    else:
+        layers = layered_hits(bvh, o, d, 0.0, np.inf, cover, ray_offset(scene), cover.opaque)
+        hits, ray, weight = layers.hits, layers.ray, layers.weight
+    tri = np.asarray(hits.tri, np.int64)
+    hit = tri >= 0
+    value = np.empty((len(ray), 3))
+    if scene.world_texture is None:
+        value[~hit] = scene.world_color
+    else:
+        value[~hit] = world_radiance(scene, d[ray[~hit]])
+    if hit.any():
+        t, r = tri[hit], ray[hit]
+        u, v = hits.u[hit].astype(np.float64), hits.v[hit].astype(np.float64)
+        depth = hits.t[hit].astype(np.float64)
+        geometric = geometric_normals(scene.triangles[t])
+        value[hit] = shade(Fragments(
+            rows=rows[r], cols=cols[r], tri=t, bary=np.stack([1.0 - u - v, u, v], 1),
+            points=o[r] + d[r] * depth[:, None], dirs=d[r], depth=depth, geometric=geometric,
+            back=np.einsum("ij,ij->i", geometric, d[r]) > 0.0))
+    out = np.zeros((len(o), 3))
+    for c in range(3):  # each ray's layers summed
+        out[:, c] = np.bincount(ray, weight * value[:, c], minlength=len(o))
+    return out
+
+
 def supersample_edges(scene: Scene, image: np.ndarray, fragments: Fragments, shade, bvh,
                       samples: int = EDGE_SAMPLES) -> int:
     """In place: every edge pixel of `image` (H, W, 3) shaded at its centre (`fragments`, the
@@ -219,8 +280,9 @@ def supersample_edges(scene: Scene, image: np.ndarray, fragments: Fragments, sha
     Cycles' 1-px BOX pixel filter is (the pixel centres alone alias silhouettes, folds and hard
     shadow edges). A ray that hits a triangle of `bvh` (built over scene.triangles) is shaded by
     shade(Fragments) -> (M, 3); one that escapes sees the world (its map along the ray, else its
-    colour). Returns the number of pixels supersampled."""
-    from ..shading.world_light import world_radiance
+    colour); one that meets partly covered surfaces their blend (`seen_along`). Returns the
+    number of pixels supersampled."""
+    from ..shading.alpha import ray_coverage
 
     height, width = image.shape[:2]
     ids = np.full((height, width), -1, np.int64)
@@ -236,22 +298,6 @@ def supersample_edges(scene: Scene, image: np.ndarray, fragments: Fragments, sha
     sub_cols = np.tile(cols, samples * samples)
     o, d = pixel_rays(scene.camera, width, height, sub_cols + offsets[:, 0],
                       sub_rows + offsets[:, 1])
-    hits = bvh.intersect(o, d)
-    tri = np.asarray(hits.tri, np.int64)
-    hit = tri >= 0
-    value = np.empty((len(o), 3))
-    if scene.world_texture is None:
-        value[~hit] = scene.world_color
-    else:
-        value[~hit] = world_radiance(scene, d[~hit])
-    if hit.any():
-        t = tri[hit]
-        u, v = hits.u[hit].astype(np.float64), hits.v[hit].astype(np.float64)
-        depth = hits.t[hit].astype(np.float64)
-        geometric = geometric_normals(scene.triangles[t])
-        value[hit] = shade(Fragments(
-            rows=sub_rows[hit], cols=sub_cols[hit], tri=t, bary=np.stack([1.0 - u - v, u, v], 1),
-            points=o[hit] + d[hit] * depth[:, None], dirs=d[hit], depth=depth,
-            geometric=geometric, back=np.einsum("ij,ij->i", geometric, d[hit]) > 0.0))
+    value = seen_along(scene, o, d, shade, bvh, ray_coverage(scene, "camera"), sub_rows, sub_cols)
     image[rows, cols] = value.reshape(samples * samples, rows.size, 3).mean(axis=0)
     return int(rows.size)

@@ -143,6 +143,10 @@ class Material:
     | absorption         | [0, inf)^3| 0       | 1/m: the medium inside the closed mesh (a      |
     |                    |           |         | Volume Absorption); a ray crossing d metres of |
     |                    |           |         | it keeps exp(-absorption d) (Beer-Lambert)     |
+    | camera_only        | bool      | False   | seen by camera rays alone, every other ray     |
+    |                    |           |         | passes it: an unlit surface (glTF's            |
+    |                    |           |         | KHR_materials_unlit import), whose emission    |
+    |                    |           |         | lights nothing (`triangle_emission` holds 0)   |
 
     The per-texel textures other than the base colour's are resolved per triangle by
     `shading/material_maps.py` before a kernel runs (a snapshot does it): metallic and roughness
@@ -185,6 +189,9 @@ class Material:
     # The medium inside the mesh: what glass holds (coloured glass, water). Only rays that refract
     # in meet it; a ray's weight drops on its way to the back face it leaves through.
     absorption: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))
+    # Unlit: only camera rays see the surface (a Light Path's Is Camera Ray choosing it over a
+    # Transparent BSDF); shadow, mirror and diffuse rays pass, and it lights nothing.
+    camera_only: bool = False
     # What the bridge could not model on this material, one reason per entry.
     ignored: tuple[str, ...] = ()
     # Sockets the bridge read through a Cycles bake of their node graph, one dict each.
@@ -403,14 +410,24 @@ class Scene:
 
     def ray_hidden(self, kind: str) -> np.ndarray | None:
         """(T,) bool: the triangles of objects Cycles hides from rays of `kind` ("camera",
-        "shadow", ...: `ObjectInfo.hidden_from`); None when no object is."""
+        "shadow", ...: `ObjectInfo.hidden_from`), and for every kind but the camera's the unlit
+        surfaces (`camera_only`); None when no triangle is."""
         owners = [o for o in self.objects if kind in o.hidden_from]
+        unlit = None if kind == "camera" else self.camera_only()
         if not owners:
-            return None
-        out = np.zeros(self.triangle_count, bool)
+            return unlit
+        out = np.zeros(self.triangle_count, bool) if unlit is None else unlit.copy()
         for o in owners:
             out[o.tri_start:o.tri_start + o.tri_count] = True
         return out
+
+    def camera_only(self) -> np.ndarray | None:
+        """(T,) bool: the triangles only camera rays see (`Material.camera_only`: unlit
+        surfaces, which every other ray passes); None when there are none."""
+        flags = np.array([m.camera_only for m in self.materials], bool)
+        if not flags.any():
+            return None
+        return flags[self.material_ids]
 
     def object_slice(self, index: int) -> slice:
         info = self.objects[index]
@@ -418,12 +435,18 @@ class Scene:
 
 
 def triangle_emission(scene: Scene) -> np.ndarray:
-    """(T, 3) float64 emitted radiance L_e of each triangle, W/(m^2 sr): its material's, or the
-    mean of its emission texture over the triangle (`Scene.triangle_radiance`)."""
+    """(T, 3) float64 radiance L_e each triangle emits into the scene, W/(m^2 sr): its
+    material's, or the mean of its emission texture over the triangle
+    (`Scene.triangle_radiance`); 0 on unlit surfaces (`Material.camera_only`: Cycles' other
+    rays pass them, so they light nothing; the camera sees them through `emission_at`)."""
     if scene.triangle_radiance is not None:
-        return scene.triangle_radiance
-    table = np.array([np.asarray(m.emission, np.float64) for m in scene.materials]).reshape(-1, 3)
-    return table[scene.material_ids]
+        out = scene.triangle_radiance
+    else:
+        table = np.array([np.asarray(m.emission, np.float64) for m in scene.materials]
+                         ).reshape(-1, 3)
+        out = table[scene.material_ids]
+    unlit = scene.camera_only()
+    return out if unlit is None else np.where(unlit[:, None], 0.0, out)
 
 
 def triangle_areas(triangles: np.ndarray) -> np.ndarray:

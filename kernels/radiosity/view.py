@@ -6,11 +6,17 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..bake.camera_view import EDGE_SAMPLES, background_and_fragments, supersample_edges
+from ..bake.camera_view import (
+    EDGE_SAMPLES,
+    background_and_fragments,
+    blend_partial_cover,
+    supersample_edges,
+)
 from ..geometry.bvh import BVH
 from ..geometry.scene import Scene, geometric_normals, interpolated_normals, triangle_emission
 from ..progress import Steps
 from ..shading import lights as light_units
+from ..shading.alpha import ray_coverage
 from ..shading.bump import scene_normals
 from ..shading.material_maps import albedo_at, emission_detail, hit_materials, metal_f0
 from ..shading.reflected_emitters import ray_offset, reflected_emitters
@@ -73,12 +79,16 @@ def render_steps(scene: Scene, result: RadiosityResult, resolution=None,
     if len(f):
         image[f.rows, f.cols] = shade(f)
     yield 0.6
-    if edge_samples > 1 and len(f):
+    blends = ray_coverage(scene, "camera") is not None  # surfaces the camera sees through
+    if (blends or edge_samples > 1) and len(f):
         # The gather's BVH holds the sheets' turned-over copies too (`sheets.py`) when the solve
         # made any: the camera's rays then need one over the scene's own triangles.
         own = result.gather is not None and result.back_of is None
         bvh = result.gather.bvh if own else BVH.build(scene.triangles)
-        supersample_edges(scene, image, f, shade, bvh, edge_samples)
+        if blends:
+            blend_partial_cover(scene, image, f, shade, bvh)
+        if edge_samples > 1:
+            supersample_edges(scene, image, f, shade, bvh, edge_samples)
     return image
 
 

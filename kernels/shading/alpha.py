@@ -92,17 +92,27 @@ def ray_coverage(scene: Scene, kind: str) -> SceneAlpha | HiddenCoverage | None:
     return alpha if hidden is None else HiddenCoverage(alpha, hidden)
 
 
+def lighting_coverage(scene: Scene) -> SceneAlpha | HiddenCoverage | None:
+    """The coverage the rays that carry light between surfaces meet (mirror and glass rays,
+    radiosity's visibility): the scene's alpha, with unlit surfaces (`Material.camera_only`)
+    fully transparent; None when every surface is opaque to them."""
+    unlit = scene.camera_only()
+    alpha = scene_alpha(scene)
+    return alpha if unlit is None else HiddenCoverage(alpha, unlit)
+
+
 def scene_alpha(scene: Scene) -> SceneAlpha | None:
     """The scene's coverage look-up, or None when every surface is opaque."""
     return SceneAlpha(scene) if has_alpha(scene) else None
 
 
 def alpha_aware(bvh: BVH, scene: Scene, offset: float, seed: int = 0) -> BVH | AlphaOccluder:
-    """`bvh` whose `occluded` sees through the scene's alpha surfaces (a ray blocked with
-    probability 1 - transmittance, `AlphaOccluder`) for kernels that take a yes / no visibility
-    query (radiosity's form factors and shadow rays); `bvh` itself when every surface is opaque.
-    offset: m, how far past a hit the next query starts (the scene's ray offset)."""
-    alpha = scene_alpha(scene)
+    """`bvh` whose `occluded` sees through the scene's alpha and unlit surfaces
+    (`lighting_coverage`; a ray blocked with probability 1 - transmittance, `AlphaOccluder`) for
+    kernels that take a yes / no visibility query (radiosity's form factors and shadow rays);
+    `bvh` itself when every surface is opaque. offset: m, how far past a hit the next query
+    starts (the scene's ray offset)."""
+    alpha = lighting_coverage(scene)
     if alpha is None:
         return bvh
     return AlphaOccluder(bvh, alpha, offset, alpha.opaque, np.random.default_rng(seed))

@@ -19,7 +19,12 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..bake.bake_targets import BakeTargets
-from ..bake.camera_view import EDGE_SAMPLES, background_and_fragments, supersample_edges
+from ..bake.camera_view import (
+    EDGE_SAMPLES,
+    background_and_fragments,
+    blend_partial_cover,
+    supersample_edges,
+)
 from ..geometry.bvh import BVH
 from ..geometry.scene import Scene, interpolated_normals
 from ..geometry.vec import bounds, row_norms
@@ -31,7 +36,7 @@ from ..shadow.depth_test import receivers_visibility
 from ..shadow.shadowmap import Receivers, ShadowMap, ShadowMapSettings
 from ..shadow.views import fit_sun, plan_shadow_map, potential_casters
 from . import lights as light_units
-from .alpha import alpha_materials, has_alpha, surface_alpha
+from .alpha import alpha_materials, has_alpha, ray_coverage, surface_alpha
 from .bump import relief_shadowing, scene_normals
 from .material_maps import albedo_at, emission_at, hit_materials, metal_f0
 from .reflected_emitters import ray_offset, rays_needed, reflected_emitters
@@ -143,12 +148,14 @@ def shadow_maps_steps(scene: Scene, receivers: Receivers, spacing: float,
     box = receivers.box if len(receivers) else np.zeros((0, 3))
     sample = receivers.sample(DISTANCE_SAMPLES)
     maps = []
+    unlit = scene.camera_only()  # every ray but the camera's passes them: they cast no shadow
     for k, light in enumerate(lights):
         if not light.cast_shadow or scene.triangle_count == 0:
             maps.append(None)
             continue
         shadow = settings.shadow
-        caster_ids = np.arange(scene.triangle_count)[potential_casters(scene.triangles, light, box)]
+        casting = potential_casters(scene.triangles, light, box)
+        caster_ids = np.flatnonzero(casting if unlit is None else casting & ~unlit)
         casters = scene.triangles[caster_ids]
         fit = fit_sun(casters, light, receivers) if light.kind == "SUN" else None
         if settings.auto_resolution:
@@ -245,14 +252,19 @@ def render_steps(scene: Scene, settings: DirectLightSettings, resolution=None,
     receivers = _seen_receivers(f)  # plans the maps and reads them at the pixel centres
     maps = yield from scaled(shadow_maps_steps(scene, receivers, spacing, settings), 0.2, 0.6)
     rays = rays_needed(scene, area_lamps=False)  # the glossy lobes' rays to the sky, emitters
-    bvh = BVH.build(scene.triangles) if rays or edge_samples > 1 else None
+    blends = ray_coverage(scene, "camera") is not None  # surfaces the camera sees through
+    bvh = BVH.build(scene.triangles) if rays or blends or edge_samples > 1 else None
     mirror = (bvh, ray_offset(scene)) if rays else None
     image[f.rows, f.cols] = _shade(scene, maps, f, receivers, mirror)
     yield 0.8
+    # The maps planned for the pixel centres serve the surfaces behind partly covered ones and
+    # the sub-pixel rays too.
+    def shade(g):
+        return _shade(scene, maps, g, mirror=mirror)
+    if blends:
+        blend_partial_cover(scene, image, f, shade, bvh)
     if edge_samples > 1:
-        # The maps planned for the pixel centres serve their sub-pixel rays too.
-        supersample_edges(scene, image, f, lambda g: _shade(scene, maps, g, mirror=mirror),
-                          bvh, edge_samples)
+        supersample_edges(scene, image, f, shade, bvh, edge_samples)
     return image
 
 

@@ -140,9 +140,11 @@ def emission_at(scene: Scene, tri: np.ndarray, bary: np.ndarray) -> np.ndarray:
 def emission_detail(scene: Scene, tri: np.ndarray, bary: np.ndarray) -> np.ndarray | None:
     """(N, 3) what emission textures show at barycentric points (N, 3) of triangles `tri` beyond
     their triangles' means (`emission_at` less `triangle_emission`), W/(m^2 sr): what a camera
-    view or a bake adds to values that carry each triangle's mean (radiosity's patches). None
-    when no material has an emission texture."""
-    if not any(m.emission_texture is not None for m in scene.materials):
+    view or a bake adds to values that carry each triangle's mean (radiosity's patches); on an
+    unlit surface, which emits nothing into the scene, its whole emission. None when no
+    material has an emission texture or glows unlit."""
+    if not any(m.emission_texture is not None or (m.camera_only and m.is_emissive)
+               for m in scene.materials):
         return None
     return emission_at(scene, tri, bary) - triangle_emission(scene)[tri]
 

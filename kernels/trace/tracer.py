@@ -44,7 +44,7 @@ from ..geometry.vec import max_of_three
 from ..measure.phase_clock import PhaseClock
 from ..progress import Steps, drain
 from ..shading import lights as light_units
-from ..shading.alpha import ray_coverage, scene_alpha
+from ..shading.alpha import lighting_coverage, ray_coverage, scene_alpha
 from ..shading.bump import bump_shadowing, valid_reflection
 from ..shading.glossy_lobe import ggx_reflections, lobe_points
 from ..shading.material_maps import emission_at, material_values
@@ -150,6 +150,8 @@ class Tracer:
         # Surfaces with alpha (leaf cards): shadow rays pass them with weight 1 - alpha; None
         # when every surface is opaque (shadow rays are then a plain any-hit test).
         self.alpha = scene_alpha(scene)
+        # What mirror and glass rays meet: the alpha, unlit surfaces transparent to them.
+        self.bounce_cover = lighting_coverage(scene)
         # What camera and shadow rays meet: the alpha, with the objects Cycles hides from such
         # rays (Object > Visibility > Ray Visibility) fully transparent to them.
         self.camera_cover = ray_coverage(scene, "camera")
@@ -234,7 +236,7 @@ class Tracer:
         alpha (or objects hidden from the camera), the layers each ray sees through partly
         covered surfaces (`layered_hits`: a surface of coverage a shows a S + (1 - a) T, as
         Cycles blends it) and, as the hits, each ray's front one."""
-        cover = self.camera_cover if camera else self.alpha
+        cover = self.camera_cover if camera else self.bounce_cover
         if cover is None:
             return self.bvh.intersect(origins, dirs, t_min, np.inf), None
         layers = layered_hits(self.bvh, origins, dirs, t_min, np.inf, cover, self.offset,

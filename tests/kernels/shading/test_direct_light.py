@@ -150,6 +150,30 @@ def test_square_occluder_shadow_mask_matches_geometry():
     assert np.all(mask[under] == 0) and np.all(mask[np.any(np.abs(t.points[:, :2]) > 0.5 + spacing, 1)] == 1)
 
 
+def test_an_unlit_plate_casts_no_shadow_and_lights_nothing():
+    """The plate of `test_square_occluder_shadow_mask_matches_geometry`, unlit and glowing
+    (`Material.camera_only`): shadow maps leave it out, it emits nothing into the scene, and
+    every ray kind but the camera's passes it."""
+    from classic_bake.kernels.geometry.scene import triangle_emission
+
+    scene = ground_with_lightmap()
+    plate = quad([(-0.5, -0.5, 1), (0.5, -0.5, 1), (0.5, 0.5, 1), (-0.5, 0.5, 1)])
+    unlit = Material(name="unlit", base_color=np.zeros(3, np.float32), specular=0.0,
+                     emission=np.full(3, 2.0, np.float32), camera_only=True)
+    both = build([(scene.triangles, WHITE), (plate, unlit)], lights=[sun([0, 0, -1])])
+    both = replace(both, lightmap_uv=np.concatenate([scene.lightmap_uv,
+                                                     np.zeros((2, 3, 2), np.float32)]))
+    t = lightmap_targets(both, 0, 64)
+    vis = np.zeros((1, len(t)), np.float32)
+    list(dl.light_visibility_steps(both, Receivers.of(t.points, t.geo_normals), 4.0 / 51.2,
+                                   dl.DirectLightSettings(), vis))
+    assert np.all(vis == 1.0)
+    assert np.all(triangle_emission(both) == 0.0)  # the plate glows for the camera alone
+    assert both.ray_hidden("camera") is None
+    for kind in ("shadow", "glossy", "diffuse"):
+        np.testing.assert_array_equal(both.ray_hidden(kind), [False, False, True, True])
+
+
 def test_tilted_spot_has_no_acne_off_its_axis():
     # The spot points 40 degrees off vertical: receivers facing the light lie off the map's axis,
     # where linear view depth still varies across a texel (the perspective slope term).
