@@ -61,7 +61,7 @@ from ..geometry.scene import (
     interpolated_normals,
     triangle_emission,
 )
-from ..shading.bump import scene_normals
+from ..shading.bump import relief_sky_factor, scene_normals
 from ..shading.direct_light import diffuse_at
 from ..shading.world_light import (
     RAYS_PER_CALL,
@@ -557,6 +557,9 @@ def _irradiance(gather: FinalGather, t: np.ndarray, b: np.ndarray, known: Visibi
                                   gather.offset, gather.area_samples_per_side,
                                   lift=geometric[outside], strata=shared,
                                   smooth=None if smooth is None else smooth[outside])
-    h[outside] += patching.interpolate(gather.corner_indirect, element[outside], local[outside])
+    indirect = patching.interpolate(gather.corner_indirect, element[outside], local[outside])
+    if smooth is not None:  # gathered about the smooth normals: a relief's tilt takes less
+        indirect *= relief_sky_factor(smooth[outside], normals[outside])[:, None]
+    h[outside] += indirect
     np.maximum(h, 0.0, out=h)
     return h, found

@@ -17,7 +17,7 @@ from ..geometry.scene import Scene, geometric_normals, interpolated_normals, tri
 from ..progress import Steps
 from ..shading import lights as light_units
 from ..shading.alpha import ray_coverage
-from ..shading.bump import scene_normals
+from ..shading.bump import scene_normals, valid_reflection
 from ..shading.material_maps import albedo_at, emission_detail, hit_materials, metal_f0
 from ..shading.reflected_emitters import ray_offset, reflected_emitters
 from ..shading.specular_layer import (
@@ -57,12 +57,12 @@ def render_steps(scene: Scene, result: RadiosityResult, resolution=None,
         front, back = ~f.back, f.back
         if front.any():
             t, b = f.tri[front], f.bary[front]
-            frame = _front_frame(scene, result, t, b)
+            frame = _front_frame(scene, result, t, b, f.dirs[front])
             mids = hit_materials(scene, t, b, scene.material_ids[t])  # metallic / roughness maps
             known = result.gather.opened(np.ones(len(t), bool)) if open_camera else None
-            values[front] = _at_view(scene, t, b, mids, f.dirs[front],
-                                     result.radiance_at(t, b, known=known))
             shading_normals = frame[1]
+            values[front] = _at_view(scene, t, mids, f.dirs[front], shading_normals,
+                                     result.radiance_at(t, b, known=known))
             coat = coat_layer(scene.materials, mids,
                               np.einsum("ij,ij->i", shading_normals, f.dirs[front]))
             if coat is not None:  # what the coat lets through of the base's light
@@ -92,32 +92,33 @@ def render_steps(scene: Scene, result: RadiosityResult, resolution=None,
     return image
 
 
-def _at_view(scene: Scene, tri: np.ndarray, bary: np.ndarray, mids: np.ndarray, dirs: np.ndarray,
-             radiance: np.ndarray) -> np.ndarray:
-    """(M, 3) radiance (M, 3) W/(m^2 sr) of surface points (triangles, barycentrics, their
-    materials mids (M,): `material_maps.hit_materials`) as a camera looking along dirs (M, 3)
-    sees it: the reflected part, which the texels show under
-    the specular layer along the normal (`layer_factors`), rescaled to the layer at the view
-    angle (`specular_layer.view_factors`), as Cycles' diffuse lobe darkens towards grazing.
-    The layer's own highlights are not drawn."""
+def _at_view(scene: Scene, tri: np.ndarray, mids: np.ndarray, dirs: np.ndarray,
+             normals: np.ndarray, radiance: np.ndarray) -> np.ndarray:
+    """(M, 3) radiance (M, 3) W/(m^2 sr) of surface points (triangles, their materials mids
+    (M,): `material_maps.hit_materials`) as a camera looking along dirs (M, 3) sees it: the
+    reflected part, which the texels show under the specular layer along the normal
+    (`layer_factors`), rescaled to the layer at the view angle about the glossy normals (M, 3)
+    (`specular_layer.view_factors`), as Cycles' diffuse lobe darkens towards grazing. The
+    layer's own highlights are not drawn."""
     tables = view_tables(scene.materials)
     if not (tables < 1.0).any():  # no layer anywhere
         return radiance
-    normals = interpolated_normals(scene, tri, bary)
     ratio = view_factors(tables, mids, np.einsum("ij,ij->i", normals, dirs)) / tables[mids, -1]
     emitted = triangle_emission(scene)[tri]
     return emitted + (radiance - emitted) * ratio[:, None]
 
 
-def _front_frame(scene: Scene, result: RadiosityResult, tri: np.ndarray, bary: np.ndarray
-                 ) -> tuple[np.ndarray, np.ndarray, object, float]:
-    """What the view's highlights need of front-facing surface points (triangles, barycentrics):
-    their face normals (M, 3), shading normals (interpolated, then bump and normal maps:
-    `bump.scene_normals`) turned to the face's side (M, 3), the BVH for their rays (the
-    gather's, else built) and the rays' offset off surfaces, m."""
+def _front_frame(scene: Scene, result: RadiosityResult, tri: np.ndarray, bary: np.ndarray,
+                 dirs: np.ndarray) -> tuple[np.ndarray, np.ndarray, object, float]:
+    """What the view's glossy terms need of front-facing surface points (triangles,
+    barycentrics) seen along dirs (M, 3): their face normals (M, 3), the normals their glossy
+    lobes turn about (interpolated, then bump and normal maps: `bump.scene_normals`, bent until
+    the view's reflection leaves the surface: `bump.valid_reflection`, as Cycles' glossy
+    closures and the tracer's) (M, 3), the BVH for their rays (the gather's, else built) and
+    the rays' offset off surfaces, m."""
     geometric = geometric_normals(scene.triangles[tri])
-    normals = scene_normals(scene, tri, bary, interpolated_normals(scene, tri, bary, geometric))
-    normals[np.einsum("ij,ij->i", normals, geometric) < 0.0] *= -1.0
+    normals = valid_reflection(geometric, -dirs, scene_normals(
+        scene, tri, bary, interpolated_normals(scene, tri, bary, geometric)))
     if result.gather is not None:
         return geometric, normals, result.gather.bvh, result.gather.offset
     return geometric, normals, BVH.build(scene.triangles), ray_offset(scene)

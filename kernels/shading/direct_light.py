@@ -37,7 +37,7 @@ from ..shadow.shadowmap import Receivers, ShadowMap, ShadowMapSettings
 from ..shadow.views import fit_sun, plan_shadow_map, potential_casters
 from . import lights as light_units
 from .alpha import alpha_materials, has_alpha, ray_coverage, surface_alpha
-from .bump import relief_shadowing, scene_normals
+from .bump import relief_shadowing, scene_normals, valid_reflection
 from .material_maps import albedo_at, emission_at, hit_materials, metal_f0
 from .reflected_emitters import ray_offset, rays_needed, reflected_emitters
 from .specular_layer import coat_layer, diffuse_factor, lamp_highlights, view_factors, view_tables
@@ -284,20 +284,30 @@ def _shade(scene: Scene, maps: list, f, receivers: Receivers | None = None,
     BVH, the rays' offset m), what the glossy lobes show of the sky and of emissive surfaces
     (`reflected_emitters`: Cycles' direct model lights them from the world too)."""
     tri, bary, points, d = f.tri, f.bary, f.points, f.dirs
+    # Shaded on the side the eye sees: the face's normal, the interpolated and mapped ones turned
+    # with it. A mapped normal tilted away from the eye keeps its tilt for the diffuse base (as
+    # Cycles' diffuse closures do); the glossy lobes turn about it bent until the view's
+    # reflection leaves the surface (`bump.valid_reflection`), as the tracer's do.
+    side = np.where(f.back, -1.0, 1.0)[:, None]
+    geometric = f.geometric * side
     smooth = interpolated_normals(scene, tri, bary)
     normals = scene_normals(scene, tri, bary, smooth)
     relief = normals is not smooth
-    normals[np.einsum("ij,ij->i", normals, d) > 0] *= -1
-    if relief:
-        smooth[np.einsum("ij,ij->i", smooth, d) > 0] *= -1
+    normals = normals * side
+    smooth = smooth * side
+    glossy = valid_reflection(geometric, -d, normals)
     if receivers is None:
         receivers = _seen_receivers(f)
     vis = maps_visibility(maps, receivers, np.ones((len(scene.lights), len(points)), np.float32))
-    e = irradiance_per_light(scene, points, normals)  # the lobes' (no relief shadowing)
-    e_diffuse = e
+    e_diffuse = irradiance_per_light(scene, points, normals)
+    e = e_diffuse  # the lobes'
+    bent = np.flatnonzero(np.any(glossy != normals, axis=1))
+    if bent.size:
+        e = e_diffuse.copy()
+        e[:, bent] = irradiance_per_light(scene, points[bent], glossy[bent])
     if relief:  # the diffuse base's on the relief's tilted points
         tilted = np.flatnonzero(np.einsum("ij,ij->i", smooth, normals) < 1.0)
-        e_diffuse = e.copy()
+        e_diffuse = e_diffuse.copy()
         e_diffuse[:, tilted] = irradiance_per_light(scene, points[tilted], normals[tilted],
                                                     smooth[tilted])
     # What reflects diffusely toward the eye: no metal or glass, and the base under the specular
@@ -305,7 +315,7 @@ def _shade(scene: Scene, maps: list, f, receivers: Receivers | None = None,
     mids = hit_materials(scene, tri, bary, scene.material_ids[tri])  # metallic / roughness maps
     weight = np.array([diffuse_weight(m, under_layer=False) for m in scene.materials])[mids]
     weight = weight * view_factors(view_tables(scene.materials), mids,
-                                   np.einsum("ij,ij->i", normals, d))
+                                   np.einsum("ij,ij->i", glossy, d))
     base = albedo_at(scene, tri, bary)
     albedo = base * weight[:, None]
     f0 = metal_f0(scene, tri, base)
@@ -315,14 +325,13 @@ def _shade(scene: Scene, maps: list, f, receivers: Receivers | None = None,
     shine = np.zeros_like(points)
     for k, light in enumerate(scene.lights):
         to_light, _ = light_units.light_vectors(light, points)
-        shine += lamp_highlights(scene.materials, mids, normals, -d, to_light, e[k],
+        shine += lamp_highlights(scene.materials, mids, glossy, -d, to_light, e[k],
                                  f0) * vis[k, :, None]
     if mirror is not None:
-        geometric = np.where(f.back[:, None], -f.geometric, f.geometric)
-        shine += reflected_emitters(scene, tri, bary, mids, points, d, geometric, normals,
+        shine += reflected_emitters(scene, tri, bary, mids, points, d, geometric, glossy,
                                     *mirror, area_lamps=False)
     diffuse = emission + albedo / np.pi * np.einsum("lnc,ln->nc", e_diffuse, vis)
-    coat = coat_layer(scene.materials, mids, np.einsum("ij,ij->i", normals, d))
+    coat = coat_layer(scene.materials, mids, np.einsum("ij,ij->i", glossy, d))
     # what a coat lets through of the base's light (its own and the lobes' are in `shine`)
     return (diffuse if coat is None else diffuse * coat.under) + shine
 
