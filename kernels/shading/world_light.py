@@ -300,7 +300,8 @@ def _world_estimate(world, corners: np.ndarray, normals: np.ndarray, parents: np
 
 
 def world_irradiance(world, corners: np.ndarray, normals: np.ndarray, parents: np.ndarray,
-                     occluded, scale: float, rays: int, rng: np.random.Generator) -> np.ndarray:
+                     occluded, scale: float, rays: int, rng: np.random.Generator,
+                     budget: int | None = None) -> np.ndarray:
     """(N, 3) W/m^2: the world's irradiance on each patch, pi times the mean radiance of its
     cosine-distributed rays that escape (0 for those that meet geometry): pi L_w s for a uniform
     world. world: its radiance, a (3,) colour W/(m^2 sr) or a callable (M, 3) directions ->
@@ -313,7 +314,10 @@ def world_irradiance(world, corners: np.ndarray, normals: np.ndarray, parents: n
     noise, and patch-to-patch blotches. Patches whose first `rays` found the sky in part (0 < s
     < 1, or none where other patches found it) are cast again with the rays a binomial s needs
     for WORLD_NOISE relative noise, 4x or 16x `rays` (within WORLD_MAX_RAYS), and take that
-    estimate alone (the first decided only how many)."""
+    estimate alone (the first decided only how many). `budget`: the most rays those second casts
+    take in all (None: no limit): over it, the patches cast 4x `rays` only, the noisiest
+    first, as many as it pays for (a mesh of tens of thousands of tiny patches, each seeing
+    sky in part, would cast millions; the gather's corners average neighbours' noise there)."""
     corners = np.asarray(corners, np.float64)
     normals = np.asarray(normals, np.float64)
     parents = np.asarray(parents, np.int64)
@@ -329,6 +333,10 @@ def world_irradiance(world, corners: np.ndarray, normals: np.ndarray, parents: n
     refine = (share < 1.0) & (wanted > k)
     if steps and refine.any():
         again = np.where(wanted > steps[0], steps[-1], steps[0])
+        if budget is not None and again[refine].sum() > budget:
+            again[:] = steps[0]
+            noisiest = np.flatnonzero(refine)[np.argsort(-wanted[refine], kind="stable")]
+            refine[noisiest[budget // steps[0]:]] = False
         for m in steps:
             rows = np.flatnonzero(refine & (again == m))
             if rows.size:

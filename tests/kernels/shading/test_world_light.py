@@ -67,6 +67,33 @@ def test_sky_share_under_a_plate_is_one_minus_the_form_factor():
     np.testing.assert_allclose(mean, 1.0 - parallel_rectangles(1.0, 1.0, 1.0), atol=0.005)
 
 
+def test_second_sky_casts_stay_within_their_budget():
+    """The floor patches under the plate see the sky in part, so each asks for a second cast of
+    4x or 16x its rays (`world_irradiance`). Under a budget they cast 4x only, as many of them
+    as it pays for, the noisiest (least open) first; without one, all of them."""
+    floor, plate = _plate_over_floor()
+    scene = build([(floor, grey(0.5)), (plate, grey(0.0))])
+    patches = patching.make_patches(scene, 0.1)
+    up = patches.normals[:, 2] > 0.5
+    occluded = _occluded(scene.triangles)
+    cast = []
+
+    def counted(origins, dirs, *args, **kwargs):
+        cast.append(len(origins))
+        return occluded(origins, dirs, *args, **kwargs)
+
+    def rays(budget):
+        cast.clear()
+        world_irradiance(np.array(WORLD), patches.corners[up], patches.normals[up],
+                         patches.parent[up], counted, 1.0, 16, np.random.default_rng(2),
+                         budget=budget)
+        return sum(cast) - 16 * int(up.sum())  # past the first cast's 16 rays each
+
+    free = rays(None)
+    assert free > 64 * 10  # hundreds of patches cast again
+    assert rays(64 * 10) == 64 * 10  # ten patches at 4 x 16 rays
+
+
 def test_a_face_lying_on_another_sees_no_sky():
     """A unit box resting on a 3 m floor, its base in the floor's plane: the base (facing down,
     flat on the floor) and the floor under the box see no sky, as Cycles' rays, which start on
