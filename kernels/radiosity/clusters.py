@@ -242,23 +242,32 @@ def _unoccluded(patches: patching.Patches, groups: Groups, x: np.ndarray, nx: np
     member = groups.members[~groups.lone[groups.of_patch[groups.members]]]
     owner = groups.of_patch[member]
     run_starts = np.flatnonzero(np.concatenate([[True], owner[1:] != owner[:-1]]))
-    centroid = patches.corners[member].mean(axis=1)
     normal = patches.normals[member]
     area = patches.areas[member]
+    # Relative to the members' mean, so the products below lose no digits to the scene's offset.
+    origin = patches.corners[member].mean(axis=(0, 1))
+    centroid = patches.corners[member].mean(axis=1) - origin
+    c2 = np.einsum("qc,qc->q", centroid, centroid)
+    cn = np.einsum("qc,qc->q", centroid, normal)
     step = max(1, PAIR_CHUNK // len(member))
     for a in range(0, len(x), step):
-        xa, na = x[a:a + step], nx[a:a + step]
-        between = centroid[None] - xa[:, None]  # (m, Q, 3)
-        d2 = np.einsum("mqc,mqc->mq", between, between)
+        xa, na = x[a:a + step] - origin, nx[a:a + step]
+        # The (m, Q) dot products as matrix products: d = c_q - x, d.d = c.c - 2 x.c + x.x,
+        # d.n_x = c.n_x - x.n_x, d.n_q = c.n_q - x.n_q (no (m, Q, 3) array of differences).
+        d2 = c2[None] - 2.0 * (xa @ centroid.T) + np.einsum("mc,mc->m", xa, xa)[:, None]
+        np.maximum(d2, 0.0, out=d2)
+        # Rounding can leave a coincident pair a tiny d: its cosines are clipped (it is a near
+        # pair, whose exact factor replaces this one below), a zero one gives 0.
         d = np.sqrt(d2)
-        cos_x = np.einsum("mqc,mc->mq", between, na) / np.maximum(d, 1e-300)
-        cos_q = -np.einsum("mqc,qc->mq", between, normal) / np.maximum(d, 1e-300)
+        d[d == 0.0] = np.inf
+        cos_x = np.clip((na @ centroid.T - np.einsum("mc,mc->m", xa, na)[:, None]) / d, -1.0, 1.0)
+        cos_q = np.clip((xa @ normal.T - cn[None]) / d, -1.0, 1.0)
         f = np.where((cos_x > 0.0) & (cos_q > 0.0),
                      area * cos_x * cos_q / (np.pi * d2 + area), 0.0)
         rows, cols = np.nonzero(d2 < NEAR_AREAS * area)
         if rows.size:
-            f[rows, cols] = point_to_polygon(xa[rows], na[rows], patches.corners[member[cols]],
-                                             normal[cols])
+            f[rows, cols] = point_to_polygon(x[a:a + step][rows], na[rows],
+                                             patches.corners[member[cols]], normal[cols])
         out[a:a + step, many] = np.add.reduceat(f, run_starts, axis=1)
     return out
 
