@@ -12,7 +12,7 @@ import numpy as np
 
 from ..addon.bridge import mesh as bridge_mesh
 from ..addon.bridge import write_back
-from ..kernels.bake.lightmap_uv import LightmapUVSettings, UnwrapCrash, lightmap_sizes
+from ..kernels.bake.lightmap_uv import LightmapUVSettings, lightmap_sizes
 from ..kernels.geometry.scene import triangle_areas
 from .file_names import unique_stems
 from .record import JobSummary, Option
@@ -83,18 +83,13 @@ def create_lightmap_uvs(objects, uv_name, uv_settings, plan):
     objects that got one."""
     created = []
     for obj in objects:
-        while True:  # a small lightmap may not hold every chart with its padding: grow it
-            try:
-                settings = replace(uv_settings, resolution=plan[obj.name])
-                made, _ = bridge_mesh.ensure_lightmap_uv(obj, uv_name, settings)
-                break
-            except UnwrapCrash:
-                raise
-            except ValueError:
-                if plan[obj.name] >= 4 * uv_settings.resolution:
-                    raise
-                plan[obj.name] *= 2
+        # A small lightmap may not hold every chart with its padding: the unwrap grows it, up to
+        # 4x the largest object's size.
+        settings = replace(uv_settings, resolution=plan[obj.name])
+        made, summary = bridge_mesh.ensure_lightmap_uv(obj, uv_name, settings,
+                                                       largest=4 * uv_settings.resolution)
         if made:
+            plan[obj.name] = summary["resolution"]
             created.append(obj)
     return created
 

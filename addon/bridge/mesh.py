@@ -272,8 +272,10 @@ def write_uv_layer(mesh, name: str, loop_uv: np.ndarray):
     return mesh.uv_layers[name]
 
 
-def lightmap_loop_uv(obj, settings) -> tuple[np.ndarray, dict]:
-    """Unwrap `obj`'s original mesh with xatlas: per-loop lightmap UVs (L, 2) and a summary.
+def lightmap_loop_uv(obj, settings, largest: int | None = None) -> tuple[np.ndarray, dict]:
+    """Unwrap `obj`'s original mesh with xatlas: per-loop lightmap UVs (L, 2) and a summary
+    (charts, utilization, split_polygons, resolution: the texels per side that held the charts,
+    up to `largest` where `settings.resolution` could not: `lightmap_uv.unwrap`).
 
     Texel density follows world-space size (the object's scale applied), so charts of one object
     get the same density. Each polygon is kept in one chart (`unwrap`'s `polygons`); one whose
@@ -291,7 +293,7 @@ def lightmap_loop_uv(obj, settings) -> tuple[np.ndarray, dict]:
     if why is not None:  # never handed to xatlas, which loops on them
         raise ValueError(f"object '{obj.name}' {why}")
     try:
-        result = unwrap(world, corner_verts, settings, polys)
+        result = unwrap(world, corner_verts, settings, polys, largest)
     except ValueError as exc:
         raise type(exc)(f"object '{obj.name}': {exc}") from exc  # UnwrapCrash stays one
     loop_uv = np.zeros((len(mesh.loops), 2), np.float32)
@@ -301,16 +303,19 @@ def lightmap_loop_uv(obj, settings) -> tuple[np.ndarray, dict]:
     # A loop written by several triangles must have received the same UV from each.
     disagree = np.any(np.abs(loop_uv[flat_loops] - flat_uv) > 0, axis=1).reshape(-1, 3).any(1)
     summary = {"charts": result.chart_count, "utilization": result.utilization,
-               "split_polygons": int(np.unique(polys[disagree]).size)}
+               "split_polygons": int(np.unique(polys[disagree]).size),
+               "resolution": result.resolution or settings.resolution}
     return loop_uv, summary
 
 
-def ensure_lightmap_uv(obj, name: str, settings) -> tuple[bool, dict]:
-    """Give `obj`'s mesh a lightmap UV layer `name` unless it has one. Returns (created, summary)."""
+def ensure_lightmap_uv(obj, name: str, settings, largest: int | None = None
+                       ) -> tuple[bool, dict]:
+    """Give `obj`'s mesh a lightmap UV layer `name` unless it has one (`lightmap_loop_uv`, its
+    `largest`). Returns (created, summary)."""
     if obj.type != "MESH":
         raise ValueError(f"object '{obj.name}' is a {obj.type}, not a mesh: no lightmap UVs")
     if obj.data.uv_layers.get(name) is not None:
         return False, {}
-    loop_uv, summary = lightmap_loop_uv(obj, settings)
+    loop_uv, summary = lightmap_loop_uv(obj, settings, largest)
     write_uv_layer(obj.data, name, loop_uv)
     return True, summary

@@ -86,13 +86,19 @@ class LightmapUV:
     chart_ids: np.ndarray
     chart_count: int
     utilization: float  # fraction of the atlas covered by charts
+    resolution: int = 0  # texels per side the charts were packed for (0: no charts)
 
 
 def unwrap(
     positions: np.ndarray, triangles: np.ndarray, settings: LightmapUVSettings = LightmapUVSettings(),
-    polygons: np.ndarray | None = None,
+    polygons: np.ndarray | None = None, largest: int | None = None,
 ) -> LightmapUV:
     """Unwrap and pack one mesh.
+
+    largest: texels per side the lightmap may grow to (doubling from `settings.resolution`) when
+    the charts do not fit at that resolution with their padding; None: no growth (ValueError).
+    The charts are made once and packed again at each size (`LightmapUV.resolution` says which
+    held them): charting is the slow part, 20 s on a 250k-triangle mesh against 0.4 s a packing.
 
     positions (V, 3) float, object or world space, m (only ratios matter); triangles (T, 3) vertex ids.
     Zero-area triangles get no chart (chart id -1) and UV (0, 0) (with `polygons`: zero area on
@@ -111,10 +117,11 @@ def unwrap(
     if not np.isfinite(positions).all():  # xatlas loops for minutes on nan or inf
         raise ValueError("lightmap UVs: vertex coordinates are not finite (nan or inf)")
     count = triangles.shape[0]
+    largest = max(settings.resolution, largest or settings.resolution)
     if count < ISOLATE_TRIANGLES or not hasattr(os, "fork"):
-        return _unwrap(positions, triangles, settings, polygons)
+        return _unwrap(positions, triangles, settings, polygons, largest)
     try:
-        return _in_child(_unwrap, positions, triangles, settings, polygons)
+        return _in_child(_unwrap, positions, triangles, settings, polygons, largest)
     except UnwrapCrash as exc:
         raise UnwrapCrash(f"lightmap UVs: xatlas crashed ({exc}) charting this mesh of "
                           f"{count:,} triangles (an xatlas defect on some dense closed meshes); "
@@ -162,7 +169,7 @@ def _in_child(function, *args):
 
 
 def _unwrap(positions: np.ndarray, triangles: np.ndarray, settings: LightmapUVSettings,
-            polygons: np.ndarray | None) -> LightmapUV:
+            polygons: np.ndarray | None, largest: int) -> LightmapUV:
     """`unwrap` past its checks: positions (V, 3) float64 finite, triangles (T, 3) uint32."""
     import xatlas
 
@@ -184,38 +191,36 @@ def _unwrap(positions: np.ndarray, triangles: np.ndarray, settings: LightmapUVSe
         area = float(triangle_areas(corners).sum())
         max_chart_area = area * CHART_TRIANGLES / count
 
-    def generate(add, texels_per_unit: float):
+    def generate(add, texels_per_unit: float, resolution: int = settings.resolution):
         atlas = xatlas.Atlas()
         add(atlas)
         chart_options = xatlas.ChartOptions()
         if max_chart_area > 0:
             chart_options.max_chart_area = float(max_chart_area)
         pack = xatlas.PackOptions()
-        pack.resolution = int(settings.resolution)
+        pack.resolution = int(resolution)
         pack.padding = int(settings.padding)
         pack.bilinear = bool(settings.seed_bilinear)
         pack.texels_per_unit = float(texels_per_unit)
         atlas.generate(chart_options, pack)
         return atlas
 
-    def fitted(add):
+    def fitted(add, resolution: int):
         # With texels_per_unit = 0 xatlas only estimates a density and may overshoot the
         # resolution. Fixing the density makes it pack into atlases of exactly `resolution`;
         # shrink it until everything fits in one, so padding is in texels of the real lightmap.
-        atlas = generate(add, 0.0)
+        # None where the charts do not fit one atlas of `resolution` even so; the estimate's
+        # atlas where it holds no chart (every UV triangle of zero area).
+        atlas = generate(add, 0.0, resolution)
         if atlas.chart_count == 0 or max(atlas.width, atlas.height) == 0:
-            return None  # every triangle has zero area: nothing to chart
-        density = atlas.texels_per_unit * FIT_MARGIN * settings.resolution / max(atlas.width,
-                                                                                 atlas.height)
+            return atlas
+        density = atlas.texels_per_unit * FIT_MARGIN * resolution / max(atlas.width, atlas.height)
         for _ in range(MAX_FIT_ATTEMPTS):
-            atlas = generate(add, density)
+            atlas = generate(add, density, resolution)
             if atlas.atlas_count == 1:
                 return atlas
             density *= SHRINK_PER_ATTEMPT
-        raise ValueError(
-            f"lightmap UVs: charts do not fit one {settings.resolution}^2 atlas with "
-            f"{settings.padding} texels of padding; raise the resolution or lower the padding"
-        )
+        return None
 
     # Chart once; every packing after that (the density fit, polygons made whole) packs the
     # charts as a UV mesh, which xatlas does not chart or flatten again: 0.1 s a packing against
@@ -240,8 +245,15 @@ def _unwrap(positions: np.ndarray, triangles: np.ndarray, settings: LightmapUVSe
     island_uv = np.zeros((int(shared.max()) + 1, 2), np.float32)
     island_uv[shared.ravel()] = metres.reshape(-1, 2)
     island_tris = np.ascontiguousarray(shared.reshape(-1, 3), np.uint32)
-    atlas = fitted(lambda a: a.add_uv_mesh(island_uv, island_tris))
-    if atlas is None:
+    resolution = settings.resolution
+    while (atlas := fitted(lambda a: a.add_uv_mesh(island_uv, island_tris), resolution)) is None:
+        if 2 * resolution > largest:
+            raise ValueError(
+                f"lightmap UVs: {charted.chart_count} charts do not fit one {resolution}^2 atlas "
+                f"with {settings.padding} texels of padding; raise the resolution or lower the "
+                f"padding")
+        resolution *= 2
+    if atlas.chart_count == 0 or max(atlas.width, atlas.height) == 0:
         return no_charts
     corner_uv, chart_ids = _corners(atlas)
     # xatlas packs a zero-area UV triangle's lone corner anywhere: back at (0, 0), or unfolded
@@ -251,7 +263,8 @@ def _unwrap(positions: np.ndarray, triangles: np.ndarray, settings: LightmapUVSe
     if whole:
         corner_uv = _polygons_whole(positions, triangles, polygons, chart_ids,
                                     corner_uv).astype(np.float32)
-    return LightmapUV(corner_uv, chart_ids, int(atlas.chart_count), float(atlas.utilization))
+    return LightmapUV(corner_uv, chart_ids, int(atlas.chart_count), float(atlas.utilization),
+                      resolution)
 
 
 def _corners(atlas) -> tuple[np.ndarray, np.ndarray]:

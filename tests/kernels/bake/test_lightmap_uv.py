@@ -123,6 +123,25 @@ def test_charts_do_not_overlap_and_keep_their_padding(mesh, res, padding):
                 assert not np.any(grown & charts[b]), f"charts {a} and {b} closer than {padding}"
 
 
+def test_charts_too_many_for_the_resolution_grow_it_up_to_largest():
+    """A sphere of 48 x 96 quads charted into pieces (max_chart_area) does not fit 16^2 with 4
+    texels of padding: without `largest` the unwrap refuses; with it, the charts made once are
+    packed again at 32^2, 64^2, ... until one atlas holds them, whose size the result names,
+    padding kept there."""
+    pos, tris = uv_sphere(48, 96)
+    settings = LightmapUVSettings(resolution=16, padding=4, max_chart_area=0.2)
+    with pytest.raises(ValueError, match="do not fit one 16"):
+        unwrap(pos, tris, settings)
+    result = unwrap(pos, tris, settings, largest=1024)
+    assert 32 <= result.resolution <= 1024
+    charts = [footprint(result.corner_uv[result.chart_ids == c], result.resolution)
+              for c in range(result.chart_count)]
+    for a in range(len(charts)):
+        grown = dilate(charts[a], 4)
+        assert not any(np.any(grown & charts[b]) for b in range(len(charts)) if b != a)
+    assert unwrap(pos, tris, LightmapUVSettings(resolution=128)).resolution == 128
+
+
 def test_uv_area_keeps_relative_texel_density():
     # Two faces of a cube get the same UV area: density follows 3D area.
     pos, tris = cube()
