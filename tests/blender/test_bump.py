@@ -9,7 +9,7 @@ from pathlib import Path
 
 import bpy
 import numpy as np
-from blender_parts import tiles_for_bumps, tilted_tiles
+from blender_parts import normal_mapped, tiles_for_bumps, tilted_tiles
 
 from classic_bake.addon import bridge
 from classic_bake.kernels.measure.exr import read_exr
@@ -146,12 +146,7 @@ def test_steep_normal_maps_reflect_about_a_valid_normal_as_cycles_does():
     mat, bsdf = principled("Tiles", base=(0.5, 0.5, 0.5))
     bsdf.inputs["Specular IOR Level"].default_value = 0.5
     bsdf.inputs["Roughness"].default_value = 0.25
-    tree = mat.node_tree
-    tex = tree.nodes.new("ShaderNodeTexImage")
-    tex.image = tilted_tiles(tilts=(1.0, -0.9))
-    normal_map = tree.nodes.new("ShaderNodeNormalMap")
-    tree.links.new(tex.outputs["Color"], normal_map.inputs["Color"])
-    tree.links.new(normal_map.outputs["Normal"], bsdf.inputs["Normal"])
+    normal_map = normal_mapped(mat, bsdf, tilted_tiles(tilts=(1.0, -0.9)))
     mesh = bpy.data.meshes.new("Floor")
     mesh.from_pydata([(-2, -2, 0), (2, -2, 0), (2, 2, 0), (-2, 2, 0)], [], [(0, 1, 2, 3)])
     mesh.uv_layers.new(name="UV").uv.foreach_set("vector", [0, 0, 1, 0, 1, 1, 0, 1])

@@ -355,18 +355,20 @@ def test_steep_mapped_normals_keep_their_tilt(technique):
     (`bump.relief_sky_factor`). relMSE against 256-sample renders of the models under 0.008
     (measured on 5.2: radiosity 2.4e-3, shadow map 5.1e-3; the shadow-map view turned such
     normals over, 0.13, and radiosity lit the tiles with the sky of the flat plane, 0.023)."""
-    from blender_parts import lit_scene, oblique_camera, plane, principled, tilted_tiles
+    from blender_parts import (
+        lit_scene,
+        normal_mapped,
+        oblique_camera,
+        plane,
+        principled,
+        tilted_tiles,
+    )
 
     scene = lit_scene()
     mat, bsdf = principled("Tiles", base=(0.5, 0.6, 0.3))
     bsdf.inputs["Specular IOR Level"].default_value = 0.5
     bsdf.inputs["Roughness"].default_value = 0.4
-    tree = mat.node_tree
-    tex = tree.nodes.new("ShaderNodeTexImage")
-    tex.image = tilted_tiles(tilts=(0.8, -0.8))
-    normal_map = tree.nodes.new("ShaderNodeNormalMap")
-    tree.links.new(tex.outputs["Color"], normal_map.inputs["Color"])
-    tree.links.new(normal_map.outputs["Normal"], bsdf.inputs["Normal"])
+    normal_mapped(mat, bsdf, tilted_tiles(tilts=(0.8, -0.8)))
     plane(mat, size=6.0)
     oblique_camera(scene)
     _, error = _view_error(technique)

@@ -150,17 +150,25 @@ def tilted_tiles(size: int = 128, tilts=(0.5, -0.3)):
     return image
 
 
+def normal_mapped(mat, bsdf, image):
+    """Drive `bsdf`'s Normal with a tangent-space Normal Map of `image` in `mat`'s tree; returns
+    the Normal Map node."""
+    tree = mat.node_tree
+    tex = tree.nodes.new("ShaderNodeTexImage")
+    tex.image = image
+    normal_map = tree.nodes.new("ShaderNodeNormalMap")
+    tree.links.new(tex.outputs["Color"], normal_map.inputs["Color"])
+    tree.links.new(normal_map.outputs["Normal"], bsdf.inputs["Normal"])
+    return normal_map
+
+
 def tiles_for_bumps(names):
     """Replace the Bump nodes of materials `names` by a tangent-space Normal Map of
     `tilted_tiles` on the Principled BSDF's Normal."""
     image = tilted_tiles()
     for name in names:
-        tree = bpy.data.materials[name].node_tree
+        mat = bpy.data.materials[name]
+        tree = mat.node_tree
         for node in [n for n in tree.nodes if n.type == "BUMP"]:
             tree.nodes.remove(node)
-        tex = tree.nodes.new("ShaderNodeTexImage")
-        tex.image = image
-        normal_map = tree.nodes.new("ShaderNodeNormalMap")
-        tree.links.new(tex.outputs["Color"], normal_map.inputs["Color"])
-        bsdf = next(n for n in tree.nodes if n.type == "BSDF_PRINCIPLED")
-        tree.links.new(normal_map.outputs["Normal"], bsdf.inputs["Normal"])
+        normal_mapped(mat, next(n for n in tree.nodes if n.type == "BSDF_PRINCIPLED"), image)
