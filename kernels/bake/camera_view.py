@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..geometry.alpha_occlusion import layered_hits
-from ..geometry.camera import camera_rays, pixel_rays
+from ..geometry.camera import camera_rays, camera_reach, pixel_rays
 from ..geometry.raster import Projection, rasterize
 from ..geometry.scene import Camera, Scene, geometric_normals
 from ..measure.metrics import REC709_LUMINANCE
@@ -244,11 +244,12 @@ def seen_along(scene: Scene, o: np.ndarray, d: np.ndarray, shade, bvh, cover, ro
     from ..shading.reflected_emitters import ray_offset
     from ..shading.world_light import world_radiance
 
+    reach = camera_reach(scene.camera, d)  # the far clip plane, as the z-buffer's
     if cover is None:
-        hits = bvh.intersect(o, d)
+        hits = bvh.intersect(o, d, 0.0, reach)
         ray, weight = np.arange(len(o)), np.ones(len(o))
     else:
-        layers = layered_hits(bvh, o, d, 0.0, np.inf, cover, ray_offset(scene), cover.opaque)
+        layers = layered_hits(bvh, o, d, 0.0, reach, cover, ray_offset(scene), cover.opaque)
         hits, ray, weight = layers.hits, layers.ray, layers.weight
     tri = np.asarray(hits.tri, np.int64)
     hit = tri >= 0

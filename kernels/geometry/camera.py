@@ -129,6 +129,17 @@ def _rays_through(camera: Camera, xy: np.ndarray) -> tuple[np.ndarray, np.ndarra
     return origins, directions
 
 
+def camera_reach(camera: Camera, directions: np.ndarray) -> np.ndarray:
+    """(N,) how far camera rays (`camera_rays`, unit directions (N, 3)) go from their origins
+    before Blender's far clip plane, clip_end along the view axis: (clip_end - clip_start) / cos
+    for a perspective camera, clip_end - clip_start for an orthographic one (Cycles' tmax)."""
+    length = max(camera.clip_end - camera.clip_start, 0.0)
+    if camera.kind == "ORTHO":
+        return np.full(len(directions), length)
+    forward = -camera.matrix_world[:3, 2]
+    return length / np.maximum(np.asarray(directions, np.float64) @ forward, 1e-12)
+
+
 def camera_ray_lines(camera: Camera, width: int, height: int, x: np.ndarray, y: np.ndarray):
     """The lines of the camera rays through image points, and how they move across the image.
 

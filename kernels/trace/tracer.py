@@ -37,7 +37,7 @@ import numpy as np
 from ..bake.camera_view import edge_pixels, stratified_offsets
 from ..geometry.alpha_occlusion import Layers, layered_hits, transmittance
 from ..geometry.bvh import BVH
-from ..geometry.camera import Strata, camera_rays, pixel_rays, strata_rows
+from ..geometry.camera import Strata, camera_rays, camera_reach, pixel_rays, strata_rows
 from ..geometry.intersect import Hits
 from ..geometry.scene import Scene, geometric_normals
 from ..geometry.vec import max_of_three
@@ -231,15 +231,16 @@ class Tracer:
                                      cover, self.offset, cover.opaque)
             return ~self.shadow_bvh.occluded(origins, directions, 0.0, t_max)
 
-    def _hits(self, origins, dirs, t_min, camera: bool) -> tuple[Hits, Layers | None]:
+    def _hits(self, origins, dirs, t_min, camera: bool, t_max=np.inf
+              ) -> tuple[Hits, Layers | None]:
         """Closest hits of the rays that see (`camera`: the camera's), and None; in scenes with
         alpha (or objects hidden from the camera), the layers each ray sees through partly
         covered surfaces (`layered_hits`: a surface of coverage a shows a S + (1 - a) T, as
         Cycles blends it) and, as the hits, each ray's front one."""
         cover = self.camera_cover if camera else self.bounce_cover
         if cover is None:
-            return self.bvh.intersect(origins, dirs, t_min, np.inf), None
-        layers = layered_hits(self.bvh, origins, dirs, t_min, np.inf, cover, self.offset,
+            return self.bvh.intersect(origins, dirs, t_min, t_max), None
+        layers = layered_hits(self.bvh, origins, dirs, t_min, t_max, cover, self.offset,
                               cover.opaque)
         return layers.front_hits(len(origins)), layers
 
@@ -537,11 +538,12 @@ class Tracer:
                  primary_ids: np.ndarray | None = None, footprint: Footprint | None = None,
                  untextured: np.ndarray | None = None, strata: Strata | None = None,
                  seeds: np.ndarray | None = None,
-                 primary_t: np.ndarray | None = None) -> np.ndarray:
+                 primary_t: np.ndarray | None = None,
+                 reach: np.ndarray | None = None) -> np.ndarray:
         """`_radiance`, its time outside the named phases counted as bookkeeping."""
         with self.clock("bookkeeping"):
             return self._radiance(origins, dirs, primary_ids, footprint, untextured, strata,
-                                  primary_t, seeds)
+                                  primary_t, seeds, reach)
 
     @property
     def frames(self) -> rd.TriangleFrames:
@@ -635,8 +637,10 @@ class Tracer:
                   primary_ids: np.ndarray | None = None, footprint: Footprint | None = None,
                   untextured: np.ndarray | None = None, strata: Strata | None = None,
                   primary_t: np.ndarray | None = None,
-                  seeds: np.ndarray | None = None) -> np.ndarray:
-        """Radiance (N, 3) arriving at the camera along N primary rays.
+                  seeds: np.ndarray | None = None,
+                  reach: np.ndarray | None = None) -> np.ndarray:
+        """Radiance (N, 3) arriving at the camera along N primary rays (reach (N,), when given:
+        how far each may meet a surface, the camera's far clip, `camera_reach`).
 
         primary_ids: optional (N,) int64 filled with what each camera ray hit (object and
         material, -1 for the background), for edge detection without tracing twice.
@@ -689,7 +693,9 @@ class Tracer:
             if depth > 0:
                 self.stats.secondary_rays += len(origins)
             with self.clock("traversal"):
-                hits, layers = self._hits(origins, dirs, t_min, camera=depth == 0)
+                hits, layers = self._hits(origins, dirs, t_min, camera=depth == 0,
+                                          t_max=reach if depth == 0 and reach is not None
+                                          else np.inf)
             if depth == 0 and primary_ids is not None:
                 primary_ids[...] = self.hit_ids(hits.tri)
             if depth == 0 and primary_t is not None:
@@ -1046,9 +1052,11 @@ def trace_steps(scene: Scene, settings: TracerSettings, bvh: BVH | None = None,
             o, d = o[first_row:last_row], d[first_row:last_row]  # the whole view's floats
         footprint = None if settings.texture_filter == 1 else Footprint(
             scene.camera, width, height, col + ox, row + oy, 1.0 / n, grid)
-        acc += tracer.radiance(o.reshape(-1, 3), d.reshape(-1, 3), first_ids if k == 0 else None,
+        d = d.reshape(-1, 3)
+        acc += tracer.radiance(o.reshape(-1, 3), d, first_ids if k == 0 else None,
                                footprint=footprint, untextured=flat_k,
-                               strata=(np.full(band * width, k), passes), seeds=seeds)
+                               strata=(np.full(band * width, k), passes), seeds=seeds,
+                               reach=camera_reach(scene.camera, d))
         flat += flat_k
         yield 0.6 * (k + 1) / passes
     pixels = acc / passes
@@ -1092,7 +1100,8 @@ def trace_steps(scene: Scene, settings: TracerSettings, bvh: BVH | None = None,
                     -(-settings.texture_filter // a))
                 radiance[first:last] = tracer.radiance(
                     origins[first:last], dirs[first:last], footprint=footprint,
-                    strata=(stratum[first:last], len(grid)), seeds=edge_seeds[first:last])
+                    strata=(stratum[first:last], len(grid)), seeds=edge_seeds[first:last],
+                    reach=camera_reach(scene.camera, dirs[first:last]))
                 yield 0.6 + 0.4 * min(last, len(origins)) / len(origins)
             pixels[sel] = radiance.reshape(len(grid), len(sel), 3).mean(axis=0)
     image[...] = pixels.reshape(band, width, 3)[top - first_row:bottom - first_row]

@@ -575,3 +575,25 @@ def test_a_layer_takes_lobe_rays_where_its_reflection_outweighs_the_base():
     # world's 1, whether one ray or eight carry it.
     np.testing.assert_allclose(results["red"].image, results["white"].image, rtol=1e-6)
     assert np.all(results["red"].image > 0.03)
+
+
+@pytest.mark.parametrize("kind", ["PERSP", "ORTHO"])
+def test_camera_rays_end_at_the_far_clip_plane(kind):
+    """A glowing wall 10 m down the view axis under a black world: a camera whose clip_end is 8 m
+    sees nothing of it (Cycles' camera rays end at clip_end along the view axis,
+    `camera_reach`), one of 12 m sees it at every pixel, corners included (their rays reach
+    12 / cos along themselves)."""
+    from scene_builder import grey
+
+    from classic_bake.kernels.geometry.camera import camera_reach
+
+    wall = quad([(-20, -20, -10), (20, -20, -10), (20, 20, -10), (-20, 20, -10)])
+    camera = (persp_camera((0, 0, 0), (0, 0, -1), (0, 1, 0), 1.2) if kind == "PERSP"
+              else ortho_camera((0, 0, 0), (0, 0, -1), (0, 1, 0), 4.0))
+    for clip_end, seen in ((8.0, 0.0), (12.0, 2.0)):
+        scene = build([(wall, grey(0.0, emission=2.0))],
+                      camera=replace(camera, clip_end=clip_end))
+        np.testing.assert_allclose(trace(scene, TracerSettings(max_depth=0)).image, seen)
+    _, d = camera_rays(replace(camera, clip_end=12.0))
+    reach = camera_reach(replace(camera, clip_end=12.0), d.reshape(-1, 3))
+    np.testing.assert_allclose(reach * (d.reshape(-1, 3) @ [0.0, 0.0, -1.0]), 12.0)
