@@ -144,6 +144,7 @@ class TraceStats:
     pruned_branches: int = 0  # reflected/refracted rays not traced because their weight was small
     depth_limited: int = 0  # hits one bounce past max_depth that would reflect or refract further
     edge_pixels: int = 0
+    hot_pixels: int = 0  # pixels traced again for a highlight smaller than themselves
     rays_per_depth: list = field(default_factory=list)
     # Seconds per phase, exclusive of nested phases, in all and per depth (`PhaseClock.as_dict`).
     phases: dict = field(default_factory=dict)

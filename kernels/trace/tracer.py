@@ -41,8 +41,9 @@ from ..geometry.camera import Strata, camera_rays, camera_reach, pixel_rays, str
 from ..geometry.intersect import Hits
 from ..geometry.scene import Scene, geometric_normals
 from ..geometry.vec import max_of_three
+from ..measure.metrics import REC709_LUMINANCE
 from ..measure.phase_clock import PhaseClock
-from ..progress import Steps, drain
+from ..progress import Steps, drain, scaled
 from ..shading import lights as light_units
 from ..shading.alpha import lighting_coverage, ray_coverage, scene_alpha
 from ..shading.bump import bump_shadowing, valid_reflection
@@ -82,6 +83,13 @@ ALBEDO_FLOOR = 1e-3
 # Edge sub-samples traced per wavefront: large enough to amortise per-call work, small enough that
 # a wavefront's hit records (~1 KB per ray over its depths) stay a few hundred MB at most.
 EDGE_WAVEFRONT = 1 << 18
+# An isolated pixel this many times brighter (luminance) than the median of its 3 x 3
+# neighbourhood, and above HOT_FLOOR W/(m^2 sr), holds a highlight smaller than itself met by a
+# point sample (`hot_pixels`): it is traced again with HOT_SAMPLES x HOT_SAMPLES rays, so its
+# value is the highlight's share of the pixel, as Cycles' many samples average it.
+HOT_RATIO = 4.0
+HOT_FLOOR = 1.0
+HOT_SAMPLES = 8
 # The sub-samples of a pixel (an edge's a x a) together draw about this many times the rays a
 # whole pixel's rough lobe takes, from one stratified set (`_lobe_rays`, `lobe_points`). Against
 # each sub-sample taking the whole count (16 here) on its own pattern: 8 took a rough-lobed glTF
@@ -1077,36 +1085,69 @@ def trace_steps(scene: Scene, settings: TracerSettings, bvh: BVH | None = None,
         tracer.stats.edge_pixels = int(mark.sum())
         if mark.any():
             sel = np.nonzero(mark)[0]
-            grid = stratified_offsets(a)
             tracer.pass_name = "edges"
-            # All sub-samples of all edge pixels go out as few large wavefronts: per-call costs
-            # (BVH pool set-up, one pass per depth) are paid once, not once per sub-sample.
-            rays = [pixel_rays(scene.camera, width, height, col[sel] + ox, row[sel] + oy)
-                    for ox, oy in grid]
-            origins = np.concatenate([o for o, _ in rays])  # (a*a*E, 3)
-            dirs = np.concatenate([d for _, d in rays])
-            del rays
-            radiance = np.empty((len(origins), 3))
-            stratum = np.repeat(np.arange(len(grid)), len(sel))  # the sub-sample of each ray
-            edge_seeds = np.tile(seeds[sel], (len(grid), 1))  # each ray's pixel
-            # Each sub-sample's textures averaged over its 1/a cell, as in pass 1: a minified
-            # texture at a silhouette would alias between a x a point samples.
-            cell_x = np.concatenate([col[sel] + ox for ox, _ in grid])
-            cell_y = np.concatenate([row[sel] + oy for _, oy in grid])
-            for first in range(0, len(origins), EDGE_WAVEFRONT):
-                last = first + EDGE_WAVEFRONT
-                footprint = None if settings.texture_filter == 1 else Footprint(
-                    scene.camera, width, height, cell_x[first:last], cell_y[first:last], 1.0 / a,
-                    -(-settings.texture_filter // a))
-                radiance[first:last] = tracer.radiance(
-                    origins[first:last], dirs[first:last], footprint=footprint,
-                    strata=(stratum[first:last], len(grid)), seeds=edge_seeds[first:last],
-                    reach=camera_reach(scene.camera, dirs[first:last]))
-                yield 0.6 + 0.4 * min(last, len(origins)) / len(origins)
-            pixels[sel] = radiance.reshape(len(grid), len(sel), 3).mean(axis=0)
+            pixels[sel] = yield from scaled(_subsampled(
+                tracer, scene, settings, width, height, col[sel], row[sel], seeds[sel], a),
+                0.6, 0.3)
+    # --- pass 3: pixels far brighter than those around them ----------------------------------------
+    # A smooth surface's highlight (a lamp in a curved metal) can be far smaller than a pixel: a
+    # point sample that meets it sets the pixel to its peak, where Cycles averages it over the
+    # pixel. Such pixels get HOT_SAMPLES x HOT_SAMPLES rays, their mean replacing them.
+    if a > 1:
+        own = (row >= top) & (row < bottom)
+        hot = np.flatnonzero(hot_pixels(pixels.reshape(band, width, 3)).ravel() & own)
+        tracer.stats.hot_pixels = int(hot.size)
+        if hot.size:
+            tracer.pass_name = "hot pixels"
+            pixels[hot] = yield from scaled(_subsampled(
+                tracer, scene, settings, width, height, col[hot], row[hot], seeds[hot],
+                HOT_SAMPLES), 0.9, 0.1)
     image[...] = pixels.reshape(band, width, 3)[top - first_row:bottom - first_row]
     tracer.stats.phases = tracer.clock.as_dict()
     return TraceResult(image=image, stats=tracer.stats, settings=settings)
+
+
+def _subsampled(tracer: Tracer, scene: Scene, settings: TracerSettings, width: int, height: int,
+                col: np.ndarray, row: np.ndarray, seeds: np.ndarray, a: int
+                ) -> Steps[np.ndarray]:
+    """(P, 3) the mean radiance of a x a stratified rays through each pixel (col, row) (P,)
+    each, seeds (P, 3) their lobe rays' patterns; yields progress in [0, 1]."""
+    grid = stratified_offsets(a)
+    # All sub-samples of all the pixels go out as few large wavefronts: per-call costs (BVH pool
+    # set-up, one pass per depth) are paid once, not once per sub-sample.
+    rays = [pixel_rays(scene.camera, width, height, col + ox, row + oy) for ox, oy in grid]
+    origins = np.concatenate([o for o, _ in rays])  # (a*a*P, 3)
+    dirs = np.concatenate([d for _, d in rays])
+    del rays
+    radiance = np.empty((len(origins), 3))
+    stratum = np.repeat(np.arange(len(grid)), len(col))  # the sub-sample of each ray
+    ray_seeds = np.tile(seeds, (len(grid), 1))  # each ray's pixel
+    # Each sub-sample's textures averaged over its 1/a cell, as in pass 1: a minified texture at
+    # a silhouette would alias between a x a point samples.
+    cell_x = np.concatenate([col + ox for ox, _ in grid])
+    cell_y = np.concatenate([row + oy for _, oy in grid])
+    for first in range(0, len(origins), EDGE_WAVEFRONT):
+        last = first + EDGE_WAVEFRONT
+        footprint = None if settings.texture_filter == 1 else Footprint(
+            scene.camera, width, height, cell_x[first:last], cell_y[first:last], 1.0 / a,
+            -(-settings.texture_filter // a))
+        radiance[first:last] = tracer.radiance(
+            origins[first:last], dirs[first:last], footprint=footprint,
+            strata=(stratum[first:last], len(grid)), seeds=ray_seeds[first:last],
+            reach=camera_reach(scene.camera, dirs[first:last]))
+        yield min(last, len(origins)) / len(origins)
+    return radiance.reshape(len(grid), len(col), 3).mean(axis=0)
+
+
+def hot_pixels(image: np.ndarray) -> np.ndarray:
+    """(H, W) bool: pixels of image (H, W, 3) whose luminance passes HOT_RATIO times the median
+    of their 3 x 3 neighbourhood's and HOT_FLOOR (a small highlight a few pixels across: the
+    median is the surface around it)."""
+    lum = image @ np.array(REC709_LUMINANCE)
+    padded = np.pad(lum, 1, mode="edge")
+    h, w = lum.shape
+    around = np.stack([padded[i:i + h, j:j + w] for i in range(3) for j in range(3)])
+    return (lum > HOT_RATIO * np.median(around, axis=0)) & (lum > HOT_FLOOR)
 
 
 def trace(scene: Scene, settings: TracerSettings | None = None, **kwargs) -> TraceResult:

@@ -597,3 +597,21 @@ def test_camera_rays_end_at_the_far_clip_plane(kind):
     _, d = camera_rays(replace(camera, clip_end=12.0))
     reach = camera_reach(replace(camera, clip_end=12.0), d.reshape(-1, 3))
     np.testing.assert_allclose(reach * (d.reshape(-1, 3) @ [0.0, 0.0, -1.0]), 12.0)
+
+
+def test_hot_pixels_are_isolated_peaks():
+    """`hot_pixels`: a pixel 10x its surroundings and a pair of them are hot; a bright region
+    is not, but for its convex corner (4 of 9 bright: traced again, which costs rays, not
+    accuracy); nor is a faint peak under HOT_FLOOR."""
+    from classic_bake.kernels.trace.tracer import HOT_FLOOR, hot_pixels
+
+    image = np.full((12, 12, 3), 1.0)
+    image[2, 2] = 10.0
+    image[6, 6:8] = 10.0
+    image[8:12, 0:4] = 10.0  # a region: its pixels' neighbourhoods are mostly as bright
+    hot = hot_pixels(image)
+    assert hot[2, 2] and hot[6, 6] and hot[6, 7]
+    assert hot[8, 3] and hot.sum() == 4
+    faint = np.full((5, 5, 3), 0.01 * HOT_FLOOR)
+    faint[2, 2] = 0.5 * HOT_FLOOR
+    assert not hot_pixels(faint).any()
