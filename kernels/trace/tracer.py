@@ -1019,8 +1019,9 @@ def trace_steps(scene: Scene, settings: TracerSettings, bvh: BVH | None = None,
     resolution: (W, H) pixels, default the camera's. out: optional (H, W, 3) float32 buffer.
     rows: (a, b): only the image's rows a..b-1 (a tile of the view, jobs/tiles.py), each pixel
     traced as the whole view traces it; the image holds those rows (b - a, W, 3) (and `out` is
-    that size). The edge pass compares pixels with their 4-neighbours, so the rows next to the
-    band are traced too (and counted in the stats).
+    that size). The edge pass compares pixels with their 4-neighbours and the hot-pixel pass
+    their 3 x 3 neighbourhoods after it, so two rows either side of the band are traced too,
+    and the nearer one edge-passed (counted in the stats).
     environment: object index -> radiance lookup(points, directions), each (N, 3); those
     objects' mirror reflections read it instead of tracing rays (`envmap.py`). diffuse: the
     diffuse light at every hit read from elsewhere (`DiffuseLookup`; kernels/hybrid/).
@@ -1031,7 +1032,9 @@ def trace_steps(scene: Scene, settings: TracerSettings, bvh: BVH | None = None,
     top, bottom = rows if rows is not None else (0, height)
     if not 0 <= top < bottom <= height:
         raise ValueError(f"rows {top}..{bottom} are not rows of a {height}-row image")
-    halo = 1 if rows is not None and settings.adaptive > 1 else 0
+    # Pass 3 reads each pixel's 3 x 3 neighbourhood after the edge pass, which reads each
+    # pixel's 4-neighbours: two rows on either side are traced, one of them edge-passed too.
+    halo = 2 if rows is not None and settings.adaptive > 1 else 0
     first_row, last_row = max(0, top - halo), min(height, bottom + halo)  # the rows traced
     band = last_row - first_row
     bvh = bvh or BVH.build(scene.triangles)
@@ -1081,7 +1084,7 @@ def trace_steps(scene: Scene, settings: TracerSettings, bvh: BVH | None = None,
                 chroma = tracer.attribute_hits(first_ids).reshape(band, width)
             mark = edge_pixels(seen.reshape(band, width, 3),
                                first_ids.reshape(band, width), chroma).ravel()
-            mark &= (row >= top) & (row < bottom)  # the band's own rows
+            mark &= (row >= top - 1) & (row <= bottom)  # the band's rows and one either side
         tracer.stats.edge_pixels = int(mark.sum())
         if mark.any():
             sel = np.nonzero(mark)[0]
