@@ -15,7 +15,8 @@ At every hit this kernel adds
 and spawns
 * a mirror ray for metals (Schlick weight) and for dielectric specular layers (the layer's
   albedo at the view: exact Fresnel when smooth); on a rough surface the one ray stands for its
-  lobe (the energy right, the blur not drawn);
+  lobe (the energy right; escaping, it reads the world's map averaged over the lobe,
+  `world_lobes.py`; the surfaces it meets are drawn sharp);
 * for glass, a reflected and a refracted ray weighted by the exact Fresnel reflectance, with
   total internal reflection.
 Escaping rays see the world colour. A branch whose weight (throughput) falls below `min_weight`
@@ -74,6 +75,7 @@ from .surface import (
     footprint_albedo,
     surface_at,
 )
+from .world_lobes import WorldLobes
 
 # Emitter samples handled together in area lighting: B x hits arrays stay a few MB per block for
 # a typical wavefront of ~100k hits.
@@ -183,6 +185,8 @@ class Tracer:
         if scene.world_texture is not None:
             self.map_suns, residual = extract_suns(scene.world_texture, scene.world_transform)
             self.sky_scene = replace(scene, world_texture=residual)
+        # That map averaged over rough lobes, for the rays that stand for one (`world_lobes.py`).
+        self.world_lobes = None if scene.world_texture is None else WorldLobes(self.sky_scene)
         self.stats = TraceStats()
         # Seconds per phase and per depth (`PhaseClock`), for the profile benches print.
         self.clock = PhaseClock()
@@ -572,8 +576,8 @@ class Tracer:
     def _lobe_rays(self, child: tuple, strong: np.ndarray, h: SurfaceHits, wo: np.ndarray,
                    rough: np.ndarray, lobe_w: np.ndarray, diffuse: np.ndarray,
                    seeds: np.ndarray | None = None, strata: Strata | None = None) -> tuple:
-        """The reflected generation `child` (origins, dirs, pixel, weight, sharp, entered[, dp,
-        dd]: the rays of hits `strong` (N,) bool) with each rough hit's mirror ray replaced by
+        """The reflected generation `child` (origins, dirs, pixel, weight, sharp, entered, blur[,
+        dp, dd]: the rays of hits `strong` (N,) bool) with each rough hit's mirror ray replaced by
         rays across its GGX lobe (`glossy_lobe.py`), sharing the ray's weight equally among
         those that leave the surface, each with the mirror ray's origin and differentials. A
         lobe of albedo lobe_w (N, 3) over a diffuse reflectance `diffuse` (N, 3) takes
@@ -607,9 +611,9 @@ class Tracer:
         kept[many[leaving > 0]] = False
         fields = [child[0][source], dirs[new], child[2][source],
                   child[3][source] / leaving[which[new]][:, None], child[4][source],
-                  child[5][source]]
-        out = [np.concatenate([old[kept], field]) for old, field in zip(child[:6], fields, strict=True)]
-        for old in child[6:]:  # ray differentials (2, n, 3)
+                  child[5][source], np.zeros(len(source))]  # across the lobe: no blur
+        out = [np.concatenate([old[kept], field]) for old, field in zip(child[:7], fields, strict=True)]
+        for old in child[7:]:  # ray differentials (2, n, 3)
             out.append(np.concatenate([old[:, kept], old[:, source]], axis=1))
         self.stats.lobe_rays += int(new.sum())
         return tuple(out)
@@ -681,6 +685,10 @@ class Tracer:
         # it: a mirror's sharp image of a lamp would be a hot spot that Cycles' lobe blurs over
         # the surface.
         sharp = np.ones(len(origins), bool)
+        # The roughness of the lobe a ray stands for alone (0: none): a rough surface's one
+        # reflected ray, and the rays after it. Escaping, it reads the world's map averaged over
+        # that lobe (`world_lobes.py`), as Cycles' many rays across the lobe see it.
+        blur = np.zeros(len(origins))
         # Solids a ray is inside of: +1 through a front face's refraction, -1 through a back
         # face's; -1 for "unknown" (a back face met from outside: an open or inverted mesh).
         # At 0 the ray is on the camera's side (`DiffuseLookup`), closed meshes assumed.
@@ -711,8 +719,8 @@ class Tracer:
             front = None  # (N,) bool, with layers: the entries that are their ray's front one
             if layers is not None:  # a ray per surface it sees, weighted by what reaches it
                 src, front = layers.ray, layers.first()
-                origins, dirs, pixel, sharp, entered = (origins[src], dirs[src], pixel[src],
-                                                        sharp[src], entered[src])
+                origins, dirs, pixel, sharp, entered, blur = (
+                    origins[src], dirs[src], pixel[src], sharp[src], entered[src], blur[src])
                 weight, t_min = weight[src] * layers.weight[:, None], t_min[src]
                 if follow and 0 < depth <= s.max_depth:
                     dp, dd = dp[:, src], dd[:, src]
@@ -728,19 +736,22 @@ class Tracer:
             elif self.scene.world_texture is None:
                 background = self.scene.world_color
             else:  # the world's map along each escaping ray; a rough lobe's ray (off no smooth
-                # surface) reads it without the suns that the lobes' highlights already carry
-                escaped = dirs[miss]
-                rough_ray = ~sharp[miss] if depth > 0 and self.map_suns else \
-                    np.zeros(len(escaped), bool)
+                # surface) reads it without the suns that the lobes' highlights already carry,
+                # averaged over the lobe where it stands for a whole one
+                escaped, lobe = dirs[miss], blur[miss]
+                rough_ray = ~sharp[miss] if depth > 0 else np.zeros(len(escaped), bool)
+                wide = lobe > 0.0
                 background = np.empty((len(escaped), 3))
                 background[~rough_ray] = world_radiance(self.scene, escaped[~rough_ray])
-                background[rough_ray] = world_radiance(self.sky_scene, escaped[rough_ray])
+                one = rough_ray & ~wide
+                background[one] = world_radiance(self.sky_scene, escaped[one])
+                background[wide] = self.world_lobes.radiance(escaped[wide], lobe[wide])
             _scatter_add(result, pixel[miss], weight[miss] * background)
             if untextured is not None:
                 _scatter_add(flat, pixel[miss], weight[miss] * background)
             keep = ~miss
             origins, dirs, pixel, weight = origins[keep], dirs[keep], pixel[keep], weight[keep]
-            sharp, entered = sharp[keep], entered[keep]
+            sharp, entered, blur = sharp[keep], entered[keep], blur[keep]
             if front is not None:
                 front = front[keep]
             if follow and 0 < depth <= s.max_depth:
@@ -920,7 +931,7 @@ class Tracer:
             wrong = ~tir & (np.einsum("ij,ij->i", t_dir, h.ng) >= 0.0)
             if wrong.any():
                 t_dir[wrong], tir[wrong] = refract(dirs[wrong], h.ng[wrong], eta[wrong])
-            children = []  # (origins, dirs, pixel, weight, sharp, entered[, dp, dd])
+            children = []  # (origins, dirs, pixel, weight, sharp, entered, blur[, dp, dd])
             # glass: Fresnel split between the reflected and the refracted ray
             glass = smooth & (trans > 0) & (metallic < 1)
             f_g = fresnel_dielectric(cos_o, eta)
@@ -957,6 +968,8 @@ class Tracer:
                 # rays off smooth surfaces see area lamps (`sharp`)
                 sees = sharp & (lobe_rough < s.mirror_roughness if lobe_rough is not None
                                 else smooth)
+                lobe_blur = blur if lobe_rough is None else np.where(
+                    lobe_rough >= s.mirror_roughness, np.maximum(blur, lobe_rough), blur)
                 w_total = weight * w_new
                 w_max = max_of_three(w_total)
                 alive = w_max > 0.0
@@ -965,7 +978,7 @@ class Tracer:
                 if strong.any():
                     o_new = h.p[strong] + side * h.ng[strong] * self.offset
                     children.append((o_new, d_new[strong], pixel[strong], w_total[strong],
-                                     sees[strong], seen[strong]))
+                                     sees[strong], seen[strong], lobe_blur[strong]))
                     spawned.append((strong, side, bent, about))
                     lobes_of.append((lobe_rough, lobe_w))
             if not children:
@@ -1002,9 +1015,10 @@ class Tracer:
             weight = np.concatenate([c[3] for c in children])
             sharp = np.concatenate([c[4] for c in children])
             entered = np.concatenate([c[5] for c in children])
+            blur = np.concatenate([c[6] for c in children])
             if carry:
-                dp = np.concatenate([c[6] for c in children], axis=1)
-                dd = np.concatenate([c[7] for c in children], axis=1)
+                dp = np.concatenate([c[7] for c in children], axis=1)
+                dd = np.concatenate([c[8] for c in children], axis=1)
             t_min = np.zeros(len(origins))
         return result
 

@@ -236,6 +236,30 @@ def test_a_maps_sun_shines_in_the_tracers_rough_lobes(base, roughness, bound):
     assert error < bound
 
 
+def test_a_rough_floor_reflects_a_striped_sky_blurred_as_cycles_does():
+    """A grey Principled plane (Specular IOR Level 0.5) under a sky of bright stripes 5.6 degrees
+    wide, no lamp: in the Whitted model its diffuse base is dark and its rough layer shows the
+    sky, which Cycles' lobe blurs. Where the tracer's one reflected ray stands for the lobe it
+    reads the map averaged over it (`trace/world_lobes.py`). Roughness 0.8: relMSE against a
+    512-sample render under 0.01 (measured 4.1e-3; the map read along the one ray: 3.3e-2, a
+    sharp mirror image of the stripes)."""
+    from blender_parts import oblique_camera, plane, principled
+
+    height, width = 128, 256
+    v, u = np.mgrid[0:height, 0:width]
+    pixels = np.full((height, width, 3), 0.15, np.float32)
+    pixels[((u // 8) % 2 == 0) & (v < height // 2)] = (1.5, 1.2, 0.8)
+    scene = hdri_world(pixels)
+    mat, bsdf = principled("Floor", base=(0.55, 0.5, 0.45))
+    bsdf.inputs["Specular IOR Level"].default_value = 0.5
+    bsdf.inputs["Roughness"].default_value = 0.8
+    plane(mat, size=6.0)
+    oblique_camera(scene)
+    error = _traced_against_cycles(scene, (64, 48), depth=4, samples=512)
+    print(f"relMSE {error:.2e}")
+    assert error < 0.01
+
+
 def _sky_world(elevation_deg: float = 30.0):
     """The scene's world: a Sky Texture (the version's default model: Multiple Scattering in
     5.x, Nishita in 4.5) with its sun disc `elevation_deg` up, 40 degrees round."""
