@@ -12,6 +12,7 @@ import os
 import pickle
 import signal
 import warnings
+from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -25,6 +26,30 @@ from ..geometry.scene import triangle_areas
 # triangles are charted in a child process, so that a crash becomes an error naming the mesh;
 # smaller ones (none seen to crash) skip the fork's few milliseconds.
 ISOLATE_TRIANGLES = 10_000
+
+
+# xatlas (0.0.11) can hang for ever destroying an atlas: its task scheduler's destructor sets each
+# worker thread's wake-up flag and notifies it without taking the worker's mutex, so a worker
+# between testing the flag and going to sleep misses the call and the destructor's join waits for
+# it (a lost wake-up: 2 hangs, both in the destructor, in ~42,000 two-triangle atlases made and
+# dropped at once). Atlases are kept until this many later ones were made: by then the worker has
+# long been asleep, and the destructor wakes it (no hang in 100,000 so). They are small: a large
+# mesh's atlases are made in a child process (`ISOLATE_TRIANGLES`), which ends without destroying
+# them.
+RETIRED_ATLASES = 4
+_retired: deque = deque(maxlen=RETIRED_ATLASES)
+_orphaned: list = []  # a forked child's inherited atlases: never destroyed there
+
+
+def _orphan_retired() -> None:
+    # A forked child has none of the parent's threads: destroying an atlas it inherited would
+    # join a worker that does not exist in it, for ever.
+    _orphaned.extend(_retired)
+    _retired.clear()
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_orphan_retired)
 
 
 class UnwrapCrash(ValueError):
@@ -203,6 +228,7 @@ def _unwrap(positions: np.ndarray, triangles: np.ndarray, settings: LightmapUVSe
         pack.bilinear = bool(settings.seed_bilinear)
         pack.texels_per_unit = float(texels_per_unit)
         atlas.generate(chart_options, pack)
+        _retired.append(atlas)  # destroyed RETIRED_ATLASES atlases later, not when dropped
         return atlas
 
     def fitted(add, resolution: int):

@@ -315,3 +315,32 @@ def test_a_mesh_is_charted_once_and_packed_as_charts_after(monkeypatch):
         mask = footprint(result.corner_uv[result.chart_ids == chart], 128)
         assert not (mask & (owner >= 0)).any()
         owner[mask] = chart
+
+
+def test_atlases_outlive_the_unwrap_until_later_ones_are_made(monkeypatch):
+    """xatlas' destructor can miss its worker thread's going to sleep and wait for it for ever
+    (`RETIRED_ATLASES`): an unwrap's atlases are not destroyed when it drops them but only after
+    that many later ones were made; the oldest go first."""
+    import gc
+    import weakref
+
+    import xatlas
+
+    from classic_bake.kernels.bake import lightmap_uv
+
+    made = []
+
+    class Tracked(xatlas.Atlas):
+        def __init__(self):
+            super().__init__()
+            made.append(weakref.ref(self))
+
+    monkeypatch.setattr(xatlas, "Atlas", Tracked)
+    pos, tris = terrain(6)
+    for _ in range(3):
+        unwrap(pos, tris, LightmapUVSettings(resolution=64))
+    gc.collect()
+    alive = [ref() is not None for ref in made]
+    assert len(made) > lightmap_uv.RETIRED_ATLASES
+    assert alive == [False] * (len(made) - lightmap_uv.RETIRED_ATLASES) + \
+        [True] * lightmap_uv.RETIRED_ATLASES
