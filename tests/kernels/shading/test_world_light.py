@@ -375,3 +375,56 @@ def geometric_z(triangles):
     e1, e2 = triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0]
     n = np.cross(e1, e2)
     return n[:, 2] / np.linalg.norm(n, axis=1)
+
+
+def _banded_map(height=64, width=128):
+    """An equirectangular Texture of 8 bands of longitude, radiance 0.1 and 2.0 in turn, and
+    1.0 below the horizon: detail a patch's few rays sample unevenly."""
+    from classic_bake.kernels.geometry.scene import Texture
+
+    pixels = np.ones((height, width, 4), np.float32)
+    bands = (np.arange(width) * 8 // width) % 2 == 0
+    pixels[: height // 2, :, :3] = np.where(bands, 2.0, 0.1)[None, :, None]
+    return Texture(kind="IMAGE", pixels=pixels, extension="REPEAT")
+
+
+def test_open_patches_under_a_map_get_its_irradiance_without_noise():
+    """Under a banded map, the floor patches that see the whole sky take the map's open
+    irradiance E(n) (`MappedWorld.irradiance`, tabulated) exactly the same, and E(n) within 0.5%
+    of a fine quadrature of the map (the map along 4 x 4 rays alone spreads them by 21% rms);
+    the patches under a plate keep E(n) less what their blocked rays would have brought: against
+    1024-ray estimates, within 3% of E on average and 15% at most (the rays' noise)."""
+    from classic_bake.kernels.shading.world_light import (
+        MappedWorld,
+        texel_directions,
+        world_radiance,
+    )
+
+    shaded = floor_quad()                          # under the plate, which hides part of its sky
+    plate = quad([[0, 0, 0.5], [0, 1, 0.5], [1, 1, 0.5], [1, 0, 0.5]])
+    open_floor = floor_quad(z=2.0, lo=3.0, hi=5.0)  # above everything else: the whole sky
+    scene = build([(shaded, grey(0.5)), (plate, grey(0.0)), (open_floor, grey(0.5))],
+                  world=(1.0, 1.0, 1.0))
+    scene = replace(scene, world_texture=_banded_map())
+    patches = patching.make_patches(scene, 0.25)
+    on_floor = np.flatnonzero(patches.normals[:, 2] > 0.5)
+    args = (patches.corners[on_floor], patches.normals[on_floor], patches.parent[on_floor],
+            _occluded(scene.triangles), 5.0)
+    world = MappedWorld(scene)
+    rng = np.random.default_rng(5)
+    e = world_irradiance(world, *args, 16, rng)
+    open_sky = patches.corners[on_floor, 0, 2] > 1.0
+    assert open_sky.sum() > 50 and (~open_sky).sum() > 10
+    dirs, omega = texel_directions(256, 512)
+    power = world_radiance(scene, dirs.reshape(-1, 3)) * omega.reshape(-1, 1)
+    exact = (np.maximum(dirs.reshape(-1, 3)[:, 2], 0.0)[:, None] * power).sum(axis=0)
+    np.testing.assert_allclose(e[open_sky], np.tile(exact, (open_sky.sum(), 1)), rtol=5e-3)
+    plain = world_irradiance(lambda d: world_radiance(scene, d), *args, 16, rng)
+    assert plain[open_sky, 0].std() > 0.05 * exact[0]
+    fine = world_irradiance(world, *[a[~open_sky] for a in args[:3]], *args[3:], 1024, rng)
+    under = patches.corners[on_floor][~open_sky].mean(axis=1)
+    hidden = (under[:, 0] > 0.2) & (under[:, 0] < 0.8) & (under[:, 1] > 0.2) & (under[:, 1] < 0.8)
+    assert (fine[hidden, 0] < 0.7 * exact[0]).all()  # the plate hides much of their sky
+    miss = np.abs(e[~open_sky] - fine)[:, 0] / exact[0]
+    print(f"shaded patches: mean miss {miss.mean():.4f}, largest {miss.max():.4f}")
+    assert miss.mean() < 0.03 and miss.max() < 0.15
