@@ -12,7 +12,7 @@ lobe about its direction:
 
 the split-sum prefilter of `envmap/prefilter.py` (n = v = r: the lobe is centred on the mirror
 direction and does not stretch at grazing angles), on a cube resampled from the map: each face
-texel the mean of 2 x 2 point samples (`SUPERSAMPLE`), then the GGX mip chain, read trilinearly
+texel the solid-angle-weighted mean of 2 x 2 point samples, then the GGX mip chain, read trilinearly
 by roughness (`envmap/probe_lookup.py`). Built on the first look-up: a tracer whose rough rays
 never escape (or whose world is a uniform colour) never pays for it.
 """
@@ -36,9 +36,6 @@ from ..shading.world_light import world_radiance
 FACE_SIZE = 128
 LEVELS = 11
 MIN_SIZE = 16
-# Point samples per face texel along each side when resampling the map onto the cube: a
-# photographed sky (1560 x 780, 0.23 degrees a texel) holds detail finer than a texel of it.
-SUPERSAMPLE = 2
 
 
 class WorldLobes:
@@ -56,10 +53,11 @@ class WorldLobes:
     def mips(self) -> GlossyMips:
         """The prefiltered chain, built when first needed."""
         if self._mips is None:
-            fine = texel_directions(self.face_size * SUPERSAMPLE)            # (6, F, F, 3)
-            faces = world_radiance(self.scene, fine.reshape(-1, 3)).reshape(*fine.shape)
-            for _ in range(SUPERSAMPLE.bit_length() - 1):  # solid-angle-weighted 2 x 2 means
-                faces = downsample(faces.astype(np.float32))
+            # 2 x 2 point samples a texel: a photographed sky (1560 x 780, 0.23 degrees a texel)
+            # holds detail finer than a texel of the cube
+            fine = texel_directions(2 * self.face_size)                      # (6, 2F, 2F, 3)
+            faces = downsample(world_radiance(self.scene, fine.reshape(-1, 3)).reshape(
+                *fine.shape).astype(np.float32))
             self._mips = GlossyMips.from_prefiltered(prefilter(faces, self.settings))
         return self._mips
 
