@@ -246,12 +246,9 @@ def test_a_rough_floor_reflects_a_striped_sky_blurred_as_cycles_does():
     views of the image's bottom rows than 5.2's, which the tracer's tables follow (2.1e-2 there;
     the same at roughness 0.3): 0.03 on 4.5."""
     from blender_parts import oblique_camera, plane, principled
+    from scene_builder import striped_sky
 
-    height, width = 128, 256
-    v, u = np.mgrid[0:height, 0:width]
-    pixels = np.full((height, width, 3), 0.15, np.float32)
-    pixels[((u // 8) % 2 == 0) & (v < height // 2)] = (1.5, 1.2, 0.8)
-    scene = hdri_world(pixels)
+    scene = hdri_world(striped_sky(bright=(1.5, 1.2, 0.8)))
     mat, bsdf = principled("Floor", base=(0.55, 0.5, 0.45))
     bsdf.inputs["Specular IOR Level"].default_value = 0.5
     bsdf.inputs["Roughness"].default_value = 0.8

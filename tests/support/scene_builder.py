@@ -154,3 +154,13 @@ def mirror_view(degrees: float, width: float = 0.5, resolution=(4, 4)):
     forward = np.array([0.0, s, -c])
     return ortho_camera(-5.0 * forward, forward, (0, 0, 1), width, resolution), np.array([0.0, -s, -c])
 
+
+
+def striped_sky(height: int = 128, width: int = 256, bright=(1.5, 1.5, 1.5), dark: float = 0.15
+                ) -> np.ndarray:
+    """(H, W, 3) float32 equirectangular pixels (row 0 at the top): stripes of `bright` and
+    `dark` radiance, 8 texels wide (5.6 degrees at 256 columns), above the horizon; `dark` below."""
+    v, u = np.mgrid[0:height, 0:width]
+    pixels = np.full((height, width, 3), dark, np.float32)
+    pixels[((u // 8) % 2 == 0) & (v < height // 2)] = bright
+    return pixels

@@ -7,7 +7,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from scene_builder import build, floor_quad, grey
+from scene_builder import build, floor_quad, grey, striped_sky
 
 from classic_bake.kernels.geometry.scene import Texture
 from classic_bake.kernels.shading.world_light import world_radiance
@@ -17,10 +17,8 @@ from classic_bake.kernels.trace.world_lobes import WorldLobes
 def _striped_sky():
     """A scene whose world is an equirectangular map (128 x 256): stripes of radiance 1.5 and
     0.15, 8 texels (5.6 degrees) wide, above the horizon; 0.15 below."""
-    height, width = 128, 256
-    v, u = np.mgrid[0:height, 0:width]
-    pixels = np.full((height, width, 4), 0.15, np.float32)
-    pixels[((u // 8) % 2 == 0) & (v < height // 2), :3] = 1.5
+    stripes = striped_sky()
+    pixels = np.concatenate([stripes, np.ones(stripes.shape[:2] + (1,), np.float32)], axis=2)
     scene = build([(floor_quad(), grey(0.5))], world=(0.5, 0.5, 0.5))
     return replace(scene, world_texture=Texture(kind="IMAGE", pixels=pixels, extension="REPEAT"))
 
