@@ -33,6 +33,8 @@ HASH_AXES = np.array([[12.9898, 78.233, 37.719], [39.3468, 11.135, 83.155]])
 HASH_SCALE = 43758.5453
 # Alpha below which a lobe is taken as a mirror (Blender roughness 0.01).
 MIN_ALPHA = 1e-4
+# `lobe_mean` draws its directions in chunks of about this many (memory: ~20 arrays of 3 floats).
+MEAN_CHUNK = 1 << 19
 
 
 def lobe_points(counts: np.ndarray, seeds: np.ndarray, part: np.ndarray | None = None,
@@ -109,3 +111,36 @@ def shadowing_weights(n: np.ndarray, wo: np.ndarray, wi: np.ndarray,
     return np.where((cos_o > 0.0) & (cos_i > 0.0),
                     (1.0 + lambda_o) / (1.0 + lambda_o + smith_lambda(cos_i)), 0.0)
 
+
+
+def lobe_mean(radiance, n: np.ndarray, wo: np.ndarray, geometric: np.ndarray,
+              roughness: np.ndarray, count: np.ndarray, seeds: np.ndarray
+              ) -> tuple[np.ndarray | None, np.ndarray]:
+    """Over count (N,) directions across each of N GGX lobes (`ggx_reflections` at a lattice of
+    `lobe_points` shifted by a hash of seeds (N, 3)), weighted by their shadowing
+    (`shadowing_weights`, 0 below the geometric normals (N, 3)): (N, 3) the mean of radiance
+    ((K, 3) unit directions -> (K, 3)) normalised by the weights' sum (a uniform radiance
+    exactly; None when radiance is None), and (N,) the weights' mean, the lobe's albedo with
+    F = 1 (`specular_layer.lobe_albedo`). Unit shading normals n and views wo (N, 3), Blender
+    roughness (N,)."""
+    mean = None if radiance is None else np.zeros((len(n), 3))
+    weight = np.zeros(len(n))
+    ends = np.cumsum(count)
+    start = 0
+    while start < len(n):  # lobes in chunks of about MEAN_CHUNK directions
+        stop = max(int(np.searchsorted(ends, ends[start] - count[start] + MEAN_CHUNK)), start + 1)
+        rows = slice(start, stop)
+        which, points = lobe_points(count[rows], seeds[rows])
+        dirs = ggx_reflections(n[rows], wo[rows], roughness[rows], points, which)
+        g = np.where(np.einsum("ij,ij->i", dirs, geometric[rows][which]) > 0.0,
+                     shadowing_weights(n[rows][which], wo[rows][which], dirs,
+                                       np.asarray(roughness)[rows][which]), 0.0)
+        sums = np.bincount(which, g, minlength=stop - start)
+        weight[rows] = sums / count[rows]
+        if radiance is not None:
+            seen = g > 0.0
+            light = np.zeros((stop - start, 3))
+            np.add.at(light, which[seen], g[seen, None] * radiance(dirs[seen]))
+            mean[rows] = light / np.maximum(sums, 1e-300)[:, None]
+        start = stop
+    return mean, weight

@@ -18,7 +18,7 @@ import numpy as np
 from ..geometry.frames import RAY_OFFSET_REL
 from ..geometry.scene import Scene, geometric_normals, triangle_emission
 from . import lights as light_units
-from .glossy_lobe import ggx_reflections, lobe_points
+from .glossy_lobe import ggx_reflections, lobe_mean, lobe_points, shadowing_weights
 from .material_maps import albedo_at, emission_at, metal_f0
 from .optics import reflect
 from .specular_layer import (
@@ -32,8 +32,10 @@ from .specular_layer import (
 )
 from .world_light import world_lit, world_radiance
 
-# Rays across a rough lobe of reflectance 1 (`_lobe_sky`), as the tracer's default lobe_rays.
+# Rays across a rough lobe of reflectance 1 (`_lobe_sky`), as the tracer's default lobe_rays, and
+# the sky's mean over the lobe from this many times as many directions (the tracer's factor).
 LOBE_RAYS = 8
+MAP_LOBE_FACTOR = 8
 
 
 def ray_offset(scene: Scene) -> float:
@@ -185,19 +187,46 @@ class _Shown:
 
 def _lobe_sky(scene: Scene, bvh, origins: np.ndarray, wo: np.ndarray, normals: np.ndarray,
               geometric: np.ndarray, roughness: np.ndarray, weight: np.ndarray) -> np.ndarray:
-    """(N, 3) the world's radiance over rough glossy lobes less what the scene hides of it: the
-    mean over the rays across each lobe that leave the surface (GGX's visible normals,
-    `glossy_lobe.ggx_reflections`, at points hashed from the origins, `lobe_points`), 0 where
-    none does. Rays from origins (N, 3) toward wo (N, 3, unit, to the viewer) about shading
-    normals (N, 3), kept above the geometric ones (N, 3); Blender roughness (N,); a lobe of
-    reflectance `weight` (N, 3) takes ceil(max(weight) x LOBE_RAYS) rays (a faint specular layer
-    one, a bright metal all: the noise left is in proportion to what the lobe shows)."""
+    """(N, 3) the world's radiance over rough glossy lobes less what the scene hides of it. Rays
+    from origins (N, 3) toward wo (N, 3, unit, to the viewer) about shading normals (N, 3), kept
+    above the geometric ones (N, 3), Blender roughness (N,); a lobe of reflectance `weight`
+    (N, 3) takes ceil(max(weight) x LOBE_RAYS) rays (a faint specular layer one, a bright metal
+    all: the noise left is in proportion to what the lobe shows), across it from GGX's visible
+    normals at points hashed from the origins (`glossy_lobe.py`), shared by their shadowing.
+
+    As the tracer's lobes do (`Tracer._lobe_sky_mean`): the sky's mean over the lobe from
+    MAP_LOBE_FACTOR times as many directions (unoccluded; the world colour itself for a
+    uniform world, a map's above the horizon only, where a scene's ground does not hide it),
+    less what the rays the scene blocks would have brought of that, plus what the clear rays
+    below the horizon bring."""
     count = np.clip(np.ceil(weight.max(axis=1) * LOBE_RAYS), 1, LOBE_RAYS).astype(np.int64)
     which, points = lobe_points(count, origins)
-    dirs = ggx_reflections(normals[which], wo[which], roughness[which], points)
-    above = np.flatnonzero(np.einsum("ij,ij->i", dirs, geometric[which]) > 0.0)
-    clear = above[~bvh.occluded(origins[which[above]], dirs[above])]
-    sky = world_radiance(scene, dirs[clear])
-    total = np.stack([np.bincount(which[clear], sky[:, c], len(origins)) for c in range(3)], 1)
-    leaving = np.bincount(which[above], minlength=len(origins))
-    return total / np.maximum(leaving, 1)[:, None]
+    dirs = ggx_reflections(normals, wo, roughness, points, which)
+    g = np.where(np.einsum("ij,ij->i", dirs, geometric[which]) > 0.0,
+                 shadowing_weights(normals[which], wo[which], dirs, roughness[which]), 0.0)
+    above = np.flatnonzero(g > 0.0)
+    hit = bvh.occluded(origins[which[above]], dirs[above])
+    blocked, clear = above[hit], above[~hit]
+
+    def control(d):  # what an escaping ray brings, where the ground does not hide it
+        if scene.world_texture is None:
+            return world_radiance(scene, d)
+        return world_radiance(scene, d) * (d[:, 2:3] > 0.0)
+
+    if scene.world_texture is None:
+        mean = world_radiance(scene, np.zeros((len(origins), 3)))
+    else:
+        mean, _ = lobe_mean(control, normals, wo, geometric, roughness,
+                            count * MAP_LOBE_FACTOR, origins)
+    total = np.bincount(which, g, minlength=len(origins))
+    share = g / np.maximum(total, 1e-300)[which]
+    # Each ray's difference from the control: what it brings (the sky if clear, 0 if blocked)
+    # less the control along it (0 for a clear ray above the horizon).
+    rest = np.zeros((len(origins), 3))
+    np.add.at(rest, which[blocked], -share[blocked, None] * control(dirs[blocked]))
+    if scene.world_texture is not None:
+        low = clear[dirs[clear, 2] <= 0.0]
+        np.add.at(rest, which[low], share[low, None] * world_radiance(scene, dirs[low]))
+    # A few rays that meet a wall before the brightest sky can take more of it away than the
+    # mean holds: no light is negative.
+    return np.where((total > 0.0)[:, None], np.maximum(mean + rest, 0.0), 0.0)

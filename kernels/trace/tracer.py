@@ -48,7 +48,7 @@ from ..progress import Steps, drain, scaled
 from ..shading import lights as light_units
 from ..shading.alpha import lighting_coverage, ray_coverage, scene_alpha
 from ..shading.bump import bump_shadowing, valid_reflection
-from ..shading.glossy_lobe import ggx_reflections, lobe_points, shadowing_weights
+from ..shading.glossy_lobe import ggx_reflections, lobe_mean, lobe_points, shadowing_weights
 from ..shading.material_maps import emission_at, material_values
 from ..shading.optics import fresnel_dielectric, reflect, refract
 from ..shading.sheen import Fabric
@@ -93,15 +93,14 @@ HOT_RATIO = 4.0
 HOT_FLOOR = 1.0
 HOT_SAMPLES = 8
 # The sub-samples of a pixel (an edge's a x a) together draw about this many times the rays a
-# whole pixel's rough lobe takes, from one stratified set (`_lobe_rays`, `lobe_points`). Against
-# each sub-sample taking the whole count (16 here) on its own pattern: 8 took a rough-lobed glTF
-# asset 8.2 s, not 12.6 s, at relMSE 1.55e-2, not 1.51e-2; the blurred panel of
-# test_trace.py 0.0076, not 0.0070. 4 and 2 doubled and tripled the panel's error.
+# whole pixel's rough lobe takes, from one stratified set, each its part (`_lobe_rays`,
+# `lobe_points`). The blurred panel of test_trace.py against Cycles: relMSE 0.0060 with 8, 0.0107
+# with 4, 0.0045 with 16; a roughness-1 metal dice under a photographed studio 1.9e-3 in 4.4 s,
+# 3.9e-3 in 3.5 s, 9.1e-4 in 6.3 s.
 SUBSAMPLE_LOBE_SHARE = 8
 # A rough lobe under a world map averages the map over this many times its traced rays'
-# directions (`_lobe_sky_mean`), in chunks of at most MAP_LOBE_CHUNK directions (memory).
+# directions (`_lobe_sky_mean`).
 MAP_LOBE_FACTOR = 8
-MAP_LOBE_CHUNK = 1 << 19
 # An environment map read for reflected rays: (N, 3) world points, (N, 3) unit directions, (N,)
 # the surfaces' roughness -> (N, 3) radiance W/(m^2 sr) arriving at the points along the
 # directions (over a rough surface's lobe). A look-up with an `irradiance` attribute that is not
@@ -593,8 +592,8 @@ class Tracer:
         most (its green and blue are the lobe's). seeds (N, 3), when given: each hit's pixel,
         whose hash shifts its points (else the hit's position); strata (stratum (N,), m): the
         hits are m sub-samples of their pixels, which draw SUBSAMPLE_LOBE_SHARE times the
-        pixel's count between them from one stratified set. A hit none of whose rays leaves
-        keeps its mirror ray."""
+        pixel's count between them from one stratified set. A whole pixel's hit none of whose
+        rays leaves keeps its mirror ray; a sub-sample's gives its part of the lobe's none."""
         s = self.settings
         rows = np.flatnonzero(strong)
         share = lobe_w[rows] / np.maximum(lobe_w[rows] + diffuse[rows], 1e-12)
@@ -606,8 +605,11 @@ class Tracer:
         count = np.clip(np.ceil(whole[many] * min(SUBSAMPLE_LOBE_SHARE / parts, 1.0)), 1,
                         whole[many]).astype(np.int64)
         at = rows[many]
-        which, points = lobe_points(count, h.p[at] if seeds is None else seeds[at],
-                                    None if strata is None else strata[0][at], parts)
+        seeds = np.array(h.p[at] if seeds is None else seeds[at], np.float64)
+        part = None if parts == 1 else strata[0][at]
+        which, points = lobe_points(count, seeds, part, parts)
+        if part is not None:  # the mean's directions: a whole lobe per sub-sample, own offset
+            seeds[:, 2] += part
         hit = rows[many][which]
         normals = h.glossy_normal[hit]
         dirs = ggx_reflections(normals, wo[hit], rough[hit], points)
@@ -616,11 +618,25 @@ class Tracer:
         above = g > 0.0
         leaving = np.bincount(which[above], minlength=len(many))
         new = above & (leaving[which] > 0)
-        # Each ray's share of the lobe: its shadowing over its lobe's sum (`glossy_lobe.py`).
-        share_w = g / np.maximum(np.bincount(which, g, minlength=len(many)), 1e-300)[which]
+        sky = s.output != "albedo"
+        mean, albedo = self._lobe_sky_mean(h, wo, rough, at, count, seeds, part is not None, sky)
+        # Each ray's share of the lobe (`glossy_lobe.py`): its shadowing over its lobe's sum; a
+        # sub-sample's rays, its part of the pixel's lattice, over the sum the whole lobe's
+        # albedo with F = 1 gives (count x albedo, from the mean's many directions): normalised
+        # part by part, the parts whose rays leave the surface less would weigh as much as the
+        # others.
+        if part is None:
+            share_w = g / np.maximum(np.bincount(which, g, minlength=len(many)), 1e-300)[which]
+        else:
+            share_w = g / np.maximum(count * albedo, 1e-300)[which]
+        if part is not None:
+            # A sub-sample stands for its part of the lobe, with rays or none: its mirror ray
+            # instead, where no ray of a part left the surface, left a rough metal floor under a
+            # wall 17% dark at 4 x 4 sub-samples.
+            new = above
         source = many[which[new]]  # the mirror ray each new ray stands in for
         kept = np.ones(len(rows), bool)
-        kept[many[leaving > 0]] = False
+        kept[many[leaving > 0] if part is None else many] = False
         fields = [child[0][source], dirs[new], child[2][source],
                   child[3][source] * share_w[new][:, None], child[4][source],
                   child[5][source], np.zeros(len(source))]  # across the lobe: no blur
@@ -629,16 +645,13 @@ class Tracer:
             out.append(np.concatenate([old[:, kept], old[:, source]], axis=1))
         self.stats.lobe_rays += int(new.sum())
         correction = None
-        if s.output != "albedo":
+        if sky:
             # What the traced rays would bring did all of them escape, against the sky's mean
             # over the lobe (`_lobe_sky_mean`).
             traced = np.zeros((len(many), 3))
             np.add.at(traced, which[new], self._lobe_sky(dirs[new]) * share_w[new][:, None])
-            lit = np.flatnonzero(leaving > 0)
-            mean = self._lobe_sky_mean(h, wo, rough, at[lit], count[lit],
-                                       h.p[at[lit]] if seeds is None else seeds[at[lit]],
-                                       None if strata is None else strata[0][at[lit]])
-            correction = (child[2][many[lit]], child[3][many[lit]] * (mean - traced[lit]))
+            lit = np.flatnonzero(leaving > 0) if part is None else np.arange(len(many))
+            correction = (child[2][many[lit]], child[3][many[lit]] * (mean[lit] - traced[lit]))
         return tuple(out), correction
 
     def _lobe_sky(self, dirs: np.ndarray) -> np.ndarray:
@@ -651,12 +664,14 @@ class Tracer:
         return world_radiance(self.sky_scene, dirs) * (dirs[:, 2:3] > 0.0)
 
     def _lobe_sky_mean(self, h: SurfaceHits, wo: np.ndarray, rough: np.ndarray, at: np.ndarray,
-                       count: np.ndarray, seeds: np.ndarray, part: np.ndarray | None
-                       ) -> np.ndarray:
-        """(N, 3) `_lobe_sky` averaged over the GGX lobes of hits `at` (N,): the world colour,
-        or the map's mean over MAP_LOBE_FACTOR x count (N,) directions each, weighted by their
-        shadowing as the traced rays are and normalised by the weights' sum (a uniform sky's
-        light exactly); a whole lobe per sub-sample `part` (N,), each on its own offset.
+                       count: np.ndarray, seeds: np.ndarray, albedo: bool, sky: bool
+                       ) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """For the GGX lobes of hits `at` (N,): (N, 3) `_lobe_sky` averaged over each (None when
+        not `sky`), and (N,) its albedo with F = 1 (None when not `albedo`). The world colour
+        itself, or a map's mean over MAP_LOBE_FACTOR x count (N,) directions each (a lattice
+        shifted by a hash of seeds (N, 3)), weighted by their shadowing as the traced rays are
+        and normalised by the weights' sum (a uniform sky's light exactly), whose mean is the
+        albedo.
 
         A lobe's few traced rays read a photographed sky's detail, and their weights' spread, as
         noise. Each hit takes this mean plus what its traced rays brought less what `_lobe_sky`
@@ -667,33 +682,13 @@ class Tracer:
         under it a scene's ground hides the map's ground, often as bright as its sky, and
         subtracting that made the noise larger, not smaller (a rough metal dice on a floor
         under a studio map: relMSE 3.9e-2 against Cycles, 4.6e-3 with the horizon)."""
-        if self.scene.world_texture is None:
-            return self._lobe_sky(np.zeros((len(at), 3))).copy()
-        seeds = np.array(seeds, np.float64)
-        if part is not None:
-            seeds[:, 2] += part  # the sub-samples of a pixel: unrelated offsets
-        mean = np.zeros((len(at), 3))
-        per = count * MAP_LOBE_FACTOR
-        ends = np.cumsum(per)
-        start = 0
-        while start < len(at):  # hits in chunks of about MAP_LOBE_CHUNK directions
-            stop = max(int(np.searchsorted(ends, ends[start] - per[start] + MAP_LOBE_CHUNK)),
-                       start + 1)
-            rows = slice(start, stop)
-            which, points = lobe_points(per[rows], seeds[rows])
-            hit = at[rows][which]
-            dirs = ggx_reflections(h.glossy_normal[at[rows]], wo[at[rows]], rough[at[rows]],
-                                   points, which)
-            g = np.where(np.einsum("ij,ij->i", dirs, h.ng[hit]) > 0.0,
-                         shadowing_weights(h.glossy_normal[hit], wo[hit], dirs, rough[hit]), 0.0)
-            seen = g > 0.0
-            light = np.zeros((stop - start, 3))
-            sky = self._lobe_sky(dirs[seen])
-            np.add.at(light, which[seen], g[seen, None] * sky)
-            mean[rows] = light / np.maximum(np.bincount(which, g, minlength=stop - start),
-                                            1e-300)[:, None]
-            start = stop
-        return mean
+        mapped = sky and self.scene.world_texture is not None
+        mean = self._lobe_sky(np.zeros((len(at), 3))).copy() if sky and not mapped else None
+        if not (mapped or albedo):
+            return mean, None
+        sampled, weight = lobe_mean(self._lobe_sky if mapped else None, h.glossy_normal[at],
+                                    wo[at], h.ng[at], rough[at], count * MAP_LOBE_FACTOR, seeds)
+        return (sampled if mapped else mean), (weight if albedo else None)
 
     def _child_differentials(self, spawned, tri, h: SurfaceHits, dirs, t_dir, eta, rows, dp, dd):
         """Per spawned generation (strong (N,) bool: the rays spawned; side +1 reflected, -1
