@@ -33,7 +33,10 @@ HASH_AXES = np.array([[12.9898, 78.233, 37.719], [39.3468, 11.135, 83.155]])
 HASH_SCALE = 43758.5453
 # Alpha below which a lobe is taken as a mirror (Blender roughness 0.01).
 MIN_ALPHA = 1e-4
-# `lobe_mean` draws its directions in chunks of about this many (memory: ~20 arrays of 3 floats).
+# A rough lobe's mean of the sky (`lobe_mean`) reads this many times the directions its rays
+# trace (a map read each, no traversal: the tracer's 8 rays 64), in chunks of about MEAN_CHUNK
+# directions (memory: ~20 arrays of 3 floats).
+MEAN_FACTOR = 8
 MEAN_CHUNK = 1 << 19
 
 
@@ -110,7 +113,6 @@ def shadowing_weights(n: np.ndarray, wo: np.ndarray, wi: np.ndarray,
     lambda_o = smith_lambda(cos_o)
     return np.where((cos_o > 0.0) & (cos_i > 0.0),
                     (1.0 + lambda_o) / (1.0 + lambda_o + smith_lambda(cos_i)), 0.0)
-
 
 
 def lobe_mean(radiance, n: np.ndarray, wo: np.ndarray, geometric: np.ndarray,

@@ -18,7 +18,7 @@ import numpy as np
 from ..geometry.frames import RAY_OFFSET_REL
 from ..geometry.scene import Scene, geometric_normals, triangle_emission
 from . import lights as light_units
-from .glossy_lobe import ggx_reflections, lobe_mean, lobe_points, shadowing_weights
+from .glossy_lobe import MEAN_FACTOR, ggx_reflections, lobe_mean, lobe_points, shadowing_weights
 from .material_maps import albedo_at, emission_at, metal_f0
 from .optics import reflect
 from .specular_layer import (
@@ -30,12 +30,10 @@ from .specular_layer import (
     view_factors,
     view_tables,
 )
-from .world_light import world_lit, world_radiance
+from .world_light import horizon_sky, world_lit, world_radiance
 
-# Rays across a rough lobe of reflectance 1 (`_lobe_sky`), as the tracer's default lobe_rays, and
-# the sky's mean over the lobe from this many times as many directions (the tracer's factor).
+# Rays across a rough lobe of reflectance 1 (`_lobe_sky`), as the tracer's default lobe_rays.
 LOBE_RAYS = 8
-MAP_LOBE_FACTOR = 8
 
 
 def ray_offset(scene: Scene) -> float:
@@ -195,7 +193,7 @@ def _lobe_sky(scene: Scene, bvh, origins: np.ndarray, wo: np.ndarray, normals: n
     normals at points hashed from the origins (`glossy_lobe.py`), shared by their shadowing.
 
     As the tracer's lobes do (`Tracer._lobe_sky_mean`): the sky's mean over the lobe from
-    MAP_LOBE_FACTOR times as many directions (unoccluded; the world colour itself for a
+    MEAN_FACTOR times as many directions (unoccluded; the world colour itself for a
     uniform world, a map's above the horizon only, where a scene's ground does not hide it),
     less what the rays the scene blocks would have brought of that, plus what the clear rays
     below the horizon bring."""
@@ -208,22 +206,17 @@ def _lobe_sky(scene: Scene, bvh, origins: np.ndarray, wo: np.ndarray, normals: n
     hit = bvh.occluded(origins[which[above]], dirs[above])
     blocked, clear = above[hit], above[~hit]
 
-    def control(d):  # what an escaping ray brings, where the ground does not hide it
-        if scene.world_texture is None:
-            return world_radiance(scene, d)
-        return world_radiance(scene, d) * (d[:, 2:3] > 0.0)
-
     if scene.world_texture is None:
         mean = world_radiance(scene, np.zeros((len(origins), 3)))
     else:
-        mean, _ = lobe_mean(control, normals, wo, geometric, roughness,
-                            count * MAP_LOBE_FACTOR, origins)
+        mean, _ = lobe_mean(lambda d: horizon_sky(scene, d), normals, wo, geometric, roughness,
+                            count * MEAN_FACTOR, origins)
     total = np.bincount(which, g, minlength=len(origins))
     share = g / np.maximum(total, 1e-300)[which]
     # Each ray's difference from the control: what it brings (the sky if clear, 0 if blocked)
     # less the control along it (0 for a clear ray above the horizon).
     rest = np.zeros((len(origins), 3))
-    np.add.at(rest, which[blocked], -share[blocked, None] * control(dirs[blocked]))
+    np.add.at(rest, which[blocked], -share[blocked, None] * horizon_sky(scene, dirs[blocked]))
     if scene.world_texture is not None:
         low = clear[dirs[clear, 2] <= 0.0]
         np.add.at(rest, which[low], share[low, None] * world_radiance(scene, dirs[low]))

@@ -181,6 +181,16 @@ def world_radiance(scene: Scene, dirs: np.ndarray) -> np.ndarray:
     return sample_texture(scene.world_texture, equirect_uv(dirs)).astype(np.float64)
 
 
+def horizon_sky(scene: Scene, dirs: np.ndarray) -> np.ndarray:
+    """(N, 3) `world_radiance` along unit directions dirs (N, 3), a map's above the horizon only
+    (+Z up; 0 below, where the ground a scene stands on hides it), a uniform world's everywhere:
+    what a rough lobe's rays are measured against (`glossy_lobe.lobe_mean`, the tracer's and
+    `reflected_emitters`' control variate). Under the horizon a map's ground, often as bright
+    as its sky, is what a scene's own ground blocks."""
+    sky = world_radiance(scene, dirs)
+    return sky if scene.world_texture is None else sky * (dirs[:, 2:3] > 0.0)
+
+
 def texel_directions(height: int, width: int) -> tuple[np.ndarray, np.ndarray]:
     """(H, W, 3) unit map directions of an equirectangular map's texel centres (row 0 at the top,
     `equirect_uv`'s inverse) and (H, W) their solid angles, sr (they sum to 4 pi)."""

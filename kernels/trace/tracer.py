@@ -48,7 +48,13 @@ from ..progress import Steps, drain, scaled
 from ..shading import lights as light_units
 from ..shading.alpha import lighting_coverage, ray_coverage, scene_alpha
 from ..shading.bump import bump_shadowing, valid_reflection
-from ..shading.glossy_lobe import ggx_reflections, lobe_mean, lobe_points, shadowing_weights
+from ..shading.glossy_lobe import (
+    MEAN_FACTOR,
+    ggx_reflections,
+    lobe_mean,
+    lobe_points,
+    shadowing_weights,
+)
 from ..shading.material_maps import emission_at, material_values
 from ..shading.optics import fresnel_dielectric, reflect, refract
 from ..shading.sheen import Fabric
@@ -62,7 +68,7 @@ from ..shading.specular_layer import (
     view_factors,
     view_tables,
 )
-from ..shading.world_light import extract_suns, world_radiance
+from ..shading.world_light import extract_suns, horizon_sky, world_radiance
 from . import differentials as rd
 from .emitters import lamp_hull, scene_emitters
 from .settings import TraceResult, TracerSettings, TraceStats, auto_settings
@@ -98,9 +104,6 @@ HOT_SAMPLES = 8
 # with 4, 0.0045 with 16; a roughness-1 metal dice under a photographed studio 1.9e-3 in 4.4 s,
 # 3.9e-3 in 3.5 s, 9.1e-4 in 6.3 s.
 SUBSAMPLE_LOBE_SHARE = 8
-# A rough lobe under a world map averages the map over this many times its traced rays'
-# directions (`_lobe_sky_mean`).
-MAP_LOBE_FACTOR = 8
 # An environment map read for reflected rays: (N, 3) world points, (N, 3) unit directions, (N,)
 # the surfaces' roughness -> (N, 3) radiance W/(m^2 sr) arriving at the points along the
 # directions (over a rough surface's lobe). A look-up with an `irradiance` attribute that is not
@@ -629,7 +632,6 @@ class Tracer:
             share_w = g / np.maximum(np.bincount(which, g, minlength=len(many)), 1e-300)[which]
         else:
             share_w = g / np.maximum(count * albedo, 1e-300)[which]
-        if part is not None:
             # A sub-sample stands for its part of the lobe, with rays or none: its mirror ray
             # instead, where no ray of a part left the surface, left a rough metal floor under a
             # wall 17% dark at 4 x 4 sub-samples.
@@ -659,16 +661,14 @@ class Tracer:
         (`_lobe_sky_mean`): the world colour, or the map without its suns (their light is the
         lobes' highlights) above the horizon (+Z up) and 0 below, where the ground a scene
         stands on hides it; either is what such a ray brings if it escapes there."""
-        if self.scene.world_texture is None:
-            return np.broadcast_to(np.asarray(self.scene.world_color, np.float64), dirs.shape)
-        return world_radiance(self.sky_scene, dirs) * (dirs[:, 2:3] > 0.0)
+        return horizon_sky(self.sky_scene, dirs)
 
     def _lobe_sky_mean(self, h: SurfaceHits, wo: np.ndarray, rough: np.ndarray, at: np.ndarray,
                        count: np.ndarray, seeds: np.ndarray, albedo: bool, sky: bool
                        ) -> tuple[np.ndarray | None, np.ndarray | None]:
         """For the GGX lobes of hits `at` (N,): (N, 3) `_lobe_sky` averaged over each (None when
         not `sky`), and (N,) its albedo with F = 1 (None when not `albedo`). The world colour
-        itself, or a map's mean over MAP_LOBE_FACTOR x count (N,) directions each (a lattice
+        itself, or a map's mean over MEAN_FACTOR x count (N,) directions each (a lattice
         shifted by a hash of seeds (N, 3)), weighted by their shadowing as the traced rays are
         and normalised by the weights' sum (a uniform sky's light exactly), whose mean is the
         albedo.
@@ -687,7 +687,7 @@ class Tracer:
         if not (mapped or albedo):
             return mean, None
         sampled, weight = lobe_mean(self._lobe_sky if mapped else None, h.glossy_normal[at],
-                                    wo[at], h.ng[at], rough[at], count * MAP_LOBE_FACTOR, seeds)
+                                    wo[at], h.ng[at], rough[at], count * MEAN_FACTOR, seeds)
         return (sampled if mapped else mean), (weight if albedo else None)
 
     def _child_differentials(self, spawned, tri, h: SurfaceHits, dirs, t_dir, eta, rows, dp, dd):
