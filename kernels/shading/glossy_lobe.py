@@ -115,6 +115,19 @@ def shadowing_weights(n: np.ndarray, wo: np.ndarray, wi: np.ndarray,
                     (1.0 + lambda_o) / (1.0 + lambda_o + smith_lambda(cos_i)), 0.0)
 
 
+def lobe_rays(n: np.ndarray, wo: np.ndarray, geometric: np.ndarray, roughness: np.ndarray,
+              points: np.ndarray, which: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rays across N GGX lobes: (M, 3) unit directions (`ggx_reflections` at points (M, 2) of
+    lobes which (M,)) and (M,) their weights (`shadowing_weights`; 0 below the geometric normals
+    (N, 3) too, where the surface itself stops them). Unit shading normals n and views wo (N, 3),
+    Blender roughness (N,)."""
+    roughness = np.asarray(roughness, np.float64)
+    dirs = ggx_reflections(n, wo, roughness, points, which)
+    g = np.where(np.einsum("ij,ij->i", dirs, geometric[which]) > 0.0,
+                 shadowing_weights(n[which], wo[which], dirs, roughness[which]), 0.0)
+    return dirs, g
+
+
 def lobe_mean(radiance, n: np.ndarray, wo: np.ndarray, geometric: np.ndarray,
               roughness: np.ndarray, count: np.ndarray, seeds: np.ndarray
               ) -> tuple[np.ndarray | None, np.ndarray]:
@@ -133,10 +146,8 @@ def lobe_mean(radiance, n: np.ndarray, wo: np.ndarray, geometric: np.ndarray,
         stop = max(int(np.searchsorted(ends, ends[start] - count[start] + MEAN_CHUNK)), start + 1)
         rows = slice(start, stop)
         which, points = lobe_points(count[rows], seeds[rows])
-        dirs = ggx_reflections(n[rows], wo[rows], roughness[rows], points, which)
-        g = np.where(np.einsum("ij,ij->i", dirs, geometric[rows][which]) > 0.0,
-                     shadowing_weights(n[rows][which], wo[rows][which], dirs,
-                                       np.asarray(roughness)[rows][which]), 0.0)
+        dirs, g = lobe_rays(n[rows], wo[rows], geometric[rows], np.asarray(roughness)[rows],
+                            points, which)
         sums = np.bincount(which, g, minlength=stop - start)
         weight[rows] = sums / count[rows]
         if radiance is not None:

@@ -18,7 +18,7 @@ import numpy as np
 from ..geometry.frames import RAY_OFFSET_REL
 from ..geometry.scene import Scene, geometric_normals, triangle_emission
 from . import lights as light_units
-from .glossy_lobe import MEAN_FACTOR, ggx_reflections, lobe_mean, lobe_points, shadowing_weights
+from .glossy_lobe import MEAN_FACTOR, lobe_mean, lobe_points, lobe_rays
 from .material_maps import albedo_at, emission_at, metal_f0
 from .optics import reflect
 from .specular_layer import (
@@ -199,9 +199,7 @@ def _lobe_sky(scene: Scene, bvh, origins: np.ndarray, wo: np.ndarray, normals: n
     below the horizon bring."""
     count = np.clip(np.ceil(weight.max(axis=1) * LOBE_RAYS), 1, LOBE_RAYS).astype(np.int64)
     which, points = lobe_points(count, origins)
-    dirs = ggx_reflections(normals, wo, roughness, points, which)
-    g = np.where(np.einsum("ij,ij->i", dirs, geometric[which]) > 0.0,
-                 shadowing_weights(normals[which], wo[which], dirs, roughness[which]), 0.0)
+    dirs, g = lobe_rays(normals, wo, geometric, roughness, points, which)
     above = np.flatnonzero(g > 0.0)
     hit = bvh.occluded(origins[which[above]], dirs[above])
     blocked, clear = above[hit], above[~hit]

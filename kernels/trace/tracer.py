@@ -50,10 +50,9 @@ from ..shading.alpha import lighting_coverage, ray_coverage, scene_alpha
 from ..shading.bump import bump_shadowing, valid_reflection
 from ..shading.glossy_lobe import (
     MEAN_FACTOR,
-    ggx_reflections,
     lobe_mean,
     lobe_points,
-    shadowing_weights,
+    lobe_rays,
 )
 from ..shading.material_maps import emission_at, material_values
 from ..shading.optics import fresnel_dielectric, reflect, refract
@@ -613,11 +612,7 @@ class Tracer:
         which, points = lobe_points(count, seeds, part, parts)
         if part is not None:  # the mean's directions: a whole lobe per sub-sample, own offset
             seeds[:, 2] += part
-        hit = rows[many][which]
-        normals = h.glossy_normal[hit]
-        dirs = ggx_reflections(normals, wo[hit], rough[hit], points)
-        g = np.where(np.einsum("ij,ij->i", dirs, h.ng[hit]) > 0.0,
-                     shadowing_weights(normals, wo[hit], dirs, rough[hit]), 0.0)
+        dirs, g = lobe_rays(h.glossy_normal[at], wo[at], h.ng[at], rough[at], points, which)
         above = g > 0.0
         leaving = np.bincount(which[above], minlength=len(many))
         new = above & (leaving[which] > 0)
