@@ -60,6 +60,9 @@ def read_light(name: str, light, matrix: np.ndarray) -> tuple[Light, list[str]]:
     axis_x, axis_y = unit(rot[:, 0]), unit(rot[:, 1])
     direction = unit(-rot[:, 2])
     power, color = light_power(light)
+    if light.type != "AREA" and not getattr(light, "normalize", True):
+        power *= light_units.unnormalized_scale(light.type, float(getattr(light, "shadow_soft_size", 0.0)),
+                                                float(getattr(light, "angle", 0.0)))
     common = dict(name=name, position=position, direction=direction, axis_x=axis_x, axis_y=axis_y,
                   cast_shadow=bool(getattr(light, "use_shadow", True)))
     factor, why = light_node_factor(node_tree(light))

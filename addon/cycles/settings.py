@@ -17,7 +17,7 @@ from typing import Any
 
 import bpy
 
-from ...kernels.shading.lights import area_of_shape
+from ...kernels.shading.lights import area_of_shape, unnormalized_scale
 from .models import CyclesModel
 
 # Side (m) of the square an area light is shrunk to when a model treats area lights as points:
@@ -135,14 +135,28 @@ def configure(scene, model: CyclesModel, log: SettingsLog | None = None) -> Sett
         log.set(cycles, prop, getattr(model, field))
     for light, obj in _scene_lights(scene):
         if model.point_radius_zero and light.type in ("POINT", "SPOT"):
+            _keep_unnormalized_power(log, light)
             log.set(light, "shadow_soft_size", 0.0)
         if model.sun_angle_zero and light.type == "SUN":
+            _keep_unnormalized_power(log, light)
             log.set(light, "angle", 0.0)
         if model.area_lights_as_points and light.type == "AREA":
             _shrink_area_light(log, light, obj)
     if scene.world is not None and not model.world_lighting:
         log.set(scene.world.cycles_visibility, "diffuse", False)
     return log
+
+
+def _keep_unnormalized_power(log: SettingsLog, light) -> None:
+    """Before a point's radius or a sun's angle is zeroed: an unnormalised light's power scales
+    with that size (kernels/shading/lights.py `unnormalized_scale`), so normalise it and fold its
+    present scale into the energy; the light then emits what the scene's light does."""
+    if getattr(light, "normalize", True):
+        return
+    scale = unnormalized_scale(light.type, float(getattr(light, "shadow_soft_size", 0.0)),
+                               float(getattr(light, "angle", 0.0)))
+    log.set(light, "energy", float(light.energy) * scale)
+    log.set(light, "normalize", True)
 
 
 def _shrink_area_light(log: SettingsLog, light, obj) -> None:

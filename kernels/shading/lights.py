@@ -15,6 +15,12 @@ Measured in Cycles (Blender 5.2.3, CPU, black world, max_bounces 0, a white Lamb
 
 P includes the light's colour, `2 ** exposure` and (when enabled) the blackbody temperature colour.
 A point light's object scale does not change it; an area light's scale stretches its emitter.
+
+With `normalize` off (glTF-era and some imported files) Cycles does not divide a light's power by
+its emitter's area, so P or S above are multiplied by that area (`unnormalized_scale`): 4 pi r^2
+for a point or spot light of radius r (4 when r = 0), pi sin^2(angle / 2) for a sun (1 when the
+angle is 0). Measured as the ratio of unnormalised to normalised renders (4.0, 0.1257, 3.1416
+at r = 0, 0.1, 0.5; 0.00785 and 0.192 for suns of 0.1 and 0.5 rad); Cycles' `Light::area`.
 """
 
 from __future__ import annotations
@@ -34,6 +40,23 @@ MIN_LIGHT_DISTANCE = 1e-6
 def point_intensity(power_w: float, color: np.ndarray) -> np.ndarray:
     """Radiant intensity (3,) W/sr of a point or spot light of power `power_w` W and linear colour."""
     return np.asarray(color, np.float64) * (power_w / (4.0 * np.pi))
+
+
+def unnormalized_scale(kind: str, radius: float = 0.0, angle: float = 0.0) -> float:
+    """What an unnormalised point, spot or sun light's power is multiplied by: its emitter's area
+    as Cycles counts it (m^2 for points and spots, a solid-angle measure for suns; module table).
+
+    | parameter | range      | unit | meaning                                  |
+    |-----------|------------|------|------------------------------------------|
+    | kind      | POINT, SPOT, SUN | - | the light type (others: ValueError)   |
+    | radius    | >= 0       | m    | point / spot radius (`shadow_soft_size`) |
+    | angle     | [0, pi]    | rad  | a sun's angular diameter                 |
+    """
+    if kind in ("POINT", "SPOT"):
+        return 4.0 * np.pi * radius * radius if radius > 0.0 else 4.0
+    if kind == "SUN":
+        return np.pi * np.sin(0.5 * angle) ** 2 if angle > 0.0 else 1.0
+    raise ValueError(f"no unnormalised scale for a {kind} light (area lights: area_radiance)")
 
 
 def sun_irradiance(strength: float, color: np.ndarray) -> np.ndarray:

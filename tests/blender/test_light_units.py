@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from classic_bake.addon import bridge
+from classic_bake.addon.cycles import matched_scene, whitted
 from classic_bake.kernels.shading.lights import direct_irradiance
 
 TOLERANCE = 0.02  # the issue's bound; point, spot and sun agree to ~1e-5 in practice
@@ -81,6 +82,16 @@ CASES = {
     "point_radius": ("POINT", (0, 0, 2), (0, 0, 0), dict(energy=100.0, shadow_soft_size=0.5),
                      [(0, 0)]),
     "sun": ("SUN", (0, 0, 5), (math.radians(60), 0, 0), dict(energy=3.0, angle=0.0), [(0, 0)]),
+    # normalize off: the power times the emitter's area (4 pi r^2, 4 at r = 0; pi sin^2(a / 2))
+    "point_unnormalized": ("POINT", (0, 0, 2), (0, 0, 0),
+                           dict(energy=10.0, shadow_soft_size=0.0, normalize=False), [(0, 0)]),
+    "point_unnormalized_radius": ("POINT", (0, 0, 2), (0, 0, 0),
+                                  dict(energy=10.0, shadow_soft_size=0.5, normalize=False), [(0, 0)]),
+    "spot_unnormalized": ("SPOT", (0, 0, 2), (0, 0, 0),
+                          dict(energy=200.0, spot_size=math.radians(60), shadow_soft_size=0.2,
+                               normalize=False), [(0, 0)]),
+    "sun_unnormalized_angle": ("SUN", (0, 0, 5), (math.radians(30), 0, 0),
+                               dict(energy=3.0, angle=0.3, normalize=False), [(0, 0)]),
     "spot": ("SPOT", (0, 0, 2), (0, 0, 0),
              dict(energy=200.0, spot_size=math.radians(60), spot_blend=0.5, shadow_soft_size=0.0),
              [(0, 0), (0.95, 0), (1.1, 0)]),
@@ -158,3 +169,20 @@ def test_a_lights_emission_nodes_scale_its_light_as_in_cycles(tmp_path):
     _light_nodes(add_light("POINT", (0, 0, 2), energy=100.0), falloff_output="Linear")
     snap = bridge.snapshot(request=bridge.SnapshotRequest(textures=False, camera=False))
     assert any("Light Falloff" in why for why in snap.ignored)
+
+
+def test_a_model_that_shrinks_lights_keeps_an_unnormalised_lights_power(tmp_path):
+    """The Whitted model renders point lights at radius 0 and suns at angle 0; an unnormalised
+    light's power scales with that size (x 0.126 at r = 0.1, x 4 at r = 0), so the model folds the
+    scale into its energy: Cycles' irradiance is the scene's within 2%, and the light is as it
+    was after the block."""
+    scene = build_plane_scene()
+    scene.cycles.samples = 64
+    point = add_light("POINT", (0, 0, 3), energy=100.0, shadow_soft_size=0.1, normalize=False)
+    sun = add_light("SUN", (0, 0, 5), energy=2.0, angle=0.2, normalize=False)
+    before = cycles_irradiance(scene, (0, 0), tmp_path)
+    with matched_scene(whitted(0), scene):
+        assert point.data.shadow_soft_size == 0.0 and sun.data.angle == 0.0
+        shrunk = cycles_irradiance(scene, (0, 0), tmp_path)
+    assert shrunk == pytest.approx(before, rel=TOLERANCE)
+    assert (point.data.energy, point.data.normalize, sun.data.energy) == (100.0, False, 2.0)
