@@ -1,9 +1,9 @@
 """Blender materials reduced to kernel `Material`s: the node-tree reader (Principled, Diffuse,
 Glossy, Glass, Emission and Transparent shaders, Mix and Add Shaders of them, node groups
-holding any of these, image and checker textures, normal maps and bumps) and a record of
-everything it does not model (`Material.ignored`). What drives a socket is read through
-`socket_values.py` (node chains between a texture and the socket); base colour, emission,
-metallic, roughness and alpha may come from textures.
+holding any of these, image and checker textures, normal maps, bumps, a Displacement node's
+bump) and a record of everything it does not model (`Material.ignored`). What drives a socket
+is read through `socket_values.py` (node chains between a texture and the socket); base colour,
+emission, metallic, roughness and alpha may come from textures.
 
 Node groups are walked as Cycles flattens them (`nodes.follow_through`): the reader keeps the
 Group nodes it entered to reach the node it reads (`MaterialReader._groups`), so a socket inside
@@ -311,7 +311,7 @@ class MaterialReader:
         # a bake that reads no textures bakes none but the alpha (coverage casts shadows).
         self.fallback = (None if request.socket_bake is None
                          else SocketFallback(request.socket_bake))
-        self._mat, self._target, self._baked = None, None, []
+        self._mat, self._target, self._baked, self._scaled = None, None, [], False
         self._groups: tuple = ()  # the Group nodes entered to reach the node being read
 
     @contextmanager
@@ -327,14 +327,15 @@ class MaterialReader:
         """The kernel `Material` of `mat` on the object `target` (which a socket read through a
         Cycles bake is baked over; None: such sockets take their defaults, listed as ignored)."""
         self._mat, self._target, self._baked, self._groups = mat, target, [], ()
+        self._scaled = False
         material = self._material(mat)
         return replace(material, fallbacks=tuple(self._baked)) if self._baked else material
 
     @property
     def object_dependent(self) -> bool:
-        """Whether the last `read` baked a socket over its object (another object using the
-        material needs a read of its own)."""
-        return bool(self._baked)
+        """Whether the last `read` baked a socket over its object or scaled a displacement by
+        it (another object using the material needs a read of its own)."""
+        return bool(self._baked) or self._scaled
 
     def _material(self, mat) -> Material:
         if mat is None:
@@ -355,20 +356,77 @@ class MaterialReader:
         if output is None:
             return Material(name=mat.name, ignored=("no Material Output node",))
         absorption = self._absorption(output.inputs["Volume"], ignored)
-        if output.inputs["Displacement"].is_linked:
-            ignored.append("displacement (bump mapping reads Bump/Normal Map nodes only)")
         node, _, groups = follow_through(output.inputs["Surface"])
         if node is None:
             return Material(name=mat.name, base_color=np.zeros(3, np.float32),
                             ignored=tuple(ignored + ["no surface shader: black"]))
         with self._inside(groups):
             material = self._shader(mat.name, node, ignored)
+        material = self._displacement(mat, output.inputs["Displacement"], material)
         if absorption is None:
             return material
         if material.transmission <= 0.0:
-            ignored.append("a volume inside a surface that does not refract is not modelled")
-            return replace(material, ignored=tuple(ignored))
+            why = "a volume inside a surface that does not refract is not modelled"
+            return replace(material, ignored=material.ignored + (why,))
         return replace(material, absorption=absorption)
+
+    def _displacement(self, mat, socket, material: Material) -> Material:
+        """`material` with the bump Cycles makes of a Displacement node in the output's
+        Displacement slot (methods Bump and Both; `ShaderGraph::bump_from_displacement`): the
+        height (Height - Midlevel) x Scale along the normal, through a Bump node of strength 1 and
+        distance 1 whose normal every closure takes, i.e. a bump of distance Scale over the
+        node's height texture. Object space (the node's default) measures Scale in the object's
+        units: times the object's scale (the geometric mean of its axes' where they differ,
+        noted). A surface with a relief of its own keeps that (the displacement noted)."""
+        if not socket.is_linked:
+            return material
+        notes: list[str] = []
+        relief = self._displacement_relief(mat, socket, material, notes)
+        return replace(material, **relief, ignored=material.ignored + tuple(notes))
+
+    def _displacement_relief(self, mat, socket, material: Material, notes: list) -> dict:
+        """`_displacement`'s Material fields (none where it is not modelled, said in `notes`)."""
+        method = getattr(mat, "displacement_method", "BUMP")
+        node, _, groups = follow_through(socket)
+        if node is None or node.type != "DISPLACEMENT":
+            kind = "nothing" if node is None else f"a '{node.bl_idname}' node"
+            notes.append(f"displacement from {kind} is not modelled (a Displacement node is)")
+            return {}
+        if method == "DISPLACEMENT":
+            notes.append("true displacement (the method 'Displacement Only') is not modelled")
+            return {}
+        if method == "BOTH":
+            notes.append("true displacement (of 'Displacement and Bump') is not modelled; its "
+                         "bump is")
+        if material.height_texture is not None or material.normal_texture is not None:
+            notes.append("displacement over a surface's own bump or normal map is not modelled")
+            return {}
+        with self._inside(groups):
+            height = self._texture_feeding(node.inputs["Height"], notes, "Displacement height")
+            if height is None:
+                if node.inputs["Height"].is_linked:
+                    notes.append("a displacement height other than an image or checker texture "
+                                 "is not modelled")
+                return {}
+            if node.inputs["Normal"].is_linked:
+                notes.append("a Displacement node's Normal input is not modelled (the surface's "
+                             "normal used)")
+            distance = self._value(node.inputs["Scale"], notes)
+        if node.space == "OBJECT":
+            distance *= self._object_scale(notes)
+        return dict(height_texture=height, bump_strength=1.0, bump_distance=distance)
+
+    def _object_scale(self, ignored: list) -> float:
+        """The uniform scale of the object the material is read for (1 without one); the
+        material's read then belongs to that object (`object_dependent`)."""
+        if self._target is None:
+            return 1.0
+        self._scaled = True
+        axes = np.abs(np.array(self._target.source.matrix_world.to_scale(), np.float64))
+        if not np.allclose(axes, axes[0], rtol=1e-4):
+            ignored.append("an object-space displacement on a non-uniformly scaled object: "
+                           "its scales' geometric mean used")
+        return float(np.prod(axes) ** (1.0 / 3.0))
 
     def _absorption(self, socket, ignored: list) -> np.ndarray | None:
         """The absorption coefficient (3,) 1/m of the medium a Volume Absorption in the Volume

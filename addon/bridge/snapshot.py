@@ -101,7 +101,7 @@ def _snapshot(context, request: SnapshotRequest, resolution: tuple[int, int] | N
     reader = MaterialReader(request)
     materials: list[Material] = [DEFAULT_MATERIAL]
     material_index: dict[str, int] = {}
-    per_object: set[str] = set()  # materials with a socket baked over their object
+    per_object: set[str] = set()  # materials read per object (a bake over it, or its scale)
     for chunk in chunks:
         table = np.zeros(max(1, len(chunk.slot_materials)), np.int32)
         source = bpy.data.objects.get(chunk.source_name)
@@ -110,7 +110,7 @@ def _snapshot(context, request: SnapshotRequest, resolution: tuple[int, int] | N
             if mat is None:
                 continue
             key = mat.name_full
-            if key in per_object:  # read again for each object: its bake covers its UVs
+            if key in per_object:  # read again for each object (its UVs' bake, its scale)
                 key = (key, chunk.source_name)
             if key not in material_index:
                 material_index[key] = len(materials)
