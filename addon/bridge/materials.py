@@ -402,11 +402,8 @@ class MaterialReader:
             notes.append("displacement over a surface's own bump or normal map is not modelled")
             return {}
         with self._inside(groups):
-            height = self._texture_feeding(node.inputs["Height"], notes, "Displacement height")
+            height = self._height(node.inputs["Height"], notes)
             if height is None:
-                if node.inputs["Height"].is_linked:
-                    notes.append("a displacement height other than an image or checker texture "
-                                 "is not modelled")
                 return {}
             if node.inputs["Normal"].is_linked:
                 notes.append("a Displacement node's Normal input is not modelled (the surface's "
@@ -894,10 +891,7 @@ class MaterialReader:
                                                                "Normal Map"),
                           normal_strength=self._value(node.inputs["Strength"], ignored))
         if node.type == "BUMP":
-            tex_node = follow_through(node.inputs["Height"], self._groups)[0]
-            tex = self._texture_feeding(node.inputs["Height"], ignored, "Bump height")
-            if tex_node is not None and tex is None:
-                ignored.append(f"bump height from '{tex_node.bl_idname}' is not modelled")
+            tex = self._height(node.inputs["Height"], ignored)
             below = self._normal(node.inputs["Normal"], ignored)
             if below.height_texture is not None:
                 ignored.append("a Bump node's Normal input from another Bump node (chained "
@@ -910,6 +904,30 @@ class MaterialReader:
                           bump_distance=-distance if node.invert else distance)
         ignored.append(f"normal input from '{node.bl_idname}' is not modelled")
         return Relief()
+
+    def _height(self, socket, ignored) -> Texture | None:
+        """The height a Bump or Displacement node reads, as a texture on the UVs its slope is
+        taken along: an image or checker with the node chain between it and the socket folded in
+        (`socket_values.py`), or, where the reader cannot follow the chain (a procedural texture)
+        or the texture reads other coordinates, the height Cycles bakes of the socket over the
+        object's UVs (`SocketFallback`, named in `fallbacks`). None: unlinked, a constant (no
+        relief either way), or neither (noted)."""
+        if not socket.is_linked:
+            return None
+        value = self._read(socket, ignored, bake=True)
+        if value is None or value.texture is None:
+            return None
+        if value.texture.coordinates == "UV":
+            return value.texture
+        why = f"a {socket.node.bl_label} height read along {value.texture.coordinates} coordinates"
+        if self.fallback is not None and self._mat is not None and self.request.textures:
+            texture, entry = self.fallback.texture(self._mat, socket, True, self._target)
+            if texture is not None:
+                self._baked.append(entry)
+                return texture
+            why += f" (not baked by Cycles: {entry})"
+        ignored.append(f"{why} is not modelled")
+        return None
 
     def _texture_feeding(self, socket, ignored, what) -> Texture | None:
         """The image or checker texture feeding `socket` directly (through reroutes and groups),
