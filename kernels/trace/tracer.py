@@ -869,6 +869,10 @@ class Tracer:
             # The diffuse base shows through the specular layer less the layer's albedo at this
             # view (`specular_layer.py`), in Cycles' Diffuse Color pass and diffuse lobe alike.
             gn = h.glossy_normal
+            # A glossy normal turned from the viewer (custom normals against the faces' winding)
+            # reflects and refracts nothing: Cycles' microfacet closures are 0 where cos(N, view)
+            # <= 0 (its diffuse keeps cos(N, light): lamps on the viewer's side light none).
+            glossy_on = np.einsum("ij,ij->i", dirs, gn) < 0.0
             diffuse_w = dielectric * view_factors(self.layer_tables, m,
                                                   np.einsum("ij,ij->i", dirs, gn))
             if s.output == "albedo":  # what the first hit reflects diffusely; no light, no ray
@@ -878,7 +882,8 @@ class Tracer:
                 break
             wo = -dirs
             spec_level = self.specular[m]
-            has_spec = (dielectric > 0) & (spec_level > 0) & (rough >= s.mirror_roughness)
+            has_spec = ((dielectric > 0) & (spec_level > 0) & (rough >= s.mirror_roughness)
+                        & glossy_on)
             f0_dielectric = self.layer_f0[m]
             # Rough glossy lobes lit directly: the specular layer's and a rough metal's.
             # (F0 (N, 3), weight (N, 3), roughness (N,)) each; the coat's below
@@ -887,7 +892,7 @@ class Tracer:
                 lobes.append((np.where(has_spec[:, None], f0_dielectric[:, None], 0.0)
                               * np.ones((1, 3)), np.where(has_spec, dielectric, 0.0)[:, None]
                               * np.ones((1, 3)), rough))
-            rough_metal = (metallic > 0) & (rough >= s.mirror_roughness)
+            rough_metal = (metallic > 0) & (rough >= s.mirror_roughness) & glossy_on
             f0_metal = np.where(self.tinted[m][:, None], self.metal_color[m], h.albedo)
             if rough_metal.any():
                 lobes.append((f0_metal, np.where(rough_metal, metallic, 0.0)[:, None]
@@ -905,7 +910,7 @@ class Tracer:
             # A coat over it all: what lies under shows through less the coat's albedo (and its
             # tint), so the base's light and lobes are weighed by `under`; the coat adds its own
             # highlights (a lobe lit with the others) and, below, its own reflected ray.
-            coat_w = self.coat[m]
+            coat_w = np.where(glossy_on, self.coat[m], 0.0)
             coated = coat_w > 0.0
             under = coat_e = None
             base_lit_w = lit_w
@@ -963,7 +968,7 @@ class Tracer:
             # with Schlick's grazing term averaged over the lobe (a wide lobe keeps the tint at
             # grazing views) and the energy multiple scattering keeps (`metal_reflectance`).
             metal_w = np.zeros((len(m), 3))
-            metal = np.flatnonzero(metallic > 0)
+            metal = np.flatnonzero((metallic > 0) & glossy_on)
             metal_w[metal] = metallic[metal, None] * metal_reflectance(
                 self.metal_tables, m[metal], cos_o[metal], f0_metal[metal], rough[metal],
                 smooth[metal])
@@ -972,7 +977,8 @@ class Tracer:
             # exact Fresnel at the level-scaled F0 when smooth (`specular_layer.py`). A rough
             # layer's one ray stands for its lobe (Cycles' glossy rays see the surroundings; the
             # lamps' highlights come from `direct`): the energy is right, the blur is not drawn.
-            layer_w = np.where((dielectric > 0) & (spec_level > 0), dielectric - diffuse_w, 0.0)
+            layer_w = np.where((dielectric > 0) & (spec_level > 0) & glossy_on,
+                               dielectric - diffuse_w, 0.0)
             mirror_w = metal_w + layer_w[:, None]
             if self.environment:  # environment-mapped mirrors: a look-up, whatever the depth
                 with self.clock("environment"):
@@ -1000,7 +1006,7 @@ class Tracer:
                 t_dir[wrong], tir[wrong] = refract(dirs[wrong], h.ng[wrong], eta[wrong])
             children = []  # (origins, dirs, pixel, weight, sharp, entered, blur[, dp, dd])
             # glass: Fresnel split between the reflected and the refracted ray
-            glass = smooth & (trans > 0) & (metallic < 1)
+            glass = smooth & (trans > 0) & (metallic < 1) & glossy_on
             f_g = fresnel_dielectric(cos_o, eta)
             glass_w = ((1.0 - metallic) * trans)[:, None]
             refl_w = mirror_w + np.where(glass[:, None], glass_w * f_g[:, None], 0.0)
