@@ -22,6 +22,7 @@ import bpy
 import numpy as np
 
 from ...kernels.geometry.scene import Material, Texture
+from ...kernels.shading.optics import fresnel_dielectric
 from ...kernels.shading.textures import MISSING_TEXEL, texture_mean
 from .images import image_pixels, stored_srgb, tile_pixels
 from .nodes import active_output, follow_through, node_tree
@@ -47,6 +48,10 @@ VOLUME_SHADER_PREFIX = "ShaderNodeVolume"
 # Mix weights this close to 1 (or a transparency this close to 1) count as 1: a Fac of 1 picks
 # one shader whole, whatever float rounding left of 1 - Fac.
 MIX_WEIGHT_EPS = 1e-9
+# `facing_ior`: midpoints of the cosine quadrature (the Fresnel curve is smooth: 1e-5 relative),
+# and the largest IOR the fit returns (Fresnel mean 0.92: Facing curves beyond read as mirrors).
+FACING_FIT_STEPS = 2048
+FACING_FIT_MAX_IOR = 100.0
 
 
 @dataclass(frozen=True)
@@ -270,6 +275,24 @@ def scaled_texture(texture: Texture | None, factor: float) -> Texture | None:
         return texture
     return replace(texture, gain=(texture.gain * factor).astype(np.float32),
                    offset=(texture.offset * factor).astype(np.float32))
+
+
+def facing_ior(blend: float) -> float:
+    """The IOR whose dielectric Fresnel reflectance has the cosine-weighted hemispherical mean of
+    a Layer Weight's Facing output, 1 - cos^b (b = 2 Blend below 0.5, 0.5 / (1 - Blend) above;
+    Cycles' svm_node_layer_weight): mean b / (b + 2). Bisection on log IOR over [1, 100]."""
+    b = 2.0 * blend if blend < 0.5 else 0.5 / max(1.0 - blend, 1e-5)
+    target = b / (b + 2.0)
+    mu = (np.arange(FACING_FIT_STEPS) + 0.5) / FACING_FIT_STEPS  # midpoints on [0, 1]
+
+    def mean_reflectance(ior: float) -> float:
+        return float(np.mean(2.0 * mu * fresnel_dielectric(mu, 1.0 / ior)))
+
+    lo, hi = 0.0, np.log(FACING_FIT_MAX_IOR)
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if mean_reflectance(np.exp(mid)) < target else (lo, mid)
+    return float(np.exp(0.5 * (lo + hi)))
 
 
 def mapping_transform(node) -> np.ndarray | None:
@@ -525,6 +548,9 @@ class MaterialReader:
             cut_out = self._cut_out(name, node.inputs["Fac"], sources, ignored, depth)
             if cut_out is not None:
                 return cut_out
+            layer = self._fresnel_layer(name, node.inputs["Fac"], sources, ignored, depth)
+            if layer is not None:
+                return layer
         if node.type == "ADD_SHADER":
             weights = [1.0, 1.0]
         else:
@@ -584,6 +610,52 @@ class MaterialReader:
                           gain=(coverage.texture.gain * surface.alpha).astype(np.float32),
                           offset=(coverage.texture.offset * surface.alpha).astype(np.float32))
         return replace(surface, alpha=1.0, alpha_texture=texture, ignored=tuple(ignored))
+
+    def _fresnel_layer(self, name: str, fac_socket, sources: list, ignored: list,
+                       depth: int) -> Material | None:
+        """A Mix Shader of an opaque non-metal base (Fac 0) and a Glossy BSDF (Fac 1) whose Fac
+        is a Fresnel node's, or a Layer Weight's (Fresnel: IOR 1 / (1 - Blend); Facing: the IOR
+        whose Fresnel reflects as much over the hemisphere, noted): the classic Cycles material
+        before the Principled BSDF. Read as that base under a Principled specular layer of the
+        IOR and the Glossy's roughness: in Cycles the two render within relMSE 1e-3 of each other
+        (a sphere under a sun, roughness 0.05-0.4, IOR 1.45), where the Fac's default (0.5)
+        made half the surface a mirror. The Glossy's colour is not modelled (noted where it is
+        not white). None for any other mix."""
+        feed, out, _ = follow_through(fac_socket, self._groups)
+        (base_node, base_groups), (gloss_node, gloss_groups) = sources
+        if (feed is None or feed.type not in ("FRESNEL", "LAYER_WEIGHT") or base_node is None
+                or gloss_node is None or gloss_node.type not in ("BSDF_GLOSSY", "BSDF_ANISOTROPIC")
+                or (feed.type == "LAYER_WEIGHT" and out.identifier not in ("Fresnel", "Facing"))):
+            return None
+        with self._inside(base_groups):
+            base = self._shader(name, base_node, ignored, depth + 1)
+        if base.metallic > 0.0 or base.transmission > 0.0:
+            return None
+        with self._inside(gloss_groups):
+            gloss = self._shader(name, gloss_node, ignored, depth + 1)
+        if feed.type == "FRESNEL":
+            ior = self._value(feed.inputs["IOR"], ignored)
+        else:
+            blend = min(max(self._value(feed.inputs["Blend"], ignored), 0.0), 1.0 - 1e-5)
+            if out.identifier == "Fresnel":
+                ior = 1.0 / (1.0 - blend)
+            else:
+                ior = facing_ior(blend)
+                ignored.append(f"a Layer Weight's Facing mixing a Glossy over its base: read as a "
+                               f"specular layer of IOR {ior:.3g}, whose Fresnel reflects as much "
+                               f"over the hemisphere")
+        if feed.inputs["Normal"].is_linked:
+            ignored.append("the Fresnel mix's own Normal input is not modelled (the surface's)")
+        # The Glossy's colour scales its reflection; the layer's F0 scales so (Specular IOR
+        # Level 0.5 keeps F0, so 0.5 x its grey level), its grazing reflection stays white.
+        tint = gloss.base_color if gloss.metal_color is None else gloss.metal_color
+        grey = float(np.mean(tint))
+        if gloss.base_color_texture is not None or not np.allclose(tint, grey, atol=1e-3):
+            ignored.append("a Glossy's colour under a Fresnel mix: its grey level used")
+        if gloss.roughness_texture is not None:
+            ignored.append("a Glossy's roughness texture under a Fresnel mix: its default used")
+        return replace(base, specular=0.5 * max(grey, 0.0), ior=max(ior, 1.0 + 1e-6),
+                       roughness=gloss.roughness, ignored=tuple(ignored))
 
     def _any_texture(self, ignored):
         """A `texture_of` that reads textures even where the request reads no colours: coverage
