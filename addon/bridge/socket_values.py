@@ -239,7 +239,7 @@ class SocketReader:
         if texture is None:
             return None
         value = Value(np.zeros(3), texture)
-        return value.pick((1 / 3, 1 / 3, 1 / 3, 0.0)) if out.name == "Fac" else value
+        return value.pick((1 / 3, 1 / 3, 1 / 3, 0.0)) if out.identifier == "Fac" else value
 
     def _texture(self, node, out, what, groups) -> Value | None:
         texture = self.texture_of(node, what, groups)
@@ -248,7 +248,7 @@ class SocketReader:
         value = Value(np.zeros(3), texture)
         if out.name == "Alpha":
             return value.pick((0.0, 0.0, 0.0, 1.0))
-        if node.type == "TEX_CHECKER" and out.name == "Fac":  # 1 on colour 1's squares
+        if node.type == "TEX_CHECKER" and out.identifier == "Fac":  # 1 on colour 1's squares
             return Value(np.zeros(3), replace(texture, color1=np.ones(3, np.float32),
                                               color2=np.zeros(3, np.float32)))
         return value

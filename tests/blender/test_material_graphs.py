@@ -17,6 +17,8 @@ import pytest
 
 from classic_bake.addon import bridge
 from classic_bake.addon import cycles as cr
+from classic_bake.addon.bridge.materials import MaterialReader
+from classic_bake.addon.bridge.request import SnapshotRequest
 from classic_bake.kernels.shading.material_maps import emission_at
 
 BAKE = 32
@@ -412,3 +414,28 @@ def test_an_image_projection_or_interpolation_the_kernels_do_not_read_is_noted()
     notes = next(m for m in bridge.snapshot().materials if m.name == "Graph").ignored
     assert any("BOX projection is not modelled" in why for why in notes)
     assert any("Cubic interpolation read as Linear" in why for why in notes)
+
+
+def test_factor_outputs_are_found_by_identifier_whatever_their_label():
+    """Blender 5 labels a Checker's and an Attribute node's Fac output 'Factor' (identifier
+    'Fac'): the Checker's Fac is 1 on colour 1's squares and 0 on colour 2's, the Attribute's
+    the mean of its colour, as Cycles shades them, not the colour itself."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.mesh.primitive_plane_add()
+    mat = bpy.data.materials.new("Factors")
+    if bpy.app.version < (5, 0, 0):
+        mat.use_nodes = True
+    tree = mat.node_tree
+    bsdf = next(n for n in tree.nodes if n.type == "BSDF_PRINCIPLED")
+    checker = tree.nodes.new("ShaderNodeTexChecker")
+    tree.links.new(checker.outputs[1], bsdf.inputs["Roughness"])
+    attribute = tree.nodes.new("ShaderNodeAttribute")
+    attribute.attribute_name = "Paint"
+    tree.links.new(attribute.outputs[2], bsdf.inputs["Base Color"])
+    assert checker.outputs[1].identifier == attribute.outputs[2].identifier == "Fac"
+    read = MaterialReader(SnapshotRequest()).read(mat)
+    rough = read.roughness_texture
+    assert rough.kind == "CHECKER"
+    np.testing.assert_array_equal(rough.color1, 1.0)
+    np.testing.assert_array_equal(rough.color2, 0.0)
+    np.testing.assert_allclose(read.base_color_texture.weights, (1 / 3, 1 / 3, 1 / 3, 0.0))
