@@ -277,6 +277,16 @@ def scaled_texture(texture: Texture | None, factor: float) -> Texture | None:
                    offset=(texture.offset * factor).astype(np.float32))
 
 
+def _plain_part(m: Material) -> bool:
+    """Whether a mixed shader's Material is plain: constant colour, metallic 0 or 1, roughness,
+    no transmission, coat, sheen, emission, alpha or metal tint of its own (`_masked_mix`)."""
+    return (m.base_color_texture is None and m.metallic_texture is None
+            and m.roughness_texture is None and m.metallic in (0.0, 1.0)
+            and m.transmission == 0.0 and m.coat == 0.0 and m.sheen == 0.0
+            and m.metal_color is None and m.alpha == 1.0 and m.alpha_texture is None
+            and not np.any(m.emission) and m.emission_texture is None and not m.camera_only)
+
+
 def facing_ior(blend: float) -> float:
     """The IOR whose dielectric Fresnel reflectance has the cosine-weighted hemispherical mean of
     a Layer Weight's Facing output, 1 - cos^b (b = 2 Blend below 0.5, 0.5 / (1 - Blend) above;
@@ -524,10 +534,13 @@ class MaterialReader:
         return Material(name=name, ignored=tuple(ignored))
 
     def _mixed(self, name: str, node, ignored: list, depth: int) -> Material:
-        """A Mix Shader (weights 1 - Fac and Fac; a Fac fed by a node takes its default, noted)
-        or an Add Shader (weights 1 and 1) of two shaders, as one `Material` (`mix_materials`,
-        `with_transparency`); an unlinked shader input, or a volume shader (Cycles evaluates
-        those in the Volume slot only), is a black surface (no closure: Cycles absorbs there).
+        """A Mix Shader (weights 1 - Fac and Fac; a Fac fed by a node the reader cannot hold
+        as one number takes its mean or default, noted) or an Add Shader (weights 1 and 1) of
+        two shaders, as one `Material` (`mix_materials`, `with_transparency`); an unlinked
+        shader input, or a volume shader (Cycles evaluates those in the Volume slot only), is a
+        black surface (no closure: Cycles absorbs there). Mixes read otherwise: a Fresnel's
+        (`_fresnel_layer`), a mask's (`_masked_mix`), an unlit one (`_unlit`) and a cut-out
+        (`_cut_out`).
 
         A Mix Shader of a Transparent BSDF and one other shader is that shader with Fac (or
         1 - Fac) as its alpha, read as the Principled Alpha is (a texture too): the cut-out
@@ -551,6 +564,9 @@ class MaterialReader:
             layer = self._fresnel_layer(name, node.inputs["Fac"], sources, ignored, depth)
             if layer is not None:
                 return layer
+            masked = self._masked_mix(name, node.inputs["Fac"], sources, ignored, depth)
+            if masked is not None:
+                return masked
         if node.type == "ADD_SHADER":
             weights = [1.0, 1.0]
         else:
@@ -656,6 +672,63 @@ class MaterialReader:
             ignored.append("a Glossy's roughness texture under a Fresnel mix: its default used")
         return replace(base, specular=0.5 * max(grey, 0.0), ior=max(ior, 1.0 + 1e-6),
                        roughness=gloss.roughness, ignored=tuple(ignored))
+
+    def _masked_mix(self, name: str, fac_socket, sources: list, ignored: list,
+                    depth: int) -> Material | None:
+        """A Mix Shader of two plain shaders (constant colour and roughness, each a dielectric or
+        a metal: Principled, Diffuse, Glossy) whose Fac a texture drives (a dirt or paint mask;
+        a procedural mask baked by Cycles): per texel, the mix's fields are the parts' blended
+        by the mask M, as texture look-ups through it. Both dielectric or both metal: base
+        colour and roughness (1 - M) a + M b; a dielectric and a metal: the dielectric's colour
+        as the base, the metal's as its tint (`metal_color`), metallic M (or 1 - M). Their
+        reliefs: the first part's that has one, as for constant mixes. None for any other mix
+        (the general way: the mask's mean, noted)."""
+        if not fac_socket.is_linked or any(source is None for source, _ in sources):
+            return None
+        if any(source.type == "BSDF_TRANSPARENT" for source, _ in sources):
+            return None
+        fac = self._read(fac_socket, [], bake=True)
+        if fac is None or fac.texture is None:
+            return None
+        notes: list[str] = []
+        parts = []
+        for source, groups in sources:
+            with self._inside(groups):
+                parts.append(self._shader(name, source, notes, depth + 1))
+        if not all(_plain_part(m) for m in parts):
+            return None
+        a, b = parts
+        rough = fac.affine(b.roughness - a.roughness, a.roughness)
+        if rough is None:
+            return None
+        ignored.extend(notes)
+        fields = dict(roughness=a.roughness if b.roughness == a.roughness else 0.5,
+                      roughness_texture=None if b.roughness == a.roughness else rough.texture)
+        if a.metallic == b.metallic:
+            base = fac.affine(b.base_color - a.base_color, a.base_color)
+            if base is None:
+                return None
+            fields.update(base_color=a.base_color, base_color_texture=base.texture,
+                          metallic=a.metallic, ior=0.5 * (a.ior + b.ior),
+                          specular=0.5 * (a.specular + b.specular))
+            if a.metallic == 0.0 and a.specular != b.specular:
+                ignored.append("a masked mix of two specular levels: their mean used")
+        else:
+            dielectric, metal = (a, b) if b.metallic == 1.0 else (b, a)
+            metallic = fac if b.metallic == 1.0 else fac.affine(-1.0, 1.0)
+            if metallic is None:
+                return None
+            fields.update(base_color=dielectric.base_color, metal_color=metal.base_color,
+                          metallic=0.0, metallic_texture=metallic.texture, ior=dielectric.ior,
+                          specular=dielectric.specular)
+        relief = next((m for m in parts if m.normal_texture is not None
+                       or m.height_texture is not None), None)
+        if relief is not None:
+            fields.update(normal_texture=relief.normal_texture,
+                          normal_strength=relief.normal_strength,
+                          height_texture=relief.height_texture,
+                          bump_strength=relief.bump_strength, bump_distance=relief.bump_distance)
+        return Material(name=name, ignored=tuple(ignored), **fields)
 
     def _any_texture(self, ignored):
         """A `texture_of` that reads textures even where the request reads no colours: coverage
