@@ -43,8 +43,8 @@ class TracerSettings:
     | offset_scale     | >= 0     | 1e-5    | ray offset, fraction of the scene's size (0: acne)   |
     | area_samples     | 1..16    | 4       | per side of an area light / emissive triangle grid   |
     | point_like_ratio | >= 0     | 0.05    | emitters smaller than this x distance act as points   |
-    | mirror_roughness | 0..1     | 0.1     | rougher metals and glass spawn no reflected or       |
-    |                  |          |         | refracted ray; rougher layers get lamp highlights    |
+    | mirror_roughness | 0..1     | 0.1     | rougher metals, layers and glass get lamp highlights |
+    |                  |          |         | and one reflected (and refracted) ray for the lobe   |
     | lobe_rays        | 1..64    | 8       | rays a camera hit's rough glossy lobe (roughness at  |
     |                  |          |         | least mirror_roughness) reflects its surroundings    |
     |                  |          |         | along: ceil(share x lobe_rays), share the lobe's     |

@@ -897,6 +897,13 @@ class Tracer:
             if rough_metal.any():
                 lobes.append((f0_metal, np.where(rough_metal, metallic, 0.0)[:, None]
                               * np.ones((1, 3)), rough))
+            # A rough glass reflects its lamps as a rough layer does (F0 from its IOR alone).
+            rough_glass = (trans > 0) & (metallic < 1) & (rough >= s.mirror_roughness) & glossy_on
+            if rough_glass.any():
+                f0_glass = ((self.ior[m] - 1.0) / (self.ior[m] + 1.0)) ** 2
+                lobes.append((np.where(rough_glass, f0_glass, 0.0)[:, None] * np.ones((1, 3)),
+                              np.where(rough_glass, (1.0 - metallic) * trans, 0.0)[:, None]
+                              * np.ones((1, 3)), rough))
             hit_strata = strata_rows(strata, pixel)
             # A black base reflects nothing diffusely: no shadow rays for it. A dark texel of a
             # coloured or textured material keeps them at the camera hits when the white-base
@@ -1006,7 +1013,8 @@ class Tracer:
                 t_dir[wrong], tir[wrong] = refract(dirs[wrong], h.ng[wrong], eta[wrong])
             children = []  # (origins, dirs, pixel, weight, sharp, entered, blur[, dp, dd])
             # glass: Fresnel split between the reflected and the refracted ray
-            glass = smooth & (trans > 0) & (metallic < 1) & glossy_on
+            # (a rough glass's two rays stand for its lobes, as a rough layer's mirror ray does)
+            glass = (trans > 0) & (metallic < 1) & glossy_on
             f_g = fresnel_dielectric(cos_o, eta)
             glass_w = ((1.0 - metallic) * trans)[:, None]
             refl_w = mirror_w + np.where(glass[:, None], glass_w * f_g[:, None], 0.0)
