@@ -494,8 +494,11 @@ class MaterialReader:
             return Material(name=name, base_color=np.zeros(3, np.float32), specular=0.0,
                             emission=emission, emission_texture=tex, ignored=tuple(ignored))
         if kind == "BSDF_GLASS":
+            # Cycles' Glass BSDF tints each refraction by its colour, the Principled by the square
+            # root of its base colour (the kernels' rule): stored squared, it passes as Cycles does.
             color, _ = self._color(node.inputs["Color"], ignored, textures=False)
-            return Material(name=name, base_color=color, transmission=1.0,
+            tint = np.clip(color, 0.0, None).astype(np.float32)  # its reflection's too
+            return Material(name=name, base_color=tint**2, transmission=1.0, glass_tint=tint,
                             roughness=self._value(node.inputs["Roughness"], ignored),
                             ior=self._value(node.inputs["IOR"], ignored), ignored=tuple(ignored))
         if kind in ("BSDF_GLOSSY", "BSDF_ANISOTROPIC"):

@@ -112,6 +112,9 @@ class Material:
     | metal_color        | [0, 1]^3  | None    | the metal part's tint where it is not the base |
     |                    |           |         | colour (a Glossy BSDF mixed over a Diffuse     |
     |                    |           |         | one); None: the base colour                    |
+    | glass_tint         | [0, 1]^3  | None    | what a glass's reflection is tinted by (a      |
+    |                    |           |         | Glass BSDF's colour); None: white, as the      |
+    |                    |           |         | Principled reflects                            |
     | emission_texture   | Texture   | None    | emitted radiance W/(m^2 sr) per texel (colour  |
     |                    |           |         | x strength folded into its gain); replaces     |
     |                    |           |         | `emission`                                     |
@@ -168,6 +171,7 @@ class Material:
     bump_strength: float = 1.0
     bump_distance: float = 1.0
     metal_color: np.ndarray | None = None
+    glass_tint: np.ndarray | None = None
     emission_texture: Texture | None = None
     metallic_texture: Texture | None = None
     roughness_texture: Texture | None = None

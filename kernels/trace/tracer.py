@@ -203,6 +203,8 @@ class Tracer:
         self.metal_color = np.array([m.base_color if m.metal_color is None else m.metal_color
                                      for m in mats], np.float64).reshape(-1, 3)
         self.transmission = np.array([m.transmission for m in mats])
+        self.glass_tint = np.array([np.ones(3) if m.glass_tint is None else m.glass_tint
+                                    for m in mats], np.float64).reshape(-1, 3)
         self.roughness = np.array([m.roughness for m in mats])
         self.ior = np.array([max(m.ior, 1.0 + 1e-6) for m in mats])
         # The specular layer's F0 from the material's own IOR, as its albedo tables take it (an
@@ -1017,11 +1019,15 @@ class Tracer:
             glass = (trans > 0) & (metallic < 1) & glossy_on
             f_g = fresnel_dielectric(cos_o, eta)
             glass_w = ((1.0 - metallic) * trans)[:, None]
-            refl_w = mirror_w + np.where(glass[:, None], glass_w * f_g[:, None], 0.0)
+            refl_w = mirror_w + np.where(glass[:, None], glass_w * f_g[:, None] * self.glass_tint[m],
+                                         0.0)
             if self.environment:  # their mirror part was looked up above: no ray for it
                 refl_w = np.where(self._mapped(hits.tri)[:, None],
                                   refl_w - mirror_w, refl_w)
-            refr_w = np.where((glass & ~tir)[:, None], glass_w * (1.0 - f_g)[:, None] * h.albedo, 0.0)
+            # Each refraction passes sqrt(base colour), the Principled's tint (entering and leaving
+            # a solid then give the base colour; a Glass BSDF's colour is read squared for it).
+            refr_w = np.where((glass & ~tir)[:, None],
+                              glass_w * (1.0 - f_g)[:, None] * np.sqrt(np.maximum(h.albedo, 0.0)), 0.0)
             known = entered >= 0
             # A back face met from outside every solid: the mesh is open or inverted.
             after_reflection = np.where(known & (h.front | (entered > 0)), entered, -1)
