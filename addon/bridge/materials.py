@@ -1,9 +1,10 @@
 """Blender materials reduced to kernel `Material`s: the node-tree reader (Principled, Diffuse,
-Glossy, Glass, Emission and Transparent shaders, Mix and Add Shaders of them, node groups
-holding any of these, image and checker textures, normal maps, bumps, a Displacement node's
-bump) and a record of everything it does not model (`Material.ignored`). What drives a socket
-is read through `socket_values.py` (node chains between a texture and the socket); base colour,
-emission, metallic, roughness and alpha may come from textures.
+Glossy, Glass, Refraction, Emission, Transparent, Translucent and Holdout shaders, Mix and Add
+Shaders of them (by a constant, a Fresnel or a mask), node groups holding any of these, image
+and checker textures, normal maps, bumps, a Displacement node's bump) and a record of everything
+it does not model (`Material.ignored`). What drives a socket is read through `socket_values.py`
+(node chains between a texture and the socket); base colour, emission, metallic, roughness and
+alpha may come from textures.
 
 Node groups are walked as Cycles flattens them (`nodes.follow_through`): the reader keeps the
 Group nodes it entered to reach the node it reads (`MaterialReader._groups`), so a socket inside
@@ -526,6 +527,21 @@ class MaterialReader:
             # copy (a snapshot reads the depsgraph's materials) says so on its original only.
             ignored.append(f"node group '{node.node_tree.name}' is missing (its library file "
                            f"was not found): no surface (black), as Cycles renders it")
+            return Material(name=name, base_color=np.zeros(3, np.float32), specular=0.0,
+                            ignored=tuple(ignored))
+        if kind == "BSDF_REFRACTION":  # a glass that reflects nothing (its tint: a Glass BSDF's)
+            color, _ = self._color(node.inputs["Color"], ignored, textures=False)
+            tint = np.clip(color, 0.0, None).astype(np.float32)
+            return Material(name=name, base_color=tint**2, transmission=1.0,
+                            glass_tint=np.zeros(3, np.float32),
+                            roughness=self._value(node.inputs["Roughness"], ignored),
+                            ior=self._value(node.inputs["IOR"], ignored), ignored=tuple(ignored))
+        if kind in ("BSDF_TRANSLUCENT", "HOLDOUT"):
+            # No light from the viewer's side: a Translucent BSDF passes only light from behind
+            # the surface (diffuse transmission, not modelled: noted), a Holdout none.
+            if kind == "BSDF_TRANSLUCENT":
+                ignored.append("a Translucent BSDF's light from behind the surface (diffuse "
+                               "transmission) is not modelled: black")
             return Material(name=name, base_color=np.zeros(3, np.float32), specular=0.0,
                             ignored=tuple(ignored))
         if node.bl_idname.startswith(VOLUME_SHADER_PREFIX):
