@@ -143,6 +143,8 @@ def mix_materials(name: str, parts: list, ignored: list) -> Material:
         specular=float(mean([m.specular for _, m in parts], d_w, weights)),
         emission=emission.astype(np.float32),
         emission_texture=emission_texture,
+        translucent=sum((w * m.translucent.astype(np.float64) for w, m in parts),
+                        np.zeros(3)).astype(np.float32),
         normal_texture=None if normal is None else normal.normal_texture,
         normal_strength=1.0 if normal is None else normal.normal_strength,
         height_texture=None if normal is None else normal.height_texture,
@@ -536,12 +538,12 @@ class MaterialReader:
                             glass_tint=np.zeros(3, np.float32),
                             roughness=self._value(node.inputs["Roughness"], ignored),
                             ior=self._value(node.inputs["IOR"], ignored), ignored=tuple(ignored))
-        if kind in ("BSDF_TRANSLUCENT", "HOLDOUT"):
-            # No light from the viewer's side: a Translucent BSDF passes only light from behind
-            # the surface (diffuse transmission, not modelled: noted), a Holdout none.
-            if kind == "BSDF_TRANSLUCENT":
-                ignored.append("a Translucent BSDF's light from behind the surface (diffuse "
-                               "transmission) is not modelled: black")
+        if kind == "BSDF_TRANSLUCENT":  # light from behind the surface alone
+            color, _ = self._color(node.inputs["Color"], ignored, textures=False)
+            return Material(name=name, base_color=np.zeros(3, np.float32), specular=0.0,
+                            translucent=np.clip(color, 0.0, None).astype(np.float32),
+                            ignored=tuple(ignored))
+        if kind == "HOLDOUT":  # no light at all
             return Material(name=name, base_color=np.zeros(3, np.float32), specular=0.0,
                             ignored=tuple(ignored))
         if node.bl_idname.startswith(VOLUME_SHADER_PREFIX):

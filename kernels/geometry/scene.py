@@ -125,6 +125,9 @@ class Material:
     | coat_roughness     | [0, 1]    | 0.03    | the coat's roughness                           |
     | coat_ior           | >= 1      | 1.5     | the coat's index of refraction                 |
     | coat_tint          | [0, 1]^3  | 1       | what the coat lets through at normal incidence |
+    | translucent        | [0, 1]^3  | 0       | diffuse transmission (a Translucent BSDF's     |
+    |                    |           |         | colour x weight): light from behind the        |
+    |                    |           |         | surface, colour / pi (traced views, lamps)     |
     | sheen              | [0, inf)  | 0       | sheen weight (`shading/sheen.py`): cloth's rim |
     | sheen_tint         | [0, inf)^3| 1       | the sheen's colour                             |
     | sheen_roughness    | [0, 1]    | 0.5     | microfiber roughness, or the velvet's sigma    |
@@ -179,6 +182,7 @@ class Material:
     coat_roughness: float = 0.03
     coat_ior: float = 1.5
     coat_tint: np.ndarray = field(default_factory=lambda: np.ones(3, np.float32))
+    translucent: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))
     sheen: float = 0.0
     sheen_tint: np.ndarray = field(default_factory=lambda: np.ones(3, np.float32))
     sheen_roughness: float = 0.5

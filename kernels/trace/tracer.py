@@ -224,6 +224,7 @@ class Tracer:
         # roughness per hit, `_fabric`).
         self.sheen_weight = np.array([m.sheen for m in mats], np.float64)
         self.has_sheen = self.sheen_weight > 0.0
+        self.translucent = np.array([m.translucent for m in mats], np.float64).reshape(-1, 3)
         self.velvet = np.array([m.sheen_model == "ASHIKHMIN" for m in mats], bool)
         self.sheen_layer = np.array([m.sheen_layer for m in mats], bool)
         # The media inside closed meshes (1/m); None when no material holds one.
@@ -373,6 +374,23 @@ class Tracer:
                 sheen[idx] += cloth[1]
         out += h.albedo * lambert
         return out, lambert
+
+    def _translucent_direct(self, h: SurfaceHits, wo: np.ndarray, material: np.ndarray,
+                            under: np.ndarray | None) -> np.ndarray:
+        """(N, 3) light from behind the surface a Translucent BSDF passes (diffuse transmission,
+        colour / pi): `direct` of the hits turned around, normals and shadow rays' origins on
+        the far side, no lobes; under a coat, what the coat lets through. 0 where no hit is
+        translucent."""
+        colour = self.translucent[material]
+        out = np.zeros_like(h.p)
+        on = np.flatnonzero(max_of_three(colour) > 0.0)
+        if not len(on):
+            return out
+        back = SurfaceHits(h.p[on], -h.ng[on], -h.ns[on], ~h.front[on], h.material[on],
+                           colour[on], np.zeros((len(on), 3)))
+        light, _ = self.direct(back, wo[on], np.ones(len(on)), [])
+        out[on] = light if under is None else light * under[on]
+        return out
 
     def _fabric(self, tri: np.ndarray, bary: np.ndarray, material: np.ndarray) -> Fabric | None:
         """The sheen at hits (triangles (N,), barycentrics (N, 3), materials (N,)): colour and
@@ -945,6 +963,7 @@ class Tracer:
                     sheen_light = None if fabric is None else np.zeros_like(h.p)
                     lit, lambert = self.direct(h, wo, base_lit_w, lobes, hit_strata,
                                                (hits.tri, bary), fabric, sheen_light)
+                    lit = lit + self._translucent_direct(h, wo, m, under)
             if self.diffuse is not None:
                 with self.clock("diffuse lookup"):
                     reflected = self.diffuse(hits.tri, bary, dirs, h.front, entered == 0,
