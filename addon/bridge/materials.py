@@ -664,9 +664,11 @@ class MaterialReader:
                 or gloss_node is None or gloss_node.type not in ("BSDF_GLOSSY", "BSDF_ANISOTROPIC")
                 or (feed.type == "LAYER_WEIGHT" and out.identifier not in ("Fresnel", "Facing"))):
             return None
+        baked, noted = len(self._baked), len(ignored)
         with self._inside(base_groups):
             base = self._shader(name, base_node, ignored, depth + 1)
         if base.metallic > 0.0 or base.transmission > 0.0:
+            del self._baked[baked:], ignored[noted:]  # the general way reads it again
             return None
         with self._inside(gloss_groups):
             gloss = self._shader(name, gloss_node, ignored, depth + 1)
@@ -708,15 +710,17 @@ class MaterialReader:
             return None
         if any(source.type == "BSDF_TRANSPARENT" for source, _ in sources):
             return None
-        fac = self._read(fac_socket, [], bake=True)
-        if fac is None or fac.texture is None:
-            return None
         notes: list[str] = []
         parts = []
+        baked = len(self._baked)
         for source, groups in sources:
             with self._inside(groups):
                 parts.append(self._shader(name, source, notes, depth + 1))
-        if not all(_plain_part(m) for m in parts):
+        fac = None
+        if all(_plain_part(m) for m in parts):
+            fac = self._read(fac_socket, [], bake=True)
+        if fac is None or fac.texture is None:
+            del self._baked[baked:]  # the general way reads the parts (and their bakes) again
             return None
         a, b = parts
         rough = fac.affine(b.roughness - a.roughness, a.roughness)
