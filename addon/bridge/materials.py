@@ -290,6 +290,14 @@ def _plain_part(m: Material) -> bool:
             and not np.any(m.emission) and m.emission_texture is None and not m.camera_only)
 
 
+def _untextured(m: Material) -> Material:
+    """`m` without its base colour, metallic and roughness textures (what `_blended_mix` bakes
+    anew) and relief: for asking whether the rest is plain (`_plain_part`)."""
+    return replace(m, base_color_texture=None, metallic_texture=None, roughness_texture=None,
+                   metallic=float(m.metallic >= 0.5) if m.metallic_texture is not None
+                   else m.metallic)
+
+
 def facing_ior(blend: float) -> float:
     """The IOR whose dielectric Fresnel reflectance has the cosine-weighted hemispherical mean of
     a Layer Weight's Facing output, 1 - cos^b (b = 2 Blend below 0.5, 0.5 / (1 - Blend) above;
@@ -719,6 +727,15 @@ class MaterialReader:
         fac = None
         if all(_plain_part(m) for m in parts):
             fac = self._read(fac_socket, [], bake=True)
+        elif all(_plain_part(_untextured(m)) for m in parts):
+            parts_baked = self._baked[baked:]  # the parts' own bakes: the blends replace them
+            del self._baked[baked:]
+            blended = self._blended_mix(name, fac_socket, sources, parts, notes)
+            if blended is None:
+                self._baked[baked:] = parts_baked
+            if blended is not None:
+                ignored.extend(notes)
+                return replace(blended, ignored=tuple(ignored))
         if fac is None or fac.texture is None:
             del self._baked[baked:]  # the general way reads the parts (and their bakes) again
             return None
@@ -754,6 +771,70 @@ class MaterialReader:
                           height_texture=relief.height_texture,
                           bump_strength=relief.bump_strength, bump_distance=relief.bump_distance)
         return Material(name=name, ignored=tuple(ignored), **fields)
+
+    def _blended_mix(self, name: str, fac_socket, sources: list, parts: list,
+                     notes: list) -> Material | None:
+        """`_masked_mix` of parts with textures of their own (Principled, Diffuse or Glossy
+        shaders in the material's own tree): each field the two read as a texture is the two
+        sockets mixed by the mask, baked by Cycles over the UVs (`SocketFallback`, `blend`):
+        base colour always, roughness and metallic where both parts have that input, else the
+        one part's (a Diffuse's metallic 0 and a Glossy's 1, blended by the mask). The
+        specular level is the dielectric parts' (their mean). None where a bake cannot be
+        made (a node group, no UVs): the general way."""
+        fields = {"BSDF_PRINCIPLED": ("Base Color", "Metallic", "Roughness"),
+                  "BSDF_DIFFUSE": ("Color", None, None),
+                  "BSDF_GLOSSY": ("Color", None, "Roughness"),
+                  "BSDF_ANISOTROPIC": ("Color", None, "Roughness")}
+        nodes = [source for source, _ in sources]
+        if (self.fallback is None or self._mat is None or not self.request.textures
+                or any(groups for _, groups in sources) or self._groups
+                or any(node.type not in fields for node in nodes)):
+            return None
+
+        def blend(k: int, as_number: bool) -> Texture | None:
+            a, b = (node.inputs[fields[node.type][k]] for node in nodes)
+            texture, entry = self.fallback.texture(self._mat, a, as_number, self._target,
+                                                   blend=(fac_socket, b))
+            if texture is None:
+                return None
+            self._baked.append(entry)
+            return texture
+
+        base = blend(0, False)
+        if base is None:
+            return None
+        a, b = parts
+        out = dict(base_color=a.base_color, base_color_texture=base)
+        if all(fields[node.type][1] for node in nodes):
+            out.update(metallic=0.0, metallic_texture=blend(1, True))
+        elif a.metallic_texture is None and b.metallic_texture is None:
+            fac = self._read(fac_socket, [], bake=True)
+            metallic = None if fac is None else fac.affine(b.metallic - a.metallic, a.metallic)
+            if metallic is None:
+                return None
+            out.update(metallic=float(metallic.const[0]), metallic_texture=metallic.texture)
+        else:
+            return None
+        rough = [k for k, node in enumerate(nodes) if fields[node.type][2]]
+        if len(rough) == 2:
+            out.update(roughness=0.5, roughness_texture=blend(2, True))
+        elif rough:
+            part = parts[rough[0]]
+            out.update(roughness=part.roughness, roughness_texture=part.roughness_texture)
+        dielectric = [m for m, node in zip(parts, nodes, strict=True)
+                      if node.type in ("BSDF_PRINCIPLED", "BSDF_DIFFUSE")]
+        levels = {m.specular for m in dielectric}
+        if len(levels) > 1:
+            notes.append("a masked mix of two specular levels: their mean used")
+        relief = next((m for m in parts if m.normal_texture is not None
+                       or m.height_texture is not None), None)
+        if relief is not None:
+            out.update(normal_texture=relief.normal_texture,
+                       normal_strength=relief.normal_strength,
+                       height_texture=relief.height_texture,
+                       bump_strength=relief.bump_strength, bump_distance=relief.bump_distance)
+        return Material(name=name, specular=float(np.mean(sorted(levels))) if levels else 0.5,
+                        ior=float(np.mean([m.ior for m in dielectric] or [1.5])), **out)
 
     def _any_texture(self, ignored):
         """A `texture_of` that reads textures even where the request reads no colours: coverage

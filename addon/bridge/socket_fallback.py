@@ -63,21 +63,26 @@ class SocketFallback:
         self.settings = settings
 
     def texture(self, material, socket, as_number: bool, target: BakeTarget | None,
-                strength=None) -> tuple[Texture | None, dict | str]:
+                strength=None, blend: tuple | None = None) -> tuple[Texture | None, dict | str]:
         """(the socket's texture, its report entry {socket, read_as, seconds, cached, object}),
         or (None, why it cannot be baked). With `strength` (an emission's strength socket of the
-        same node), the texture is the colour times the strength: the emitted radiance."""
+        same node), the texture is the colour times the strength: the emitted radiance. With
+        `blend` (a factor socket, another socket), it is the two sockets' values mixed by the
+        factor's (`bake_socket`)."""
         if target is None:
             return None, "no object to bake it over"
         if target.chunk.uv is None:
             return None, f"object '{target.source.name}' has no UV map to bake it over"
-        if socket.node.id_data != material.node_tree:
+        sockets = [socket, *(blend or ())]
+        if any(s.node.id_data != material.node_tree for s in sockets):
             return None, "the socket is inside a node group"
         uv_layer = _render_uv_layer(target.source.evaluated_get(target.depsgraph).data)
         s = self.settings
         key = hashlib.sha256(repr((
             tree_digest(material.node_tree), socket.node.name, socket.identifier, as_number,
-            None if strength is None else strength.identifier, target.digest, uv_layer,
+            None if strength is None else strength.identifier,
+            None if blend is None else [(b.node.name, b.identifier) for b in blend],
+            target.digest, uv_layer,
             s.size, s.samples, s.margin, bpy.app.version,
         )).encode()).hexdigest()
         cached = key in _CACHE
@@ -88,7 +93,9 @@ class SocketFallback:
             pixels, seconds = bake_socket(target.source, target.depsgraph, material,
                                           socket.node.name, socket.identifier, as_number,
                                           uv_layer, s.size, s.samples, s.margin,
-                                          None if strength is None else strength.identifier)
+                                          None if strength is None else strength.identifier,
+                                          None if blend is None else
+                                          tuple((b.node.name, b.identifier) for b in blend))
             _CACHE[key] = (pixels, seconds)
             while len(_CACHE) > CACHE_ENTRIES:
                 _CACHE.popitem(last=False)
@@ -96,6 +103,8 @@ class SocketFallback:
                           pixels=pixels, extension="EXTEND", interpolation="LINEAR",
                           encoding="linear")
         name = socket.name if strength is None else f"{socket.name} x {strength.name}"
+        if blend is not None:
+            name = f"{socket.name} mixed by {blend[0].node.name}"
         entry = {"socket": name, "read_as": f"Cycles bake {s.size}x{s.size}",
                  "seconds": round(float(seconds), 4), "cached": cached,
                  "object": target.source.name}

@@ -31,7 +31,8 @@ BAKE_SEED = 0
 
 def bake_socket(source, depsgraph, material, node_name: str, socket_identifier: str,
                 as_number: bool, uv_layer: str, size: int, samples: int, margin: int,
-                strength_identifier: str | None = None) -> tuple[np.ndarray, float]:
+                strength_identifier: str | None = None,
+                blend: tuple | None = None) -> tuple[np.ndarray, float]:
     """The value the linked input `socket_identifier` of node `node_name` in `material` takes
     over `source`'s UV layer `uv_layer`, baked by Cycles: ((size, size, 4) float32 linear, row 0
     top, alpha 1; seconds of the bake operator).
@@ -43,10 +44,12 @@ def bake_socket(source, depsgraph, material, node_name: str, socket_identifier: 
     its area; `margin` texels of the charts extended outwards (bilinear look-ups at a chart's
     rim then read no black). With `strength_identifier`, the node's input of that identifier
     (linked or not) is the Emission strength: the bake is colour x strength, an emission's
-    radiance."""
+    radiance. With `blend` ((node, identifier) of a factor, (node, identifier) of another
+    input), the bake is the two inputs' values mixed by the factor's, (1 - f) this + f other
+    (what a Mix Shader of two shaders makes of their inputs of one kind)."""
     with contextlib.ExitStack() as stack:
         mat = _emission_copy(material, node_name, socket_identifier, as_number,
-                             strength_identifier)
+                             strength_identifier, blend)
         stack.callback(bpy.data.materials.remove, mat)
         image = bpy.data.images.new(f"{TEMP_PREFIX}_socket", size, size, alpha=True,
                                     float_buffer=True)
@@ -88,11 +91,28 @@ def bake_socket(source, depsgraph, material, node_name: str, socket_identifier: 
     return pixels, seconds
 
 
+def _input(tree, node_name: str, identifier: str):
+    return next(s for s in tree.nodes[node_name].inputs if s.identifier == identifier)
+
+
+def _feed(tree, socket, as_number: bool, target) -> None:
+    """Feed `target` (a colour input) with what feeds `socket`, or its own value unlinked."""
+    if socket.is_linked:
+        tree.links.new(socket.links[0].from_socket, target)
+        return
+    value = socket.default_value
+    if target.type == "VALUE":
+        target.default_value = value if as_number else sum(value[:3]) / 3.0
+    else:
+        target.default_value = (value, value, value, 1.0) if as_number else tuple(value)
+
+
 def _emission_copy(material, node_name: str, socket_identifier: str, as_number: bool,
-                   strength_identifier: str | None = None):
+                   strength_identifier: str | None = None, blend: tuple | None = None):
     """A temporary copy of `material` whose only output is an Emission shader fed by what feeds
     the socket (its own value where it is unlinked), of strength 1 or what feeds the input
-    `strength_identifier` of the same node."""
+    `strength_identifier` of the same node; with `blend` (`bake_socket`), by a Mix of it and
+    the other input by the factor."""
     mat = material.copy()
     mat.name = f"{TEMP_PREFIX}_socket"
     tree = mat.node_tree
@@ -101,6 +121,16 @@ def _emission_copy(material, node_name: str, socket_identifier: str, as_number: 
     strength = next((s for s in node.inputs if s.identifier == strength_identifier), None)
     source = socket.links[0].from_socket if socket.is_linked else None
     strength_source = strength.links[0].from_socket if strength and strength.is_linked else None
+    if blend is not None:  # a colour Mix of the two inputs (numbers as grey colours)
+        (fac_node, fac_id), (other_node, other_id) = blend
+        mix = tree.nodes.new("ShaderNodeMix")
+        mix.data_type = "RGBA"
+        mix.clamp_factor = True
+        inputs = {s.identifier: s for s in mix.inputs}
+        _feed(tree, _input(tree, fac_node, fac_id), True, inputs["Factor_Float"])
+        _feed(tree, socket, as_number, inputs["A_Color"])
+        _feed(tree, _input(tree, other_node, other_id), as_number, inputs["B_Color"])
+        source = next(s for s in mix.outputs if s.identifier == "Result_Color")
     for output in [n for n in tree.nodes if n.type == "OUTPUT_MATERIAL"]:
         tree.nodes.remove(output)
     emission = tree.nodes.new("ShaderNodeEmission")

@@ -445,7 +445,26 @@ def test_a_fresnel_mix_of_diffuse_and_glossy_reads_as_a_specular_layer(fac_node,
     assert error < bound
 
 
-def _masked_sphere(parts: str, mask: str):
+def _textured_parts(tree, a, b):
+    """Colour the first part by a Noise texture through a red-to-blue ColorRamp (procedural),
+    the second by a UV Checker of gold and grey."""
+    colour = "Base Color" if a.type == "BSDF_PRINCIPLED" else "Color"
+    noise = tree.nodes.new("ShaderNodeTexNoise")
+    noise.inputs["Scale"].default_value = 3.0
+    ramp = tree.nodes.new("ShaderNodeValToRGB")
+    ramp.color_ramp.elements[0].color = (0.7, 0.1, 0.1, 1.0)
+    ramp.color_ramp.elements[1].color = (0.1, 0.2, 0.7, 1.0)
+    tree.links.new(noise.outputs[0], ramp.inputs["Fac"])
+    tree.links.new(ramp.outputs["Color"], a.inputs[colour])
+    checker = tree.nodes.new("ShaderNodeTexChecker")
+    checker.inputs["Scale"].default_value = 3.0
+    checker.inputs["Color1"].default_value = (0.9, 0.7, 0.3, 1.0)
+    checker.inputs["Color2"].default_value = (0.8, 0.8, 0.8, 1.0)
+    tree.links.new(tree.nodes.new("ShaderNodeUVMap").outputs[0], checker.inputs["Vector"])
+    tree.links.new(checker.outputs["Color"], b.inputs[colour])
+
+
+def _masked_sphere(parts: str, mask: str, textured: bool = False):
     """A smooth sphere on a grey floor under a sun whose material mixes two plain shaders by a
     mask: a red rough dielectric and a gold metal (`parts` "principled"), or a red Diffuse and
     a grey Glossy ("diffuse glossy"); the mask a UV Checker's Fac (6 squares a unit) or a Noise
@@ -468,6 +487,8 @@ def _masked_sphere(parts: str, mask: str):
         a.inputs["Color"].default_value = (0.7, 0.1, 0.1, 1.0)
         b = tree.nodes.new("ShaderNodeBsdfGlossy")
     b.inputs["Roughness"].default_value = 0.25
+    if textured:
+        _textured_parts(tree, a, b)
     mix = tree.nodes.new("ShaderNodeMixShader")
     if mask == "checker":
         checker = tree.nodes.new("ShaderNodeTexChecker")
@@ -493,18 +514,21 @@ def _masked_sphere(parts: str, mask: str):
     return scene
 
 
-@pytest.mark.parametrize("parts, mask, bound", [
-    ("principled", "checker", 4e-3), ("diffuse glossy", "checker", 1.5e-3),
-    ("principled", "noise", 5e-3)])
-def test_two_shaders_mixed_by_a_mask_are_read_texel_by_texel(parts, mask, bound):
-    """A Mix Shader of two plain shaders whose Fac a mask drives (a texture, or a procedural
-    mask Cycles bakes over the UVs): the parts' fields blended by the mask at each hit
-    (metallic, roughness, colour as textures through it). Against Cycles at 96 x 72: the red
-    dielectric and gold metal 2.0e-3, Diffuse and Glossy 6.3e-4, under a noise mask 2.7e-3;
-    with the mask's mean for the Fac (a uniform blend) 0.16, 0.41 and 0.13."""
+@pytest.mark.parametrize("parts, mask, textured, bound", [
+    ("principled", "checker", False, 4e-3), ("diffuse glossy", "checker", False, 1.5e-3),
+    ("principled", "noise", False, 5e-3), ("principled", "checker", True, 3e-3),
+    ("diffuse glossy", "checker", True, 2e-3)])
+def test_two_shaders_mixed_by_a_mask_are_read_texel_by_texel(parts, mask, textured, bound):
+    """A Mix Shader of two shaders whose Fac a mask drives (a texture, or a procedural mask
+    Cycles bakes over the UVs): the parts' fields blended by the mask at each hit. Plain parts:
+    metallic, roughness, colour as textures through the mask; parts with textures of their own
+    (a procedural colour, a checker): each field the two sockets mixed by the mask, baked by
+    Cycles. Against Cycles at 96 x 72: the red dielectric and gold metal 2.0e-3, Diffuse and
+    Glossy 6.3e-4, under a noise mask 2.7e-3, textured 1.4e-3 and 1.0e-3; with the mask's mean
+    for the Fac (a uniform blend) 0.16, 0.41, 0.13, 0.14 and 0.27."""
     from classic_bake.kernels.measure.metrics import rel_mse
 
-    scene = _masked_sphere(parts, mask)
+    scene = _masked_sphere(parts, mask, textured)
     resolution = (96, 72)
     snap = bridge.snapshot(resolution=resolution)
     assert not any("Fac" in why or "Factor" in why for why in snap.ignored), snap.ignored
