@@ -69,6 +69,8 @@ def bake_socket(source, depsgraph, material, node_name: str, socket_identifier: 
         stack.callback(bpy.data.objects.remove, obj)
         scene.collection.objects.link(obj)
         obj.matrix_world = mathutils.Matrix(source.evaluated_get(depsgraph).matrix_world)
+        # What an Object Info node reads of it (its colour, its pass index) as of the source.
+        obj.color, obj.pass_index = source.color, source.pass_index
         scene.render.engine = "CYCLES"
         scene.cycles.device = "CPU"
         scene.cycles.samples = int(samples)

@@ -347,3 +347,25 @@ def test_a_colour_attribute_base_colour_is_read_per_corner_not_baked():
     err = np.abs(ours - theirs).max(axis=2)[mask] / theirs.max()
     assert mask.all() and theirs.max() > 0.5
     assert err.max() <= TOLERANCE, err.max()
+
+
+def test_an_object_info_colour_is_baked_as_the_object_has_it():
+    """An Object Info node's Color (the object's viewport colour) or Object Index through a
+    ramp: the bake's stand-in object takes the source's colour and pass index, so two planes
+    sharing the material bake their own colours (the stand-in's default white was read)."""
+    mat = _plane()
+    _plane("Other", material=mat, location=(3.0, 0.0, 0.0))
+    bpy.data.objects["Plane"].color = (0.9, 0.2, 0.1, 1.0)
+    bpy.data.objects["Other"].color = (0.1, 0.3, 0.8, 1.0)
+    tree = mat.node_tree
+    info = tree.nodes.new("ShaderNodeObjectInfo")
+    bsdf = next(n for n in tree.nodes if n.type == "BSDF_PRINCIPLED")
+    tree.links.new(info.outputs["Color"], bsdf.inputs["Base Color"])
+    scene = bridge.snapshot(request=SnapshotRequest(
+        socket_bake=SocketBakeSettings(size=16, samples=1)))
+    for name, colour in (("Plane", (0.9, 0.2, 0.1)), ("Other", (0.1, 0.3, 0.8))):
+        k = next(i for i, o in enumerate(scene.objects) if o.name == name)
+        (mat_id,) = set(scene.material_ids[scene.object_slice(k)].tolist())
+        texture = scene.materials[mat_id].base_color_texture
+        np.testing.assert_allclose(texture.pixels[..., :3].reshape(-1, 3).mean(0), colour,
+                                   atol=1e-4)
