@@ -280,22 +280,32 @@ def scaled_texture(texture: Texture | None, factor: float) -> Texture | None:
                    offset=(texture.offset * factor).astype(np.float32))
 
 
-def _plain_part(m: Material) -> bool:
-    """Whether a mixed shader's Material is plain: constant colour, metallic 0 or 1, roughness,
-    no transmission, coat, sheen, emission, alpha or metal tint of its own (`_masked_mix`)."""
-    return (m.base_color_texture is None and m.metallic_texture is None
-            and m.roughness_texture is None and m.metallic in (0.0, 1.0)
-            and m.transmission == 0.0 and m.coat == 0.0 and m.sheen == 0.0
+def _simple_part(m: Material) -> bool:
+    """Whether a mixed shader's Material has no layer beyond a dielectric's or a metal's: no
+    transmission, coat, sheen, emission, alpha, translucency or metal tint of its own
+    (`_masked_mix`)."""
+    return (m.transmission == 0.0 and m.coat == 0.0 and m.sheen == 0.0
             and m.metal_color is None and m.alpha == 1.0 and m.alpha_texture is None
-            and not np.any(m.emission) and m.emission_texture is None and not m.camera_only)
+            and not np.any(m.emission) and m.emission_texture is None
+            and not np.any(m.translucent) and not m.camera_only)
 
 
-def _untextured(m: Material) -> Material:
-    """`m` without its base colour, metallic and roughness textures (what `_blended_mix` bakes
-    anew) and relief: for asking whether the rest is plain (`_plain_part`)."""
-    return replace(m, base_color_texture=None, metallic_texture=None, roughness_texture=None,
-                   metallic=float(m.metallic >= 0.5) if m.metallic_texture is not None
-                   else m.metallic)
+def _plain_part(m: Material) -> bool:
+    """A `_simple_part` of constant colour, roughness and metallic 0 or 1 (`_plain_masked`)."""
+    return (_simple_part(m) and m.base_color_texture is None and m.metallic_texture is None
+            and m.roughness_texture is None and m.metallic in (0.0, 1.0))
+
+
+def _first_relief(parts: list) -> dict:
+    """The Material fields of the first part with a normal or bump map ({} if none): a mix's
+    relief, as `mix_materials` takes it."""
+    relief = next((m for m in parts if m.normal_texture is not None
+                   or m.height_texture is not None), None)
+    if relief is None:
+        return {}
+    return dict(normal_texture=relief.normal_texture, normal_strength=relief.normal_strength,
+                height_texture=relief.height_texture, bump_strength=relief.bump_strength,
+                bump_distance=relief.bump_distance)
 
 
 def facing_ior(blend: float) -> float:
@@ -706,44 +716,47 @@ class MaterialReader:
 
     def _masked_mix(self, name: str, fac_socket, sources: list, ignored: list,
                     depth: int) -> Material | None:
-        """A Mix Shader of two plain shaders (constant colour and roughness, each a dielectric or
-        a metal: Principled, Diffuse, Glossy) whose Fac a texture drives (a dirt or paint mask;
-        a procedural mask baked by Cycles): per texel, the mix's fields are the parts' blended
-        by the mask M, as texture look-ups through it. Both dielectric or both metal: base
-        colour and roughness (1 - M) a + M b; a dielectric and a metal: the dielectric's colour
-        as the base, the metal's as its tint (`metal_color`), metallic M (or 1 - M). Their
-        reliefs: the first part's that has one, as for constant mixes. None for any other mix
-        (the general way: the mask's mean, noted)."""
+        """A Mix Shader of two shaders whose Fac a texture drives (a dirt or paint mask; a
+        procedural mask baked by Cycles), each a dielectric or a metal without layers of its
+        own (`_simple_part`): per texel, the mix's fields are the parts' blended by the mask M.
+        Parts of constant fields: texture look-ups through the mask (`_plain_masked`); parts
+        with textures of their own: Cycles bakes of their inputs mixed by the mask
+        (`_blended_mix`). None for any other mix (the general way: the mask's mean, noted)."""
         if not fac_socket.is_linked or any(source is None for source, _ in sources):
             return None
         if any(source.type == "BSDF_TRANSPARENT" for source, _ in sources):
             return None
         notes: list[str] = []
-        parts = []
         baked = len(self._baked)
+        parts = []
         for source, groups in sources:
             with self._inside(groups):
                 parts.append(self._shader(name, source, notes, depth + 1))
-        fac = None
+        # The parts' own bakes go: the blends replace them, or the general way reads them again.
+        del self._baked[baked:]
+        material = None
         if all(_plain_part(m) for m in parts):
-            fac = self._read(fac_socket, [], bake=True)
-        elif all(_plain_part(_untextured(m)) for m in parts):
-            parts_baked = self._baked[baked:]  # the parts' own bakes: the blends replace them
+            material = self._plain_masked(fac_socket, parts, notes)
+        elif all(_simple_part(m) for m in parts):
+            material = self._blended_mix(fac_socket, sources, parts, notes)
+        if material is None:
             del self._baked[baked:]
-            blended = self._blended_mix(name, fac_socket, sources, parts, notes)
-            if blended is None:
-                self._baked[baked:] = parts_baked
-            if blended is not None:
-                ignored.extend(notes)
-                return replace(blended, ignored=tuple(ignored))
+            return None
+        ignored.extend(notes)
+        return replace(material, name=name, ignored=tuple(ignored))
+
+    def _plain_masked(self, fac_socket, parts: list, notes: list) -> Material | None:
+        """`_masked_mix` of two parts of constant fields: both dielectric or both metal: base
+        colour and roughness (1 - M) a + M b; a dielectric and a metal: the dielectric's colour
+        as the base, the metal's as its tint (`metal_color`), metallic M (or 1 - M). Their
+        reliefs: the first part's that has one, as for constant mixes."""
+        fac = self._read(fac_socket, [], bake=True)
         if fac is None or fac.texture is None:
-            del self._baked[baked:]  # the general way reads the parts (and their bakes) again
             return None
         a, b = parts
         rough = fac.affine(b.roughness - a.roughness, a.roughness)
         if rough is None:
             return None
-        ignored.extend(notes)
         fields = dict(roughness=a.roughness if b.roughness == a.roughness else 0.5,
                       roughness_texture=None if b.roughness == a.roughness else rough.texture)
         if a.metallic == b.metallic:
@@ -754,7 +767,7 @@ class MaterialReader:
                           metallic=a.metallic, ior=0.5 * (a.ior + b.ior),
                           specular=0.5 * (a.specular + b.specular))
             if a.metallic == 0.0 and a.specular != b.specular:
-                ignored.append("a masked mix of two specular levels: their mean used")
+                notes.append("a masked mix of two specular levels: their mean used")
         else:
             dielectric, metal = (a, b) if b.metallic == 1.0 else (b, a)
             metallic = fac if b.metallic == 1.0 else fac.affine(-1.0, 1.0)
@@ -763,16 +776,9 @@ class MaterialReader:
             fields.update(base_color=dielectric.base_color, metal_color=metal.base_color,
                           metallic=0.0, metallic_texture=metallic.texture, ior=dielectric.ior,
                           specular=dielectric.specular)
-        relief = next((m for m in parts if m.normal_texture is not None
-                       or m.height_texture is not None), None)
-        if relief is not None:
-            fields.update(normal_texture=relief.normal_texture,
-                          normal_strength=relief.normal_strength,
-                          height_texture=relief.height_texture,
-                          bump_strength=relief.bump_strength, bump_distance=relief.bump_distance)
-        return Material(name=name, ignored=tuple(ignored), **fields)
+        return Material(name="", **fields, **_first_relief(parts))
 
-    def _blended_mix(self, name: str, fac_socket, sources: list, parts: list,
+    def _blended_mix(self, fac_socket, sources: list, parts: list,
                      notes: list) -> Material | None:
         """`_masked_mix` of parts with textures of their own (Principled, Diffuse or Glossy
         shaders in the material's own tree): each field the two read as a texture is the two
@@ -807,6 +813,8 @@ class MaterialReader:
         out = dict(base_color=a.base_color, base_color_texture=base)
         if all(fields[node.type][1] for node in nodes):
             out.update(metallic=0.0, metallic_texture=blend(1, True))
+            if out["metallic_texture"] is None:
+                return None
         elif a.metallic_texture is None and b.metallic_texture is None:
             fac = self._read(fac_socket, [], bake=True)
             metallic = None if fac is None else fac.affine(b.metallic - a.metallic, a.metallic)
@@ -818,23 +826,20 @@ class MaterialReader:
         rough = [k for k, node in enumerate(nodes) if fields[node.type][2]]
         if len(rough) == 2:
             out.update(roughness=0.5, roughness_texture=blend(2, True))
-        elif rough:
-            part = parts[rough[0]]
-            out.update(roughness=part.roughness, roughness_texture=part.roughness_texture)
+            if out["roughness_texture"] is None:
+                return None
+        elif rough:  # a Diffuse beside: the other's roughness (a bake of it named again)
+            node = nodes[rough[0]]
+            value, texture = self._number(node.inputs[fields[node.type][2]], notes)
+            out.update(roughness=value, roughness_texture=texture)
         dielectric = [m for m, node in zip(parts, nodes, strict=True)
                       if node.type in ("BSDF_PRINCIPLED", "BSDF_DIFFUSE")]
         levels = {m.specular for m in dielectric}
         if len(levels) > 1:
             notes.append("a masked mix of two specular levels: their mean used")
-        relief = next((m for m in parts if m.normal_texture is not None
-                       or m.height_texture is not None), None)
-        if relief is not None:
-            out.update(normal_texture=relief.normal_texture,
-                       normal_strength=relief.normal_strength,
-                       height_texture=relief.height_texture,
-                       bump_strength=relief.bump_strength, bump_distance=relief.bump_distance)
-        return Material(name=name, specular=float(np.mean(sorted(levels))) if levels else 0.5,
-                        ior=float(np.mean([m.ior for m in dielectric] or [1.5])), **out)
+        return Material(name="", specular=float(np.mean(sorted(levels))) if levels else 0.5,
+                        ior=float(np.mean([m.ior for m in dielectric] or [1.5])), **out,
+                        **_first_relief(parts))
 
     def _any_texture(self, ignored):
         """A `texture_of` that reads textures even where the request reads no colours: coverage
