@@ -44,6 +44,8 @@ def describe(scene) -> dict:
             "base_color_texture": None if tex is None else f"{tex.kind}:{tex.name}",
             "metallic": mat.metallic,
             "metal_color": mat.metal_color,
+            "glass_tint": mat.glass_tint,
+            "translucent": mat.translucent,
             "roughness": mat.roughness,
             "ior": mat.ior,
             "transmission": mat.transmission,
@@ -123,6 +125,10 @@ def _print(ctx: RunContext, d: dict) -> None:
                 parts.append(f"{key} {m[key]:.3g}")
         if m["metal_color"] is not None:
             parts.append(f"metal tint {_fmt(m['metal_color'])}")
+        if m["glass_tint"] is not None:
+            parts.append(f"glass reflection tint {_fmt(m['glass_tint'])}")
+        if np.any(np.asarray(m["translucent"]) > 0):
+            parts.append(f"translucent {_fmt(m['translucent'])}")
         parts.append(f"roughness {m['roughness']:.3g}")
         if m["diffuse_under_layer"] < 1.0 and m["metallic"] < 1.0 and m["transmission"] < 1.0:
             parts.append(f"specular layer {m['specular']:.3g} (a bake shows "
