@@ -593,19 +593,11 @@ class MaterialReader:
                                f"surface, as Cycles renders it")
                 source = None
             sources.append((source, groups))
-        if node.type != "ADD_SHADER":
-            unlit = self._unlit(name, node.inputs["Fac"], sources, ignored, depth)
-            if unlit is not None:
-                return unlit
-            cut_out = self._cut_out(name, node.inputs["Fac"], sources, ignored, depth)
-            if cut_out is not None:
-                return cut_out
-            layer = self._fresnel_layer(name, node.inputs["Fac"], sources, ignored, depth)
-            if layer is not None:
-                return layer
-            masked = self._masked_mix(name, node.inputs["Fac"], sources, ignored, depth)
-            if masked is not None:
-                return masked
+        if node.type != "ADD_SHADER":  # the mixes read otherwise, the first that applies
+            for special in (self._unlit, self._cut_out, self._fresnel_layer, self._masked_mix):
+                material = special(name, node.inputs["Fac"], sources, ignored, depth)
+                if material is not None:
+                    return material
         if node.type == "ADD_SHADER":
             weights = [1.0, 1.0]
         else:

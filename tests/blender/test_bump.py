@@ -18,6 +18,22 @@ ROOT = Path(__file__).resolve().parents[2]
 SCENE = ROOT / "sample_blends" / "bump.blend"
 
 
+def _phong_and_bump_errors(snap, resolution) -> dict:
+    """{"phong", "bump"}: relMSE of the traced view (adaptive 4) with the relief left out and
+    drawn, against Cycles' Whitted model of the scene (128 samples)."""
+    from classic_bake.addon import cycles as cr
+    from classic_bake.kernels.measure.metrics import rel_mse
+    from classic_bake.kernels.trace.settings import auto_settings
+    from classic_bake.kernels.trace.tracer import trace
+
+    settings = auto_settings(snap, adaptive=4)
+    reference, _ = cr.render_camera(bpy.context.scene, cr.whitted(settings.max_depth), 128,
+                                    resolution=resolution)
+    return {mode: rel_mse(trace(snap, auto_settings(snap, adaptive=4, shading=mode),
+                                resolution=resolution).image, reference)
+            for mode in ("phong", "bump")}
+
+
 def test_operator_renders_each_shading_mode(addon, open_sample):
     open_sample("bump")
     scene = bpy.context.scene
@@ -62,20 +78,9 @@ def test_cli_bump_writes_every_mode(tmp_path):
 def test_bumped_view_matches_cycles_bump_nodes(open_sample):
     """Cycles (the `whitted` model, 128 samples) renders the Bump nodes; at 80 x 60 the bumped
     view's relMSE was 4.2e-4, Phong's (the relief left out) 3.6e-3."""
-    from classic_bake.addon import cycles as cr
-    from classic_bake.kernels.measure.metrics import rel_mse
-    from classic_bake.kernels.trace.settings import auto_settings
-    from classic_bake.kernels.trace.tracer import trace
-
     open_sample("bump")
     resolution = (80, 60)
-    snap = bridge.snapshot(resolution=resolution)
-    settings = auto_settings(snap, adaptive=4)
-    reference, _ = cr.render_camera(bpy.context.scene, cr.whitted(settings.max_depth), 128,
-                                    resolution=resolution)
-    errors = {mode: rel_mse(trace(snap, auto_settings(snap, adaptive=4, shading=mode),
-                                  resolution=resolution).image, reference)
-              for mode in ("phong", "bump")}
+    errors = _phong_and_bump_errors(bridge.snapshot(resolution=resolution), resolution)
     print("relMSE against Cycles", errors)
     assert errors["bump"] < 0.002 and errors["bump"] < errors["phong"] / 4
 
@@ -239,11 +244,6 @@ def test_a_displacement_nodes_bump_matches_cycles(open_sample):
     sample's two bumps rewired so (the orange scaled 1.5x in object space) give the Bump nodes'
     distance 0.01, and the view matches Cycles within the Bump nodes' bound (measured 7.4e-4;
     the relief left out 5.0e-3). 'Displacement Only' moves vertices (noted, not modelled)."""
-    from classic_bake.addon import cycles as cr
-    from classic_bake.kernels.measure.metrics import rel_mse
-    from classic_bake.kernels.trace.settings import auto_settings
-    from classic_bake.kernels.trace.tracer import trace
-
     open_sample("bump")
     _bump_as_displacement(bpy.data.materials["Bricks"], "WORLD", 0.01)
     _bump_as_displacement(bpy.data.materials["OrangePeel"], "OBJECT", 0.01 / 1.5)
@@ -254,12 +254,7 @@ def test_a_displacement_nodes_bump_matches_cycles(open_sample):
     for mat in snap.materials[1:]:
         assert mat.height_texture is not None and abs(mat.bump_distance - 0.01) < 1e-6, mat.name
         assert not any("isplacement" in why for why in mat.ignored)
-    settings = auto_settings(snap, adaptive=4)
-    reference, _ = cr.render_camera(bpy.context.scene, cr.whitted(settings.max_depth), 128,
-                                    resolution=resolution)
-    errors = {mode: rel_mse(trace(snap, auto_settings(snap, adaptive=4, shading=mode),
-                                  resolution=resolution).image, reference)
-              for mode in ("phong", "bump")}
+    errors = _phong_and_bump_errors(snap, resolution)
     print("relMSE against Cycles", errors)
     assert errors["bump"] < 0.002 and errors["bump"] < errors["phong"] / 4
 
@@ -294,11 +289,6 @@ def test_bump_heights_through_node_chains_and_procedural_textures_match_cycles(o
     UVs and named in `fallbacks`. Both were left out (flat). Measured at 80 x 60 against Cycles:
     the ramp 1.1e-3 (6.3e-3 flat), the noise 2.2e-3 (3.7e-3 flat; the bake's size does not move
     it: 256 to 1024 texels a side 2.21e-3 to 2.17e-3)."""
-    from classic_bake.addon import cycles as cr
-    from classic_bake.kernels.measure.metrics import rel_mse
-    from classic_bake.kernels.trace.settings import auto_settings
-    from classic_bake.kernels.trace.tracer import trace
-
     for variant, bound, gain in (("ramp", 0.002, 4.0), ("noise", 0.003, 1.4)):
         open_sample("bump")
         for name in ("Bricks", "OrangePeel"):
@@ -308,11 +298,6 @@ def test_bump_heights_through_node_chains_and_procedural_textures_match_cycles(o
         for mat in snap.materials[1:]:
             assert mat.height_texture is not None, (variant, mat.name)
             assert bool(mat.fallbacks) == (variant == "noise"), (variant, mat.name)
-        settings = auto_settings(snap, adaptive=4)
-        reference, _ = cr.render_camera(bpy.context.scene, cr.whitted(settings.max_depth), 128,
-                                        resolution=resolution)
-        errors = {mode: rel_mse(trace(snap, auto_settings(snap, adaptive=4, shading=mode),
-                                      resolution=resolution).image, reference)
-                  for mode in ("phong", "bump")}
+        errors = _phong_and_bump_errors(snap, resolution)
         print(variant, "relMSE against Cycles", errors)
         assert errors["bump"] < bound and errors["bump"] * gain < errors["phong"], variant

@@ -17,7 +17,7 @@ from dataclasses import fields, replace
 import bpy
 import numpy as np
 import pytest
-from blender_parts import bare_material, overhead_sun
+from blender_parts import bare_material, lit_floor, overhead_sun, smooth_sphere, traced_against_cycles
 
 from classic_bake.addon import bridge
 from classic_bake.addon import cycles as cr
@@ -391,11 +391,7 @@ def _classic_sphere(fac_node: str, output: str, glossy_colour=(0.8, 0.8, 0.8)):
     """A smooth sphere of the pre-Principled classic on a grey floor under a sun: a red Diffuse
     (Fac 0) and a Glossy (roughness 0.15, `glossy_colour`) mixed by `fac_node`'s `output` (a
     Fresnel of IOR 1.45, a Layer Weight of Blend 0.3)."""
-    from blender_parts import lit_scene, oblique_camera, plane, principled
-
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    scene = lit_scene()
-    plane(principled("Floor", base=(0.6, 0.6, 0.6))[0], size=6.0)
+    scene = lit_floor()
     mat, tree, out = bare_material("Classic")
     diffuse = tree.nodes.new("ShaderNodeBsdfDiffuse")
     diffuse.inputs["Color"].default_value = (0.7, 0.1, 0.1, 1.0)
@@ -412,11 +408,7 @@ def _classic_sphere(fac_node: str, output: str, glossy_colour=(0.8, 0.8, 0.8)):
     tree.links.new(diffuse.outputs[0], mix.inputs[1])
     tree.links.new(glossy.outputs[0], mix.inputs[2])
     tree.links.new(mix.outputs[0], out.inputs["Surface"])
-    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.8, location=(0, 0, 0.8), segments=48,
-                                         ring_count=24)
-    bpy.ops.object.shade_smooth()
-    bpy.context.object.data.materials.append(mat)
-    oblique_camera(scene)
+    smooth_sphere(mat)
     return scene
 
 
@@ -429,18 +421,11 @@ def test_a_fresnel_mix_of_diffuse_and_glossy_reads_as_a_specular_layer(fac_node,
     Against Cycles at 96 x 72: Fresnel 5.1e-4, the Layer Weight's Fresnel 4.9e-4 (the Fac's
     default 0.5, as the reader took it, 0.52), its Facing 3.1e-2 (an IOR of the same mean
     reflectance; noted: the curves differ in shape; 0.28 at the default)."""
-    from classic_bake.kernels.measure.metrics import rel_mse
-
-    scene = _classic_sphere(fac_node, output)
-    resolution = (96, 72)
-    snap = bridge.snapshot(resolution=resolution)
+    snap, error = traced_against_cycles(_classic_sphere(fac_node, output), samples=512)
     mat = next(m for m in snap.materials if m.name == "Classic")
     assert mat.metallic == 0.0 and mat.roughness == pytest.approx(0.15)
     assert mat.specular == pytest.approx(0.4) and mat.ior > 1.0
     assert any("Facing" in why for why in mat.ignored) == (output == "Facing")
-    ours = trace(snap, TracerSettings(max_depth=4), resolution=resolution).image
-    theirs, _ = cr.render_camera(scene, cr.whitted(4), 512, resolution=resolution)
-    error = rel_mse(ours, theirs)
     print(fac_node, output, "relMSE against Cycles", error)
     assert error < bound
 
@@ -469,11 +454,7 @@ def _masked_sphere(parts: str, mask: str, textured: bool = False):
     mask: a red rough dielectric and a gold metal (`parts` "principled"), or a red Diffuse and
     a grey Glossy ("diffuse glossy"); the mask a UV Checker's Fac (6 squares a unit) or a Noise
     texture through a steep ColorRamp ("noise": procedural, Generated coordinates)."""
-    from blender_parts import lit_scene, oblique_camera, plane, principled
-
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    scene = lit_scene()
-    plane(principled("Floor", base=(0.6, 0.6, 0.6))[0], size=6.0)
+    scene = lit_floor()
     mat, tree, out = bare_material("Masked")
     if parts == "principled":
         a = tree.nodes.new("ShaderNodeBsdfPrincipled")
@@ -506,11 +487,7 @@ def _masked_sphere(parts: str, mask: str, textured: bool = False):
     tree.links.new(a.outputs[0], mix.inputs[1])
     tree.links.new(b.outputs[0], mix.inputs[2])
     tree.links.new(mix.outputs[0], out.inputs["Surface"])
-    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.8, location=(0, 0, 0.8), segments=48,
-                                         ring_count=24)
-    bpy.ops.object.shade_smooth()
-    bpy.context.object.data.materials.append(mat)
-    oblique_camera(scene)
+    smooth_sphere(mat)
     return scene
 
 
@@ -526,15 +503,8 @@ def test_two_shaders_mixed_by_a_mask_are_read_texel_by_texel(parts, mask, textur
     Cycles. Against Cycles at 96 x 72: the red dielectric and gold metal 2.0e-3, Diffuse and
     Glossy 6.3e-4, under a noise mask 2.7e-3, textured 1.4e-3 and 1.0e-3; with the mask's mean
     for the Fac (a uniform blend) 0.16, 0.41, 0.13, 0.14 and 0.27."""
-    from classic_bake.kernels.measure.metrics import rel_mse
-
-    scene = _masked_sphere(parts, mask, textured)
-    resolution = (96, 72)
-    snap = bridge.snapshot(resolution=resolution)
+    snap, error = traced_against_cycles(_masked_sphere(parts, mask, textured), samples=512)
     assert not any("Fac" in why or "Factor" in why for why in snap.ignored), snap.ignored
-    ours = trace(snap, TracerSettings(max_depth=4), resolution=resolution).image
-    theirs, _ = cr.render_camera(scene, cr.whitted(4), 512, resolution=resolution)
-    error = rel_mse(ours, theirs)
     print(parts, mask, "relMSE against Cycles", error)
     assert error < bound
 
@@ -558,26 +528,12 @@ def test_translucent_refraction_and_holdout_shaders_read_as_cycles_renders_them(
     from behind its surface never reaches it, so the Translucent half is black), a Refraction
     BSDF (a glass that reflects nothing), a Holdout (black). Each was grey diffuse; against
     Cycles at 96 x 72: 4.4e-3, 8.3e-3, 2.6e-4 (grey diffuse: 0.27, 0.097, 1.9)."""
-    from blender_parts import lit_scene, oblique_camera, plane, principled
-
-    from classic_bake.kernels.measure.metrics import rel_mse
-
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    scene = lit_scene()
-    plane(principled("Floor", base=(0.6, 0.6, 0.6))[0], size=6.0)
+    scene = lit_floor()
     mat, tree, out = bare_material("Odd")
     node = _translucent_mix(tree) if shader == "translucent" else tree.nodes.new(shader)
     tree.links.new(node.outputs[0], out.inputs["Surface"])
-    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.8, location=(0, 0, 0.8), segments=48,
-                                         ring_count=24)
-    bpy.ops.object.shade_smooth()
-    bpy.context.object.data.materials.append(mat)
-    oblique_camera(scene)
-    resolution = (96, 72)
-    snap = bridge.snapshot(resolution=resolution)
+    smooth_sphere(mat)
+    snap, error = traced_against_cycles(scene)
     assert not any("grey diffuse" in why for why in snap.ignored), snap.ignored
-    ours = trace(snap, TracerSettings(max_depth=4), resolution=resolution).image
-    theirs, _ = cr.render_camera(scene, cr.whitted(4), 256, resolution=resolution)
-    error = rel_mse(ours, theirs)
     print(shader, "relMSE against Cycles", error)
     assert error < bound

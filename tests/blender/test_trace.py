@@ -529,16 +529,9 @@ def test_custom_normals_against_the_faces_winding_reflect_nothing_as_in_cycles()
     viewer's side): the spheres render black but for light from behind. A glossy blue
     dielectric and a metal against Cycles: relMSE 5.4e-4 (reflecting the floor and sky in them
     as a normal facing the viewer would: 2.5)."""
-    from blender_parts import lit_scene, oblique_camera, plane, principled
+    from blender_parts import lit_floor, principled, traced_against_cycles
 
-    from classic_bake.addon import cycles as cr
-    from classic_bake.kernels.measure.metrics import rel_mse
-    from classic_bake.kernels.trace.settings import TracerSettings
-    from classic_bake.kernels.trace.tracer import trace
-
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    scene = lit_scene()
-    plane(principled("Floor", base=(0.6, 0.6, 0.6))[0], size=6.0)
+    scene = lit_floor()
     for x, metallic in ((-0.9, 0.0), (0.9, 1.0)):
         mat, bsdf = principled(f"Shiny{x}", base=(0.15, 0.2, 0.8), metallic=metallic)
         bsdf.inputs["Specular IOR Level"].default_value = 0.5
@@ -551,53 +544,44 @@ def test_custom_normals_against_the_faces_winding_reflect_nothing_as_in_cycles()
         co = np.array([v.co[:] for v in obj.data.vertices])
         obj.data.normals_split_custom_set_from_vertices(
             [tuple(c / np.linalg.norm(c)) for c in co])
-    oblique_camera(scene)
-    resolution = (64, 48)
-    snap = bridge.snapshot(resolution=resolution)
-    ours = trace(snap, TracerSettings(max_depth=4), resolution=resolution).image
-    theirs, _ = cr.render_camera(scene, cr.whitted(4), 256, resolution=resolution)
-    error = rel_mse(ours, theirs)
+    _, error = traced_against_cycles(scene, resolution=(64, 48))
     print("relMSE against Cycles", error)
     assert error < 2e-3
 
 
-@pytest.mark.parametrize("shader, bound", [("glass", 5e-3), ("principled", 1e-2)])
-def test_rough_glass_lets_the_scene_through_as_cycles_does(shader, bound):
-    """A frosted sphere (a Glass BSDF of roughness 0.2, a Principled of Transmission 1 and
-    roughness 0.25) on a grey floor under a sun: its refracted and reflected rays stand for its
-    lobes, sharp where Cycles blurs, and its lamps light a highlight lobe. Against Cycles at
-    96 x 72: 2.8e-3 and 3.6e-3; a glass rougher than `mirror_roughness` spawning no ray (the
-    sphere black) gives 0.21 and 0.20."""
-    from blender_parts import bare_material, lit_scene, oblique_camera, plane, principled
+def _glass(shader: str, name: str, roughness: float, tint=(1.0, 1.0, 1.0)):
+    """A glass material: a Glass BSDF of colour `tint` ("glass"), or a Principled BSDF of
+    Transmission 1 and base colour `tint` ("principled"), of `roughness`."""
+    from blender_parts import bare_material, principled
 
-    from classic_bake.addon import cycles as cr
-    from classic_bake.kernels.measure.metrics import rel_mse
-    from classic_bake.kernels.trace.settings import TracerSettings
-    from classic_bake.kernels.trace.tracer import trace
-
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    scene = lit_scene()
-    plane(principled("Floor", base=(0.6, 0.6, 0.6))[0], size=6.0)
     if shader == "glass":
-        mat, tree, out = bare_material("Frosted")
+        mat, tree, out = bare_material(name)
         glass = tree.nodes.new("ShaderNodeBsdfGlass")
-        glass.inputs["Roughness"].default_value = 0.2
+        glass.inputs["Color"].default_value = (*tint, 1.0)
+        glass.inputs["Roughness"].default_value = roughness
         tree.links.new(glass.outputs[0], out.inputs["Surface"])
-    else:
-        mat, bsdf = principled("Frosted", base=(0.8, 0.8, 0.8))
-        bsdf.inputs["Specular IOR Level"].default_value = 0.5
-        bsdf.inputs["Transmission Weight"].default_value = 1.0
-        bsdf.inputs["Roughness"].default_value = 0.25
-    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.8, location=(0, 0, 0.8), segments=48,
-                                         ring_count=24)
-    bpy.ops.object.shade_smooth()
-    bpy.context.object.data.materials.append(mat)
-    oblique_camera(scene)
-    resolution = (96, 72)
-    ours = trace(bridge.snapshot(resolution=resolution), TracerSettings(max_depth=4),
-                 resolution=resolution).image
-    theirs, _ = cr.render_camera(scene, cr.whitted(4), 256, resolution=resolution)
-    error = rel_mse(ours, theirs)
+        return mat
+    mat, bsdf = principled(name, base=tint)
+    bsdf.inputs["Specular IOR Level"].default_value = 0.5
+    bsdf.inputs["Transmission Weight"].default_value = 1.0
+    bsdf.inputs["Roughness"].default_value = roughness
+    return mat
+
+
+@pytest.mark.parametrize("shader, roughness, bound", [("glass", 0.2, 5e-3),
+                                                      ("principled", 0.25, 1e-2)])
+def test_rough_glass_lets_the_scene_through_as_cycles_does(shader, roughness, bound):
+    """A frosted sphere (a Glass BSDF of roughness 0.2, a Principled of Transmission 1 and
+    roughness 0.25, base 0.8) on a grey floor under a sun: its refracted and reflected rays
+    stand for its lobes, sharp where Cycles blurs, and its lamps light a highlight lobe.
+    Against Cycles at 96 x 72: 2.8e-3 and 3.6e-3; a glass rougher than `mirror_roughness`
+    spawning no ray (the sphere black) gives 0.21 and 0.20."""
+    from blender_parts import lit_floor, smooth_sphere, traced_against_cycles
+
+    scene = lit_floor()
+    tint = (1.0, 1.0, 1.0) if shader == "glass" else (0.8, 0.8, 0.8)
+    smooth_sphere(_glass(shader, "Frosted", roughness, tint))
+    _, error = traced_against_cycles(scene)
     print(shader, "relMSE against Cycles", error)
     assert error < bound
 
@@ -609,36 +593,12 @@ def test_tinted_glass_passes_its_colour_as_cycles_does(shader):
     the box keeps the colour once; its Glass BSDF tints each refraction and each reflection by
     the colour itself. Against Cycles at 96 x 72: 7.7e-4 and 4.7e-4 (the Principled's colour at
     each refraction: 4.9e-2; the Glass BSDF's reflections untinted: 6.6e-2)."""
-    from blender_parts import bare_material, lit_scene, oblique_camera, plane, principled
+    from blender_parts import lit_floor, traced_against_cycles
 
-    from classic_bake.addon import cycles as cr
-    from classic_bake.kernels.measure.metrics import rel_mse
-    from classic_bake.kernels.trace.settings import TracerSettings
-    from classic_bake.kernels.trace.tracer import trace
-
-    tint = (0.8, 0.6, 0.4, 1.0)
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    scene = lit_scene()
-    plane(principled("Floor", base=(0.6, 0.6, 0.6))[0], size=6.0)
-    if shader == "glass":
-        mat, tree, out = bare_material("Tinted")
-        glass = tree.nodes.new("ShaderNodeBsdfGlass")
-        glass.inputs["Color"].default_value = tint
-        glass.inputs["Roughness"].default_value = 0.0
-        tree.links.new(glass.outputs[0], out.inputs["Surface"])
-    else:
-        mat, bsdf = principled("Tinted", base=tint[:3])
-        bsdf.inputs["Specular IOR Level"].default_value = 0.5
-        bsdf.inputs["Transmission Weight"].default_value = 1.0
-        bsdf.inputs["Roughness"].default_value = 0.0
+    scene = lit_floor()
     bpy.ops.mesh.primitive_cube_add(size=1.6, location=(0.0, 0.0, 0.9))
-    bpy.context.object.data.materials.append(mat)
-    oblique_camera(scene)
-    resolution = (96, 72)
-    ours = trace(bridge.snapshot(resolution=resolution), TracerSettings(max_depth=6),
-                 resolution=resolution).image
-    theirs, _ = cr.render_camera(scene, cr.whitted(6), 256, resolution=resolution)
-    error = rel_mse(ours, theirs)
+    bpy.context.object.data.materials.append(_glass(shader, "Tinted", 0.0, (0.8, 0.6, 0.4)))
+    _, error = traced_against_cycles(scene, depth=6)
     print(shader, "relMSE against Cycles", error)
     assert error < 2e-3
 

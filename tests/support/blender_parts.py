@@ -172,3 +172,38 @@ def tiles_for_bumps(names):
         for node in [n for n in tree.nodes if n.type == "BUMP"]:
             tree.nodes.remove(node)
         normal_mapped(mat, next(n for n in tree.nodes if n.type == "BSDF_PRINCIPLED"), image)
+
+
+def lit_floor():
+    """A fresh scene: `lit_scene` (a sun, a blue-grey world), a 6 m grey Principled floor at
+    z = 0 and `oblique_camera`: the stage the shader tests put one object on."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = lit_scene()
+    plane(principled("Floor", base=(0.6, 0.6, 0.6))[0], size=6.0)
+    oblique_camera(scene)
+    return scene
+
+
+def smooth_sphere(mat, radius=0.8, location=None):
+    """A smooth UV sphere (48 x 24) with `mat`, resting on z = 0 unless `location` is given."""
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=radius, segments=48, ring_count=24,
+                                         location=location or (0.0, 0.0, radius))
+    bpy.ops.object.shade_smooth()
+    obj = bpy.context.object
+    obj.data.materials.append(mat)
+    return obj
+
+
+def traced_against_cycles(scene, depth=4, samples=256, resolution=(96, 72)):
+    """(snapshot, relMSE) of the tracer's view (TracerSettings(max_depth=depth)) against
+    Cycles' Whitted model of the same depth at `samples` samples."""
+    from classic_bake.addon import bridge
+    from classic_bake.addon import cycles as cr
+    from classic_bake.kernels.measure.metrics import rel_mse
+    from classic_bake.kernels.trace.settings import TracerSettings
+    from classic_bake.kernels.trace.tracer import trace
+
+    snap = bridge.snapshot(resolution=resolution)
+    ours = trace(snap, TracerSettings(max_depth=depth), resolution=resolution).image
+    theirs, _ = cr.render_camera(scene, cr.whitted(depth), samples, resolution=resolution)
+    return snap, rel_mse(ours, theirs)
