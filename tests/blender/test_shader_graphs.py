@@ -17,7 +17,14 @@ from dataclasses import fields, replace
 import bpy
 import numpy as np
 import pytest
-from blender_parts import bare_material, lit_floor, overhead_sun, smooth_sphere, traced_against_cycles
+from blender_parts import (
+    bare_material,
+    lit_floor,
+    overhead_sun,
+    smooth_sphere,
+    traced_against_cycles,
+    translucent_mix,
+)
 
 from classic_bake.addon import bridge
 from classic_bake.addon import cycles as cr
@@ -509,18 +516,6 @@ def test_two_shaders_mixed_by_a_mask_are_read_texel_by_texel(parts, mask, textur
     assert error < bound
 
 
-def _translucent_mix(tree):
-    diffuse = tree.nodes.new("ShaderNodeBsdfDiffuse")
-    diffuse.inputs["Color"].default_value = (0.2, 0.6, 0.2, 1.0)
-    translucent = tree.nodes.new("ShaderNodeBsdfTranslucent")
-    translucent.inputs["Color"].default_value = (0.2, 0.6, 0.2, 1.0)
-    mix = tree.nodes.new("ShaderNodeMixShader")
-    mix.inputs["Fac"].default_value = 0.5
-    tree.links.new(diffuse.outputs[0], mix.inputs[1])
-    tree.links.new(translucent.outputs[0], mix.inputs[2])
-    return mix
-
-
 @pytest.mark.parametrize("shader, bound", [
     ("translucent", 8e-3), ("ShaderNodeBsdfRefraction", 1.5e-2), ("ShaderNodeHoldout", 1e-3)])
 def test_translucent_refraction_and_holdout_shaders_read_as_cycles_renders_them(shader, bound):
@@ -530,7 +525,7 @@ def test_translucent_refraction_and_holdout_shaders_read_as_cycles_renders_them(
     Cycles at 96 x 72: 4.4e-3, 8.3e-3, 2.6e-4 (grey diffuse: 0.27, 0.097, 1.9)."""
     scene = lit_floor()
     mat, tree, out = bare_material("Odd")
-    node = _translucent_mix(tree) if shader == "translucent" else tree.nodes.new(shader)
+    node = translucent_mix(tree) if shader == "translucent" else tree.nodes.new(shader)
     tree.links.new(node.outputs[0], out.inputs["Surface"])
     smooth_sphere(mat)
     snap, error = traced_against_cycles(scene)

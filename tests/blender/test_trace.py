@@ -610,7 +610,7 @@ def test_a_leaf_lit_from_behind_passes_its_translucent_light_as_cycles_does():
     (no floor, black world): relMSE 1.3e-4; the translucent half black gives 0.21."""
     import math
 
-    from blender_parts import bare_material, colour_world
+    from blender_parts import bare_material, colour_world, translucent_mix
 
     from classic_bake.addon import cycles as cr
     from classic_bake.kernels.measure.metrics import rel_mse
@@ -624,14 +624,7 @@ def test_a_leaf_lit_from_behind_passes_its_translucent_light_as_cycles_does():
     sun.rotation_euler = (math.radians(-60.0), 0.0, 0.0)  # shining towards the camera
     scene.collection.objects.link(sun)
     mat, tree, out = bare_material("Leaf")
-    diffuse = tree.nodes.new("ShaderNodeBsdfDiffuse")
-    diffuse.inputs["Color"].default_value = (0.2, 0.6, 0.1, 1.0)
-    translucent = tree.nodes.new("ShaderNodeBsdfTranslucent")
-    translucent.inputs["Color"].default_value = (0.3, 0.7, 0.1, 1.0)
-    mix = tree.nodes.new("ShaderNodeMixShader")
-    mix.inputs["Fac"].default_value = 0.5
-    tree.links.new(diffuse.outputs[0], mix.inputs[1])
-    tree.links.new(translucent.outputs[0], mix.inputs[2])
+    mix = translucent_mix(tree, (0.2, 0.6, 0.1), (0.3, 0.7, 0.1))
     tree.links.new(mix.outputs[0], out.inputs["Surface"])
     bpy.ops.mesh.primitive_plane_add(size=1.6, location=(0, 0, 1.0),
                                      rotation=(math.radians(80.0), 0.0, 0.0))

@@ -207,3 +207,17 @@ def traced_against_cycles(scene, depth=4, samples=256, resolution=(96, 72)):
     ours = trace(snap, TracerSettings(max_depth=depth), resolution=resolution).image
     theirs, _ = cr.render_camera(scene, cr.whitted(depth), samples, resolution=resolution)
     return snap, rel_mse(ours, theirs)
+
+
+def translucent_mix(tree, diffuse=(0.2, 0.6, 0.2), translucent=(0.2, 0.6, 0.2)):
+    """A Mix Shader (Fac 0.5) of a Diffuse BSDF and a Translucent BSDF of those colours in
+    `tree`: a leaf's material. Returns the Mix Shader node."""
+    diffuse_node = tree.nodes.new("ShaderNodeBsdfDiffuse")
+    diffuse_node.inputs["Color"].default_value = (*diffuse, 1.0)
+    translucent_node = tree.nodes.new("ShaderNodeBsdfTranslucent")
+    translucent_node.inputs["Color"].default_value = (*translucent, 1.0)
+    mix = tree.nodes.new("ShaderNodeMixShader")
+    mix.inputs["Fac"].default_value = 0.5
+    tree.links.new(diffuse_node.outputs[0], mix.inputs[1])
+    tree.links.new(translucent_node.outputs[0], mix.inputs[2])
+    return mix
