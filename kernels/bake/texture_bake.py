@@ -33,7 +33,8 @@ triangle's edge take at least `EDGE_CELLS` (the mean is over texel ∩ triangle)
 
 The albedo is what the diffuse lobe reflects: base colour x (1 - metallic) x (1 - transmission)
 x (1 - the specular layer's albedo along the normal) (`direct_light.diffuse_at`,
-`specular_layer.py`), the quantity Cycles' Diffuse Color pass and colour-only DIFFUSE bake hold.
+`specular_layer.py`), plus a translucent surface's colour (a diffuse-type closure too), the
+quantity Cycles' Diffuse Color pass and colour-only DIFFUSE bake hold.
 Mesh corners take the value at the corner itself (a colour-attribute bake samples the vertex).
 """
 
@@ -236,7 +237,9 @@ def _cell_albedo(scene: Scene, tri: np.ndarray, bary: np.ndarray, uv: np.ndarray
                                     texture.color2, texture.scale)
         else:
             out[rows] = sample_texture(texture, uv[rows])
-    return out * weight[hit_materials(scene, tri, bary, mids)][:, None]
+    # A translucent surface's colour counts too, as in Cycles' Diffuse Color pass.
+    translucent = np.array([m.translucent for m in scene.materials], np.float64).reshape(-1, 3)
+    return out * weight[hit_materials(scene, tri, bary, mids)][:, None] + translucent[mids]
 
 
 def _cell_half_extents(jac: np.ndarray, n: np.ndarray, size: tuple[int, int]) -> np.ndarray:

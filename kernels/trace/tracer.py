@@ -896,9 +896,11 @@ class Tracer:
             diffuse_w = dielectric * view_factors(self.layer_tables, m,
                                                   np.einsum("ij,ij->i", dirs, gn))
             if s.output == "albedo":  # what the first hit reflects diffusely; no light, no ray
-                _scatter_add(result, pixel, weight * h.albedo * diffuse_w[:, None])
+                # (a translucent surface's colour too: Cycles' Diffuse Color pass counts it)
+                translucent = self.translucent[m]
+                _scatter_add(result, pixel, weight * (h.albedo * diffuse_w[:, None] + translucent))
                 if untextured is not None:
-                    _scatter_add(flat, pixel, weight * diffuse_w[:, None])
+                    _scatter_add(flat, pixel, weight * (diffuse_w[:, None] + translucent))
                 break
             wo = -dirs
             spec_level = self.specular[m]

@@ -156,3 +156,25 @@ def test_albedo_model_settings():
     assert model.render_pass == "DiffCol" and model.seed == 3
     assert model.fields()["render_pass"] == "DiffCol"  # part of the reference cache key
     assert "render_pass" not in cr.direct().fields()  # older models keep their cache keys
+
+
+def test_albedo_bake_counts_a_translucent_surfaces_colour():
+    """A Translucent BSDF is a diffuse-type closure: Cycles' diffuse colour holds its colour, so
+    half Diffuse (0.2, 0.6, 0.1), half Translucent (0.3, 0.7, 0.1) bakes (0.25, 0.65, 0.1); the
+    kernels' bake (`texture_bake.texel_albedo`) gives the same."""
+    from blender_parts import bare_material, translucent_mix
+
+    from classic_bake.kernels.bake.bake_targets import lightmap_targets
+    from classic_bake.kernels.bake.texture_bake import texel_albedo
+
+    lit_scene()
+    mat, tree, out = bare_material("Leaf")
+    tree.links.new(translucent_mix(tree, (0.2, 0.6, 0.1), (0.3, 0.7, 0.1)).outputs[0],
+                   out.inputs["Surface"])
+    plane(mat)
+    expected = np.broadcast_to((0.25, 0.65, 0.1), (64, 3))
+    images, _, masks = cr.bake_lightmaps(None, cr.albedo(), 1, ["Plane"], "Lightmap", 8, "ALBEDO")
+    np.testing.assert_allclose(images["Plane"][masks["Plane"]], expected, atol=EXACT)
+    snap = bridge.snapshot(request=bridge.SnapshotRequest(camera=False, lightmap_uv="Lightmap"))
+    ours, _ = texel_albedo(snap, lightmap_targets(snap, 0, 8))
+    np.testing.assert_allclose(ours, expected[: len(ours)], atol=EXACT)
