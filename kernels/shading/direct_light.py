@@ -331,6 +331,17 @@ def _shade(scene: Scene, maps: list, f, receivers: Receivers | None = None,
         shine += reflected_emitters(scene, tri, bary, mids, points, d, geometric, glossy,
                                     *mirror, area_lamps=False)
     diffuse = emission + albedo / np.pi * np.einsum("lnc,ln->nc", e_diffuse, vis)
+    # A translucent surface passes the light on its back (colour / pi), its shadow test taken
+    # on that side (a receiver facing away from a light is in its shadow).
+    translucent = np.array([m.translucent for m in scene.materials], np.float64)[mids]
+    lit_behind = np.flatnonzero(translucent.max(axis=1) > 0.0)
+    if lit_behind.size:
+        back = Receivers.of(points[lit_behind], -geometric[lit_behind])
+        vis_back = maps_visibility(maps, back, np.ones((len(scene.lights), len(lit_behind)),
+                                                       np.float32))
+        e_back = irradiance_per_light(scene, points[lit_behind], -normals[lit_behind])
+        diffuse[lit_behind] += translucent[lit_behind] / np.pi * np.einsum(
+            "lnc,ln->nc", e_back, vis_back)
     coat = coat_layer(scene.materials, mids, np.einsum("ij,ij->i", glossy, d))
     # what a coat lets through of the base's light (its own and the lobes' are in `shine`)
     return (diffuse if coat is None else diffuse * coat.under) + shine

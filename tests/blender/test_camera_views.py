@@ -374,3 +374,19 @@ def test_steep_mapped_normals_keep_their_tilt(technique):
     _, error = _view_error(technique)
     print(f"{technique}: steep normal-map tiles relMSE {error:.5f}")
     assert error < 0.008
+
+
+def test_the_shadow_map_view_passes_a_translucent_leafs_light_from_behind():
+    """The back-lit leaf card (`blender_parts.backlit_leaf`): the shadow-map view adds colour /
+    pi of the sun on the translucent half's back, the shadow test taken on that side (a receiver
+    facing away from a light is in its shadow). Against Cycles' direct model, 256 samples:
+    relMSE 1.5e-4 at 80 x 60 (7.6e-5 in the compare at 96 x 72); without it 0.21."""
+    from blender_parts import backlit_leaf
+
+    scene = backlit_leaf()
+    snap = bridge.snapshot(resolution=RESOLUTION)
+    ours = drain(direct_light.render_steps(snap, direct_light.DirectLightSettings(), RESOLUTION))
+    theirs, _ = cr.render_camera(scene, cr.direct(), 256, RESOLUTION)
+    error = rel_mse(ours, theirs)
+    print(f"relMSE {error:.2e}")
+    assert error < 1e-3

@@ -608,35 +608,8 @@ def test_a_leaf_lit_from_behind_passes_its_translucent_light_as_cycles_does():
     the front: the diffuse half gets no sun, the translucent half passes colour / pi of the
     sun's irradiance on its back (shadow rays leave from the back). Against Cycles at 96 x 72
     (no floor, black world): relMSE 1.3e-4; the translucent half black gives 0.21."""
-    import math
+    from blender_parts import backlit_leaf, traced_against_cycles
 
-    from blender_parts import bare_material, colour_world, translucent_mix
-
-    from classic_bake.addon import cycles as cr
-    from classic_bake.kernels.measure.metrics import rel_mse
-    from classic_bake.kernels.trace.settings import TracerSettings
-    from classic_bake.kernels.trace.tracer import trace
-
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    scene = colour_world((0.0, 0.0, 0.0))
-    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
-    sun.data.energy = 3.0
-    sun.rotation_euler = (math.radians(-60.0), 0.0, 0.0)  # shining towards the camera
-    scene.collection.objects.link(sun)
-    mat, tree, out = bare_material("Leaf")
-    mix = translucent_mix(tree, (0.2, 0.6, 0.1), (0.3, 0.7, 0.1))
-    tree.links.new(mix.outputs[0], out.inputs["Surface"])
-    bpy.ops.mesh.primitive_plane_add(size=1.6, location=(0, 0, 1.0),
-                                     rotation=(math.radians(80.0), 0.0, 0.0))
-    bpy.context.object.data.materials.append(mat)
-    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
-    cam.location, cam.rotation_euler = (0.0, -4.0, 1.3), (math.radians(85.0), 0.0, 0.0)
-    scene.collection.objects.link(cam)
-    scene.camera = cam
-    resolution = (96, 72)
-    ours = trace(bridge.snapshot(resolution=resolution), TracerSettings(max_depth=4),
-                 resolution=resolution).image
-    theirs, _ = cr.render_camera(scene, cr.whitted(4), 256, resolution=resolution)
-    error = rel_mse(ours, theirs)
+    _, error = traced_against_cycles(backlit_leaf())
     print("relMSE against Cycles", error)
     assert error < 1e-3

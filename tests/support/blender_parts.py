@@ -221,3 +221,28 @@ def translucent_mix(tree, diffuse=(0.2, 0.6, 0.2), translucent=(0.2, 0.6, 0.2)):
     tree.links.new(diffuse_node.outputs[0], mix.inputs[1])
     tree.links.new(translucent_node.outputs[0], mix.inputs[2])
     return mix
+
+
+def backlit_leaf():
+    """A fresh scene: a leaf card (a 1.6 m plane tilted 10 degrees back, half Diffuse (0.2, 0.6,
+    0.1), half Translucent (0.3, 0.7, 0.1)) in a black world, a sun of 3 W/m^2 shining through
+    it towards a camera in front of it. Returns the scene."""
+    import math
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = colour_world((0.0, 0.0, 0.0))
+    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
+    sun.data.energy = 3.0
+    sun.rotation_euler = (math.radians(-60.0), 0.0, 0.0)  # shining towards the camera
+    scene.collection.objects.link(sun)
+    mat, tree, out = bare_material("Leaf")
+    mix = translucent_mix(tree, (0.2, 0.6, 0.1), (0.3, 0.7, 0.1))
+    tree.links.new(mix.outputs[0], out.inputs["Surface"])
+    bpy.ops.mesh.primitive_plane_add(size=1.6, location=(0, 0, 1.0),
+                                     rotation=(math.radians(80.0), 0.0, 0.0))
+    bpy.context.object.data.materials.append(mat)
+    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
+    cam.location, cam.rotation_euler = (0.0, -4.0, 1.3), (math.radians(85.0), 0.0, 0.0)
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    return scene
