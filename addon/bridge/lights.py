@@ -20,6 +20,16 @@ def light_power(light) -> tuple[float, np.ndarray]:
     return power, color
 
 
+def unnormalized_factor(light) -> float:
+    """What Cycles multiplies a Blender point, spot or sun light's power by when its `normalize`
+    is off (its emitter's area, `lights.unnormalized_scale`); 1 when on, and for area lights
+    (their radiance takes it: `lights.area_radiance`)."""
+    if light.type == "AREA" or getattr(light, "normalize", True):
+        return 1.0
+    return light_units.unnormalized_scale(light.type, float(getattr(light, "shadow_soft_size", 0.0)),
+                                          float(getattr(light, "angle", 0.0)))
+
+
 def light_node_factor(tree) -> tuple[np.ndarray, str | None]:
     """What a light's node tree multiplies its light by, (3,), as Cycles renders it: the Emission
     node's colour times its strength (1 without a tree or an Emission). Read: constant sockets,
@@ -60,9 +70,7 @@ def read_light(name: str, light, matrix: np.ndarray) -> tuple[Light, list[str]]:
     axis_x, axis_y = unit(rot[:, 0]), unit(rot[:, 1])
     direction = unit(-rot[:, 2])
     power, color = light_power(light)
-    if light.type != "AREA" and not getattr(light, "normalize", True):
-        power *= light_units.unnormalized_scale(light.type, float(getattr(light, "shadow_soft_size", 0.0)),
-                                                float(getattr(light, "angle", 0.0)))
+    power *= unnormalized_factor(light)
     common = dict(name=name, position=position, direction=direction, axis_x=axis_x, axis_y=axis_y,
                   cast_shadow=bool(getattr(light, "use_shadow", True)))
     factor, why = light_node_factor(node_tree(light))

@@ -77,12 +77,12 @@ class SocketFallback:
         if any(s.node.id_data != material.node_tree for s in sockets):
             return None, "the socket is inside a node group"
         uv_layer = _render_uv_layer(target.source.evaluated_get(target.depsgraph).data)
+        blend_ids = None if blend is None else tuple((b.node.name, b.identifier) for b in blend)
         s = self.settings
         key = hashlib.sha256(repr((
             tree_digest(material.node_tree), socket.node.name, socket.identifier, as_number,
             None if strength is None else strength.identifier,
-            None if blend is None else [(b.node.name, b.identifier) for b in blend],
-            target.digest, uv_layer,
+            blend_ids, target.digest, uv_layer,
             s.size, s.samples, s.margin, bpy.app.version,
         )).encode()).hexdigest()
         cached = key in _CACHE
@@ -94,8 +94,7 @@ class SocketFallback:
                                           socket.node.name, socket.identifier, as_number,
                                           uv_layer, s.size, s.samples, s.margin,
                                           None if strength is None else strength.identifier,
-                                          None if blend is None else
-                                          tuple((b.node.name, b.identifier) for b in blend))
+                                          blend_ids)
             _CACHE[key] = (pixels, seconds)
             while len(_CACHE) > CACHE_ENTRIES:
                 _CACHE.popitem(last=False)

@@ -17,7 +17,8 @@ from typing import Any
 
 import bpy
 
-from ...kernels.shading.lights import area_of_shape, unnormalized_scale
+from ...kernels.shading.lights import area_of_shape
+from ..bridge.lights import unnormalized_factor
 from .models import CyclesModel
 
 # Side (m) of the square an area light is shrunk to when a model treats area lights as points:
@@ -149,13 +150,11 @@ def configure(scene, model: CyclesModel, log: SettingsLog | None = None) -> Sett
 
 def _keep_unnormalized_power(log: SettingsLog, light) -> None:
     """Before a point's radius or a sun's angle is zeroed: an unnormalised light's power scales
-    with that size (kernels/shading/lights.py `unnormalized_scale`), so normalise it and fold its
+    with that size (`bridge.lights.unnormalized_factor`), so normalise it and fold its
     present scale into the energy; the light then emits what the scene's light does."""
     if getattr(light, "normalize", True):
         return
-    scale = unnormalized_scale(light.type, float(getattr(light, "shadow_soft_size", 0.0)),
-                               float(getattr(light, "angle", 0.0)))
-    log.set(light, "energy", float(light.energy) * scale)
+    log.set(light, "energy", float(light.energy) * unnormalized_factor(light))
     log.set(light, "normalize", True)
 
 

@@ -47,7 +47,7 @@ import numpy as np
 from ..geometry.scene import Scene
 from ..progress import Steps
 from ..shading.direct_light import diffuse_at, diffuse_weight
-from ..shading.material_maps import hit_materials
+from ..shading.material_maps import hit_materials, translucent_colours
 from ..shading.textures import checker_box, sample_texture
 
 # Image texels one sub-texel cell may span. A cell takes the bilinear look-up at its centre, and
@@ -238,8 +238,8 @@ def _cell_albedo(scene: Scene, tri: np.ndarray, bary: np.ndarray, uv: np.ndarray
         else:
             out[rows] = sample_texture(texture, uv[rows])
     # A translucent surface's colour counts too, as in Cycles' Diffuse Color pass.
-    translucent = np.array([m.translucent for m in scene.materials], np.float64).reshape(-1, 3)
-    return out * weight[hit_materials(scene, tri, bary, mids)][:, None] + translucent[mids]
+    translucent = translucent_colours(scene.materials)[mids]
+    return out * weight[hit_materials(scene, tri, bary, mids)][:, None] + translucent
 
 
 def _cell_half_extents(jac: np.ndarray, n: np.ndarray, size: tuple[int, int]) -> np.ndarray:

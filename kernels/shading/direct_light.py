@@ -38,7 +38,7 @@ from ..shadow.views import fit_sun, plan_shadow_map, potential_casters
 from . import lights as light_units
 from .alpha import alpha_materials, has_alpha, ray_coverage, surface_alpha
 from .bump import relief_shadowing, scene_normals, valid_reflection
-from .material_maps import albedo_at, emission_at, hit_materials, metal_f0
+from .material_maps import albedo_at, emission_at, hit_materials, metal_f0, translucent_colours
 from .reflected_emitters import ray_offset, rays_needed, reflected_emitters
 from .specular_layer import coat_layer, diffuse_factor, lamp_highlights, view_factors, view_tables
 
@@ -333,7 +333,7 @@ def _shade(scene: Scene, maps: list, f, receivers: Receivers | None = None,
     diffuse = emission + albedo / np.pi * np.einsum("lnc,ln->nc", e_diffuse, vis)
     # A translucent surface passes the light on its back (colour / pi), its shadow test taken
     # on that side (a receiver facing away from a light is in its shadow).
-    translucent = np.array([m.translucent for m in scene.materials], np.float64)[mids]
+    translucent = translucent_colours(scene.materials)[mids]
     lit_behind = np.flatnonzero(translucent.max(axis=1) > 0.0)
     if lit_behind.size:
         back = Receivers.of(points[lit_behind], -geometric[lit_behind])

@@ -298,3 +298,9 @@ def material_with_maps(material: Material) -> bool:
     """True when `material` has a texture that `resolve_material_maps` resolves."""
     return (material.emission_texture is not None or material.metallic_texture is not None
             or material.roughness_texture is not None)
+
+
+def translucent_colours(materials) -> np.ndarray:
+    """(M, 3) each material's translucency (`Material.translucent`: a Translucent BSDF's colour
+    x weight; 0 for most), indexed by material id."""
+    return np.array([m.translucent for m in materials], np.float64).reshape(-1, 3)

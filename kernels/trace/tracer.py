@@ -54,7 +54,7 @@ from ..shading.glossy_lobe import (
     lobe_points,
     lobe_rays,
 )
-from ..shading.material_maps import emission_at, material_values
+from ..shading.material_maps import emission_at, material_values, translucent_colours
 from ..shading.optics import fresnel_dielectric, reflect, refract
 from ..shading.sheen import Fabric
 from ..shading.specular_layer import (
@@ -224,7 +224,7 @@ class Tracer:
         # roughness per hit, `_fabric`).
         self.sheen_weight = np.array([m.sheen for m in mats], np.float64)
         self.has_sheen = self.sheen_weight > 0.0
-        self.translucent = np.array([m.translucent for m in mats], np.float64).reshape(-1, 3)
+        self.translucent = translucent_colours(mats)
         self.velvet = np.array([m.sheen_model == "ASHIKHMIN" for m in mats], bool)
         self.sheen_layer = np.array([m.sheen_layer for m in mats], bool)
         # The media inside closed meshes (1/m); None when no material holds one.

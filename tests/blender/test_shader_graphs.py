@@ -394,6 +394,16 @@ def test_an_emission_added_to_a_surface_reads_as_its_principled_emission(images)
     _assert_same_material(ours, _read(twin))
 
 
+def _mixed_sphere(mat, out, mix, first, second) -> None:
+    """Wire shaders `first` (Fac 0) and `second` (Fac 1) into Mix Shader `mix`, the mix into
+    `mat`'s output `out`, and put a smooth sphere of `mat` on the stage."""
+    tree = mat.node_tree
+    tree.links.new(first.outputs[0], mix.inputs[1])
+    tree.links.new(second.outputs[0], mix.inputs[2])
+    tree.links.new(mix.outputs[0], out.inputs["Surface"])
+    smooth_sphere(mat)
+
+
 def _classic_sphere(fac_node: str, output: str, glossy_colour=(0.8, 0.8, 0.8)):
     """A smooth sphere of the pre-Principled classic on a grey floor under a sun: a red Diffuse
     (Fac 0) and a Glossy (roughness 0.15, `glossy_colour`) mixed by `fac_node`'s `output` (a
@@ -412,10 +422,7 @@ def _classic_sphere(fac_node: str, output: str, glossy_colour=(0.8, 0.8, 0.8)):
     else:
         fac.inputs["Blend"].default_value = 0.3
     tree.links.new(fac.outputs[output], mix.inputs["Fac"])
-    tree.links.new(diffuse.outputs[0], mix.inputs[1])
-    tree.links.new(glossy.outputs[0], mix.inputs[2])
-    tree.links.new(mix.outputs[0], out.inputs["Surface"])
-    smooth_sphere(mat)
+    _mixed_sphere(mat, out, mix, diffuse, glossy)
     return scene
 
 
@@ -491,10 +498,7 @@ def _masked_sphere(parts: str, mask: str, textured: bool = False):
         ramp.color_ramp.elements[1].position = 0.55
         tree.links.new(noise.outputs[0], ramp.inputs["Fac"])
         tree.links.new(ramp.outputs["Color"], mix.inputs["Fac"])
-    tree.links.new(a.outputs[0], mix.inputs[1])
-    tree.links.new(b.outputs[0], mix.inputs[2])
-    tree.links.new(mix.outputs[0], out.inputs["Surface"])
-    smooth_sphere(mat)
+    _mixed_sphere(mat, out, mix, a, b)
     return scene
 
 
