@@ -18,6 +18,12 @@ if TYPE_CHECKING:
 # (`mesh_light_samples`): each triangle its own n x n grid would make an emissive ball of 80
 # triangles cast 1280 shadow rays a hit.
 MESH_LIGHT_TRIANGLES = 4
+# A finer mesh light's samples each hold this many finer ones over the same stretch of its
+# surface, taken instead of it by the hits closer to it than REFINE_REACH x its patch's size
+# (sqrt of the area it stands for): there the patch is no point, and its one sample lit a floor
+# touching an emissive ball in bright and dark spots (`Tracer._area_direct`).
+FINE_SPLIT = 16
+REFINE_REACH = 2.0
 
 
 @dataclass
@@ -37,20 +43,42 @@ class Emitters:
     # lamp's rectangle, or the bounding one of a disk; a small emissive mesh's triangles), or
     # None where that would cost more shaft tests than it saves (`shadow_shafts.py`).
     hulls: list
+    # The finer samples (`FINE_SPLIT` each) of the samples that have them, in the same units:
+    # sample s's are rows fine_first[s] .. fine_first[s] + fine_count[s] (count 0: none).
+    fine_points: np.ndarray  # (C, 3)
+    fine_normals: np.ndarray  # (C, 3)
+    fine_radiance_da: np.ndarray  # (C, 3)
+    fine_da: np.ndarray  # (C,)
+    fine_first: np.ndarray  # (S,) int
+    fine_count: np.ndarray  # (S,) int
+
+
+@dataclass
+class Samples:
+    """Point samples of emitting surfaces."""
+
+    points: np.ndarray  # (S, 3) world m
+    normals: np.ndarray  # (S, 3) the emitting side's (a mesh's: its face's)
+    radiance_da: np.ndarray  # (S, 3) radiance times the area the sample stands for, W/sr
+    da: np.ndarray  # (S,) m^2, that area
+
+    @staticmethod
+    def empty() -> Samples:
+        return Samples(np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0))
 
 
 def mesh_light_samples(scene: Scene, tri_ids: np.ndarray, n: int
-                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
-    """Shadow-ray targets on one object's emissive triangles `tri_ids`: points (S, 3), their
-    faces' normals (S, 3), radiance x the area each stands for (S, 3, W/sr), that area (S,) m^2,
-    each one's index among its emitter's samples (S,) and that emitter's sample count (a
-    triangle's, or the object's when it is one light).
+                       ) -> tuple[Samples, np.ndarray, int, Samples | None]:
+    """Shadow-ray targets on one object's emissive triangles `tri_ids`: the samples, each one's
+    index among its emitter's samples (S,), that emitter's sample count (a triangle's, or the
+    object's when it is one light), and the finer samples, FINE_SPLIT per sample in order
+    (None: none).
 
     Up to MESH_LIGHT_TRIANGLES triangles, n x n stratified points on each (a folded square
     grid). A finer mesh is one light of MESH_LIGHT_TRIANGLES x n x n points in all, spread
-    along the triangles' cumulative area (systematic sampling: a triangle gets points in
-    proportion to its area, a small one maybe none, each standing for an equal share of the
-    total): an emissive ball of 80 triangles casts 64 shadow rays a hit, not 1280."""
+    along the triangles' cumulative area in an order that follows the surface (`along_area`,
+    `surface_order`), each standing for an equal share of the total: an emissive ball of 80
+    triangles casts 64 shadow rays a hit, not 1280."""
     tris = scene.triangles[tri_ids].astype(np.float64)
     ng = geometric_normals(tris)
     area = 0.5 * np.linalg.norm(np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0]), axis=1)
@@ -62,12 +90,29 @@ def mesh_light_samples(scene: Scene, tri_ids: np.ndarray, n: int
         bary = np.stack([1.0 - st[:, 0] - st[:, 1], st[:, 0], st[:, 1]], 1)  # (K, 3)
         k = len(bary)
         pts = np.einsum("kc,tcj->tkj", bary, tris).reshape(-1, 3)
-        return (pts, np.repeat(ng, k, axis=0), np.repeat(radiance * (area / k)[:, None], k, axis=0),
-                np.repeat(area / k, k), np.tile(np.arange(k), len(tri_ids)), k)
+        grid = Samples(pts, np.repeat(ng, k, axis=0),
+                       np.repeat(radiance * (area / k)[:, None], k, axis=0), np.repeat(area / k, k))
+        return grid, np.tile(np.arange(k), len(tri_ids)), k, None
     total = MESH_LIGHT_TRIANGLES * n * n
     if not area.sum() > 0.0:  # every triangle degenerate: nothing emits (and no nan CDF)
-        return (np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3)), np.zeros(0),
-                np.zeros(0, np.int64), total)
+        return Samples.empty(), np.zeros(0, np.int64), total, None
+    order = surface_order(tris.mean(axis=1))
+    tris, ng, area, radiance = tris[order], ng[order], area[order], radiance[order]
+    tiers = []
+    for count in (total, total * FINE_SPLIT):
+        pts, t, share = along_area(tris, area, count)
+        tiers.append(Samples(pts, ng[t], radiance[t] * share, np.full(count, share)))
+    return tiers[0], np.arange(total), total, tiers[1]
+
+
+def along_area(tris: np.ndarray, area: np.ndarray, total: int) -> tuple[np.ndarray, np.ndarray, float]:
+    """`total` points spread over triangles (T, 3, 3) of areas (T,) m^2 (some positive) by
+    systematic sampling along their cumulative area: point i at (i + 1/2) / total of it, a
+    triangle getting points in proportion to its area, each standing for an equal share of the
+    total. Returns the points (total, 3), their triangles (total,) and that share (m^2).
+
+    Point i lies in the stretch [i / total, (i + 1) / total), so the k points of k x total lie
+    in the stretch of one of total: the finer samples of a coarser one."""
     cdf = np.cumsum(area) / area.sum()
     position = (np.arange(total) + 0.5) / total
     t = np.minimum(np.searchsorted(cdf, position, side="right"), len(area) - 1)
@@ -78,9 +123,21 @@ def mesh_light_samples(scene: Scene, tri_ids: np.ndarray, n: int
     v = (np.arange(total) * 0.6180339887498949 + 0.5) % 1.0
     root = np.sqrt(u)
     bary = np.stack([1.0 - root, root * (1.0 - v), root * v], axis=1)
-    pts = np.einsum("sc,scj->sj", bary, tris[t])
-    share = area.sum() / total
-    return pts, ng[t], radiance[t] * share, np.full(total, share), np.arange(total), total
+    return np.einsum("sc,scj->sj", bary, tris[t]), t, float(area.sum()) / total
+
+
+def surface_order(points: np.ndarray) -> np.ndarray:
+    """(T,) int: an order of the points (T, 3) along a Z-order (Morton) curve through their bounding
+    box, which keeps neighbours in space mostly neighbours in the order: equal steps along the
+    area CDF in this order spread a mesh light's samples over its whole surface, where the
+    mesh's own triangle order (rings of a UV sphere) bunched them."""
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    cells = np.clip(((points - lo) / np.maximum(hi - lo, 1e-30) * 1024).astype(np.int64), 0, 1023)
+    code = np.zeros(len(points), np.int64)
+    for bit in range(10):
+        for axis in range(3):
+            code |= ((cells[:, axis] >> bit) & 1) << (3 * bit + axis)
+    return np.argsort(code, kind="stable")
 
 
 def lamp_rectangle(light: Light) -> np.ndarray:
@@ -106,49 +163,57 @@ def lamp_hull(light: Light, reach: float) -> np.ndarray | None:
 
 
 def scene_emitters(scene: Scene, settings: TracerSettings) -> Emitters:
-    points, normals, power, areas, two_sided, local, count, hulls = [], [], [], [], [], [], [], []
+    sets, two_sided, local, count, hulls, fine = [], [], [], [], [], []
     n = settings.area_samples
     for light in scene.lights:
         if light.kind != "AREA":
             continue
         if light.shape in ("DISK", "ELLIPSE"):
-            samples = light_units.area_light_samples(light, max(n, 2) * 2)  # cells inside the shape
+            points = light_units.area_light_samples(light, max(n, 2) * 2)  # cells inside the shape
         else:
-            samples = light_units.area_light_samples(light, n)
+            points = light_units.area_light_samples(light, n)
+        k = len(points)
         area = light_units.area_of_shape(light.shape, light.size_x, light.size_y)
-        points.append(samples)
-        normals.append(np.tile(light.direction, (len(samples), 1)))
-        power.append(np.tile(light.radiance * area / len(samples), (len(samples), 1)))
-        areas.append(np.full(len(samples), area / len(samples)))
-        two_sided.append(np.zeros(len(samples), bool))
-        local.append(np.arange(len(samples)))
-        count.append(np.full(len(samples), len(samples)))
+        sets.append(Samples(points, np.tile(light.direction, (k, 1)),
+                            np.tile(light.radiance * area / k, (k, 1)), np.full(k, area / k)))
+        two_sided.append(np.zeros(k, bool))
+        local.append(np.arange(k))
+        count.append(np.full(k, k))
         hulls.append(lamp_rectangle(light))
+        fine.append(None)
     # Emissive triangles (an emission texture's black parts are not lights).
     tri_ids = np.flatnonzero(np.any(triangle_emission(scene) > 0.0, axis=1))
-    if len(tri_ids):
-        for obj in np.unique(scene.object_ids[tri_ids]):
-            own = tri_ids[scene.object_ids[tri_ids] == obj]
-            pts, ng, radiance_da, da, index, per_emitter = mesh_light_samples(scene, own, n)
-            points.append(pts)
-            normals.append(ng)
-            power.append(radiance_da)
-            areas.append(da)
-            two_sided.append(np.ones(len(pts), bool))
-            local.append(index)
-            count.append(np.full(len(pts), per_emitter))
-            hulls.append(scene.triangles[own].astype(np.float64)
-                         if len(own) <= MESH_LIGHT_TRIANGLES else None)
-    if points:
-        emitter = np.repeat(np.arange(len(points)), [len(p) for p in points])
-        return Emitters([li for li in scene.lights if li.kind != "AREA"], np.concatenate(points),
-                        np.concatenate(normals), np.concatenate(power), np.concatenate(areas),
-                        np.concatenate(two_sided), np.concatenate(local), np.concatenate(count),
-                        emitter, hulls)
-    z = np.zeros((0, 3))
-    none = np.zeros(0, np.int64)
-    return Emitters(list(scene.lights), z, z, z, np.zeros(0), np.zeros(0, bool), none, none, none,
-                    [])
+    for obj in np.unique(scene.object_ids[tri_ids]):
+        own = tri_ids[scene.object_ids[tri_ids] == obj]
+        samples, index, per_emitter, finer = mesh_light_samples(scene, own, n)
+        sets.append(samples)
+        two_sided.append(np.ones(len(samples.da), bool))
+        local.append(index)
+        count.append(np.full(len(samples.da), per_emitter))
+        hulls.append(scene.triangles[own].astype(np.float64) if len(own) <= MESH_LIGHT_TRIANGLES
+                     else None)
+        fine.append(finer)
+    lights = [li for li in scene.lights if li.kind != "AREA"]
+    if not sets:
+        none = np.zeros(0, np.int64)
+        z = Samples.empty()
+        return Emitters(lights, z.points, z.normals, z.radiance_da, z.da, np.zeros(0, bool), none,
+                        none, none, [], z.points, z.normals, z.radiance_da, z.da, none, none)
+    sizes = [len(x.da) for x in sets]
+    fine_count = np.concatenate([np.full(k, 0 if f is None else FINE_SPLIT)
+                                 for k, f in zip(sizes, fine, strict=True)])
+    fine_first = np.cumsum(fine_count) - fine_count
+    finer = [f for f in fine if f is not None] or [Samples.empty()]
+
+    def joined(field: str, of: list) -> np.ndarray:
+        return np.concatenate([getattr(x, field) for x in of])
+
+    return Emitters(lights, joined("points", sets), joined("normals", sets),
+                    joined("radiance_da", sets), joined("da", sets), np.concatenate(two_sided),
+                    np.concatenate(local), np.concatenate(count),
+                    np.repeat(np.arange(len(sets)), sizes), hulls,
+                    joined("points", finer), joined("normals", finer),
+                    joined("radiance_da", finer), joined("da", finer), fine_first, fine_count)
 
 
 def point_light(name: str, position, intensity) -> Light:

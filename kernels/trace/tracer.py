@@ -69,7 +69,7 @@ from ..shading.specular_layer import (
 )
 from ..shading.world_light import extract_suns, horizon_sky, world_radiance
 from . import differentials as rd
-from .emitters import lamp_hull, scene_emitters
+from .emitters import FINE_SPLIT, REFINE_REACH, lamp_hull, scene_emitters
 from .settings import TraceResult, TracerSettings, TraceStats, auto_settings
 from .shadow_shafts import ClearShafts
 from .surface import (
@@ -126,6 +126,29 @@ def _scene_scale(scene: Scene) -> float:
     lo = scene.triangles.reshape(-1, 3).min(0).astype(np.float64)
     hi = scene.triangles.reshape(-1, 3).max(0).astype(np.float64)
     return float(max(np.linalg.norm(hi - lo), np.abs(lo).max(), np.abs(hi).max(), 1e-6))
+
+
+def _emitter_geometry(delta: np.ndarray, ns: np.ndarray, normals: np.ndarray, two_sided: np.ndarray,
+                      da: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Hits against emitter samples, arrays broadcast to one shape (...): delta (..., 3) from
+    hit to sample (m), the hits' shading normals (..., 3), the samples' normals (..., 3), whether
+    they emit both ways (...) and the areas they stand for (..., m^2). Returns the unit
+    directions to the samples (..., 3), distances (...), their squares and the geometry terms
+    (1/m^2).
+
+    Each sample stands for its share a of the emitter, taken as a disc facing the hit (Wallace,
+    Elmquist and Haines 1989; `closed_forms.disc_form`): cos cos / (d^2 + a / pi), the point's
+    cos cos / d^2 far away, and bounded where the hit lies closer to the emitter than its
+    samples are apart (a surface it touches), where 1 / d^2 made single pixels hundreds of
+    times too bright."""
+    d2 = np.einsum("...j,...j->...", delta, delta)
+    dist = np.sqrt(d2)
+    to_l = delta / np.maximum(dist, 1e-12)[..., None]
+    cos_r = np.einsum("...j,...j->...", ns, to_l)
+    cos_e = -np.einsum("...j,...j->...", to_l, normals)
+    cos_e = np.where(two_sided, np.abs(cos_e), cos_e)
+    g = np.clip(cos_r, 0, None) * np.clip(cos_e, 0, None) / np.maximum(d2 + da / np.pi, 1e-12)
+    return to_l, dist, d2, g
 
 
 def _scatter_add(out: np.ndarray, index: np.ndarray, values: np.ndarray) -> None:
@@ -449,6 +472,9 @@ class Tracer:
         given: hit n sees emitter e whole (`shadow_shafts.py`) and casts no shadow rays to it.
         glossy (N, 3): the normals the lobes turn about (`SurfaceHits.spec`); None: ns.
         sheen: (Fabric of the N hits, out (N, 3)): the sheen's light is added to out.
+
+        A hit closer to a mesh light's sample than REFINE_REACH x its patch's size takes the
+        sample's FINE_SPLIT finer ones instead (`emitters.mesh_light_samples`).
         """
         em = self.emitters
         glossy = ns if glossy is None else glossy
@@ -461,56 +487,72 @@ class Tracer:
             scale = np.where(shared, float(m), 1.0)  # (S,)
         else:
             keep, scale = None, None
-        for first in range(0, len(em.area_points), EMITTER_BLOCK):
-            block = slice(first, first + EMITTER_BLOCK)
-            delta = em.area_points[block][:, None, :] - origin[None, :, :]  # (B, N, 3)
-            d2 = np.einsum("bnj,bnj->bn", delta, delta)
-            dist = np.sqrt(d2)
-            to_l = delta / np.maximum(dist, 1e-12)[..., None]
-            cos_r = np.einsum("nj,bnj->bn", ns, to_l)
-            cos_e = -np.einsum("bnj,bj->bn", to_l, em.area_normals[block])
-            cos_e = np.where(em.area_two_sided[block][:, None], np.abs(cos_e), cos_e)
-            # Each sample stands for its share a of the emitter, taken as a disc facing the hit
-            # (Wallace, Elmquist and Haines 1989; `closed_forms.disc_form`): cos cos / (d^2 +
-            # a / pi), the point's cos cos / d^2 far away, and bounded where the hit lies
-            # closer to the emitter than its samples are apart (a surface it touches), where
-            # 1 / d^2 made single pixels hundreds of times too bright.
-            near = d2 + em.area_da[block][:, None] / np.pi
-            g = np.clip(cos_r, 0, None) * np.clip(cos_e, 0, None) / np.maximum(near, 1e-12)
-            if keep is not None:
-                g = g * keep[block] * scale[block][:, None]
-            b_idx, n_idx = np.nonzero(g > 0)
-            if len(n_idx) == 0:
-                continue
+
+        def light(n_idx, to_l, dist, g, radiance_da, emitter, lamp) -> None:
+            """Adds the light of emitter samples to hits n_idx (P,): the pairs' unit directions
+            (P, 3) and distances (P,) to the sample, geometry terms g (P,), the samples'
+            radiance x area (P, 3), emitters (P,) and whether each is an area lamp (P,)."""
             vis = np.ones(len(n_idx))
             cast = np.arange(len(n_idx)) if whole is None else np.flatnonzero(
-                ~whole[n_idx, em.area_emitter[block][b_idx]])
+                ~whole[n_idx, emitter])
             self.stats.clear_shadow_rays += len(n_idx) - len(cast)
             if len(cast):
-                b_c, n_c = b_idx[cast], n_idx[cast]
-                vis[cast] = self._visible(origin[n_c], to_l[b_c, n_c],
-                                          dist[b_c, n_c] * (1.0 - 1e-4) - self.offset)
-            weight = em.area_radiance_da[block][b_idx] * (g[b_idx, n_idx] * vis)[:, None]
-            relief = 1.0 if smooth is None else bump_shadowing(
-                smooth[n_idx], ns[n_idx], to_l[b_idx, n_idx])[:, None]
+                vis[cast] = self._visible(origin[n_idx[cast]], to_l[cast],
+                                          dist[cast] * (1.0 - 1e-4) - self.offset)
+            weight = radiance_da * (g * vis)[:, None]
+            relief = 1.0 if smooth is None else bump_shadowing(smooth[n_idx], ns[n_idx], to_l)[:, None]
             _scatter_add(out, n_idx, brdf_d[n_idx] * weight * relief)
             if sheen is not None:  # every emitter lights a sheen, as it does the base
                 fabric, sheen_out = sheen
                 pick = np.flatnonzero(fabric.present[n_idx])
                 if pick.size:
-                    rows, l_dir = n_idx[pick], to_l[b_idx[pick], n_idx[pick]]
+                    rows, l_dir = n_idx[pick], to_l[pick]
                     cos_r = np.maximum(np.einsum("ij,ij->i", ns[rows], l_dir), 1e-6)
                     fuzz = fabric.brdf_cos(rows, ns[rows], l_dir, wo[rows])
                     fuzz = fuzz * (relief if np.isscalar(relief) else relief[pick])
                     _scatter_add(sheen_out, rows, fuzz * weight[pick] / cos_r[:, None])
-            lamp = ~em.area_two_sided[block][b_idx]  # area lamps: no rough lobe's ray meets them
-            for f0, w, rough in lobes:
+            for f0, w, rough in lobes:  # area lamps only: no rough lobe's ray meets them
                 pick = np.flatnonzero(lamp & (max_of_three(w[n_idx]) > 0.0))
                 if pick.size:
-                    rows, l_dir = n_idx[pick], to_l[b_idx[pick], n_idx[pick]]
+                    rows, l_dir = n_idx[pick], to_l[pick]
                     brdf_cos = ggx_highlight(glossy[rows], l_dir, wo[rows], rough[rows], f0[rows])
                     cos_r = np.maximum(np.einsum("ij,ij->i", ns[rows], l_dir), 1e-6)
                     _scatter_add(shine, rows, brdf_cos * weight[pick] * w[rows] / cos_r[:, None])
+
+        refined = []  # (sample (P,), hit (P,)): the pairs that take the sample's finer ones
+        for first in range(0, len(em.area_points), EMITTER_BLOCK):
+            block = slice(first, first + EMITTER_BLOCK)
+            delta = em.area_points[block][:, None, :] - origin[None, :, :]  # (B, N, 3)
+            to_l, dist, d2, g = _emitter_geometry(delta, ns, em.area_normals[block][:, None],
+                                                  em.area_two_sided[block][:, None],
+                                                  em.area_da[block][:, None])
+            if keep is not None:
+                g = g * keep[block] * scale[block][:, None]
+            near = ((d2 < REFINE_REACH ** 2 * em.area_da[block][:, None])
+                    & (em.fine_count[block] > 0)[:, None])
+            if near.any():
+                if keep is not None:
+                    near &= keep[block]
+                g = np.where(near, 0.0, g)
+                b_near, n_near = np.nonzero(near)
+                refined.append((first + b_near, n_near))
+            b_idx, n_idx = np.nonzero(g > 0)
+            if len(n_idx):
+                light(n_idx, to_l[b_idx, n_idx], dist[b_idx, n_idx], g[b_idx, n_idx],
+                      em.area_radiance_da[block][b_idx], em.area_emitter[block][b_idx],
+                      ~em.area_two_sided[block][b_idx])
+        if refined:  # each sample's finer ones, FINE_SPLIT a pair, for the hits near it
+            parent = np.repeat(np.concatenate([r[0] for r in refined]), FINE_SPLIT)
+            n_idx = np.repeat(np.concatenate([r[1] for r in refined]), FINE_SPLIT)
+            kids = em.fine_first[parent] + np.tile(np.arange(FINE_SPLIT), len(parent) // FINE_SPLIT)
+            to_l, dist, _, g = _emitter_geometry(em.fine_points[kids] - origin[n_idx], ns[n_idx],
+                                                 em.fine_normals[kids], em.area_two_sided[parent],
+                                                 em.fine_da[kids])
+            if scale is not None:
+                g = g * scale[parent]
+            lit = np.flatnonzero(g > 0)
+            light(n_idx[lit], to_l[lit], dist[lit], g[lit], em.fine_radiance_da[kids[lit]],
+                  em.area_emitter[parent[lit]], ~em.area_two_sided[parent[lit]])
         return out, shine
 
     def _mapped(self, tri: np.ndarray) -> np.ndarray:

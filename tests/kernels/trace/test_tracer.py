@@ -279,6 +279,32 @@ def test_an_emitter_touching_a_surface_lights_it_within_the_physical_bound():
             assert far[i, j, 0] == pytest.approx(expected, rel=3e-3)
 
 
+def test_floor_by_a_mesh_lights_foot_takes_its_finer_samples(monkeypatch):
+    # A 1 m x 0.5 m emissive wall of 8 x 8 quads (a mesh light of 128 triangles: 64 samples in
+    # all, one per 0.09 m) standing 1 cm above a white floor; the floor 2 to 10 cm beside it.
+    # Exact: rho / pi L integral of cos cos / d^2 over the wall (midpoint rule, 800 x 400).
+    # Measured: within 7.1% everywhere with the finer samples, 41% with the coarse ones alone.
+    from classic_bake.kernels.trace import tracer as tracer_module
+
+    rho, radiance, foot, height = 0.5, 10.0, 0.01, 0.5
+    plane = quad([(-3, -3, 0), (3, -3, 0), (3, 3, 0), (-3, 3, 0)])
+    mat = Material(name="white", base_color=np.full(3, rho, np.float32), specular=0.0)
+    ys, zs = np.linspace(-0.5, 0.5, 9), np.linspace(foot, foot + height, 9)
+    wall = np.concatenate([quad([(0, ys[i], zs[j]), (0, ys[i + 1], zs[j]), (0, ys[i + 1], zs[j + 1]),
+                                 (0, ys[i], zs[j + 1])]) for i in range(8) for j in range(8)])
+    scene = build([(plane, mat), (wall, emitter(radiance))],
+                  ortho_camera((0.06, 0, 1), (0, 0, -1), (0, 1, 0), 0.08, (8, 8)))
+    centres = (np.arange(8) + 0.5) / 100 - 0.04  # the pixels' offsets from the view's centre, m
+    y, z = np.meshgrid((np.arange(800) + 0.5) / 800 - 0.5, foot + (np.arange(400) + 0.5) / 400 * height)
+    exact = np.array([[rho / np.pi * radiance * np.sum(x * z / (x * x + (y - v) ** 2 + z * z) ** 2)
+                       * height / 320000 for x in 0.06 + centres] for v in centres[::-1]])
+    settings = TracerSettings(max_depth=0, adaptive=0)
+    fine = np.abs(trace(scene, settings).image[..., 0] / exact - 1.0).max()
+    monkeypatch.setattr(tracer_module, "REFINE_REACH", 0.0)
+    coarse = np.abs(trace(scene, settings).image[..., 0] / exact - 1.0).max()
+    assert fine < 0.08 and coarse > 3.0 * fine
+
+
 def sun(direction, irradiance):
     d = np.asarray(direction, np.float64) / np.linalg.norm(direction)
     return Light(name="Sun", kind="SUN", position=np.zeros(3), direction=d,
