@@ -32,8 +32,9 @@ it out).
 `direct()`, for shadow maps and direct lighting: max_bounces 0, point/spot radius 0, sun angle
 0, area lights shrunk to 1 mm squares of the same power (kernels/shading/direct_light.py treats them as
 points at their centre: hard shadows, intensity P cos / pi). Remaining differences: shadow maps
-filter (PCF) and bias their shadow edges, Cycles' shadows are exact; emissive meshes light
-surfaces in Cycles, not in that kernel.
+filter (PCF) and bias their shadow edges, Cycles' shadows are exact. Lamps are the only lights,
+as a real-time engine's shadow-mapped lights are: emissive surfaces glow, and show in mirrors, but
+light no diffuse surface (`mesh_lights` off: objects hidden from diffuse rays).
 
 `albedo()`, for texture mapping: the diffuse colour a surface reflects, no light at all. Bakes
 take `bake_type="ALBEDO"` (Cycles' DIFFUSE bake with the colour pass alone); camera renders return
@@ -87,6 +88,9 @@ class CyclesModel:
     | sun_angle_zero       | bool         | sun angular diameter set to 0 rad (parallel light)     |
     | area_lights_as_points| bool         | area lights shrunk to AREA_POINT_SIZE squares of the   |
     |                      |              | same power: one-sided points of intensity P cos / pi   |
+    | mesh_lights          | bool         | False: emissive surfaces glow but light no diffuse     |
+    |                      |              | surface (objects hidden from diffuse rays): lamps      |
+    |                      |              | alone light the scene                                  |
     | world_lighting       | bool         | False (default): the world is invisible to diffuse     |
     |                      |              | rays, so it lights no diffuse surface, as in every     |
     |                      |              | kernel but the radiosity solve's world light (still    |
@@ -112,6 +116,7 @@ class CyclesModel:
     point_radius_zero: bool = True
     sun_angle_zero: bool = True
     area_lights_as_points: bool = False
+    mesh_lights: bool = True
     world_lighting: bool = False
     pixel_filter: str = "BOX"
     filter_width: float = 1.0
@@ -130,10 +135,13 @@ class CyclesModel:
 
     def fields(self) -> dict[str, Any]:
         """The model as a plain dict (JSON, cache keys). `render_pass` is left out when it is
-        "Combined", so the cache keys of models made before it existed stay the same."""
+        "Combined" and `mesh_lights` when true, so the cache keys of models made before they
+        existed stay the same."""
         out = dataclasses.asdict(self)
         if self.render_pass == COMBINED_PASS:
             del out["render_pass"]
+        if self.mesh_lights:
+            del out["mesh_lights"]
         return out
 
 
@@ -166,9 +174,10 @@ def global_illumination(depth: int = 16, *, caustics: bool = False, world_lighti
 def direct(*, area_lights_as_points: bool = True, world_lighting: bool = False,
            seed: int = 0) -> CyclesModel:
     """Direct light only (kernels/shading/direct_light.py: shadow maps): no bounce at all, area lights
-    as points at their centre (hard shadows), as that kernel treats them."""
+    as points at their centre (hard shadows), lamps the only lights, as that kernel treats them."""
     return CyclesModel(name="direct", max_bounces=0, diffuse_bounces=0, glossy_bounces=0,
                        transmission_bounces=0, area_lights_as_points=area_lights_as_points,
+                       mesh_lights=False,
                        world_lighting=world_lighting, seed=seed)
 
 

@@ -123,8 +123,9 @@ def configure(scene, model: CyclesModel, log: SettingsLog | None = None) -> Sett
     (`log.restore()` puts everything back); prefer `matched_scene`, which always restores.
 
     Changes `FIXED_SETTINGS`, the bounce, caustics, filter and seed settings of scene.cycles, the
-    radius of point/spot lights and the angle of suns of the scene (per the model), and with
-    `world_lighting` off the world's diffuse ray visibility. The view transform is not touched.
+    radius of point/spot lights and the angle of suns of the scene (per the model), with
+    `world_lighting` off the world's diffuse ray visibility, and with `mesh_lights` off the
+    objects' diffuse ray visibility. The view transform is not touched.
     """
     log = log if log is not None else SettingsLog()
     for path, prop, value in FIXED_SETTINGS:
@@ -145,7 +146,14 @@ def configure(scene, model: CyclesModel, log: SettingsLog | None = None) -> Sett
             _shrink_area_light(log, light, obj)
     if scene.world is not None and not model.world_lighting:
         log.set(scene.world.cycles_visibility, "diffuse", False)
-    return log
+    if not model.mesh_lights:
+        # Hidden from diffuse rays, an emissive object lights no diffuse surface: Cycles' light
+        # sampling honours the visibility (measured: a glowing ball's floor as the sun alone
+        # lights it; its materials' Emission Sampling None left its light, met by the rays the
+        # diffuse lobe samples). Glossy rays still see it, as the kernels' mirrors do.
+        for obj in scene.objects:
+            if obj.type != "LIGHT" and hasattr(obj, "visible_diffuse"):
+                log.set(obj, "visible_diffuse", False)
 
 
 def _keep_unnormalized_power(log: SettingsLog, light) -> None:
