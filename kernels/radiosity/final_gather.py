@@ -63,6 +63,7 @@ from ..geometry.scene import (
 )
 from ..shading.bump import relief_sky_factor, scene_normals
 from ..shading.direct_light import diffuse_at
+from ..shading.material_maps import translucent_colours
 from ..shading.world_light import (
     RAYS_PER_CALL,
     cosine_directions,
@@ -378,7 +379,9 @@ def exitance(gather: FinalGather, tri: np.ndarray, bary: np.ndarray,
              visibility_out: Visibility | None = None,
              strata: Strata | None = None) -> np.ndarray:
     """(M, 3) exitance B(x) W/m^2 at receivers given as scene triangles (M,) and barycentric
-    coordinates (M, 3): E + rho (H_direct + H_indirect), or without E (`reflected_only`).
+    coordinates (M, 3): E + rho (H_direct + H_indirect), or without E (`reflected_only`), and
+    for a translucent surface (`Material.translucent`: tau) tau times the lights' irradiance on
+    its back (`side_irradiance`).
 
     known: what neighbouring receivers' rays agree on (`Visibility.agreed`), taken without rays
     of its own; visibility_out (M receivers) receives what this call found, for later neighbours.
@@ -392,6 +395,7 @@ def exitance(gather: FinalGather, tri: np.ndarray, bary: np.ndarray,
     out = np.zeros((len(tri), 3))
     # A seed per call keeps repeated evaluations of the same receivers identical.
     rng = np.random.default_rng(gather.settings.seed + 1)
+    tau_of = translucent_colours(scene.materials)
     for a in range(0, len(tri), GATHER_CHUNK):
         t, b = tri[a:a + GATHER_CHUNK], bary[a:a + GATHER_CHUNK]
         rho = diffuse_at(scene, t, b)
@@ -402,6 +406,11 @@ def exitance(gather: FinalGather, tri: np.ndarray, bary: np.ndarray,
             visibility_out.put(a + lit, found)
         value = np.zeros((len(t), 3))
         value[lit] = rho[lit] * h
+        tau = tau_of[scene.material_ids[t]]
+        through = np.flatnonzero(tau.max(axis=1) > 0.0)
+        if through.size:
+            value[through] += tau[through] * side_irradiance(gather, t[through], b[through],
+                                                             -1.0, None, rng)
         if not reflected_only:
             value += gather.emission[t]
         out[a:a + GATHER_CHUNK] = value
@@ -414,41 +423,60 @@ def back_exitance(gather: FinalGather, tri: np.ndarray, bary: np.ndarray, reflec
     (M, 3)): what a camera that sees a surface from behind shows, as Cycles shades every surface
     on the side it is seen from:
 
-        B_back(x) = pi L_e + rho(x) (H_direct,back(x) + H_bounce,back(x))
+        B_back(x) = pi L_e + rho(x) H_back(x) + tau(x) H_lights,front(x)
 
-    with the lamps' and the gathered emitters' direct irradiance on the flipped normal, shadow
-    rays leaving on the back side (a sheet lit from behind, a wall seen from outside a lit room:
-    0), and what `world_rays` cosine-distributed rays from each receiver's back find
-    (`back_bounce`): the world's light, and where they meet a surface its reflected exitance
-    `reflected(tri, bary)` (M, 3) W/m^2 (the patch solution's; None: surfaces send nothing).
-    The emission counts on both sides (Cycles' emission shader glows on either face). The
-    patches are one-sided, so this is the one place where light reflected onto a back is known:
-    one bounce from the front sides' solution (an inside-out mesh, a plane lit from below)."""
+    H_back the light on the back (`side_irradiance`, its bounce off surfaces `reflected`
+    W/m^2), and for a translucent surface (`Material.translucent`: tau) the lights'
+    irradiance on its front passed through. The emission counts on both sides (Cycles'
+    emission shader glows on either face). The patches are one-sided, so this is the one
+    place where light reflected onto a back is known: one bounce from the front sides'
+    solution (an inside-out mesh, a plane lit from below)."""
     scene = gather.scene
     tri = np.asarray(tri, np.int64)
     bary = np.asarray(bary, np.float64)
     out = np.zeros((len(tri), 3))
     rng = np.random.default_rng(gather.settings.seed + 2)  # a seed per call, as `exitance`
-    occluded = _occluded(gather.bvh)
+    tau_of = translucent_colours(scene.materials)
     for a in range(0, len(tri), GATHER_CHUNK):
         t, b = tri[a:a + GATHER_CHUNK], bary[a:a + GATHER_CHUNK]
         rho = diffuse_at(scene, t, b)
         lit = np.flatnonzero(rho.max(axis=1) > 0.0)  # black ones cast no ray, as in `exitance`
-        inset, points = _inset_points(scene, t[lit], b[lit])
-        front = gather.triangle_normals[t[lit]]
-        normals, smooth = shading_normals(scene, t[lit], inset, front)
-        normals = -normals
-        h = emitter_irradiance(gather.emitters, points, normals, occluded, gather.offset, rng,
-                               lift=-front)
-        h += lamp_irradiance(scene, points, normals, occluded, gather.offset,
-                             gather.area_samples_per_side, lift=-front,
-                             smooth=None if smooth is None else -smooth)
-        if gather.settings.world_rays:
-            h += back_bounce(gather, points, -front, reflected, rng)
         value = gather.emission[t]
-        value[lit] += rho[lit] * h
+        value[lit] += rho[lit] * side_irradiance(gather, t[lit], b[lit], -1.0, reflected, rng)
+        tau = tau_of[scene.material_ids[t]]
+        through = np.flatnonzero(tau.max(axis=1) > 0.0)
+        if through.size:
+            value[through] += tau[through] * side_irradiance(gather, t[through], b[through],
+                                                             1.0, None, rng)
         out[a:a + GATHER_CHUNK] = value
     return out
+
+
+def side_irradiance(gather: FinalGather, t: np.ndarray, b: np.ndarray, side: float, reflected,
+                    rng: np.random.Generator) -> np.ndarray:
+    """(M, 3) irradiance W/m^2 on one side of receivers (scene triangles t (M,), barycentrics
+    b (M, 3); side 1: the front, -1: the back): the lamps' and the gathered emitters' direct
+    light, shadow rays leaving on that side (a sheet lit from behind, a wall seen from outside a
+    lit room: 0 on the back), and what `world_rays` cosine-distributed rays from it find
+    (`back_bounce`: the world, and surfaces' `reflected(tri, bary)` exitance W/m^2; None: 0).
+
+    With `reflected` None, the lights' light alone: what a translucent surface passes from one
+    side to the other in Cycles' radiosity model, whose translucent bounce is a transmission
+    bounce (0 of them): its light sampling reaches through (lamps, emitters, the world), light
+    reflected off other surfaces does not."""
+    scene = gather.scene
+    inset, points = _inset_points(scene, t, b)
+    facing = side * gather.triangle_normals[t]
+    normals, smooth = shading_normals(scene, t, inset, gather.triangle_normals[t])
+    occluded = _occluded(gather.bvh)
+    h = emitter_irradiance(gather.emitters, points, side * normals, occluded, gather.offset, rng,
+                           lift=facing)
+    h += lamp_irradiance(scene, points, side * normals, occluded, gather.offset,
+                         gather.area_samples_per_side, lift=facing,
+                         smooth=None if smooth is None else side * smooth)
+    if gather.settings.world_rays:
+        h += back_bounce(gather, points, facing, reflected, rng)
+    return h
 
 
 def back_bounce(gather: FinalGather, points: np.ndarray, normals: np.ndarray, reflected,

@@ -68,6 +68,11 @@ class RadiosityResult:
             values -= patching.interpolate(self.corner_e, patch, local)
         return values
 
+    def _reflected(self, tri: np.ndarray, bary: np.ndarray) -> np.ndarray:
+        """(M, 3) W/m^2: the solution's reflected exitance, interpolated (what a gather's
+        bounce rays see on the surfaces they meet)."""
+        return self.exitance_at(tri, bary, reflected_only=True, interpolated=True)
+
     def radiance_at(self, tri: np.ndarray, bary: np.ndarray, reflected_only: bool = False,
                     interpolated: bool = False, known: final_gather.Visibility | None = None,
                     visibility_out: final_gather.Visibility | None = None,
@@ -94,8 +99,7 @@ class RadiosityResult:
             return out
         if self.gather is not None:
             out[rest] = final_gather.back_exitance(
-                self.gather, tri[rest], np.asarray(bary)[rest], lambda t, b: self.exitance_at(
-                    t, b, reflected_only=True, interpolated=True)) / np.pi
+                self.gather, tri[rest], np.asarray(bary)[rest], self._reflected) / np.pi
         else:
             out[rest] = triangle_emission(scene)[tri[rest]]
         return out

@@ -413,3 +413,27 @@ def test_in_the_shadow_map_model_a_glowing_ball_lights_no_floor():
     print(f"relMSE {error:.2e}")
     assert error < 5e-3
     assert ball.visible_diffuse and theirs.max() > 1.5  # restored; the camera sees the glow
+
+
+@pytest.mark.parametrize("side, bound", [("front", 3e-3), ("behind", 3e-3)])
+def test_the_radiosity_view_passes_a_leafs_light_through(side, bound):
+    """The back-lit leaf card over a grey floor under a blue sky, seen from in front (its
+    shaded side) and from behind (its sunny side): the final gather adds tau times the lights'
+    irradiance on the other side (the sun, the sky), as Cycles' radiosity model passes light
+    sampling's through a Translucent BSDF, whose bounce is a transmission bounce (0 in the
+    model). Against the model, 256 samples: relMSE 6.6e-4 and 6.9e-4; without translucency
+    0.15 and 0.022."""
+    import math
+
+    from blender_parts import backlit_leaf
+
+    scene = backlit_leaf((0.3, 0.6, 0.9), floor=True)
+    if side == "behind":
+        scene.camera.location = (0.0, 4.0, 1.3)
+        scene.camera.rotation_euler = (math.radians(85.0), 0.0, math.pi)
+    snap = bridge.snapshot(resolution=RESOLUTION)
+    ours = drain(render_steps(snap, solve_radiosity(snap, RadiositySettings()), RESOLUTION))
+    theirs, _ = cr.render_camera(scene, cr.radiosity(world_lighting=True), 256, RESOLUTION)
+    error = rel_mse(ours, theirs)
+    print(f"{side}: relMSE {error:.2e}")
+    assert error < bound

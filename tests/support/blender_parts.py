@@ -223,14 +223,17 @@ def translucent_mix(tree, diffuse=(0.2, 0.6, 0.2), translucent=(0.2, 0.6, 0.2)):
     return mix
 
 
-def backlit_leaf():
+def backlit_leaf(world=(0.0, 0.0, 0.0), floor=False):
     """A fresh scene: a leaf card (a 1.6 m plane tilted 10 degrees back, half Diffuse (0.2, 0.6,
-    0.1), half Translucent (0.3, 0.7, 0.1)) in a black world, a sun of 3 W/m^2 shining through
-    it towards a camera in front of it. Returns the scene."""
+    0.1), half Translucent (0.3, 0.7, 0.1)) in a world of colour `world`, a sun of 3 W/m^2
+    shining through it towards a camera in front of it; with `floor`, an 8 m grey floor under
+    it. Returns the scene."""
     import math
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    scene = colour_world((0.0, 0.0, 0.0))
+    scene = colour_world(world)
+    if floor:
+        plane(principled("Floor", base=(0.6, 0.6, 0.6))[0], size=8.0)
     sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
     sun.data.energy = 3.0
     sun.rotation_euler = (math.radians(-60.0), 0.0, 0.0)  # shining towards the camera
