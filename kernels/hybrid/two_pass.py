@@ -46,8 +46,9 @@ NEAR_SPLITS = 1
 
 
 def pass_one_settings(**changes) -> RadiositySettings:
-    """The radiosity settings pass 1 takes by default (NEAR_SPLITS), with `changes`."""
-    return replace(RadiositySettings(near_splits=NEAR_SPLITS), **changes)
+    """The radiosity settings pass 1 takes by default (NEAR_SPLITS; translucent surfaces pass
+    all light, as global illumination follows translucent bounces), with `changes`."""
+    return replace(RadiositySettings(near_splits=NEAR_SPLITS, translucent_bounce=True), **changes)
 
 
 @dataclass(frozen=True)

@@ -377,11 +377,12 @@ def prepare(scene: Scene, solution: PatchSolution, emitters: Emitters, bvh, smoo
 def exitance(gather: FinalGather, tri: np.ndarray, bary: np.ndarray,
              reflected_only: bool = False, known: Visibility | None = None,
              visibility_out: Visibility | None = None,
-             strata: Strata | None = None) -> np.ndarray:
+             strata: Strata | None = None, reflected=None) -> np.ndarray:
     """(M, 3) exitance B(x) W/m^2 at receivers given as scene triangles (M,) and barycentric
     coordinates (M, 3): E + rho (H_direct + H_indirect), or without E (`reflected_only`), and
-    for a translucent surface (`Material.translucent`: tau) tau times the lights' irradiance on
-    its back (`side_irradiance`).
+    for a translucent surface (`Material.translucent`: tau) tau times the irradiance on its
+    back (`side_irradiance`): the lights', and with `translucent_bounce` the surfaces' exitance
+    `reflected(tri, bary)` W/m^2 too.
 
     known: what neighbouring receivers' rays agree on (`Visibility.agreed`), taken without rays
     of its own; visibility_out (M receivers) receives what this call found, for later neighbours.
@@ -396,6 +397,7 @@ def exitance(gather: FinalGather, tri: np.ndarray, bary: np.ndarray,
     # A seed per call keeps repeated evaluations of the same receivers identical.
     rng = np.random.default_rng(gather.settings.seed + 1)
     tau_of = translucent_colours(scene.materials)
+    passed = reflected if gather.settings.translucent_bounce else None
     for a in range(0, len(tri), GATHER_CHUNK):
         t, b = tri[a:a + GATHER_CHUNK], bary[a:a + GATHER_CHUNK]
         rho = diffuse_at(scene, t, b)
@@ -410,7 +412,7 @@ def exitance(gather: FinalGather, tri: np.ndarray, bary: np.ndarray,
         through = np.flatnonzero(tau.max(axis=1) > 0.0)
         if through.size:
             value[through] += tau[through] * side_irradiance(gather, t[through], b[through],
-                                                             -1.0, None, rng)
+                                                             -1.0, passed, rng)
         if not reflected_only:
             value += gather.emission[t]
         out[a:a + GATHER_CHUNK] = value
@@ -423,20 +425,21 @@ def back_exitance(gather: FinalGather, tri: np.ndarray, bary: np.ndarray, reflec
     (M, 3)): what a camera that sees a surface from behind shows, as Cycles shades every surface
     on the side it is seen from:
 
-        B_back(x) = pi L_e + rho(x) H_back(x) + tau(x) H_lights,front(x)
+        B_back(x) = pi L_e + rho(x) H_back(x) + tau(x) H_front(x)
 
     H_back the light on the back (`side_irradiance`, its bounce off surfaces `reflected`
-    W/m^2), and for a translucent surface (`Material.translucent`: tau) the lights'
-    irradiance on its front passed through. The emission counts on both sides (Cycles'
-    emission shader glows on either face). The patches are one-sided, so this is the one
-    place where light reflected onto a back is known: one bounce from the front sides'
-    solution (an inside-out mesh, a plane lit from below)."""
+    W/m^2), and for a translucent surface (`Material.translucent`: tau) the irradiance on its
+    front passed through: the lights', and with `translucent_bounce` the bounce too. The
+    emission counts on both sides (Cycles' emission shader glows on either face). The patches
+    are one-sided, so this is the one place where light reflected onto a back is known: one
+    bounce from the front sides' solution (an inside-out mesh, a plane lit from below)."""
     scene = gather.scene
     tri = np.asarray(tri, np.int64)
     bary = np.asarray(bary, np.float64)
     out = np.zeros((len(tri), 3))
     rng = np.random.default_rng(gather.settings.seed + 2)  # a seed per call, as `exitance`
     tau_of = translucent_colours(scene.materials)
+    passed = reflected if gather.settings.translucent_bounce else None
     for a in range(0, len(tri), GATHER_CHUNK):
         t, b = tri[a:a + GATHER_CHUNK], bary[a:a + GATHER_CHUNK]
         rho = diffuse_at(scene, t, b)
@@ -447,7 +450,7 @@ def back_exitance(gather: FinalGather, tri: np.ndarray, bary: np.ndarray, reflec
         through = np.flatnonzero(tau.max(axis=1) > 0.0)
         if through.size:
             value[through] += tau[through] * side_irradiance(gather, t[through], b[through],
-                                                             1.0, None, rng)
+                                                             1.0, passed, rng)
         out[a:a + GATHER_CHUNK] = value
     return out
 
@@ -463,7 +466,7 @@ def side_irradiance(gather: FinalGather, t: np.ndarray, b: np.ndarray, side: flo
     With `reflected` None, the lights' light alone: what a translucent surface passes from one
     side to the other in Cycles' radiosity model, whose translucent bounce is a transmission
     bounce (0 of them): its light sampling reaches through (lamps, emitters, the world), light
-    reflected off other surfaces does not."""
+    reflected off other surfaces does not (`FinalGatherSettings.translucent_bounce`)."""
     scene = gather.scene
     inset, points = _inset_points(scene, t, b)
     facing = side * gather.triangle_normals[t]

@@ -61,7 +61,7 @@ class RadiosityResult:
         `reflected_only`: B minus the emission (what Cycles' DIFFUSE bake sees, times pi)."""
         if self.gather is not None and not interpolated:
             return final_gather.exitance(self.gather, tri, bary, reflected_only, known,
-                                         visibility_out, strata)
+                                         visibility_out, strata, self._reflected)
         patch, local = patching.locate(self.patches, tri, bary)
         values = patching.interpolate(self.corner_b, patch, local)
         if reflected_only:

@@ -109,6 +109,12 @@ class RadiositySettings:
     |                             |                     |          | world lights no surface;   |
     |                             |                     |          | fewer past a budget:       |
     |                             |                     |          | sources.WORLD_RAY_BUDGET)  |
+    | translucent_bounce          | bool                | False    | final gather: translucent  |
+    |                             |                     |          | surfaces pass light off    |
+    |                             |                     |          | other surfaces too, not    |
+    |                             |                     |          | the lights' alone (a model |
+    |                             |                     |          | that follows translucent   |
+    |                             |                     |          | bounces: two-pass GI)      |
     | seed                        | int                 | 0        | RNG seed of the estimators |
     | clusters                    | bool                | True     | auto may solve the patches |
     |                             |                     |          | of finely tessellated      |
@@ -145,6 +151,7 @@ class RadiositySettings:
     gather_rays: int = 16
     element_pairs: int = ELEMENT_PAIRS
     world_rays: int = WORLD_RAYS
+    translucent_bounce: bool = False
     seed: int = 0
     clusters: bool = True
     cluster_sources: bool = True
@@ -203,6 +210,8 @@ class FinalGatherSettings:
     |                  |          |         | where they escape, the patch solution where they |
     |                  |          |         | meet a surface (`back_exitance`; 0: direct light |
     |                  |          |         | only there)                                      |
+    | translucent_bounce | bool   | False   | a translucent surface passes the light reflected |
+    |                  |          |         | onto its far side too (`side_irradiance`)        |
     | element_pairs    | >= 0     | 50000   | element-to-patch pairs the indirect light may be |
     |                  |          |         | gathered over (`elements.py`: patches split into |
     |                  |          |         | 4^k elements while within it; 0: never)          |
@@ -214,6 +223,7 @@ class FinalGatherSettings:
     patch_samples: int = 2
     seed: int = 0
     world_rays: int = 0
+    translucent_bounce: bool = False
     element_pairs: int = ELEMENT_PAIRS
 
     def __post_init__(self) -> None:
@@ -228,4 +238,5 @@ def gather_settings(settings: RadiositySettings) -> FinalGatherSettings:
     return FinalGatherSettings(emitter_rays=settings.gather_rays, seed=settings.seed,
                                patch_samples=settings.samples_per_side,
                                world_rays=settings.world_rays,
+                               translucent_bounce=settings.translucent_bounce,
                                element_pairs=settings.element_pairs)

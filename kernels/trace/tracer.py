@@ -1007,7 +1007,8 @@ class Tracer:
                     sheen_light = None if fabric is None else np.zeros_like(h.p)
                     lit, lambert = self.direct(h, wo, base_lit_w, lobes, hit_strata,
                                                (hits.tri, bary), fabric, sheen_light)
-                    lit = lit + self._translucent_direct(h, wo, m, under)
+                    if self.diffuse is None:  # else the solution carries it
+                        lit = lit + self._translucent_direct(h, wo, m, under)
             if self.diffuse is not None:
                 with self.clock("diffuse lookup"):
                     reflected = self.diffuse(hits.tri, bary, dirs, h.front, entered == 0,

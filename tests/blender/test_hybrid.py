@@ -84,3 +84,24 @@ def test_under_a_bright_world_the_hybrid_matches_cycles_lit_by_it_too():
     print(f"relMSE {rel_mse(ours, theirs):.2e}, against Cycles unlit by the world "
           f"{rel_mse(ours, unlit):.2e}")
     assert rel_mse(ours, theirs) < 3e-3
+
+
+def test_the_hybrid_passes_a_back_lit_leafs_light_once():
+    """The back-lit leaf card over a grey floor under a blue sky: pass 1's gather passes all the
+    light on the leaf's far side through its Translucent half (`translucent_bounce`, as global
+    illumination follows translucent bounces), and pass 2 takes it from there instead of adding
+    the lamps' share again. Against Cycles' global illumination, 256 samples, 80 x 60: relMSE
+    7.8e-4; the lamps' light passed by pass 2 alone (the sky and the floor's not at all), 3.4e-2,
+    and passed by both passes, 2.7e-2."""
+    from blender_parts import backlit_leaf
+
+    from classic_bake.addon import cycles as cr
+
+    scene = backlit_leaf((0.3, 0.6, 0.9), floor=True)
+    resolution = (80, 60)
+    ours = drain(hybrid_steps(bridge.snapshot(resolution=resolution), HybridSettings(),
+                              resolution)).image
+    theirs, _ = cr.render_camera(scene, cr.global_illumination(8, world_lighting=True), 256,
+                                 resolution=resolution)
+    print(f"relMSE {rel_mse(ours, theirs):.2e}")
+    assert rel_mse(ours, theirs) < 3e-3
