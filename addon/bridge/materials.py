@@ -66,6 +66,12 @@ class Relief:
     bump_strength: float = 1.0
     bump_distance: float = 1.0
 
+    def fields(self) -> dict:
+        """The `Material` fields of this relief."""
+        return dict(normal_texture=self.normal_texture, normal_strength=self.normal_strength,
+                    height_texture=self.height_texture, bump_strength=self.bump_strength,
+                    bump_distance=self.bump_distance)
+
 
 def mix_materials(name: str, parts: list, ignored: list) -> Material:
     """One `Material` for the weighted sum of parts [(weight, Material)] (a Mix Shader's 1 - Fac
@@ -506,10 +512,13 @@ class MaterialReader:
             return self._mixed(name, node, ignored, depth)
         if kind == "BSDF_PRINCIPLED":
             return self._principled(name, node, ignored)
+        # Every BSDF's Normal input as the Principled's: a normal map or a bump on it.
+        relief = self._normal(node.inputs["Normal"], ignored).fields() if "Normal" in node.inputs \
+            else {}
         if kind == "BSDF_DIFFUSE":
             color, tex = self._color(node.inputs["Color"], ignored)
             return Material(name=name, base_color=color, base_color_texture=tex, specular=0.0,
-                            ignored=tuple(ignored))
+                            ignored=tuple(ignored), **relief)
         if kind == "EMISSION":
             emission, tex = self._emission(node.inputs["Color"], node.inputs["Strength"], ignored)
             return Material(name=name, base_color=np.zeros(3, np.float32), specular=0.0,
@@ -521,12 +530,15 @@ class MaterialReader:
             tint = np.clip(color, 0.0, None).astype(np.float32)  # its reflection's too
             return Material(name=name, base_color=tint**2, transmission=1.0, glass_tint=tint,
                             roughness=self._value(node.inputs["Roughness"], ignored),
-                            ior=self._value(node.inputs["IOR"], ignored), ignored=tuple(ignored))
+                            ior=self._value(node.inputs["IOR"], ignored), ignored=tuple(ignored),
+                            **relief)
         if kind in ("BSDF_GLOSSY", "BSDF_ANISOTROPIC"):
             color, tex = self._color(node.inputs["Color"], ignored)
             return Material(name=name, base_color=color, base_color_texture=tex, metallic=1.0,
                             roughness=self._value(node.inputs["Roughness"], ignored),
-                            ignored=tuple(ignored))
+                            ignored=tuple(ignored), **relief)
+        if kind == "BSDF_METALLIC":
+            return self._metallic(name, node, ignored, relief)
         if kind == "BSDF_SHEEN":  # added beside a surface, not layered over it
             color, color_texture = self._color(node.inputs["Color"], ignored)
             rough, rough_texture = self._number(node.inputs["Roughness"], ignored)
@@ -555,12 +567,13 @@ class MaterialReader:
             return Material(name=name, base_color=tint**2, transmission=1.0,
                             glass_tint=np.zeros(3, np.float32),
                             roughness=self._value(node.inputs["Roughness"], ignored),
-                            ior=self._value(node.inputs["IOR"], ignored), ignored=tuple(ignored))
+                            ior=self._value(node.inputs["IOR"], ignored), ignored=tuple(ignored),
+                            **relief)
         if kind == "BSDF_TRANSLUCENT":  # light from behind the surface alone
             color, _ = self._color(node.inputs["Color"], ignored, textures=False)
             return Material(name=name, base_color=np.zeros(3, np.float32), specular=0.0,
                             translucent=np.clip(color, 0.0, None).astype(np.float32),
-                            ignored=tuple(ignored))
+                            ignored=tuple(ignored), **relief)
         if kind == "HOLDOUT":  # no light at all
             return Material(name=name, base_color=np.zeros(3, np.float32), specular=0.0,
                             ignored=tuple(ignored))
@@ -571,6 +584,36 @@ class MaterialReader:
                             ignored=tuple(ignored))
         ignored.append(f"surface shader '{node.bl_idname}' is not modelled: grey diffuse used")
         return Material(name=name, ignored=tuple(ignored))
+
+    def _metallic(self, name: str, node, ignored: list, relief: dict) -> Material:
+        """A Metallic BSDF (Blender 4.3+) as a metal of the kernels' Fresnel (Schlick's, from
+        F0): its Base Color (textures too) in F82 mode; in Physical Conductor mode the normal
+        incidence reflectance of its complex IOR n + ik, ((n - 1)^2 + k^2) / ((n + 1)^2 + k^2)
+        per channel. Its Edge Tint (the F82 tint: white is Schlick's curve), anisotropy and
+        thin film are noted when they would change it."""
+        inputs = node.inputs
+        roughness, roughness_tex = self._number(inputs["Roughness"], ignored)
+        if node.fresnel_type == "PHYSICAL_CONDUCTOR":
+            n = self._color(inputs["IOR"], ignored, textures=False)[0].astype(np.float64)
+            k = self._color(inputs["Extinction"], ignored, textures=False)[0].astype(np.float64)
+            color = (((n - 1.0) ** 2 + k * k) / ((n + 1.0) ** 2 + k * k)).astype(np.float32)
+            tex = None
+            ignored.append("a Metallic BSDF's physical conductor Fresnel is taken as Schlick's "
+                           "curve from its reflectance at normal incidence")
+        else:
+            color, tex = self._color(inputs["Base Color"], ignored)
+            edge, _ = self._color(inputs["Edge Tint"], [], textures=False)
+            if inputs["Edge Tint"].is_linked or not np.allclose(edge, 1.0, atol=1e-3):
+                ignored.append("a Metallic BSDF's Edge Tint is not modelled (Schlick's curve, "
+                               "as a white tint gives)")
+        if inputs["Anisotropy"].is_linked or inputs["Anisotropy"].default_value != 0.0:
+            ignored.append("a Metallic BSDF's anisotropy is not modelled (isotropic)")
+        film = inputs.get("Thin Film Thickness")
+        if film is not None and (film.is_linked or film.default_value > 0.0):
+            ignored.append("a Metallic BSDF's thin film is not modelled")
+        return Material(name=name, base_color=color, base_color_texture=tex, metallic=1.0,
+                        roughness=roughness, roughness_texture=roughness_tex,
+                        ignored=tuple(ignored), **relief)
 
     def _mixed(self, name: str, node, ignored: list, depth: int) -> Material:
         """A Mix Shader (weights 1 - Fac and Fac; a Fac fed by a node the reader cannot hold
@@ -871,12 +914,8 @@ class MaterialReader:
             roughness_texture=roughness_tex,
             alpha=alpha,
             alpha_texture=alpha_tex,
-            normal_texture=relief.normal_texture,
-            normal_strength=relief.normal_strength,
-            height_texture=relief.height_texture,
-            bump_strength=relief.bump_strength,
-            bump_distance=relief.bump_distance,
             ignored=tuple(ignored),
+            **relief.fields(),
             **coat,
             **sheen,
         )
