@@ -574,9 +574,16 @@ class MaterialReader:
             return Material(name=name, base_color=np.zeros(3, np.float32), specular=0.0,
                             translucent=np.clip(color, 0.0, None).astype(np.float32),
                             ignored=tuple(ignored), **relief)
-        if kind == "HOLDOUT":  # no light at all
+        if kind in ("HOLDOUT", "EEVEE_SPECULAR"):  # no light at all (Cycles has no closure for
+            if kind == "EEVEE_SPECULAR":  # the EEVEE node: black in its renders, measured)
+                ignored.append("an EEVEE Specular shader: black, as Cycles renders it")
             return Material(name=name, base_color=np.zeros(3, np.float32), specular=0.0,
                             ignored=tuple(ignored))
+        if kind == "SUBSURFACE_SCATTERING":  # the light it spreads under the surface, left out
+            color, tex = self._color(node.inputs["Color"], ignored)
+            ignored.append("a Subsurface Scattering shader is taken as a Diffuse BSDF of its colour")
+            return Material(name=name, base_color=color, base_color_texture=tex, specular=0.0,
+                            ignored=tuple(ignored), **relief)
         if node.bl_idname.startswith(VOLUME_SHADER_PREFIX):
             ignored.append(f"volume shader '{node.bl_idname}' in the Surface slot: no surface "
                            f"(black), as Cycles renders it")

@@ -521,15 +521,21 @@ def test_two_shaders_mixed_by_a_mask_are_read_texel_by_texel(parts, mask, textur
 
 
 @pytest.mark.parametrize("shader, bound", [
-    ("translucent", 8e-3), ("ShaderNodeBsdfRefraction", 1.5e-2), ("ShaderNodeHoldout", 1e-3)])
-def test_translucent_refraction_and_holdout_shaders_read_as_cycles_renders_them(shader, bound):
+    ("translucent", 8e-3), ("ShaderNodeBsdfRefraction", 1.5e-2), ("ShaderNodeHoldout", 1e-3),
+    ("ShaderNodeSubsurfaceScattering", 5e-3), ("ShaderNodeEeveeSpecular", 1e-3)])
+def test_less_common_shaders_read_as_cycles_renders_them(shader, bound):
     """A sphere on a floor under a sun: half Diffuse, half Translucent (a closed solid: light
     from behind its surface never reaches it, so the Translucent half is black), a Refraction
-    BSDF (a glass that reflects nothing), a Holdout (black). Each was grey diffuse; against
-    Cycles at 96 x 72: 4.4e-3, 8.3e-3, 2.6e-4 (grey diffuse: 0.27, 0.097, 1.9)."""
+    BSDF (a glass that reflects nothing), a Holdout (black), a Subsurface Scattering shader
+    (colour (0.8, 0.5, 0.4), scale 0.05: a Diffuse of its colour, noted) and an EEVEE Specular
+    (black in Cycles). Each was grey diffuse; against Cycles at 96 x 72: 4.4e-3, 8.3e-3,
+    2.6e-4, 1.8e-3, 2.6e-4 (grey diffuse: 0.27, 0.097, 1.9, 0.088, 1.9)."""
     scene = lit_floor()
     mat, tree, out = bare_material("Odd")
     node = translucent_mix(tree) if shader == "translucent" else tree.nodes.new(shader)
+    if shader == "ShaderNodeSubsurfaceScattering":
+        node.inputs["Color"].default_value = (0.8, 0.5, 0.4, 1.0)
+        node.inputs["Scale"].default_value = 0.05
     tree.links.new(node.outputs[0], out.inputs["Surface"])
     smooth_sphere(mat)
     snap, error = traced_against_cycles(scene)
