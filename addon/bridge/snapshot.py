@@ -38,6 +38,12 @@ def snapshot(context=None, request: SnapshotRequest = DEFAULT_REQUEST,
         return _snapshot(context, request, resolution, list(unswitched))
 
 
+# Object types Cycles renders that are not meshes, nor turned into one by the depsgraph (as
+# curves, surfaces, text and metaballs are).
+UNMODELLED_GEOMETRY = {"CURVES": "hair curves", "POINTCLOUD": "a point cloud",
+                       "VOLUME": "a volume"}
+
+
 def _snapshot(context, request: SnapshotRequest, resolution: tuple[int, int] | None,
               ignored: list[str]) -> Scene:
     scene = context.scene
@@ -46,6 +52,7 @@ def _snapshot(context, request: SnapshotRequest, resolution: tuple[int, int] | N
     lights: list[Light] = []
     instance_counts: dict[str, int] = {}
     hidden: dict[str, tuple[str, ...]] = {}  # source object -> the rays Cycles hides it from
+    skipped: set[str] = set()  # objects of geometry the kernels do not read, noted once
 
     for inst in depsgraph.object_instances:
         obj = inst.object
@@ -57,6 +64,10 @@ def _snapshot(context, request: SnapshotRequest, resolution: tuple[int, int] | N
         # a MESH instance of its evaluated geometry parented to itself (4.5 and 5.2; the same
         # triangles, which Cycles renders once). Only MESH entries are read, and that instance
         # stands for the object itself.
+        if obj.type in UNMODELLED_GEOMETRY and source.name not in skipped:
+            skipped.add(source.name)  # once, however many times it is instanced
+            ignored.append(f"object '{source.name}' ({UNMODELLED_GEOMETRY[obj.type]}): Cycles "
+                           f"renders it, the kernels read meshes only; skipped")
         if obj.type not in ("MESH", "LIGHT"):
             continue
         if source.name_full not in hidden:

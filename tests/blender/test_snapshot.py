@@ -148,6 +148,23 @@ def test_curves_text_surfaces_and_metaballs_are_read_once():
     assert not any(o.is_instance for o in snap.objects)  # each is the object itself
 
 
+def test_hair_curves_and_point_clouds_are_skipped_with_a_note():
+    """Cycles renders hair curves and point clouds; the kernels read meshes only, so each such
+    object is named among what the snapshot leaves out, once however often it is instanced."""
+    bpy.ops.mesh.primitive_plane_add()
+    hair = bpy.data.hair_curves.new("Fur")
+    hair.add_curves([4, 4])
+    for k in range(2):  # the same data twice: noted by object
+        bpy.context.scene.collection.objects.link(bpy.data.objects.new(f"Fur{k}", hair))
+    cloud = bpy.data.objects.new("Dust", bpy.data.pointclouds.new("Dust"))
+    bpy.context.scene.collection.objects.link(cloud)
+    snap = bridge.snapshot()
+    assert [o.name for o in snap.objects] == ["Plane"]
+    notes = [why for why in snap.ignored if "the kernels read meshes only" in why]
+    assert len(notes) == 3 and sum("hair curves" in why for why in notes) == 2
+    assert any("'Dust' (a point cloud)" in why for why in notes)
+
+
 def test_material_ids_and_uvs_survive():
     obj = grid_object("Two")
     red, blue = bpy.data.materials.new("Red"), bpy.data.materials.new("Blue")
