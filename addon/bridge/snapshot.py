@@ -147,6 +147,9 @@ def _snapshot(context, request: SnapshotRequest, resolution: tuple[int, int] | N
             ignored.append("the scene has no camera")
         else:
             camera = read_camera(scene, scene.camera, resolution)
+            if scene.camera.type == "CAMERA" and scene.camera.data.dof.use_dof:
+                ignored.append(f"camera '{scene.camera.name}': depth of field is not modelled (a "
+                               f"pinhole camera; the Cycles models turn it off)")
     texture = read_world_texture(scene, render=request.world_render)
     world, why = read_world(scene, texture)
     ignored.extend(why)

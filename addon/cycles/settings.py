@@ -4,9 +4,10 @@
 Settings every model shares (`FIXED_SETTINGS`): Cycles on the CPU, denoising and adaptive
 sampling off, no sample clamping, no fast-GI approximation, no time limit, view-layer sample
 counts ignored, seed fixed (`CyclesModel.seed`), film exposure scale 1, opaque film, compositor
-and sequencer bypassed, one view layer, no border, no motion blur, path guiding off. The view
-transform is left alone: renders are written as scene-linear OpenEXR, which no view transform or
-look touches (tests/blender/test_cycles_reference.py renders with AgX and a view exposure of +2).
+and sequencer bypassed, one view layer, no border, no motion blur, no depth of field (the scene
+camera's: the kernels' cameras are pinholes), path guiding off. The view transform is left
+alone: renders are written as scene-linear OpenEXR, which no view transform or look touches
+(tests/blender/test_cycles_reference.py renders with AgX and a view exposure of +2).
 """
 
 from __future__ import annotations
@@ -144,6 +145,9 @@ def configure(scene, model: CyclesModel, log: SettingsLog | None = None) -> Sett
             log.set(light, "angle", 0.0)
         if model.area_lights_as_points and light.type == "AREA":
             _shrink_area_light(log, light, obj)
+    camera = scene.camera
+    if camera is not None and camera.type == "CAMERA" and camera.data.dof.use_dof:
+        log.set(camera.data.dof, "use_dof", False)  # the kernels' cameras are pinholes
     if scene.world is not None and not model.world_lighting:
         log.set(scene.world.cycles_visibility, "diffuse", False)
     if not model.mesh_lights:

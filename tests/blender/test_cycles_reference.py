@@ -455,3 +455,20 @@ def test_converged_run_doubles_until_the_halves_agree():
     assert run.seconds == pytest.approx(0.001 * 256)
     capped, _ = cr.converged_run(fake, target_rel_mse=1e-9, start_samples=8, max_samples=64)
     assert capped.samples == 64
+
+
+def test_a_cameras_depth_of_field_is_turned_off_for_the_pinhole_kernels():
+    """A grey ball on a floor seen through a camera with depth of field on (f/0.5, focused 0.5 m
+    away: everything blurred): the models turn it off while Cycles renders, as the kernels'
+    cameras are pinholes, put it back after, and the snapshot notes it. The tracer against Cycles
+    at 96 x 72: relMSE 2.1e-4; against the blurred render 0.085."""
+    from blender_parts import lit_floor, principled, smooth_sphere, traced_against_cycles
+
+    scene = lit_floor()
+    smooth_sphere(principled("Grey", base=(0.5, 0.5, 0.5))[0])
+    dof = scene.camera.data.dof
+    dof.use_dof, dof.aperture_fstop, dof.focus_distance = True, 0.5, 0.5
+    snap, error = traced_against_cycles(scene)
+    print("relMSE against Cycles", error)
+    assert error < 2e-3
+    assert dof.use_dof and any("depth of field" in why for why in snap.ignored)
