@@ -24,6 +24,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..geometry.frames import tangent_frames
+from .optics import refract
 
 # The golden ratio's fractional part: the second coordinate of a Fibonacci lattice.
 GOLDEN_STEP = 0.6180339887498949
@@ -66,6 +67,14 @@ def ggx_reflections(n: np.ndarray, wo: np.ndarray, roughness: np.ndarray,
     Blender roughness (N,) (alpha = roughness^2), at points (M, 2) in [0, 1)^2: point j of
     hit which[j] (which (M,), else M = N and point j of hit j). A direction may fall below the
     surface (a shadowed share of the lobe): callers drop it."""
+    micro, wo = ggx_microfacets(n, wo, roughness, points, which)
+    return 2.0 * np.einsum("ij,ij->i", wo, micro)[:, None] * micro - wo
+
+
+def ggx_microfacets(n: np.ndarray, wo: np.ndarray, roughness: np.ndarray, points: np.ndarray,
+                    which: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """((M, 3) microfacet normals, (M, 3) each one's view) drawn from GGX's visible normals
+    (Heitz 2018) as `ggx_reflections` takes them."""
     t1, t2 = tangent_frames(n)
     local = np.stack([np.einsum("ij,ij->i", wo, t1), np.einsum("ij,ij->i", wo, t2),
                       np.einsum("ij,ij->i", wo, n)], axis=1)
@@ -92,8 +101,7 @@ def ggx_reflections(n: np.ndarray, wo: np.ndarray, roughness: np.ndarray,
     # Back to the ellipsoid configuration, then to world space.
     m = np.stack([alpha * nh[:, 0], alpha * nh[:, 1], np.maximum(nh[:, 2], 0.0)], 1)
     m /= np.maximum(np.linalg.norm(m, axis=1, keepdims=True), 1e-12)
-    micro = m[:, :1] * t1 + m[:, 1:2] * t2 + m[:, 2:] * n
-    return 2.0 * np.einsum("ij,ij->i", wo, micro)[:, None] * micro - wo
+    return m[:, :1] * t1 + m[:, 1:2] * t2 + m[:, 2:] * n, wo
 
 
 def shadowing_weights(n: np.ndarray, wo: np.ndarray, wi: np.ndarray,
@@ -125,6 +133,26 @@ def lobe_rays(n: np.ndarray, wo: np.ndarray, geometric: np.ndarray, roughness: n
     dirs = ggx_reflections(n, wo, roughness, points, which)
     g = np.where(np.einsum("ij,ij->i", dirs, geometric[which]) > 0.0,
                  shadowing_weights(n[which], wo[which], dirs, roughness[which]), 0.0)
+    return dirs, g
+
+
+def lobe_refractions(n: np.ndarray, wo: np.ndarray, geometric: np.ndarray,
+                     roughness: np.ndarray, eta: np.ndarray, points: np.ndarray,
+                     which: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rays across N rough glasses' transmission lobes: (M, 3) unit directions, the views wo
+    refracted (eta (N,) = n_from / n_to) through microfacet normals drawn as `ggx_reflections`
+    draws them, and (M,) their weights: the shadowing of the direction below the surface given
+    the view's masking (`shadowing_weights` of its mirror image above n: Smith's terms depend
+    on the angle to n alone); 0 where a facet reflects all (total internal reflection) or the
+    ray would not pass the geometric normals (N, 3). Shares of the lobe's light up to Fresnel,
+    as the reflected rays' are."""
+    roughness = np.asarray(roughness, np.float64)
+    micro, w = ggx_microfacets(n, wo, roughness, points, which)
+    dirs, tir = refract(-w, micro, np.asarray(eta, np.float64)[which])
+    normal = n[which]
+    mirror = dirs - 2.0 * np.einsum("ij,ij->i", dirs, normal)[:, None] * normal
+    passes = ~tir & (np.einsum("ij,ij->i", dirs, geometric[which]) < 0.0)
+    g = np.where(passes, shadowing_weights(normal, w, mirror, roughness[which]), 0.0)
     return dirs, g
 
 

@@ -50,9 +50,11 @@ from ..shading.alpha import lighting_coverage, ray_coverage, scene_alpha
 from ..shading.bump import bump_shadowing, valid_reflection
 from ..shading.glossy_lobe import (
     MEAN_FACTOR,
+    ggx_microfacets,
     lobe_mean,
     lobe_points,
     lobe_rays,
+    lobe_refractions,
 )
 from ..shading.material_maps import emission_at, material_values, translucent_colours
 from ..shading.optics import fresnel_dielectric, reflect, refract
@@ -642,13 +644,17 @@ class Tracer:
 
     def _lobe_rays(self, child: tuple, strong: np.ndarray, h: SurfaceHits, wo: np.ndarray,
                    rough: np.ndarray, lobe_w: np.ndarray, diffuse: np.ndarray,
-                   seeds: np.ndarray | None = None, strata: Strata | None = None) -> tuple:
+                   seeds: np.ndarray | None = None, strata: Strata | None = None,
+                   eta: np.ndarray | None = None) -> tuple:
         """The reflected generation `child` (origins, dirs, pixel, weight, sharp, entered, blur[,
         dp, dd]: the rays of hits `strong` (N,) bool) with each rough hit's mirror ray replaced by
         rays across its GGX lobe (`glossy_lobe.py`), sharing the ray's weight in proportion to
         their shadowing (`shadowing_weights`), each with the mirror ray's origin and differentials;
         and (pixel (M,), radiance (M, 3)) each such hit's pixel takes besides its rays
         (`_lobe_sky_mean`), None for an albedo.
+        eta (N,), when given: the generation is refracted, a rough glass's; its rays cross the
+        transmission lobe (`lobe_refractions`), each hit's normalised by their own sum, with
+        no sky correction.
 
         A lobe of albedo lobe_w (N, 3) over a diffuse reflectance `diffuse` (N, 3) takes
         ceil(share x lobe_rays) rays, share its largest part of the two in any channel: a metal
@@ -674,18 +680,23 @@ class Tracer:
         which, points = lobe_points(count, seeds, part, parts)
         if part is not None:  # the mean's directions: a whole lobe per sub-sample, own offset
             seeds[:, 2] += part
-        dirs, g = lobe_rays(h.glossy_normal[at], wo[at], h.ng[at], rough[at], points, which)
+        if eta is None:
+            dirs, g = lobe_rays(h.glossy_normal[at], wo[at], h.ng[at], rough[at], points, which)
+        else:
+            dirs, g = lobe_refractions(h.glossy_normal[at], wo[at], h.ng[at], rough[at], eta[at],
+                                       points, which)
         above = g > 0.0
         leaving = np.bincount(which[above], minlength=len(many))
         new = above & (leaving[which] > 0)
-        sky = s.output != "albedo"
-        mean, albedo = self._lobe_sky_mean(h, wo, rough, at, count, seeds, part is not None, sky)
+        sky = s.output != "albedo" and eta is None
+        own_sums = part is None or eta is not None
+        mean, albedo = self._lobe_sky_mean(h, wo, rough, at, count, seeds, not own_sums, sky)
         # Each ray's share of the lobe (`glossy_lobe.py`): its shadowing over its lobe's sum; a
         # sub-sample's rays, its part of the pixel's lattice, over the sum the whole lobe's
         # albedo with F = 1 gives (count x albedo, from the mean's many directions): normalised
         # part by part, the parts whose rays leave the surface less would weigh as much as the
         # others.
-        if part is None:
+        if own_sums:
             share_w = g / np.maximum(np.bincount(which, g, minlength=len(many)), 1e-300)[which]
         else:
             share_w = g / np.maximum(count * albedo, 1e-300)[which]
@@ -695,7 +706,7 @@ class Tracer:
             new = above
         source = many[which[new]]  # the mirror ray each new ray stands in for
         kept = np.ones(len(rows), bool)
-        kept[many[leaving > 0] if part is None else many] = False
+        kept[many[leaving > 0] if own_sums else many] = False
         fields = [child[0][source], dirs[new], child[2][source],
                   child[3][source] * share_w[new][:, None], child[4][source],
                   child[5][source], np.zeros(len(source))]  # across the lobe: no blur
@@ -712,6 +723,35 @@ class Tracer:
             lit = np.flatnonzero(leaving > 0) if part is None else np.arange(len(many))
             correction = (child[2][many[lit]], child[3][many[lit]] * (mean[lit] - traced[lit]))
         return tuple(out), correction
+
+    @staticmethod
+    def _facet_rays(rough_glass: np.ndarray, h: SurfaceHits, dirs: np.ndarray, wo: np.ndarray,
+                    rough: np.ndarray, eta: np.ndarray, cos_o: np.ndarray, r_dir: np.ndarray,
+                    t_dir: np.ndarray, tir: np.ndarray, depth: int) -> np.ndarray:
+        """In place, at the hits `rough_glass` (N,) bool: the reflected and refracted directions
+        r_dir, t_dir (N, 3) and total internal reflection tir (N,) about one microfacet normal
+        drawn from the glass's lobe (`ggx_microfacets`, at a point hashed from the hit and the
+        depth) instead of the surface's; returns the cosines (N,) Fresnel takes, the view's with
+        that facet there (else cos_o). Where either direction would leave on the wrong side of
+        the surface the hit keeps its smooth directions.
+
+        A ray inside a rough glass ball, sent across the lobe at the camera's hit, left it
+        through a smooth surface: past the critical angle all of it reflected inside, where
+        Cycles' facets let part of it out (the ball 5-10% dark)."""
+        cos_f = cos_o.copy()
+        rows = np.flatnonzero(rough_glass)
+        if not rows.size:
+            return cos_f
+        which, points = lobe_points(np.ones(len(rows), np.int64), h.p[rows] + depth)
+        micro, _ = ggx_microfacets(h.glossy_normal[rows], wo[rows], rough[rows], points, which)
+        t_m, tir_m = refract(dirs[rows], micro, eta[rows])
+        r_m = reflect(dirs[rows], micro)
+        fits = ((np.einsum("ij,ij->i", r_m, h.ng[rows]) > 0.0)
+                & (tir_m | (np.einsum("ij,ij->i", t_m, h.ng[rows]) < 0.0)))
+        at, micro = rows[fits], micro[fits]
+        r_dir[at], t_dir[at], tir[at] = r_m[fits], t_m[fits], tir_m[fits]
+        cos_f[at] = np.einsum("ij,ij->i", wo[at], micro)
+        return cos_f
 
     def _lobe_sky(self, dirs: np.ndarray) -> np.ndarray:
         """(N, 3) the control variate's function of a rough lobe's ray directions dirs (N, 3)
@@ -1081,7 +1121,11 @@ class Tracer:
             # glass: Fresnel split between the reflected and the refracted ray
             # (a rough glass's two rays stand for its lobes, as a rough layer's mirror ray does)
             glass = (trans > 0) & (metallic < 1) & glossy_on
-            f_g = fresnel_dielectric(cos_o, eta)
+            cos_f = cos_o
+            if depth > 0:  # past the camera's hit: a rough glass's facets (`_facet_rays`)
+                cos_f = self._facet_rays(glass & (rough >= s.mirror_roughness), h, dirs, wo,
+                                         rough, eta, cos_o, r_dir, t_dir, tir, depth)
+            f_g = fresnel_dielectric(cos_f, eta)
             glass_w = ((1.0 - metallic) * trans)[:, None]
             refl_w = mirror_w + np.where(glass[:, None], glass_w * f_g[:, None] * self.glass_tint[m],
                                          0.0)
@@ -1102,25 +1146,30 @@ class Tracer:
                 refl_w, refr_w, base_lobe = refl_w * under, refr_w * under, mirror_w * under
                 coat_refl = (coat_w * coat_e)[:, None] * np.ones((1, 3))
                 coat_generation = [(coat_refl, r_dir, 1.0, after_reflection, wrong_r, about_r,
-                                    self.coat_roughness[m], coat_refl)]
+                                    self.coat_roughness[m], coat_refl, None)]
+            # Each generation's lobe: its roughness and albedo, and for the refracted one the
+            # relative IOR it passes (the rays across a rough glass's transmission lobe).
             generations = [(refl_w, r_dir, 1.0, after_reflection, wrong_r, about_r, rough,
-                            base_lobe),
-                           (refr_w, t_dir, -1.0, after_refraction, wrong, h.ng, None, None),
+                            base_lobe, None),
+                           (refr_w, t_dir, -1.0, after_refraction, wrong, h.ng, rough, refr_w,
+                            eta),
                            *coat_generation]
             if keep is not None:  # all of them under the sheen
-                generations = [(w * keep[:, None], *rest[:-1],
-                                None if rest[-1] is None else rest[-1] * keep[:, None])
+                generations = [(w * keep[:, None], *rest[:-2],
+                                None if rest[-2] is None else rest[-2] * keep[:, None], rest[-1])
                                for w, *rest in generations]
             # per generation spawned: (strong (N,) bool, side, bent (N,) bool, the normal the bent
-            # rays turned about (N, 3)); and the roughness and albedo of the lobe it reflects
-            # along (None: refraction)
+            # rays turned about (N, 3)); and the roughness, albedo and relative IOR (None: a
+            # reflection) of its lobe
             spawned, lobes_of = [], []
-            for w_new, d_new, side, seen, bent, about, lobe_rough, lobe_w in generations:
-                # rays off smooth surfaces see area lamps (`sharp`)
-                sees = sharp & (lobe_rough < s.mirror_roughness if lobe_rough is not None
-                                else smooth)
-                lobe_blur = blur if lobe_rough is None else np.where(
-                    lobe_rough >= s.mirror_roughness, np.maximum(blur, lobe_rough), blur)
+            for w_new, d_new, side, seen, bent, about, lobe_rough, lobe_w, eta_new in generations:
+                # rays off smooth surfaces see area lamps (`sharp`); a refracted ray one lobe's
+                # blur no more than its parent's
+                reflected_rough = lobe_rough if eta_new is None else None
+                sees = sharp & (reflected_rough < s.mirror_roughness
+                                if reflected_rough is not None else smooth)
+                lobe_blur = blur if reflected_rough is None else np.where(
+                    reflected_rough >= s.mirror_roughness, np.maximum(blur, reflected_rough), blur)
                 w_total = weight * w_new
                 w_max = max_of_three(w_total)
                 alive = w_max > 0.0
@@ -1131,7 +1180,7 @@ class Tracer:
                     children.append((o_new, d_new[strong], pixel[strong], w_total[strong],
                                      sees[strong], seen[strong], lobe_blur[strong]))
                     spawned.append((strong, side, bent, about))
-                    lobes_of.append((lobe_rough, lobe_w))
+                    lobes_of.append((lobe_rough, lobe_w, eta_new))
             if not children:
                 break
             carry = follow and depth < s.max_depth  # the last generation filters no texture
@@ -1153,13 +1202,14 @@ class Tracer:
                 if keep is not None:
                     diffuse_reflectance = diffuse_reflectance * keep[:, None]
                 with self.clock("glossy lobes"):
-                    for k, ((strong, *_), (lobe_rough, lobe_w)) in enumerate(
+                    for k, ((strong, *_), (lobe_rough, lobe_w, eta_k)) in enumerate(
                             zip(spawned, lobes_of, strict=True)):
                         if lobe_rough is None:
                             continue
                         children[k], correction = self._lobe_rays(
                             children[k], strong, h, wo, lobe_rough, lobe_w, diffuse_reflectance,
-                            None if seeds is None else seeds[pixel], strata_rows(strata, pixel))
+                            None if seeds is None else seeds[pixel], strata_rows(strata, pixel),
+                            eta_k)
                         if correction is not None:
                             _scatter_add(result, *correction)
                             if untextured is not None:
