@@ -902,6 +902,10 @@ class MaterialReader:
             weight = self._read(inputs["Subsurface Weight"], [])  # through groups: their values
             if weight is None or weight.texture is not None or weight.const[0] > 0.0:
                 ignored.append("Subsurface Weight is not modelled")
+        if "Specular Tint" in inputs:  # 4.0+: F0's tint on a dielectric, F82's on a metal
+            tint = inputs["Specular Tint"]
+            if tint.is_linked or not np.allclose(tint.default_value[:3], 1.0, atol=1e-3):
+                ignored.append("Specular Tint is not modelled (white)")
         sheen = self._sheen(inputs, ignored)
         alpha, alpha_tex = self._alpha(inputs["Alpha"], ignored) if "Alpha" in inputs else (1.0, None)
         relief = self._normal(inputs["Normal"], ignored)
