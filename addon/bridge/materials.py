@@ -142,6 +142,8 @@ def mix_materials(name: str, parts: list, ignored: list) -> Material:
     return Material(
         name=name, base_color=base.astype(np.float32), base_color_texture=texture,
         metal_color=None if tint is None else tint.astype(np.float32),
+        metal_edge=next((m.metal_edge for w, m in parts if w * m.metallic > 0.0
+                         and m.metal_edge is not None), None),
         metallic=metal / total,
         roughness=float(mean([m.roughness for _, m in parts], m_w + t_w, weights)),
         ior=float(mean([m.ior for _, m in parts], t_w, weights)),
@@ -593,11 +595,11 @@ class MaterialReader:
         return Material(name=name, ignored=tuple(ignored))
 
     def _metallic(self, name: str, node, ignored: list, relief: dict) -> Material:
-        """A Metallic BSDF (Blender 4.3+) as a metal of the kernels' Fresnel (Schlick's, from
-        F0): its Base Color (textures too) in F82 mode; in Physical Conductor mode the normal
-        incidence reflectance of its complex IOR n + ik, ((n - 1)^2 + k^2) / ((n + 1)^2 + k^2)
-        per channel. Its Edge Tint (the F82 tint: white is Schlick's curve), anisotropy and
-        thin film are noted when they would change it."""
+        """A Metallic BSDF (Blender 4.3+) as a metal: in F82 mode its Base Color (textures too)
+        and Edge Tint, the F82-tint Fresnel Cycles uses (`Material.metal_edge`); in Physical
+        Conductor mode Schlick's curve from the normal incidence reflectance of its complex IOR
+        n + ik, ((n - 1)^2 + k^2) / ((n + 1)^2 + k^2) per channel (noted). Anisotropy and thin
+        film are noted when they would change it."""
         inputs = node.inputs
         roughness, roughness_tex = self._number(inputs["Roughness"], ignored)
         if node.fresnel_type == "PHYSICAL_CONDUCTOR":
@@ -607,12 +609,11 @@ class MaterialReader:
             tex = None
             ignored.append("a Metallic BSDF's physical conductor Fresnel is taken as Schlick's "
                            "curve from its reflectance at normal incidence")
+            edge = None
         else:
             color, tex = self._color(inputs["Base Color"], ignored)
-            edge, _ = self._color(inputs["Edge Tint"], [], textures=False)
-            if inputs["Edge Tint"].is_linked or not np.allclose(edge, 1.0, atol=1e-3):
-                ignored.append("a Metallic BSDF's Edge Tint is not modelled (Schlick's curve, "
-                               "as a white tint gives)")
+            tint, _ = self._color(inputs["Edge Tint"], ignored, textures=False)
+            edge = None if np.allclose(tint, 1.0, atol=1e-3) else np.clip(tint, 0.0, 1.0)
         if inputs["Anisotropy"].is_linked or inputs["Anisotropy"].default_value != 0.0:
             ignored.append("a Metallic BSDF's anisotropy is not modelled (isotropic)")
         film = inputs.get("Thin Film Thickness")
@@ -620,6 +621,7 @@ class MaterialReader:
             ignored.append("a Metallic BSDF's thin film is not modelled")
         return Material(name=name, base_color=color, base_color_texture=tex, metallic=1.0,
                         roughness=roughness, roughness_texture=roughness_tex,
+                        metal_edge=None if edge is None else edge.astype(np.float32),
                         ignored=tuple(ignored), **relief)
 
     def _mixed(self, name: str, node, ignored: list, depth: int) -> Material:
@@ -902,10 +904,14 @@ class MaterialReader:
             weight = self._read(inputs["Subsurface Weight"], [])  # through groups: their values
             if weight is None or weight.texture is not None or weight.const[0] > 0.0:
                 ignored.append("Subsurface Weight is not modelled")
-        if "Specular Tint" in inputs:  # 4.0+: F0's tint on a dielectric, F82's on a metal
-            tint = inputs["Specular Tint"]
-            if tint.is_linked or not np.allclose(tint.default_value[:3], 1.0, atol=1e-3):
-                ignored.append("Specular Tint is not modelled (white)")
+        edge = None  # 4.0+: Specular Tint is F0's tint on a dielectric, F82's on a metal
+        if "Specular Tint" in inputs:
+            tint, _ = self._color(inputs["Specular Tint"], ignored, textures=False)
+            if not np.allclose(tint, 1.0, atol=1e-3):
+                edge = np.clip(tint, 0.0, 1.0).astype(np.float32)
+                if metallic < 1.0 or metallic_tex is not None:
+                    ignored.append("Specular Tint on the dielectric part is not modelled (white); "
+                                   "the metal's is its F82 tint")
         sheen = self._sheen(inputs, ignored)
         alpha, alpha_tex = self._alpha(inputs["Alpha"], ignored) if "Alpha" in inputs else (1.0, None)
         relief = self._normal(inputs["Normal"], ignored)
@@ -925,6 +931,7 @@ class MaterialReader:
             roughness_texture=roughness_tex,
             alpha=alpha,
             alpha_texture=alpha_tex,
+            metal_edge=edge,
             ignored=tuple(ignored),
             **relief.fields(),
             **coat,

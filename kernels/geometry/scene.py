@@ -112,6 +112,10 @@ class Material:
     | metal_color        | [0, 1]^3  | None    | the metal part's tint where it is not the base |
     |                    |           |         | colour (a Glossy BSDF mixed over a Diffuse     |
     |                    |           |         | one); None: the base colour                    |
+    | metal_edge         | [0, 1]^3  | None    | the metal's F82 tint (a Metallic BSDF's Edge   |
+    |                    |           |         | Tint, a Principled metal's Specular Tint): its |
+    |                    |           |         | reflectance near 82 degrees is Schlick's times |
+    |                    |           |         | this (`optics.fresnel_f82`); None: white       |
     | glass_tint         | [0, 1]^3  | None    | what a glass's reflection is tinted by (a      |
     |                    |           |         | Glass BSDF's colour); None: white, as the      |
     |                    |           |         | Principled reflects                            |
@@ -174,6 +178,7 @@ class Material:
     bump_strength: float = 1.0
     bump_distance: float = 1.0
     metal_color: np.ndarray | None = None
+    metal_edge: np.ndarray | None = None
     glass_tint: np.ndarray | None = None
     emission_texture: Texture | None = None
     metallic_texture: Texture | None = None

@@ -59,6 +59,27 @@ def fresnel_schlick(cos_i: np.ndarray, f0: np.ndarray) -> np.ndarray:
     return f0 + (1.0 - f0) * c[:, None]
 
 
+# The F82-tint model's angle: cos = 1/7 (about 81.8 degrees), where the tint scales Schlick's
+# reflectance (Hoffman 2019, as Cycles' metals take it).
+F82_COS = 1.0 / 7.0
+
+
+def f82_factor(f0: np.ndarray, tint: np.ndarray) -> np.ndarray:
+    """(..., 3) b of the F82-tint Fresnel, F(cos) = Schlick(cos) - b cos (1 - cos)^6, for F0 and
+    tint (..., 3): chosen so F(F82_COS) = tint x Schlick(F82_COS); 0 for a white tint."""
+    f = 1.0 - F82_COS
+    f0 = np.asarray(f0, np.float64)
+    schlick = f0 + (1.0 - f0) * f**5
+    return schlick * (1.0 - np.asarray(tint, np.float64)) / (F82_COS * f**6)
+
+
+def fresnel_f82(cos_i: np.ndarray, f0: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(N, 3) the F82-tint Fresnel of a metal: Schlick's less b cos (1 - cos)^6 (`f82_factor`),
+    within [0, 1]; cos_i (N,), f0 and b (N, 3)."""
+    c = np.clip(np.abs(cos_i), 0.0, 1.0)
+    return np.clip(fresnel_schlick(c, f0) - np.asarray(b) * (c * (1.0 - c) ** 6)[:, None], 0.0, 1.0)
+
+
 def critical_angle(n_inside: float, n_outside: float = 1.0) -> float:
     """Angle (rad) beyond which light inside a medium of `n_inside` is totally reflected."""
     return float(np.arcsin(n_outside / n_inside))

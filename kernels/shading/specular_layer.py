@@ -37,7 +37,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from .optics import fresnel_dielectric, fresnel_schlick
+from .optics import f82_factor, fresnel_dielectric, fresnel_schlick
 
 # Midpoint-rule points of the (u, phi) square: within 3e-4 (absolute) of 512 x 256 points at
 # roughness 0.1 to 1 and mu 0.2 to 1 (64 x 32: 4e-4).
@@ -115,6 +115,17 @@ def schlick_grazing_curve(mu: np.ndarray, roughness: float) -> np.ndarray:
     terms, i_dot_h = _lobe_terms(mu, roughness)
     grazing = (terms * (1.0 - np.clip(i_dot_h, 0.0, 1.0)) ** 5).mean(axis=(1, 2))
     return grazing / np.maximum(terms.mean(axis=(1, 2)), 1e-300)
+
+
+def f82_curve(mu: np.ndarray, roughness: float) -> np.ndarray:
+    """(K,) the mean over a GGX lobe (roughness, views mu (K,)) of the F82-tint model's term
+    (i.h) (1 - i.h)^6, weighted as the lobe reflects and normalised as `schlick_grazing_curve`:
+    a rough metal reflects b x this less than Schlick's curve gives. Roughness 0: mu (1 - mu)^6."""
+    mu = np.clip(np.atleast_1d(np.asarray(mu, np.float64)), 1e-4, 1.0)
+    terms, i_dot_h = _lobe_terms(mu, roughness)
+    c = np.clip(i_dot_h, 0.0, 1.0)
+    return (terms * c * (1.0 - c) ** 6).mean(axis=(1, 2)) / np.maximum(
+        terms.mean(axis=(1, 2)), 1e-300)
 
 
 @lru_cache(maxsize=256)
@@ -195,18 +206,32 @@ def energy_compensation(mu: np.ndarray, roughness: np.ndarray, f0: np.ndarray) -
     return 1.0 + f_ms * (1.0 - e) / e
 
 
-def metal_reflectance(tables: np.ndarray, material: np.ndarray, mu: np.ndarray, f0: np.ndarray,
+@dataclass(frozen=True)
+class MetalTables:
+    """Per material (M of them), what `metal_reflectance` reads: `schlick_grazing_curve` and
+    `f82_curve` at sqrt(mu) = 0, ..., 1 (M, MU_STEPS) each, and the F82 tint (M, 3) (white
+    where the material has none: Schlick's curve)."""
+
+    grazing: np.ndarray
+    f82: np.ndarray
+    edge: np.ndarray
+
+
+def metal_reflectance(tables: MetalTables, material: np.ndarray, mu: np.ndarray, f0: np.ndarray,
                       roughness: np.ndarray, smooth: np.ndarray) -> np.ndarray:
     """(N, 3) the share of the light around it a metal's lobe reflects toward a view at
-    |cos| = mu (N,), F0 (N, 3) its base colour: Schlick's at the view where `smooth` (N,) bool;
-    else F0 + (1 - F0) x the lobe's mean grazing term (`schlick_grazing_curve`, `tables` of
-    `metal_tables` and rows `material` (N,)) times what Cycles' restored multiple scattering keeps
-    of the lobe (E + F_ms (1 - E), `energy_compensation`: less than all for a coloured metal, each
-    bounce among the facets takes its tint) at Blender roughness (N,)."""
+    |cos| = mu (N,), F0 (N, 3) its base colour: the F82-tint Fresnel at the view where `smooth`
+    (N,) bool (`optics.fresnel_f82`: Schlick's for a white tint); else F0 + (1 - F0) x the lobe's
+    mean grazing term less b x its mean F82 term (`schlick_grazing_curve`, `f82_curve`; `tables`
+    of `metal_tables` and rows `material` (N,)) times what Cycles' restored multiple scattering
+    keeps of the lobe (E + F_ms (1 - E), `energy_compensation`: less than all for a coloured
+    metal, each bounce among the facets takes its tint) at Blender roughness (N,)."""
     mu = np.asarray(mu, np.float64)
-    grazing = np.where(smooth, (1.0 - np.clip(np.abs(mu), 0.0, 1.0)) ** 5,
-                       view_factors(tables, material, mu))
-    out = f0 + (1.0 - f0) * grazing[:, None]
+    c = np.clip(np.abs(mu), 0.0, 1.0)
+    grazing = np.where(smooth, (1.0 - c) ** 5, view_factors(tables.grazing, material, mu))
+    edge = np.where(smooth, c * (1.0 - c) ** 6, view_factors(tables.f82, material, mu))
+    b = f82_factor(f0, tables.edge[material])
+    out = np.clip(f0 + (1.0 - f0) * grazing[:, None] - b * edge[:, None], 0.0, 1.0)
     rows = np.flatnonzero(~np.asarray(smooth, bool))
     if rows.size:
         e, _ = lobe_albedo(mu[rows], roughness[rows])
@@ -308,6 +333,11 @@ def _grazing_table(roughness: float) -> tuple[float, ...]:
     return tuple(schlick_grazing_curve(np.linspace(0.0, 1.0, MU_STEPS) ** 2, roughness))
 
 
+@lru_cache(maxsize=256)
+def _f82_table(roughness: float) -> tuple[float, ...]:
+    return tuple(f82_curve(np.linspace(0.0, 1.0, MU_STEPS) ** 2, roughness))
+
+
 def coat_tables(materials) -> np.ndarray:
     """(M, MU_STEPS) per material, 1 - E(mu) of its coat (`Material.coat_roughness`, F0 of
     `coat_ior`), as `view_tables` holds its specular layer's; 1 where it has no coat."""
@@ -329,8 +359,13 @@ def coat_attenuation(coat: np.ndarray, coat_e: np.ndarray, tint: np.ndarray, ior
     return (1.0 - coat * coat_e)[:, None] * (1.0 + coat[:, None] * (tinted - 1.0))
 
 
-def metal_tables(materials) -> np.ndarray:
-    """(M, MU_STEPS) per material, `schlick_grazing_curve` at sqrt(mu) = 0, ..., 1, for
-    `view_factors`: a metal's reflectance at a view is F0 + (1 - F0) x the row's value there."""
+def metal_tables(materials) -> MetalTables:
+    """The materials' `MetalTables`: a metal's reflectance at a view is F0 + (1 - F0) x its
+    grazing row there, less b x its F82 row (`metal_reflectance`)."""
     rows = [_grazing_table(float(m.roughness)) for m in materials]
-    return np.array(rows).reshape(len(rows), MU_STEPS)
+    f82 = [_f82_table(float(m.roughness)) if m.metal_edge is not None else (0.0,) * MU_STEPS
+           for m in materials]
+    edge = [np.ones(3) if m.metal_edge is None else m.metal_edge for m in materials]
+    return MetalTables(np.array(rows).reshape(len(rows), MU_STEPS),
+                       np.array(f82, np.float64).reshape(len(rows), MU_STEPS),
+                       np.array(edge, np.float64).reshape(len(rows), 3))

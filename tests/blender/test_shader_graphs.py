@@ -21,6 +21,7 @@ from blender_parts import (
     bare_material,
     lit_floor,
     overhead_sun,
+    principled,
     smooth_sphere,
     traced_against_cycles,
     translucent_mix,
@@ -545,15 +546,16 @@ def test_less_common_shaders_read_as_cycles_renders_them(shader, bound):
 
 
 @pytest.mark.parametrize("fresnel, edge, bound, note", [
-    ("F82", (1.0, 1.0, 1.0), 2e-3, None), ("F82", None, 4e-3, "Edge Tint"),
+    ("F82", (1.0, 1.0, 1.0), 2e-3, None), ("F82", None, 2e-3, None),
     ("PHYSICAL_CONDUCTOR", None, 4e-3, "physical conductor")])
 def test_a_metallic_bsdf_reads_as_a_metal(fresnel, edge, bound, note):
     """A sphere of Blender 4.3's Metallic BSDF (base (0.9, 0.6, 0.3), roughness 0.3) on a floor
-    under a sun: a metal of F0 its Base Color (F82 mode) or the reflectance of its complex IOR
-    at normal incidence (Physical Conductor, the node's default copper-like n and k), Schlick's
-    curve from there. Against Cycles at 96 x 72: 5.3e-4 with a white edge tint (exactly
-    Schlick's), 1.5e-3 with the default tint and 1.2e-3 as a conductor (noted); read as grey
-    diffuse, 0.06 and 0.07."""
+    under a sun: a metal of F0 its Base Color and the F82-tint Fresnel of its Edge Tint (F82
+    mode), or Schlick's curve from the reflectance of its complex IOR at normal incidence
+    (Physical Conductor, the node's default copper-like n and k). Against Cycles at 96 x 72:
+    5.3e-4 with a white edge tint (exactly Schlick's), 4.4e-4 with the default tint (1.5e-3
+    with Schlick's curve) and 1.2e-3 as a conductor (noted); read as grey diffuse, 0.06 and
+    0.07."""
     scene = lit_floor()
     mat, tree, out = bare_material("Metal")
     metal = tree.nodes.new("ShaderNodeBsdfMetallic")
@@ -569,17 +571,35 @@ def test_a_metallic_bsdf_reads_as_a_metal(fresnel, edge, bound, note):
     read = next(m for m in snap.materials if m.name == "Metal")
     assert read.metallic == 1.0 and read.roughness == pytest.approx(0.3)
     assert any(note in why for why in read.ignored) if note else not read.ignored
+    assert (read.metal_edge is not None) == (fresnel == "F82" and edge is None)
     print(fresnel, edge, "relMSE against Cycles", error)
     assert error < bound
 
 
+def test_a_principled_metals_specular_tint_is_its_f82_tint():
+    """A Principled metal sphere (base (0.9, 0.6, 0.5), roughness 0.3) with Specular Tint
+    (0.5, 0.9, 0.5): on a metal Cycles takes it as the F82 tint, read as the Metallic BSDF's
+    Edge Tint is. Against Cycles at 96 x 72: relMSE 4.5e-4; Schlick's curve (the tint left
+    out) 3.3e-3."""
+    scene = lit_floor()
+    mat, bsdf = principled("Edged", base=(0.9, 0.6, 0.5), metallic=1.0)
+    bsdf.inputs["Roughness"].default_value = 0.3
+    bsdf.inputs["Specular Tint"].default_value = (0.5, 0.9, 0.5, 1.0)
+    smooth_sphere(mat)
+    snap, error = traced_against_cycles(scene)
+    read = next(m for m in snap.materials if m.name == "Edged")
+    np.testing.assert_allclose(read.metal_edge, (0.5, 0.9, 0.5))
+    assert not read.ignored, read.ignored
+    print("relMSE against Cycles", error)
+    assert error < 1.5e-3
+
+
 @pytest.mark.parametrize("shader", ["ShaderNodeBsdfDiffuse", "ShaderNodeBsdfMetallic"])
 def test_every_bsdfs_normal_input_takes_its_normal_map(shader):
-    """A plane of a Diffuse BSDF (or a Metallic BSDF of roughness 0.35, white edge tint) whose
-    Normal a tangent-space Normal Map of tilted tiles drives, under a sun, seen at 72 degrees:
-    read as the Principled's Normal is. Against Cycles at 80 x 60: the Diffuse 1.1e-4, the
-    Metallic 1.1e-2 (as a normal-mapped Principled metal: 9.9e-3); the Diffuse's map left out,
-    5.6e-2."""
+    """A plane of a Diffuse BSDF (or a Metallic BSDF of roughness 0.35) whose Normal a
+    tangent-space Normal Map of tilted tiles drives, under a sun, seen at 72 degrees: read as
+    the Principled's Normal is. Against Cycles at 80 x 60: the Diffuse 1.1e-4, the Metallic
+    8.7e-3 (a normal-mapped Principled metal: 9.9e-3); the Diffuse's map left out, 5.6e-2."""
     from blender_parts import lit_scene, normal_mapped, oblique_camera, plane, tilted_tiles
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
@@ -588,7 +608,6 @@ def test_every_bsdfs_normal_input_takes_its_normal_map(shader):
     bsdf = tree.nodes.new(shader)
     if shader == "ShaderNodeBsdfMetallic":
         bsdf.inputs["Roughness"].default_value = 0.35
-        bsdf.inputs["Edge Tint"].default_value = (1.0, 1.0, 1.0, 1.0)
     tree.links.new(bsdf.outputs[0], out.inputs["Surface"])
     normal_mapped(mat, bsdf, tilted_tiles())
     plane(mat, size=6.0)

@@ -7,8 +7,11 @@ import pytest
 from reference_data import reference
 
 from classic_bake.kernels.shading.optics import (
+    F82_COS,
     critical_angle,
+    f82_factor,
     fresnel_dielectric,
+    fresnel_f82,
     fresnel_schlick,
     reflect,
     refract,
@@ -69,3 +72,20 @@ def test_refraction_is_reversible():
     back, tir_back = refract(-t, n * -1, 1.5)
     assert not tir_back.any()
     np.testing.assert_allclose(back, -d, atol=1e-12)
+
+
+def test_the_f82_tint_scales_schlicks_curve_at_82_degrees_alone():
+    """The F82-tint Fresnel (a Metallic BSDF's Edge Tint, a Principled metal's Specular Tint):
+    F0 at normal incidence, tint x Schlick's value at cos = 1/7, 1 at grazing, and Schlick's curve
+    itself for a white tint."""
+    f0 = np.array([[0.9, 0.6, 0.3]])
+    tint = np.array([[0.695, 0.726, 0.77]])  # Blender's default Edge Tint
+    b = f82_factor(f0, tint)
+    cos = np.array([1.0, F82_COS, 0.0])
+    f = fresnel_f82(cos, np.repeat(f0, 3, 0), np.repeat(b, 3, 0))
+    schlick = fresnel_schlick(cos, f0[0])
+    np.testing.assert_allclose(f[0], f0[0], rtol=1e-12)
+    np.testing.assert_allclose(f[1], tint[0] * schlick[1], rtol=1e-12)
+    np.testing.assert_allclose(f[2], 1.0, rtol=1e-12)
+    np.testing.assert_allclose(fresnel_f82(cos, np.repeat(f0, 3, 0), np.zeros((3, 3))), schlick)
+    assert np.all(f82_factor(f0, np.ones((1, 3))) == 0.0)

@@ -10,6 +10,7 @@ from classic_bake.kernels.shading.specular_layer import (
     diffuse_factor,
     directional_albedo,
     energy_compensation,
+    f82_curve,
     layer_f0,
     lobe_albedo,
     schlick_grazing_curve,
@@ -156,6 +157,16 @@ def test_schlicks_grazing_term_over_a_lobe():
     wide = schlick_grazing_curve(mu, 0.5)
     assert wide[-1] < 0.5 * (1.0 - mu[-1]) ** 5
     assert np.all(np.diff(wide) > 0.0)  # still rising towards grazing
+
+
+def test_the_f82_term_over_a_lobe():
+    """The F82-tint model's term over a GGX lobe: roughness 0 exactly mu (1 - mu)^6; rougher,
+    its peak (at 82 degrees for a mirror) spreads, lower, over the views."""
+    mu = np.linspace(0.02, 1.0, 50)
+    np.testing.assert_allclose(f82_curve(mu, 0.0), mu * (1.0 - mu) ** 6, atol=1e-12)
+    wide = f82_curve(mu, 0.6)
+    assert wide.max() < (mu * (1.0 - mu) ** 6).max()
+    assert np.all(wide >= 0.0) and wide[-1] < 1e-3  # head on: nearly nothing
 
 
 def test_the_lobe_albedo_table_is_the_integral_sampled_another_way():
