@@ -39,6 +39,7 @@ from ..bake.camera_view import edge_pixels, stratified_offsets
 from ..geometry.alpha_occlusion import Layers, layered_hits, transmittance
 from ..geometry.bvh import BVH
 from ..geometry.camera import Strata, camera_rays, camera_reach, pixel_rays, strata_rows
+from ..geometry.frames import tangent_frames
 from ..geometry.intersect import Hits
 from ..geometry.scene import Scene, geometric_normals
 from ..geometry.vec import max_of_three
@@ -105,6 +106,10 @@ HOT_SAMPLES = 8
 # with 4, 0.0045 with 16; a roughness-1 metal dice under a photographed studio 1.9e-3 in 4.4 s,
 # 3.9e-3 in 3.5 s, 9.1e-4 in 6.3 s.
 SUBSAMPLE_LOBE_SHARE = 8
+# Rays a translucent camera hit gathers the light behind it with (`_translucent_gather`). A
+# back-lit leaf card over a sunlit floor against Cycles: relMSE 9.4e-4 with 4, 3.7e-4 with 8,
+# 3.1e-4 with 16 (the leaf's mean within 1.3%, 0.2%, 0.1%).
+TRANSLUCENT_RAYS = 8
 # An environment map read for reflected rays: (N, 3) world points, (N, 3) unit directions, (N,)
 # the surfaces' roughness -> (N, 3) radiance W/(m^2 sr) arriving at the points along the
 # directions (over a rough surface's lobe). A look-up with an `irradiance` attribute that is not
@@ -416,6 +421,46 @@ class Tracer:
         light, _ = self.direct(back, wo[on], np.ones(len(on)), [])
         out[on] = light if under is None else light * under[on]
         return out
+
+    def _translucent_gather(self, h: SurfaceHits, material: np.ndarray,
+                            under: np.ndarray | None, seeds: np.ndarray) -> np.ndarray:
+        """(N, 3) what a Translucent BSDF passes of the light the surfaces behind it reflect:
+        TRANSLUCENT_RAYS cosine-distributed rays from each translucent hit's back (a lattice
+        per hit, shifted by a hash of seeds (N, 3): its pixel), each meeting a surface whose
+        diffuse part the lamps light (`direct`), times colour / rays; under a coat, what the
+        coat lets through. Cycles' Whitted model follows a translucent bounce (a transmission
+        bounce): it sees what the lamps light behind a leaf (a floor), not the world (hidden
+        from diffuse-type rays) nor emitters (met by light sampling: `_translucent_direct`)."""
+        colour = self.translucent[material]
+        out = np.zeros_like(h.p)
+        on = np.flatnonzero(max_of_three(colour) > 0.0)
+        if not len(on):
+            return out
+        which, points = lobe_points(np.full(len(on), TRANSLUCENT_RAYS), seeds[on])
+        back = -h.ns[on]
+        t1, t2 = tangent_frames(back)
+        r, phi = np.sqrt(points[:, 0]), 2.0 * np.pi * points[:, 1]
+        dirs = ((r * np.cos(phi))[:, None] * t1[which] + (r * np.sin(phi))[:, None] * t2[which]
+                + np.sqrt(np.maximum(1.0 - points[:, 0], 0.0))[:, None] * back[which])
+        rows = np.flatnonzero(np.einsum("ij,ij->i", dirs, h.ng[on][which]) < 0.0)  # behind it
+        origins = h.p[on][which[rows]] - h.ng[on][which[rows]] * self.offset
+        hits, _ = self._hits(origins, dirs[rows], 0.0, camera=False)
+        met = np.flatnonzero(hits.tri >= 0)
+        if not len(met):
+            return out
+        hits = type(hits)(t=hits.t[met], tri=hits.tri[met], u=hits.u[met], v=hits.v[met])
+        seen = surface_at(self.scene, self.tri_normals, origins[met], dirs[rows[met]], hits,
+                          self.settings.shading)
+        mm = seen.material
+        dielectric = (1.0 - self.metallic[mm]) * (1.0 - self.transmission[mm])
+        wo = -dirs[rows[met]]
+        diffuse_w = dielectric * view_factors(self.layer_tables, mm,
+                                              np.einsum("ij,ij->i", wo, seen.ns))
+        light, _ = self.direct(seen, wo, diffuse_w, [])
+        gathered = np.zeros((len(on), 3))
+        _scatter_add(gathered, which[rows[met]], light)
+        out[on] = colour[on] * gathered / TRANSLUCENT_RAYS
+        return out if under is None else out * under
 
     def _fabric(self, tri: np.ndarray, bary: np.ndarray, material: np.ndarray) -> Fabric | None:
         """The sheen at hits (triangles (N,), barycentrics (N, 3), materials (N,)): colour and
@@ -1049,6 +1094,9 @@ class Tracer:
                                                (hits.tri, bary), fabric, sheen_light)
                     if self.diffuse is None:  # else the solution carries it
                         lit = lit + self._translucent_direct(h, wo, m, under)
+                        if depth == 0:
+                            lit = lit + self._translucent_gather(
+                                h, m, under, h.p if seeds is None else seeds[pixel])
             if self.diffuse is not None:
                 with self.clock("diffuse lookup"):
                     reflected = self.diffuse(hits.tri, bary, dirs, h.front, entered == 0,

@@ -611,16 +611,21 @@ def test_tinted_glass_passes_its_colour_as_cycles_does(shader):
     assert error < 2e-3
 
 
-def test_a_leaf_lit_from_behind_passes_its_translucent_light_as_cycles_does():
+@pytest.mark.parametrize("floor", [False, True])
+def test_a_leaf_lit_from_behind_passes_its_translucent_light_as_cycles_does(floor):
     """A leaf card (a plane half Diffuse, half Translucent) with the sun behind it, seen from
     the front: the diffuse half gets no sun, the translucent half passes colour / pi of the
-    sun's irradiance on its back (shadow rays leave from the back). Against Cycles at 96 x 72
-    (no floor, black world): relMSE 1.3e-4; the translucent half black gives 0.21."""
+    sun's irradiance on its back (shadow rays leave from the back) and, over a sunlit floor
+    under a blue sky, what the floor behind it reflects (`_translucent_gather`: Cycles' Whitted
+    model follows a translucent bounce; the sky is hidden from such rays). Against Cycles at
+    96 x 72: relMSE 1.3e-4 (no floor, black world; the translucent half black gives 0.21) and
+    3.7e-4 over the floor (the sun alone passed, 5.4e-3: the leaf 14% dark)."""
     from blender_parts import backlit_leaf, traced_against_cycles
 
-    _, error = traced_against_cycles(backlit_leaf())
+    scene = backlit_leaf((0.3, 0.6, 0.9), floor=True) if floor else backlit_leaf()
+    _, error = traced_against_cycles(scene)
     print("relMSE against Cycles", error)
-    assert error < 1e-3
+    assert error < (2e-3 if floor else 1e-3)
 
 
 def test_an_emissive_ball_on_the_floor_lights_it_as_cycles_does():
