@@ -904,6 +904,12 @@ class MaterialReader:
             weight = self._read(inputs["Subsurface Weight"], [])  # through groups: their values
             if weight is None or weight.texture is not None or weight.const[0] > 0.0:
                 ignored.append("Subsurface Weight is not modelled")
+        for socket, what in (("Thin Film Thickness", "Thin Film (iridescence)"),
+                             ("Diffuse Roughness", "Diffuse Roughness (Oren-Nayar)")):
+            if socket in inputs:  # 4.2+ and 4.3+: left out, noted where they change the look
+                value = self._read(inputs[socket], [])
+                if value is None or value.texture is not None or value.const[0] > 0.0:
+                    ignored.append(f"{what} is not modelled")
         edge = None  # 4.0+: Specular Tint is F0's tint on a dielectric, F82's on a metal
         if "Specular Tint" in inputs:
             tint, _ = self._color(inputs["Specular Tint"], ignored, textures=False)
