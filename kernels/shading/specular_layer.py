@@ -37,7 +37,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from .optics import f82_factor, fresnel_dielectric, fresnel_schlick
+from .optics import f82_factor, fresnel_dielectric, fresnel_f82, fresnel_schlick
 
 # Midpoint-rule points of the (u, phi) square: within 3e-4 (absolute) of 512 x 256 points at
 # roughness 0.1 to 1 and mu 0.2 to 1 (64 x 32: 4e-4).
@@ -227,15 +227,16 @@ def metal_reflectance(tables: MetalTables, material: np.ndarray, mu: np.ndarray,
     keeps of the lobe (E + F_ms (1 - E), `energy_compensation`: less than all for a coloured
     metal, each bounce among the facets takes its tint) at Blender roughness (N,)."""
     mu = np.asarray(mu, np.float64)
-    c = np.clip(np.abs(mu), 0.0, 1.0)
-    grazing = np.where(smooth, (1.0 - c) ** 5, view_factors(tables.grazing, material, mu))
-    edge = np.where(smooth, c * (1.0 - c) ** 6, view_factors(tables.f82, material, mu))
     b = f82_factor(f0, tables.edge[material])
-    out = np.clip(f0 + (1.0 - f0) * grazing[:, None] - b * edge[:, None], 0.0, 1.0)
+    out = fresnel_f82(mu, f0, b)
     rows = np.flatnonzero(~np.asarray(smooth, bool))
     if rows.size:
-        e, _ = lobe_albedo(mu[rows], roughness[rows])
-        out[rows] *= e[:, None] * energy_compensation(mu[rows], roughness[rows], f0[rows])
+        m, f0_r, mu_r = material[rows], f0[rows], mu[rows]
+        grazing = view_factors(tables.grazing, m, mu_r)[:, None]
+        edge = view_factors(tables.f82, m, mu_r)[:, None]
+        e, _ = lobe_albedo(mu_r, roughness[rows])
+        out[rows] = (np.clip(f0_r + (1.0 - f0_r) * grazing - b[rows] * edge, 0.0, 1.0)
+                     * e[:, None] * energy_compensation(mu_r, roughness[rows], f0_r))
     return out
 
 

@@ -278,12 +278,19 @@ def cosine_directions(normals: np.ndarray, rays: int, rng: np.random.Generator) 
     m = math.isqrt(k)
     u1 = (np.arange(k) // m + rng.random((p, k))) / m
     u2 = (np.arange(k) % m + rng.random((p, k))) / m + rng.random((p, 1))
-    radius, angle = np.sqrt(u1), 2.0 * np.pi * u2
     t1, t2 = tangent_frames(normals)
-    local = np.stack([radius * np.cos(angle), radius * np.sin(angle),
-                      np.sqrt(np.maximum(1.0 - u1, 0.0))], axis=-1)  # (p, k, 3)
-    return (local[..., :1] * t1[:, None] + local[..., 1:2] * t2[:, None]
-            + local[..., 2:] * normals[:, None])
+    return cosine_lift((t1[:, None], t2[:, None], normals[:, None]), u1, u2)
+
+
+def cosine_lift(frame: tuple, u1: np.ndarray, u2: np.ndarray) -> np.ndarray:
+    """(..., 3) unit directions cosine-distributed about the normals of `frame` (tangent,
+    bitangent, normal: unit (..., 3) each, broadcast against the points) at points (u1, u2)
+    (...) of the unit square: Malley's method, u1 -> radius sqrt(u1) (even over the disc), u2
+    -> angle 2 pi u2, lifted onto the hemisphere."""
+    t1, t2, n = frame
+    radius, angle = np.sqrt(u1), 2.0 * np.pi * u2
+    return ((radius * np.cos(angle))[..., None] * t1 + (radius * np.sin(angle))[..., None] * t2
+            + np.sqrt(np.maximum(1.0 - u1, 0.0))[..., None] * n)
 
 
 def _sky_rays(corners: np.ndarray, normals: np.ndarray, parents: np.ndarray, occluded,

@@ -70,7 +70,7 @@ from ..shading.specular_layer import (
     view_factors,
     view_tables,
 )
-from ..shading.world_light import extract_suns, horizon_sky, world_radiance
+from ..shading.world_light import cosine_lift, extract_suns, horizon_sky, world_radiance
 from . import differentials as rd
 from .emitters import FINE_SPLIT, REFINE_REACH, lamp_hull, scene_emitters
 from .settings import TraceResult, TracerSettings, TraceStats, auto_settings
@@ -439,9 +439,7 @@ class Tracer:
         which, points = lobe_points(np.full(len(on), TRANSLUCENT_RAYS), seeds[on])
         back = -h.ns[on]
         t1, t2 = tangent_frames(back)
-        r, phi = np.sqrt(points[:, 0]), 2.0 * np.pi * points[:, 1]
-        dirs = ((r * np.cos(phi))[:, None] * t1[which] + (r * np.sin(phi))[:, None] * t2[which]
-                + np.sqrt(np.maximum(1.0 - points[:, 0], 0.0))[:, None] * back[which])
+        dirs = cosine_lift((t1[which], t2[which], back[which]), points[:, 0], points[:, 1])
         rows = np.flatnonzero(np.einsum("ij,ij->i", dirs, h.ng[on][which]) < 0.0)  # behind it
         origins = h.p[on][which[rows]] - h.ng[on][which[rows]] * self.offset
         hits, _ = self._hits(origins, dirs[rows], 0.0, camera=False)
