@@ -576,8 +576,10 @@ class MaterialReader:
             return Material(name=name, base_color=np.zeros(3, np.float32), specular=0.0,
                             translucent=np.clip(color, 0.0, None).astype(np.float32),
                             ignored=tuple(ignored), **relief)
-        if kind in ("HOLDOUT", "EEVEE_SPECULAR"):  # no light at all (Cycles has no closure for
-            if kind == "EEVEE_SPECULAR":  # the EEVEE node: black in its renders, measured)
+        # No light at all: a Holdout's; Cycles has no closure for the EEVEE Specular node
+        # (measured black in its renders, 4.5 and 5.2).
+        if kind in ("HOLDOUT", "EEVEE_SPECULAR"):
+            if kind == "EEVEE_SPECULAR":
                 ignored.append("an EEVEE Specular shader: black, as Cycles renders it")
             return Material(name=name, base_color=np.zeros(3, np.float32), specular=0.0,
                             ignored=tuple(ignored))
@@ -616,8 +618,7 @@ class MaterialReader:
             edge = None if np.allclose(tint, 1.0, atol=1e-3) else np.clip(tint, 0.0, 1.0)
         if inputs["Anisotropy"].is_linked or inputs["Anisotropy"].default_value != 0.0:
             ignored.append("a Metallic BSDF's anisotropy is not modelled (isotropic)")
-        film = inputs.get("Thin Film Thickness")
-        if film is not None and (film.is_linked or film.default_value > 0.0):
+        if "Thin Film Thickness" in inputs and self._in_use(inputs["Thin Film Thickness"]):
             ignored.append("a Metallic BSDF's thin film is not modelled")
         return Material(name=name, base_color=color, base_color_texture=tex, metallic=1.0,
                         roughness=roughness, roughness_texture=roughness_tex,
@@ -900,16 +901,12 @@ class MaterialReader:
                                                 inputs["Emission Strength"], ignored)
         metallic, metallic_tex = self._number(inputs["Metallic"], ignored)
         roughness, roughness_tex = self._number(inputs["Roughness"], ignored)
-        if "Subsurface Weight" in inputs:
-            weight = self._read(inputs["Subsurface Weight"], [])  # through groups: their values
-            if weight is None or weight.texture is not None or weight.const[0] > 0.0:
-                ignored.append("Subsurface Weight is not modelled")
-        for socket, what in (("Thin Film Thickness", "Thin Film (iridescence)"),
+        # Left out, noted where they change the look (thin film: 4.2+, diffuse roughness: 4.3+).
+        for socket, what in (("Subsurface Weight", "Subsurface Weight"),
+                             ("Thin Film Thickness", "Thin Film (iridescence)"),
                              ("Diffuse Roughness", "Diffuse Roughness (Oren-Nayar)")):
-            if socket in inputs:  # 4.2+ and 4.3+: left out, noted where they change the look
-                value = self._read(inputs[socket], [])
-                if value is None or value.texture is not None or value.const[0] > 0.0:
-                    ignored.append(f"{what} is not modelled")
+            if socket in inputs and self._in_use(inputs[socket]):
+                ignored.append(f"{what} is not modelled")
         edge = None  # 4.0+: Specular Tint is F0's tint on a dielectric, F82's on a metal
         if "Specular Tint" in inputs:
             tint, _ = self._color(inputs["Specular Tint"], ignored, textures=False)
@@ -1030,6 +1027,12 @@ class MaterialReader:
         factor = self._value(strength_socket, ignored)  # its reasons, where it is not read
         radiance = color * factor * (texture is None)
         return radiance.astype(np.float32), scaled_texture(texture, factor)
+
+    def _in_use(self, socket) -> bool:
+        """Whether a number socket of an input the kernels leave out is above 0, or fed by
+        what the reader cannot hold as one number (read through groups: their values)."""
+        value = self._read(socket, [])
+        return value is None or value.texture is not None or value.const[0] > 0.0
 
     def _value(self, socket, ignored) -> float:
         """A number: the socket's chain of constants, the texture's mean where a texture drives
