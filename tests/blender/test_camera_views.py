@@ -395,14 +395,9 @@ def test_in_the_shadow_map_model_a_glowing_ball_lights_no_floor():
     direct model does the same (objects hidden from diffuse rays, put back after). Against it,
     256 samples: relMSE 1.0e-3 at 80 x 60; with the ball lighting the floor in Cycles 6.9e-2
     (compare, 96 x 72)."""
-    from blender_parts import bare_material, lit_floor, smooth_sphere
+    from blender_parts import glowing_ball
 
-    lit_floor()
-    mat, tree, out = bare_material("Glow")
-    glow = tree.nodes.new("ShaderNodeEmission")
-    glow.inputs["Strength"].default_value = 2.0
-    tree.links.new(glow.outputs[0], out.inputs[0])
-    ball = smooth_sphere(mat)
+    _, ball = glowing_ball()
     _, error = _view_error("shadowmap")
     print(f"relMSE {error:.2e}")
     assert error < 5e-3

@@ -633,14 +633,9 @@ def test_an_emissive_ball_on_the_floor_lights_it_as_cycles_does():
     over its surface, each with 16 finer ones) resting on a grey floor under a sun: the floor it
     lights, right up to the point it touches. Against Cycles at 96 x 72: relMSE 3.7e-3; the
     coarse samples alone 1.5e-2."""
-    from blender_parts import bare_material, lit_floor, smooth_sphere, traced_against_cycles
+    from blender_parts import glowing_ball, traced_against_cycles
 
-    scene = lit_floor()
-    mat, tree, out = bare_material("Glow")
-    glow = tree.nodes.new("ShaderNodeEmission")
-    glow.inputs["Strength"].default_value = 2.0
-    tree.links.new(glow.outputs[0], out.inputs[0])
-    smooth_sphere(mat)
+    scene, _ = glowing_ball()
     _, error = traced_against_cycles(scene)
     print("relMSE against Cycles", error)
     assert error < 8e-3

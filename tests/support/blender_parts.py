@@ -194,6 +194,17 @@ def smooth_sphere(mat, radius=0.8, location=None):
     return obj
 
 
+def glowing_ball():
+    """A fresh `lit_floor` scene with a smooth sphere of an Emission shader of strength 2 resting
+    on it (a mesh light of 2256 triangles); returns (scene, the ball)."""
+    scene = lit_floor()
+    mat, tree, out = bare_material("Glow")
+    glow = tree.nodes.new("ShaderNodeEmission")
+    glow.inputs["Strength"].default_value = 2.0
+    tree.links.new(glow.outputs[0], out.inputs[0])
+    return scene, smooth_sphere(mat)
+
+
 def traced_against_cycles(scene, depth=4, samples=256, resolution=(96, 72)):
     """(snapshot, relMSE) of the tracer's view (TracerSettings(max_depth=depth)) against
     Cycles' Whitted model of the same depth at `samples` samples."""
