@@ -3,7 +3,8 @@
 A material's alpha (Principled BSDF Alpha: a constant or a texture's channel, `Material.alpha`,
 `Material.alpha_texture`) makes the surface partly transparent to every ray, as in Cycles: a
 shadow or visibility ray meeting it passes with weight 1 - alpha (`geometry/alpha_occlusion.py`),
-a shadow map's depth pass keeps a fragment where alpha >= 0.5 (`shadow/cutouts.py`).
+a shadow map's depth pass keeps a fragment where alpha is 1 and lets 1 - alpha through where it
+is partial (`shadow/cutouts.py`).
 Leaf cards, fences and decals are the cases: an image whose alpha is 0 in the holes, 1 elsewhere.
 """
 

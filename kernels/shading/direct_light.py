@@ -162,8 +162,7 @@ def shadow_maps_steps(scene: Scene, receivers: Receivers, spacing: float,
             shadow = replace(shadow, resolution=map_resolution(
                 light, sample, spacing, fit.span if fit is not None else None))
         shadow_map = plan_shadow_map(casters, light, shadow, box, fit)  # casters: culled above
-        drain(render_shadow_map_steps(shadow_map, casters, _cutout(scene, caster_ids)))
-        maps.append(shadow_map)
+        maps.append(drain(render_shadow_map_steps(shadow_map, casters, _cutout(scene, caster_ids))))
         yield (k + 1) / max(len(lights), 1)
     return maps
 

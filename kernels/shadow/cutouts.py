@@ -1,14 +1,17 @@
-"""Alpha-tested casters: a shadow map that keeps a leaf card's texture shape, not its quad.
+"""Casters with alpha: a shadow map that keeps a leaf card's texture shape, not its quad, and
+lets a tinted window's light through in part.
 
-A shadow map holds one depth per texel, no transmittance, so partly covered casters (leaves,
-fences, decals: a material with alpha, `Material.alpha`) are drawn with the real-time alpha
-test: a fragment of such a triangle is kept where the surface's alpha at it is >= `ALPHA_CLIP`
-and dropped below. The alpha is looked up at the fragment's own point: the texel centre's ray
-from the light meets the triangle's plane at the depth the rasteriser interpolated, and that
-point's barycentrics give the texture coordinates.
+A shadow map holds one depth per texel. A fragment of a triangle whose material has alpha
+(`Material.alpha`: leaves, fences, decals, alpha-blended glass) is looked up at its own point
+(the texel centre's ray from the light meets the triangle's plane at the depth the rasteriser
+interpolated, and that point's barycentrics give the texture coordinates): where alpha is 1 it
+is an opaque caster, drawn into the depth map; where it is 0 it casts nothing; in between it is
+a veil: the view's `veil` multiplies what each such fragment lets through, 1 - alpha, and
+`veil_depth` keeps the nearest one's depth. A receiver behind a texel's nearest veil gets the
+product (`depth_test.py`), as Cycles' shadow rays pass each surface with weight 1 - alpha.
 
-Known deviation: fractional alpha (0 < alpha < 1) is all or nothing here, where Cycles' shadow
-rays pass with weight 1 - alpha; for cut-outs of alpha 0 and 1 the two agree.
+Known deviation: a receiver between two veils of one texel (inside an alpha-blended box) takes
+both, where Cycles' shadow ray crosses the nearer one only.
 """
 
 from __future__ import annotations
@@ -21,8 +24,10 @@ import numpy as np
 from ..geometry.raster import Projection, iter_fragments
 from ..progress import Steps
 
-# The alpha test's threshold (the usual real-time practice: a fragment is kept where alpha >= 0.5).
-ALPHA_CLIP = 0.5
+# Alpha at or above this is opaque (a depth-map fragment), at or below CLEAR_ALPHA nothing: the
+# 8-bit alpha of an image texture rounds within 1/255 of 1 and 0 (filtered edges aside).
+OPAQUE_ALPHA = 1.0 - 1.0 / 512.0
+CLEAR_ALPHA = 1.0 / 512.0
 
 # Alpha at points of triangles: (tri (F,) indices into the triangles drawn, barycentrics (F, 3))
 # -> (F,) alpha in [0, 1].
@@ -79,14 +84,20 @@ def barycentrics(triangles: np.ndarray, points: np.ndarray) -> np.ndarray:
 
 
 def cutout_depth_steps(triangles: np.ndarray, projection: Projection, depth_out: np.ndarray,
-                       cutout: Cutout) -> Steps[np.ndarray]:
+                       cutout: Cutout, veil_out: tuple[np.ndarray, np.ndarray] | None = None
+                       ) -> Steps[np.ndarray]:
     """Z-buffer (T, 3, 3) world triangles into the (H, W) float32 `depth_out` (depth-tested
-    against what it holds), alpha-testing the fragments of `cutout.cut` triangles; yields
-    progress in [0, 1], returns `depth_out`."""
+    against what it holds), the fragments of `cutout.cut` triangles by their alpha (module
+    docstring): opaque ones drawn, partly covering ones into `veil_out` (what they let through,
+    the nearest one's depth: (H, W) float32 each, multiplied and min-ed in place; None: kept
+    where alpha >= 1/2, the real-time alpha test). Yields progress in [0, 1], returns
+    `depth_out`."""
     height, width = depth_out.shape
-    flat = depth_out.reshape(-1)
-    if not np.may_share_memory(flat, depth_out):
-        raise ValueError("depth_out must be C-contiguous")
+    arrays = [depth_out, *(veil_out or ())]
+    flats = [a.reshape(-1) for a in arrays]
+    if not all(np.may_share_memory(f, a) for f, a in zip(flats, arrays, strict=True)):
+        raise ValueError("depth_out and veil_out must be C-contiguous")
+    flat, veil_flat = flats[0], (flats[1:] if veil_out is not None else None)
     tris = np.asarray(triangles)
     for frags, progress in iter_fragments(tris, projection, width, height):
         if len(frags.pixel):
@@ -96,8 +107,15 @@ def cutout_depth_steps(triangles: np.ndarray, projection: Projection, depth_out:
                 tri = frags.triangle[tested]
                 points = fragment_points(projection, frags.pixel[tested], frags.depth[tested],
                                          width, height)
-                bary = barycentrics(tris[tri], points)
-                keep[tested] = cutout.alpha(tri, bary) >= ALPHA_CLIP
+                alpha = cutout.alpha(tri, barycentrics(tris[tri], points))
+                if veil_flat is None:
+                    keep[tested] = alpha >= 0.5
+                else:
+                    keep[tested] = alpha >= OPAQUE_ALPHA
+                    part = (alpha > CLEAR_ALPHA) & (alpha < OPAQUE_ALPHA)
+                    at = frags.pixel[tested[part]]
+                    np.multiply.at(veil_flat[0], at, (1.0 - alpha[part]).astype(np.float32))
+                    np.minimum.at(veil_flat[1], at, frags.depth[tested[part]].astype(np.float32))
             np.minimum.at(flat, frags.pixel[keep], frags.depth[keep].astype(np.float32))
         yield progress
     return depth_out

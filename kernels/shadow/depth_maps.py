@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from ..envmap import cubemap
@@ -21,15 +23,22 @@ def render_shadow_map_steps(shadow_map: ShadowMap, triangles: np.ndarray,
 
     Draws into the planned buffers as they are (a fresh plan holds +inf): rendering more
     triangles into the same map depth-tests them against what is there. `cutout`, when some of
-    the triangles have alpha: their fragments are alpha-tested (`cutouts.py`)."""
+    the triangles have alpha: their fragments are drawn by it (`cutouts.py`), and where some are
+    partly covering, the map returned is the given one with its views' veils."""
     if cutout is not None and cutout.cut.any():
         reach = (np.ones((1, len(triangles)), bool) if shadow_map.kind != "CUBE"
                  else _reaches_faces(triangles, shadow_map.light_position))
+        views = []
         for k, view in enumerate(shadow_map.views):
+            veil = (np.ones_like(view.depth) if view.veil is None else view.veil,
+                    np.full_like(view.depth, np.inf) if view.veil_depth is None else view.veil_depth)
             for progress in cutout_depth_steps(triangles[reach[k]], view.projection, view.depth,
-                                               cutout.subset(reach[k])):
+                                               cutout.subset(reach[k]), veil):
                 yield (k + progress) / len(shadow_map.views)
-        return shadow_map
+            views.append(replace(view, veil=veil[0], veil_depth=veil[1]))
+        if all(np.all(v.veil == 1.0) for v in views):  # nothing partly covering: no veils
+            return shadow_map
+        return replace(shadow_map, views=tuple(views))
     # The planned buffers start at +inf: no second clearing pass over the map.
     if shadow_map.kind != "CUBE":
         yield from rasterize_steps(triangles, shadow_map.views[0].projection,

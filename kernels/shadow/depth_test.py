@@ -220,6 +220,16 @@ def _stacked_depth(shadow_map: ShadowMap) -> np.ndarray:
     return shared if shared is not None else np.stack([v.depth for v in shadow_map.views])
 
 
+def _stacked_veils(shadow_map: ShadowMap) -> tuple[np.ndarray, np.ndarray] | None:
+    """(what the veils let through, the nearest veil's depth), each every view's (V x H x W,)
+    float32 flat (`cutouts.py`); None when the map has no veil."""
+    views = shadow_map.views
+    if views[0].veil is None:
+        return None
+    return (np.stack([v.veil for v in views]).reshape(-1),
+            np.stack([v.veil_depth for v in views]).reshape(-1))
+
+
 def _texels(at: _Lookup, height: int, width: int) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """(column, row) int64 texel of each receiver, clamped into the map, and whether it lies in the
     view (None: all do, cube faces)."""
@@ -239,10 +249,13 @@ def _texels(at: _Lookup, height: int, width: int) -> tuple[np.ndarray, np.ndarra
 
 
 def _visibility_chunk(shadow_map: ShadowMap, depth: np.ndarray, p: np.ndarray, centre: np.ndarray,
-                      n: np.ndarray, no_normal: np.ndarray | None, size: float) -> np.ndarray:
+                      n: np.ndarray, no_normal: np.ndarray | None, size: float,
+                      veils: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """(N,) float32 visibility of receivers centre + p (see `_look_up`) with unit (or zero)
     normals n (3, N) float32 (`no_normal`: see there); `depth`: every view's map, flat
-    (`_stacked_depth`); `size` m bounds every |world coordinate| of the receivers."""
+    (`_stacked_depth`); `size` m bounds every |world coordinate| of the receivers; `veils`: the
+    map's partly covering casters (`_stacked_veils`), whose product a receiver farther than the
+    nearest of them (by the same tolerance) takes, at its texel."""
     s = shadow_map.settings
     view = shadow_map.views[0]  # every view of a map has the same size and texel (cube faces)
     height, width = view.depth.shape
@@ -279,6 +292,11 @@ def _visibility_chunk(shadow_map: ShadowMap, depth: np.ndarray, p: np.ndarray, c
         vis = lit / np.float32(k * k)
         if inside is not None:
             vis[~inside] = 1.0
+    if veils is not None:
+        veil = np.where(z - veils[1][index] > eps, veils[0][index], np.float32(1.0))
+        if inside is not None:
+            veil[~inside] = 1.0
+        vis *= veil
     if s.shadow_back_faces:
         vis[at.nl < 0.0] = 0.0  # attached shadow: the surface itself stands between f and the light
     return vis
@@ -295,11 +313,12 @@ def receivers_visibility(shadow_map: ShadowMap, receivers: Receivers,
     # (at most 2^-21 of the scene's size more tolerance than each receiver's own).
     size = receivers.size
     depth = _stacked_depth(shadow_map).reshape(-1)  # every view's map, flat, gathered per chunk
+    veils = _stacked_veils(shadow_map)
     pts, nrm, zero = receivers.local, receivers.normals, receivers.no_normal
 
     def look_up(a: int, b: int) -> None:
         out[a:b] = _visibility_chunk(shadow_map, depth, pts[:, a:b], receivers.centre, nrm[:, a:b],
-                                     None if zero is None else zero[a:b], size)
+                                     None if zero is None else zero[a:b], size, veils)
 
     threads.for_ranges(look_up, len(receivers), RECEIVER_CHUNK,
                        shadow_map.settings.thread_count, MIN_THREAD_RECEIVERS)

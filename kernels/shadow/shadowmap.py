@@ -92,6 +92,11 @@ class ShadowView:
 
     projection: Projection
     depth: np.ndarray  # (H, W) float32, linear view depth from the light (m), +inf: nothing
+    # Partly covering casters (0 < alpha < 1: a tinted window, a leaf's soft edge), where the
+    # view has them (`cutouts.py`): what they let through, the product of their 1 - alpha
+    # (H, W) float32, and the depth of the nearest (H, W) float32 m, +inf: none.
+    veil: np.ndarray | None = None
+    veil_depth: np.ndarray | None = None
 
     @property
     def texel_size(self) -> tuple[float, float]:

@@ -558,3 +558,31 @@ def test_threaded_lookup_matches_one_thread():
         assert 0.0 < vis.mean() < 1.0
     with pytest.raises(ValueError, match="threads"):
         ShadowMapSettings(threads=-1)
+
+
+@pytest.mark.parametrize("kind", ["SUN", "POINT"])
+def test_partly_covering_casters_let_their_share_through(kind):
+    """Two stacked veils (constant alpha 0.3 and 0.5) over a ground: the ground under both gets
+    (1 - 0.3)(1 - 0.5) = 0.35 of the light, under the upper one alone 0.7, beside them 1; an
+    opaque card (alpha 1) still casts a full shadow, and one of alpha 0 none. A cube map (a point
+    lamp) as a sun's single view."""
+    from classic_bake.kernels.progress import drain
+    from classic_bake.kernels.shadow.cutouts import Cutout
+
+    ground = _quad((0, 0, 0), (4, 0, 0), (0, 4, 0))
+    upper = _quad((0, 0, 2.0), (1, 0, 0), (0, 1, 0))  # x in [-1, 1]
+    lower = _quad((-0.5, 0, 1.0), (0.5, 0, 0), (0, 1, 0))  # x in [-1, 0]
+    card = _quad((2.5, 0, 1.0), (0.5, 0, 0), (0, 1, 0))  # x in [2, 3]
+    ghost = _quad((-2.5, 0, 1.0), (0.5, 0, 0), (0, 1, 0))  # x in [-3, -2]
+    tris = np.concatenate([ground, upper, lower, card, ghost])
+    alpha = np.repeat([1.0, 0.3, 0.5, 1.0, 0.0], 2)
+    cut = Cutout(np.repeat([False, True, True, True, True], 2), lambda tri, bary: alpha[tri])
+    light = (_light("SUN", direction=(0.0, 0.0, -1.0)) if kind == "SUN"
+             else _light("POINT", position=(0.0, 0.0, 40.0)))
+    points = np.array([[-0.5, 0.0, 0.0], [0.5, 0.0, 0.0], [1.5, 0.0, 0.0], [2.5, 0.0, 0.0],
+                       [-2.5, 0.0, 0.0]])
+    settings = ShadowMapSettings(resolution=256, pcf_size=1)
+    smap = plan_shadow_map(tris, light, settings, points)
+    smap = drain(render_shadow_map_steps(smap, tris, cut))
+    vis = shadow_visibility(smap, points, np.tile([0.0, 0.0, 1.0], (len(points), 1)))
+    np.testing.assert_allclose(vis, [0.35, 0.7, 1.0, 0.0, 1.0], atol=1e-6)
