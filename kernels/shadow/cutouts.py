@@ -28,6 +28,8 @@ from ..progress import Steps
 # 8-bit alpha of an image texture rounds within 1/255 of 1 and 0 (filtered edges aside).
 OPAQUE_ALPHA = 1.0 - 1.0 / 512.0
 CLEAR_ALPHA = 1.0 / 512.0
+# Without a veil buffer, the real-time alpha test: a fragment is kept where alpha >= 0.5.
+ALPHA_CLIP = 0.5
 
 # Alpha at points of triangles: (tri (F,) indices into the triangles drawn, barycentrics (F, 3))
 # -> (F,) alpha in [0, 1].
@@ -90,7 +92,7 @@ def cutout_depth_steps(triangles: np.ndarray, projection: Projection, depth_out:
     against what it holds), the fragments of `cutout.cut` triangles by their alpha (module
     docstring): opaque ones drawn, partly covering ones into `veil_out` (what they let through,
     the nearest one's depth: (H, W) float32 each, multiplied and min-ed in place; None: kept
-    where alpha >= 1/2, the real-time alpha test). Yields progress in [0, 1], returns
+    where alpha >= ALPHA_CLIP, the real-time alpha test). Yields progress in [0, 1], returns
     `depth_out`."""
     height, width = depth_out.shape
     arrays = [depth_out, *(veil_out or ())]
@@ -109,7 +111,7 @@ def cutout_depth_steps(triangles: np.ndarray, projection: Projection, depth_out:
                                          width, height)
                 alpha = cutout.alpha(tri, barycentrics(tris[tri], points))
                 if veil_flat is None:
-                    keep[tested] = alpha >= 0.5
+                    keep[tested] = alpha >= ALPHA_CLIP
                 else:
                     keep[tested] = alpha >= OPAQUE_ALPHA
                     part = (alpha > CLEAR_ALPHA) & (alpha < OPAQUE_ALPHA)
