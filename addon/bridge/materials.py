@@ -647,7 +647,8 @@ class MaterialReader:
                 source = None
             sources.append((source, groups))
         if node.type != "ADD_SHADER":  # the mixes read otherwise, the first that applies
-            for special in (self._unlit, self._cut_out, self._fresnel_layer, self._masked_mix):
+            for special in (self._unlit, self._shadowless, self._cut_out, self._fresnel_layer,
+                            self._masked_mix):
                 material = special(name, node.inputs["Fac"], sources, ignored, depth)
                 if material is not None:
                     return material
@@ -681,6 +682,26 @@ class MaterialReader:
         with self._inside(groups):
             surface = self._shader(name, seen, ignored, depth + 1)
         return replace(surface, camera_only=True, ignored=tuple(ignored))
+
+    def _shadowless(self, name: str, fac_socket, sources: list, ignored: list,
+                    depth: int) -> Material | None:
+        """A Mix Shader whose Fac is a Light Path's Is Shadow Ray, of a shader (what every other
+        ray meets) and a Transparent BSDF (what shadow rays meet): that shader, casting no
+        shadow (`Material.shadowless`; architectural glass is often made so). None for any
+        other mix."""
+        feed, out, _ = follow_through(fac_socket, self._groups)
+        if feed is None or feed.type != "LIGHT_PATH" or out.identifier != "Is Shadow Ray":
+            return None
+        (seen, groups), (passed, passed_groups) = sources  # Fac 0: other rays, 1: shadow rays
+        if passed is None or passed.type != "BSDF_TRANSPARENT" or seen is None:
+            return None
+        with self._inside(passed_groups):
+            self._shader(name, passed, ignored, depth + 1)  # its notes (a tint)
+        with self._inside(groups):
+            surface = self._shader(name, seen, ignored, depth + 1)
+        ignored.append("casts no shadow (Is Shadow Ray): traced views and shadow maps let the "
+                       "lamps' light through it; the radiosity solve still shadows with it")
+        return replace(surface, shadowless=True, ignored=tuple(ignored))
 
     def _cut_out(self, name: str, fac_socket, sources: list, ignored: list,
                  depth: int) -> Material | None:

@@ -157,6 +157,9 @@ class Material:
     |                    |           |         | passes it: an unlit surface (glTF's            |
     |                    |           |         | KHR_materials_unlit import), whose emission    |
     |                    |           |         | lights nothing (`triangle_emission` holds 0)   |
+    | shadowless         | bool      | False   | shadow rays pass it: it casts no shadow (a     |
+    |                    |           |         | Light Path's Is Shadow Ray choosing a          |
+    |                    |           |         | Transparent BSDF: architectural glass)         |
 
     The per-texel textures other than the base colour's are resolved per triangle by
     `shading/material_maps.py` before a kernel runs (a snapshot does it): metallic and roughness
@@ -205,6 +208,9 @@ class Material:
     # Unlit: only camera rays see the surface (a Light Path's Is Camera Ray choosing it over a
     # Transparent BSDF); shadow, mirror and diffuse rays pass, and it lights nothing.
     camera_only: bool = False
+    # Shadow rays pass it (a Light Path's Is Shadow Ray choosing a Transparent BSDF); every other
+    # ray meets it.
+    shadowless: bool = False
     # What the bridge could not model on this material, one reason per entry.
     ignored: tuple[str, ...] = ()
     # Sockets the bridge read through a Cycles bake of their node graph, one dict each.
@@ -423,10 +429,13 @@ class Scene:
 
     def ray_hidden(self, kind: str) -> np.ndarray | None:
         """(T,) bool: the triangles of objects Cycles hides from rays of `kind` ("camera",
-        "shadow", ...: `ObjectInfo.hidden_from`), and for every kind but the camera's the unlit
-        surfaces (`camera_only`); None when no triangle is."""
+        "shadow", ...: `ObjectInfo.hidden_from`), for every kind but the camera's the unlit
+        surfaces (`camera_only`), and for shadow rays the `shadowless` ones; None when no
+        triangle is."""
         owners = [o for o in self.objects if kind in o.hidden_from]
         unlit = None if kind == "camera" else self.camera_only()
+        if kind == "shadow":
+            unlit = self.shadowless(unlit)
         if not owners:
             return unlit
         out = np.zeros(self.triangle_count, bool) if unlit is None else unlit.copy()
@@ -441,6 +450,14 @@ class Scene:
         if not flags.any():
             return None
         return flags[self.material_ids]
+
+    def shadowless(self, hidden: np.ndarray | None = None) -> np.ndarray | None:
+        """(T,) bool: the triangles shadow rays pass (`Material.shadowless`), or-ed with `hidden`
+        (T,) bool when given; None when there are none."""
+        flags = np.array([m.shadowless for m in self.materials], bool)
+        if not flags.any():
+            return hidden
+        return flags[self.material_ids] | (False if hidden is None else hidden)
 
     def object_slice(self, index: int) -> slice:
         info = self.objects[index]

@@ -148,7 +148,8 @@ def shadow_maps_steps(scene: Scene, receivers: Receivers, spacing: float,
     box = receivers.box if len(receivers) else np.zeros((0, 3))
     sample = receivers.sample(DISTANCE_SAMPLES)
     maps = []
-    unlit = scene.camera_only()  # every ray but the camera's passes them: they cast no shadow
+    # Unlit surfaces (every ray but the camera's passes them) and shadowless ones cast no shadow.
+    unlit = scene.shadowless(scene.camera_only())
     for k, light in enumerate(lights):
         if not light.cast_shadow or scene.triangle_count == 0:
             maps.append(None)
