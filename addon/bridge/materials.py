@@ -699,8 +699,6 @@ class MaterialReader:
             self._shader(name, passed, ignored, depth + 1)  # its notes (a tint)
         with self._inside(groups):
             surface = self._shader(name, seen, ignored, depth + 1)
-        ignored.append("casts no shadow (Is Shadow Ray): traced views and shadow maps let the "
-                       "lamps' light through it; the radiosity solve still shadows with it")
         return replace(surface, shadowless=True, ignored=tuple(ignored))
 
     def _cut_out(self, name: str, fac_socket, sources: list, ignored: list,

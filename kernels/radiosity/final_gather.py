@@ -234,6 +234,13 @@ class FinalGather:
     area_samples_per_side: int
     settings: FinalGatherSettings
     stats: dict
+    # What the lamps' and emitters' shadow rays meet where it differs from `bvh` (shadowless
+    # surfaces passed: `alpha.shadow_aware`); None: `bvh`.
+    shadow_bvh: object = None
+
+    def shadow_occluded(self):
+        """The lights' shadow-ray query (origins, directions, t_min, t_max) -> (R,) bool."""
+        return _occluded(self.shadow_bvh or self.bvh)
 
     def opened(self, open_: np.ndarray) -> Visibility:
         """What M receivers are known to be (open_ (M,) bool: inside no solid, which their
@@ -286,13 +293,16 @@ class PatchSolution:
 
 
 def prepare(scene: Scene, solution: PatchSolution, emitters: Emitters, bvh, smooth_angle: float,
-            area_samples_per_side: int, settings: FinalGatherSettings) -> FinalGather:
+            area_samples_per_side: int, settings: FinalGatherSettings,
+            shadow_bvh=None) -> FinalGather:
     """The patch-level half: the indirect irradiance (W/m^2, RGB) at the corners of the patches,
     or of their elements (`elements.py`, within `settings.element_pairs`).
 
     What arrived at a patch less the first shot is what the solver carried between patches, the
     same numbers it solved with, so no sampling noise of the direct light leaks into the indirect
-    part. Elements gather it afresh from the patches' B, plus the world's light of their patch."""
+    part. Elements gather it afresh from the patches' B, plus the world's light of their patch.
+    shadow_bvh: what the receivers' shadow rays to lamps and emitters meet, where it differs
+    from `bvh` (`FinalGather.shadow_bvh`)."""
     patches, radiosity, emitted = solution.patches, solution.radiosity, solution.emitted
     reflectance, direct = solution.reflectance, solution.direct
     clear, world = solution.clear, solution.world
@@ -371,7 +381,7 @@ def prepare(scene: Scene, solution: PatchSolution, emitters: Emitters, bvh, smoo
              "straddling_patches": int(((open_fraction > 0.0) & (open_fraction < 1.0)).sum())}
     return FinalGather(scene, bvh, emitters, clear, unroofed, patches, levels, corner, tri_normals,
                        coincident, np.pi * triangle_emission(scene), offset, area_samples_per_side,
-                       settings, stats)
+                       settings, stats, shadow_bvh)
 
 
 def exitance(gather: FinalGather, tri: np.ndarray, bary: np.ndarray,
@@ -471,7 +481,7 @@ def side_irradiance(gather: FinalGather, t: np.ndarray, b: np.ndarray, side: flo
     inset, points = _inset_points(scene, t, b)
     facing = side * gather.triangle_normals[t]
     normals, smooth = shading_normals(scene, t, inset, gather.triangle_normals[t])
-    occluded = _occluded(gather.bvh)
+    occluded = gather.shadow_occluded()
     h = emitter_irradiance(gather.emitters, points, side * normals, occluded, gather.offset, rng,
                            lift=facing)
     h += lamp_irradiance(scene, points, side * normals, occluded, gather.offset,
@@ -560,7 +570,7 @@ def _irradiance(gather: FinalGather, t: np.ndarray, b: np.ndarray, known: Visibi
     patch, local = patching.locate(gather.patches, t, inset)
     element, local = patching.descend(local, gather.element_levels)
     element = np.where(patch >= 0, patch * 4 ** gather.element_levels + element, -1)
-    occluded = _occluded(gather.bvh)
+    occluded = gather.shadow_occluded()
     # Enclosure first: a receiver inside a solid gets no light, so it casts no shadow ray (the
     # floor under a block: a third of the edge texels' sub-texel points on the Cornell box).
     found.inside[:] = 0  # receivers no back face hangs over are open

@@ -30,10 +30,17 @@ class SolveContext:
     size: float  # m, the patch size asked for
     scale: float  # m, the scene's bounding-box diagonal
     emitters: Emitters  # the emissive triangles that shoot first (`shot_emitters`)
+    # What the lamps' and emitters' shadow rays meet, where it differs from `bvh`: shadowless
+    # surfaces passed (`alpha.shadow_aware`); None: `bvh`.
+    shadow_bvh: object = None
 
     def occluded(self, origins, directions, t_min, t_max) -> np.ndarray:
-        """The BVH's shadow-ray query: (R,) bool."""
+        """The BVH's visibility query between surfaces: (R,) bool."""
         return self.bvh.occluded(origins, directions, t_min, t_max)
+
+    def shadow_occluded(self, origins, directions, t_min, t_max) -> np.ndarray:
+        """The lights' shadow-ray query: (R,) bool."""
+        return (self.shadow_bvh or self.bvh).occluded(origins, directions, t_min, t_max)
 
 
 @dataclass(frozen=True, eq=False)
@@ -72,7 +79,8 @@ def level_light(ctx: SolveContext, patches: patching.Patches) -> LevelLight:
     shot = shot_emission(scene, patches, ctx.emitters)
     clear = clear_shafts(patches, ctx.emitters, ctx.bvh, RAY_OFFSET_REL * ctx.scale,
                          CLUSTER_AREA_SHARE * ctx.size * ctx.size)
-    direct, boundary = first_shot(scene, patches, ctx.occluded, settings, ctx.scale, ctx.emitters,
+    direct, boundary = first_shot(scene, patches, ctx.shadow_occluded, settings, ctx.scale,
+                                  ctx.emitters,
                                   clear)
     world = world_shot(scene, patches, ctx.bvh, settings, ctx.scale)
     return LevelLight(rho, emitted, shot, clear, direct, boundary, world)

@@ -102,6 +102,17 @@ def lighting_coverage(scene: Scene) -> SceneAlpha | HiddenCoverage | None:
     return alpha if unlit is None else HiddenCoverage(alpha, unlit)
 
 
+def shadow_aware(bvh: BVH, scene: Scene, offset: float, seed: int = 0) -> AlphaOccluder | None:
+    """`alpha_aware` for the shadow rays of kernels that take a yes / no visibility query
+    (radiosity's lamps and emitters): the shadowless surfaces (`Material.shadowless`) passed
+    too; None when the scene has none (the lighting query serves)."""
+    hidden = scene.shadowless(scene.camera_only())
+    if scene.shadowless() is None:
+        return None
+    alpha = HiddenCoverage(scene_alpha(scene), hidden)
+    return AlphaOccluder(bvh, alpha, offset, alpha.opaque, np.random.default_rng(seed))
+
+
 def scene_alpha(scene: Scene) -> SceneAlpha | None:
     """The scene's coverage look-up, or None when every surface is opaque."""
     return SceneAlpha(scene) if has_alpha(scene) else None
