@@ -53,6 +53,11 @@ MIX_WEIGHT_EPS = 1e-9
 # and the largest IOR the fit returns (Fresnel mean 0.92: Facing curves beyond read as mirrors).
 FACING_FIT_STEPS = 2048
 FACING_FIT_MAX_IOR = 100.0
+# The Light Path outputs a Mix Shader may choose a Transparent BSDF by: which input the
+# Transparent BSDF is in (Fac 0 picks the first) and the `Material` flag the other shader takes:
+# seen by camera rays alone (glTF's unlit materials import so), or passed by shadow rays
+# (architectural glass is often made so).
+LIGHT_PATH_MIXES = {"Is Camera Ray": (0, "camera_only"), "Is Shadow Ray": (1, "shadowless")}
 
 
 @dataclass(frozen=True)
@@ -631,7 +636,7 @@ class MaterialReader:
         two shaders, as one `Material` (`mix_materials`, `with_transparency`); an unlinked
         shader input, or a volume shader (Cycles evaluates those in the Volume slot only), is a
         black surface (no closure: Cycles absorbs there). Mixes read otherwise: a Fresnel's
-        (`_fresnel_layer`), a mask's (`_masked_mix`), an unlit one (`_unlit`) and a cut-out
+        (`_fresnel_layer`), a mask's (`_masked_mix`), a Light Path's (`_light_path_mix`) and a cut-out
         (`_cut_out`).
 
         A Mix Shader of a Transparent BSDF and one other shader is that shader with Fac (or
@@ -647,7 +652,7 @@ class MaterialReader:
                 source = None
             sources.append((source, groups))
         if node.type != "ADD_SHADER":  # the mixes read otherwise, the first that applies
-            for special in (self._unlit, self._shadowless, self._cut_out, self._fresnel_layer,
+            for special in (self._light_path_mix, self._cut_out, self._fresnel_layer,
                             self._masked_mix):
                 material = special(name, node.inputs["Fac"], sources, ignored, depth)
                 if material is not None:
@@ -665,41 +670,23 @@ class MaterialReader:
                 parts.append((weight, self._shader(name, source, ignored, depth + 1)))
         return with_transparency(name, parts, ignored)
 
-    def _unlit(self, name: str, fac_socket, sources: list, ignored: list,
-               depth: int) -> Material | None:
-        """A Mix Shader whose Fac is a Light Path's Is Camera Ray, of a Transparent BSDF (what
-        every other ray meets) and a shader (what the camera's meets): that shader, seen by
-        camera rays alone (`Material.camera_only`), as glTF's unlit materials import. None for
-        any other mix."""
+    def _light_path_mix(self, name: str, fac_socket, sources: list, ignored: list,
+                        depth: int) -> Material | None:
+        """A Mix Shader whose Fac is a Light Path's Is Camera Ray or Is Shadow Ray, of a
+        Transparent BSDF (what the other rays meet) and a shader: that shader, flagged as
+        `LIGHT_PATH_MIXES` says. None for any other mix."""
         feed, out, _ = follow_through(fac_socket, self._groups)
-        if feed is None or feed.type != "LIGHT_PATH" or out.identifier != "Is Camera Ray":
+        if feed is None or feed.type != "LIGHT_PATH" or out.identifier not in LIGHT_PATH_MIXES:
             return None
-        (others, other_groups), (seen, groups) = sources  # Fac 0: other rays, 1: the camera's
-        if others is None or others.type != "BSDF_TRANSPARENT" or seen is None:
-            return None
-        with self._inside(other_groups):
-            self._shader(name, others, ignored, depth + 1)  # its notes (a tint)
-        with self._inside(groups):
-            surface = self._shader(name, seen, ignored, depth + 1)
-        return replace(surface, camera_only=True, ignored=tuple(ignored))
-
-    def _shadowless(self, name: str, fac_socket, sources: list, ignored: list,
-                    depth: int) -> Material | None:
-        """A Mix Shader whose Fac is a Light Path's Is Shadow Ray, of a shader (what every other
-        ray meets) and a Transparent BSDF (what shadow rays meet): that shader, casting no
-        shadow (`Material.shadowless`; architectural glass is often made so). None for any
-        other mix."""
-        feed, out, _ = follow_through(fac_socket, self._groups)
-        if feed is None or feed.type != "LIGHT_PATH" or out.identifier != "Is Shadow Ray":
-            return None
-        (seen, groups), (passed, passed_groups) = sources  # Fac 0: other rays, 1: shadow rays
+        at, flag = LIGHT_PATH_MIXES[out.identifier]
+        (passed, passed_groups), (seen, groups) = sources[at], sources[1 - at]
         if passed is None or passed.type != "BSDF_TRANSPARENT" or seen is None:
             return None
         with self._inside(passed_groups):
             self._shader(name, passed, ignored, depth + 1)  # its notes (a tint)
         with self._inside(groups):
             surface = self._shader(name, seen, ignored, depth + 1)
-        return replace(surface, shadowless=True, ignored=tuple(ignored))
+        return replace(surface, **{flag: True}, ignored=tuple(ignored))
 
     def _cut_out(self, name: str, fac_socket, sources: list, ignored: list,
                  depth: int) -> Material | None:

@@ -240,7 +240,7 @@ class FinalGather:
 
     def shadow_occluded(self):
         """The lights' shadow-ray query (origins, directions, t_min, t_max) -> (R,) bool."""
-        return _occluded(self.shadow_bvh or self.bvh)
+        return _occluded(self.bvh if self.shadow_bvh is None else self.shadow_bvh)
 
     def opened(self, open_: np.ndarray) -> Visibility:
         """What M receivers are known to be (open_ (M,) bool: inside no solid, which their

@@ -40,7 +40,8 @@ class SolveContext:
 
     def shadow_occluded(self, origins, directions, t_min, t_max) -> np.ndarray:
         """The lights' shadow-ray query: (R,) bool."""
-        return (self.shadow_bvh or self.bvh).occluded(origins, directions, t_min, t_max)
+        bvh = self.bvh if self.shadow_bvh is None else self.shadow_bvh
+        return bvh.occluded(origins, directions, t_min, t_max)
 
 
 @dataclass(frozen=True, eq=False)

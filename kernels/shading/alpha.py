@@ -106,10 +106,9 @@ def shadow_aware(bvh: BVH, scene: Scene, offset: float, seed: int = 0) -> AlphaO
     """`alpha_aware` for the shadow rays of kernels that take a yes / no visibility query
     (radiosity's lamps and emitters): the shadowless surfaces (`Material.shadowless`) passed
     too; None when the scene has none (the lighting query serves)."""
-    hidden = scene.shadowless(scene.camera_only())
     if scene.shadowless() is None:
         return None
-    alpha = HiddenCoverage(scene_alpha(scene), hidden)
+    alpha = HiddenCoverage(scene_alpha(scene), scene.shadowless(scene.camera_only()))
     return AlphaOccluder(bvh, alpha, offset, alpha.opaque, np.random.default_rng(seed))
 
 
