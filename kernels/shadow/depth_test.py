@@ -255,7 +255,7 @@ def _visibility_chunk(shadow_map: ShadowMap, depth: np.ndarray, p: np.ndarray, c
     normals n (3, N) float32 (`no_normal`: see there); `depth`: every view's map, flat
     (`_stacked_depth`); `size` m bounds every |world coordinate| of the receivers; `veils`: the
     map's partly covering casters (`_stacked_veils`), whose product a receiver farther than the
-    nearest of them (by the same tolerance) takes, at its texel."""
+    nearest of them (by the same tolerance) takes, filtered as the depth test is."""
     s = shadow_map.settings
     view = shadow_map.views[0]  # every view of a map has the same size and texel (cube faces)
     height, width = view.depth.shape
@@ -274,29 +274,29 @@ def _visibility_chunk(shadow_map: ShadowMap, depth: np.ndarray, p: np.ndarray, c
     index = i * width + j
     if at.face is not None:
         index += at.face * (height * width)
+
+    def seen(at: np.ndarray) -> np.ndarray:
+        """(N,) float32: the light the receivers get through texels `at` (N,): the lecture's
+        case (b) "|z_f - M_p| <= eps" first, else "z_f <= M_p" (with eps >= 0 the two together
+        are z_f - M_p <= eps), times the texel's veils where the receiver lies behind them."""
+        lit = (z - depth[at] <= eps).astype(np.float32)
+        if veils is not None:
+            lit *= np.where(z - veils[1][at] > eps, veils[0][at], np.float32(1.0))
+        return lit
+
     k = s.pcf_size
     if k == 1:
-        # The lecture: case (b) "|z_f - M_p| <= eps" first, else "z_f <= M_p"; with eps >= 0 the
-        # two together are z_f - M_p <= eps.
-        lit = z - depth[index] <= eps
-        if inside is not None:
-            lit |= ~inside
-        vis = lit.astype(np.float32)
+        vis = seen(index)
     else:
         base = index - i * width - j  # the receiver's view
-        lit = np.zeros(len(eps), np.float32)
+        vis = np.zeros(len(eps), np.float32)
         for di in range(-(k // 2), k // 2 + 1):
             ii = base + np.clip(i + di, 0, height - 1) * width  # neighbours clamped to the map
             for dj in range(-(k // 2), k // 2 + 1):
-                lit += z - depth[ii + np.clip(j + dj, 0, width - 1)] <= eps
-        vis = lit / np.float32(k * k)
-        if inside is not None:
-            vis[~inside] = 1.0
-    if veils is not None:
-        veil = np.where(z - veils[1][index] > eps, veils[0][index], np.float32(1.0))
-        if inside is not None:
-            veil[~inside] = 1.0
-        vis *= veil
+                vis += seen(ii + np.clip(j + dj, 0, width - 1))
+        vis /= np.float32(k * k)
+    if inside is not None:
+        vis[~inside] = 1.0
     if s.shadow_back_faces:
         vis[at.nl < 0.0] = 0.0  # attached shadow: the surface itself stands between f and the light
     return vis
