@@ -101,17 +101,10 @@ def _painted_image(name: str, colour_of, colorspace: str):
 
 def _view_error(technique: str):
     """(snapshot, relMSE) of the scene's radiosity or shadow-map view at RESOLUTION against a
-    256-sample Cycles render of the technique's model."""
-    snap = bridge.snapshot(resolution=RESOLUTION)
-    if technique == "radiosity":
-        ours = drain(render_steps(snap, solve_radiosity(snap, RadiositySettings()), RESOLUTION))
-        model = cr.radiosity(world_lighting=True)
-    else:
-        ours = drain(direct_light.render_steps(snap, direct_light.DirectLightSettings(),
-                                               RESOLUTION))
-        model = cr.direct()
-    theirs, _ = cr.render_camera(bpy.context.scene, model, 256, RESOLUTION)
-    return snap, rel_mse(ours, theirs)
+    256-sample Cycles render of the technique's model (`blender_parts.view_against_cycles`)."""
+    from blender_parts import view_against_cycles
+
+    return view_against_cycles(technique, RESOLUTION)
 
 
 @pytest.mark.slow

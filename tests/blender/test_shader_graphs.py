@@ -643,12 +643,7 @@ def test_a_surface_transparent_to_shadow_rays_casts_no_shadow(technique, bound):
     light still meets it. Against Cycles at 96 x 72: the tracer 6.8e-4, the shadow-map view
     9.1e-4, the radiosity view 1.2e-3; read as its surface alone (its shadow cast),
     3.7e-2 (tracer) and 2.1e-2 (radiosity, compare)."""
-    from classic_bake.kernels.measure.metrics import rel_mse
-    from classic_bake.kernels.progress import drain
-    from classic_bake.kernels.radiosity.settings import RadiositySettings
-    from classic_bake.kernels.radiosity.solve import solve_radiosity
-    from classic_bake.kernels.radiosity.view import render_steps
-    from classic_bake.kernels.shading import direct_light
+    from blender_parts import view_against_cycles
 
     scene = lit_floor()
     mat, tree, out = bare_material("Shadowless")
@@ -662,21 +657,10 @@ def test_a_surface_transparent_to_shadow_rays_casts_no_shadow(technique, bound):
     tree.links.new(clear.outputs[0], mix.inputs[2])
     tree.links.new(mix.outputs[0], out.inputs["Surface"])
     smooth_sphere(mat)
-    resolution = (96, 72)
     if technique == "trace":
         snap, error = traced_against_cycles(scene)
     else:
-        snap = bridge.snapshot(resolution=resolution)
-        if technique == "shadowmap":
-            ours = drain(direct_light.render_steps(snap, direct_light.DirectLightSettings(),
-                                                   resolution))
-            model = cr.direct()
-        else:
-            ours = drain(render_steps(snap, solve_radiosity(snap, RadiositySettings()),
-                                      resolution))
-            model = cr.radiosity(world_lighting=True)
-        theirs, _ = cr.render_camera(scene, model, 256, resolution=resolution)
-        error = rel_mse(ours, theirs)
+        snap, error = view_against_cycles(technique)
     read = next(m for m in snap.materials if m.name == "Shadowless")
     assert read.shadowless and not read.ignored, read.ignored
     print(technique, "relMSE against Cycles", error)

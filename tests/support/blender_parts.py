@@ -194,6 +194,30 @@ def smooth_sphere(mat, radius=0.8, location=None):
     return obj
 
 
+def view_against_cycles(technique: str, resolution=(96, 72)):
+    """(snapshot, relMSE) of the scene's radiosity ("radiosity") or shadow-map view against a
+    256-sample Cycles render of the technique's model (radiosity lit by the world; direct)."""
+    from classic_bake.addon import bridge
+    from classic_bake.addon import cycles as cr
+    from classic_bake.kernels.measure.metrics import rel_mse
+    from classic_bake.kernels.progress import drain
+    from classic_bake.kernels.radiosity.settings import RadiositySettings
+    from classic_bake.kernels.radiosity.solve import solve_radiosity
+    from classic_bake.kernels.radiosity.view import render_steps
+    from classic_bake.kernels.shading import direct_light
+
+    snap = bridge.snapshot(resolution=resolution)
+    if technique == "radiosity":
+        ours = drain(render_steps(snap, solve_radiosity(snap, RadiositySettings()), resolution))
+        model = cr.radiosity(world_lighting=True)
+    else:
+        ours = drain(direct_light.render_steps(snap, direct_light.DirectLightSettings(),
+                                               resolution))
+        model = cr.direct()
+    theirs, _ = cr.render_camera(bpy.context.scene, model, 256, resolution)
+    return snap, rel_mse(ours, theirs)
+
+
 def glowing_ball():
     """A fresh `lit_floor` scene with a smooth sphere of an Emission shader of strength 2 resting
     on it (a mesh light of 2256 triangles); returns (scene, the ball)."""
