@@ -108,8 +108,14 @@ def shadow_aware(bvh: BVH, scene: Scene, offset: float, seed: int = 0) -> AlphaO
     too; None when the scene has none (the lighting query serves)."""
     if scene.shadowless() is None:
         return None
-    alpha = HiddenCoverage(scene_alpha(scene), scene.shadowless(scene.camera_only()))
-    return AlphaOccluder(bvh, alpha, offset, alpha.opaque, np.random.default_rng(seed))
+    return _occluder(bvh, HiddenCoverage(scene_alpha(scene), scene.shadowless(scene.camera_only())),
+                     offset, seed)
+
+
+def _occluder(bvh: BVH, coverage, offset: float, seed: int) -> AlphaOccluder:
+    """`bvh`'s yes / no query through `coverage` (a ray blocked with probability 1 -
+    transmittance)."""
+    return AlphaOccluder(bvh, coverage, offset, coverage.opaque, np.random.default_rng(seed))
 
 
 def scene_alpha(scene: Scene) -> SceneAlpha | None:
@@ -124,6 +130,4 @@ def alpha_aware(bvh: BVH, scene: Scene, offset: float, seed: int = 0) -> BVH | A
     `bvh` itself when every surface is opaque. offset: m, how far past a hit the next query
     starts (the scene's ray offset)."""
     alpha = lighting_coverage(scene)
-    if alpha is None:
-        return bvh
-    return AlphaOccluder(bvh, alpha, offset, alpha.opaque, np.random.default_rng(seed))
+    return bvh if alpha is None else _occluder(bvh, alpha, offset, seed)
