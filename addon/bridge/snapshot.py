@@ -19,7 +19,7 @@ from .render_state import render_state
 from .request import SnapshotRequest
 from .socket_fallback import BakeTarget
 from .transforms import matrix_array
-from .world import read_world, read_world_texture, world_env_mapping
+from .world import read_world, read_world_texture, world_env_mapping, world_volume_notes
 
 # What `snapshot` reads unless told otherwise: everything (a frozen dataclass, shared safely).
 DEFAULT_REQUEST = SnapshotRequest()
@@ -73,6 +73,7 @@ def _snapshot(context, request: SnapshotRequest, resolution: tuple[int, int] | N
         if source.name_full not in hidden:
             hidden[source.name_full] = hidden_from(source)
             ignored.extend(_ray_visibility(source, hidden[source.name_full]))
+            ignored.extend(_light_linking(source))
         is_instance = inst.is_instance and not (holder == source and source.type != "MESH")
         matrix = matrix_array(inst.matrix_world)
         base = source.name if not is_instance else f"{holder.name}/{source.name}"
@@ -152,7 +153,7 @@ def _snapshot(context, request: SnapshotRequest, resolution: tuple[int, int] | N
                                f"pinhole camera; the Cycles models turn it off)")
     texture = read_world_texture(scene, render=request.world_render)
     world, why = read_world(scene, texture)
-    ignored.extend(why)
+    ignored.extend(why + world_volume_notes(scene) + _layer_notes(context.view_layer))
     # Emission, metallic and roughness textures are resolved per triangle once, here, so that
     # every kernel reads them as constants (kernels/shading/material_maps.py).
     return resolve_material_maps(replace(
@@ -251,6 +252,39 @@ def _ray_visibility(obj, hidden: tuple[str, ...]) -> list[str]:
             if getattr(obj, flag, False):
                 notes.append(f"object '{obj.name}': {what} in Cycles; not modelled, read as a "
                              f"surface")
+    return notes
+
+
+def _light_linking(obj) -> list[str]:
+    """Notes for `obj`'s light and shadow linking (Object > Shading > Light Linking: a light or
+    an emissive mesh lighting only some objects, shadowed by only some), which the kernels do not
+    model: they light every object and every object casts its shadows; [] where it has none."""
+    linking = getattr(obj, "light_linking", None)
+    notes = []
+    for attr, what in (("receiver_collection", "light linking (the objects it lights)"),
+                       ("blocker_collection", "shadow linking (the objects that shadow it)")):
+        collection = getattr(linking, attr, None) if linking is not None else None
+        if collection is not None and collection.all_objects:
+            notes.append(f"object '{obj.name}': {what} to collection '{collection.name}' in "
+                         f"Cycles; not modelled, the kernels light and shadow every object")
+    return notes
+
+
+def _layer_notes(view_layer) -> list[str]:
+    """Notes for the view layer's collections that Cycles renders as holdouts or indirect-only
+    (Outliner > Holdout, Indirect Only), which the kernels read as ordinary surfaces."""
+    notes, stack = [], list(view_layer.layer_collection.children)
+    while stack:
+        layer = stack.pop()
+        if layer.exclude:
+            continue
+        stack.extend(layer.children)
+        if not layer.collection.all_objects:
+            continue
+        for flag, what in (("holdout", "a holdout"), ("indirect_only", "indirect only")):
+            if getattr(layer, flag, False):
+                notes.append(f"collection '{layer.name}': {what} in Cycles; not modelled, read "
+                             f"as ordinary surfaces")
     return notes
 
 

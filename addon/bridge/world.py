@@ -67,6 +67,19 @@ def read_world(scene, mapped=None) -> tuple[np.ndarray, list[str]]:
     return color * strength, ignored
 
 
+def world_volume_notes(scene) -> list[str]:
+    """A note where the world's Volume output is linked (fog, god rays): Cycles fills the scene
+    with it, the kernels see clear air; [] otherwise."""
+    world = scene.world
+    tree = node_tree(world) if world is not None else None
+    output = active_output(tree, "OUTPUT_WORLD") if tree is not None else None
+    node = follow(output.inputs["Volume"])[0] if output is not None else None
+    if node is None:
+        return []
+    return [f"world: a volume shader ('{node.bl_idname}') fills the scene in Cycles; not "
+            f"modelled, the kernels see clear air"]
+
+
 def _world_surface(scene):
     """The shader node feeding the scene's world output (None: no world, no nodes, no output or
     nothing linked to it)."""

@@ -355,3 +355,42 @@ def test_cycles_ray_visibility_and_holdouts_are_noted():
     assert any("'Backdrop'" in why and "camera, shadow rays" in why for why in notes)
     assert any("'Catcher'" in why and "shadow catcher" in why for why in notes)
     assert not any("'Plain'" in why or "'Lamp'" in why for why in notes)
+
+
+def test_light_linking_world_volumes_and_holdout_collections_are_noted():
+    """What Cycles renders from settings the kernels do not model is named, not dropped: a
+    light's light and shadow linking, a world volume, a collection held out or indirect only
+    in the view layer. A scene without them has no such note."""
+    cube_object("Plain")
+    lamp = bpy.data.objects.new("Rim", bpy.data.lights.new("Rim", "POINT"))
+    bpy.context.scene.collection.objects.link(lamp)
+    assert not any("linking" in why or "volume" in why for why in bridge.snapshot().ignored)
+    chosen = bpy.data.collections.new("Chosen")
+    chosen.objects.link(cube_object("Hero"))
+    lamp.light_linking.receiver_collection = chosen
+    lamp.light_linking.blocker_collection = chosen
+    world = bpy.data.worlds.new("Foggy")
+    bpy.context.scene.world = world
+    tree = world.node_tree or _world_tree(world)
+    fog = tree.nodes.new("ShaderNodeVolumePrincipled")
+    output = next(n for n in tree.nodes if n.type == "OUTPUT_WORLD")
+    tree.links.new(fog.outputs[0], output.inputs["Volume"])
+    held, indirect = bpy.data.collections.new("Held"), bpy.data.collections.new("Bounce")
+    for collection in (held, indirect):
+        bpy.context.scene.collection.children.link(collection)
+        collection.objects.link(cube_object(f"In{collection.name}"))
+    layers = bpy.context.view_layer.layer_collection.children
+    layers["Held"].holdout = True
+    layers["Bounce"].indirect_only = True
+    notes = bridge.snapshot().ignored
+    assert any("'Rim'" in why and "light linking" in why and "'Chosen'" in why for why in notes)
+    assert any("'Rim'" in why and "shadow linking" in why for why in notes)
+    assert any("volume shader ('ShaderNodeVolumePrincipled')" in why for why in notes)
+    assert any("'Held': a holdout" in why for why in notes)
+    assert any("'Bounce': indirect only" in why for why in notes)
+
+
+def _world_tree(world):
+    """The node tree of `world` (Blender 4.5 makes it when nodes are turned on)."""
+    world.use_nodes = True
+    return world.node_tree
