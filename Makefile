@@ -63,7 +63,8 @@ BLENDER45_TESTS := $(addprefix tests/blender/,test_interface.py test_world.py te
 	test_snapshot.py test_write_back.py test_light_units.py test_install.py \
 	test_lightmap_operator.py test_camera_views.py test_sample_scenes.py test_texture_bake.py \
 	test_bump.py test_trace.py test_shadowmap_bake.py \
-	test_radiosity_bake.py test_cycles_reference.py test_cycles_albedo.py)
+	test_radiosity_bake.py test_cycles_reference.py test_cycles_albedo.py \
+	test_light_linking.py)
 test-blender45: $(VENV45)/.stamp
 	$(PY45) -m pytest $(PYTEST_FLAGS) -m "not slow" $(BLENDER45_TESTS)
 

@@ -12,6 +12,7 @@ from ...kernels.geometry.scene import Light, Material, ObjectInfo, Scene, Textur
 from ...kernels.shading.material_maps import resolve_material_maps
 from .attributes import material_attribute
 from .camera import read_camera
+from .light_linking import linked_lights, linking_of
 from .lights import read_light
 from .materials import DEFAULT_MATERIAL, MaterialReader
 from .mesh import MeshChunk, mesh_chunk, triangles_problem
@@ -53,6 +54,7 @@ def _snapshot(context, request: SnapshotRequest, resolution: tuple[int, int] | N
     instance_counts: dict[str, int] = {}
     hidden: dict[str, tuple[str, ...]] = {}  # source object -> the rays Cycles hides it from
     skipped: set[str] = set()  # objects of geometry the kernels do not read, noted once
+    linking: dict[str, dict] = {}  # light name -> its light and shadow linking (`linking_of`)
 
     for inst in depsgraph.object_instances:
         obj = inst.object
@@ -84,6 +86,7 @@ def _snapshot(context, request: SnapshotRequest, resolution: tuple[int, int] | N
             if request.lights:
                 light, why = read_light(name, obj.data, matrix)
                 lights.append(light)
+                linking[name] = linking_of(source)
                 ignored.extend(why)
             continue
         if request.objects is not None and source.name not in request.objects:
@@ -156,6 +159,10 @@ def _snapshot(context, request: SnapshotRequest, resolution: tuple[int, int] | N
     ignored.extend(why + world_volume_notes(scene) + _layer_notes(context.view_layer))
     # Emission, metallic and roughness textures are resolved per triangle once, here, so that
     # every kernel reads them as constants (kernels/shading/material_maps.py).
+    lights = linked_lights(lights, linking, chunks)  # chunks: the scene's objects, in order
+    ignored.extend(f"light '{light.name}': its light linking holds for the light it casts; its "
+                   f"image in mirrors and glass shows in every object" for light in lights
+                   if light.kind == "AREA" and light.receivers is not None)
     return resolve_material_maps(replace(
         _assemble(chunks, materials, lights, camera, world, request, ignored),
         world_texture=texture,
@@ -256,18 +263,14 @@ def _ray_visibility(obj, hidden: tuple[str, ...]) -> list[str]:
 
 
 def _light_linking(obj) -> list[str]:
-    """Notes for `obj`'s light and shadow linking (Object > Shading > Light Linking: a light or
-    an emissive mesh lighting only some objects, shadowed by only some), which the kernels do not
-    model: they light every object and every object casts its shadows; [] where it has none."""
-    linking = getattr(obj, "light_linking", None)
-    notes = []
-    for attr, what in (("receiver_collection", "light linking (the objects it lights)"),
-                       ("blocker_collection", "shadow linking (the objects that shadow it)")):
-        collection = getattr(linking, attr, None) if linking is not None else None
-        if collection is not None and collection.all_objects:
-            notes.append(f"object '{obj.name}': {what} to collection '{collection.name}' in "
-                         f"Cycles; not modelled, the kernels light and shadow every object")
-    return notes
+    """Notes for an emissive mesh's light and shadow linking (Object > Shading > Light Linking),
+    which the kernels do not model (a lamp's they do: `light_linking.py`); [] where `obj` is a
+    lamp or has none."""
+    if obj.type == "LIGHT":
+        return []
+    return [f"object '{obj.name}': {'light' if field_name == 'receivers' else 'shadow'} linking "
+            f"of an emissive mesh in Cycles; not modelled, its light reaches every object and "
+            f"every object shadows it" for field_name in linking_of(obj)]
 
 
 def _layer_notes(view_layer) -> list[str]:

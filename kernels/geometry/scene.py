@@ -245,6 +245,8 @@ class Light:
     | spot_size   | rad                      | spot: full cone angle                             |
     | spot_blend  | [0, 1]                   | spot: smooth fraction of the cone edge            |
     | size_x/y    | m, world                 | area: extents along axis_x and axis_y (scaled)    |
+    | receivers   | (O,) bool over objects   | light linking: the objects it lights (None: all)  |
+    | blockers    | (O,) bool over objects   | shadow linking: those that shadow it (None: all)  |
     """
 
     name: str
@@ -265,6 +267,10 @@ class Light:
     size_x: float = 0.0
     size_y: float = 0.0
     cast_shadow: bool = True
+    # Cycles' light and shadow linking, over `Scene.objects`: the objects that take this light's
+    # light, and those whose surfaces its shadow rays meet (`Scene.shadow_passing`).
+    receivers: np.ndarray | None = None
+    blockers: np.ndarray | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -442,6 +448,16 @@ class Scene:
         for o in owners:
             out[o.tri_start:o.tri_start + o.tri_count] = True
         return out
+
+    def shadow_passing(self, light: Light) -> np.ndarray | None:
+        """(T,) bool: the triangles `light`'s shadow rays pass: those every shadow ray passes
+        (`ray_hidden`) and, under shadow linking, the objects outside its blockers; None when
+        they meet every triangle."""
+        hidden = self.ray_hidden("shadow")
+        if light.blockers is None:
+            return hidden
+        outside = ~light.blockers[self.object_ids]
+        return outside if hidden is None else outside | hidden
 
     def camera_only(self) -> np.ndarray | None:
         """(T,) bool: the triangles only camera rays see (`Material.camera_only`: unlit

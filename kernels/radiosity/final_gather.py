@@ -47,7 +47,7 @@ of a 0.6 s solve.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -84,7 +84,7 @@ from .emitters import (
     thinned_side,
 )
 from .form_factors.sampling import sample_patches
-from .lamps import lamp_irradiance
+from .lamps import LampShadows, lamp_irradiance
 from .settings import FinalGatherSettings
 
 # A patch this little open (fraction of its sample points outside every solid) is not rescaled
@@ -237,10 +237,13 @@ class FinalGather:
     # What the lamps' and emitters' shadow rays meet where it differs from `bvh` (shadowless
     # surfaces passed: `alpha.shadow_aware`); None: `bvh`.
     shadow_bvh: object = None
+    # The lamps under shadow linking: Light -> what their shadow rays meet (`alpha.linked_shadows`)
+    linked: dict = field(default_factory=dict)
 
-    def shadow_occluded(self):
-        """The lights' shadow-ray query (origins, directions, t_min, t_max) -> (R,) bool."""
-        return _occluded(self.bvh if self.shadow_bvh is None else self.shadow_bvh)
+    def shadow_occluded(self) -> LampShadows:
+        """The lights' shadow-ray query (origins, directions, t_min, t_max) -> (R,) bool, each
+        lamp under shadow linking taking its own."""
+        return LampShadows(self.bvh if self.shadow_bvh is None else self.shadow_bvh, self.linked)
 
     def opened(self, open_: np.ndarray) -> Visibility:
         """What M receivers are known to be (open_ (M,) bool: inside no solid, which their
@@ -294,7 +297,7 @@ class PatchSolution:
 
 def prepare(scene: Scene, solution: PatchSolution, emitters: Emitters, bvh, smooth_angle: float,
             area_samples_per_side: int, settings: FinalGatherSettings,
-            shadow_bvh=None) -> FinalGather:
+            shadow_bvh=None, linked: dict | None = None) -> FinalGather:
     """The patch-level half: the indirect irradiance (W/m^2, RGB) at the corners of the patches,
     or of their elements (`elements.py`, within `settings.element_pairs`).
 
@@ -302,7 +305,8 @@ def prepare(scene: Scene, solution: PatchSolution, emitters: Emitters, bvh, smoo
     same numbers it solved with, so no sampling noise of the direct light leaks into the indirect
     part. Elements gather it afresh from the patches' B, plus the world's light of their patch.
     shadow_bvh: what the receivers' shadow rays to lamps and emitters meet, where it differs
-    from `bvh` (`FinalGather.shadow_bvh`)."""
+    from `bvh` (`FinalGather.shadow_bvh`); linked: the lamps under shadow linking
+    (`FinalGather.linked`)."""
     patches, radiosity, emitted = solution.patches, solution.radiosity, solution.emitted
     reflectance, direct = solution.reflectance, solution.direct
     clear, world = solution.clear, solution.world
@@ -381,7 +385,7 @@ def prepare(scene: Scene, solution: PatchSolution, emitters: Emitters, bvh, smoo
              "straddling_patches": int(((open_fraction > 0.0) & (open_fraction < 1.0)).sum())}
     return FinalGather(scene, bvh, emitters, clear, unroofed, patches, levels, corner, tri_normals,
                        coincident, np.pi * triangle_emission(scene), offset, area_samples_per_side,
-                       settings, stats, shadow_bvh)
+                       settings, stats, shadow_bvh, linked or {})
 
 
 def exitance(gather: FinalGather, tri: np.ndarray, bary: np.ndarray,
@@ -486,7 +490,8 @@ def side_irradiance(gather: FinalGather, t: np.ndarray, b: np.ndarray, side: flo
                            lift=facing)
     h += lamp_irradiance(scene, points, side * normals, occluded, gather.offset,
                          gather.area_samples_per_side, lift=facing,
-                         smooth=None if smooth is None else side * smooth)
+                         smooth=None if smooth is None else side * smooth,
+                         objects=scene.object_ids[t])
     if gather.settings.world_rays:
         h += back_bounce(gather, points, facing, reflected, rng)
     return h
@@ -597,7 +602,8 @@ def _irradiance(gather: FinalGather, t: np.ndarray, b: np.ndarray, known: Visibi
     h[outside] += lamp_irradiance(scene, points[outside], normals[outside], occluded,
                                   gather.offset, gather.area_samples_per_side,
                                   lift=geometric[outside], strata=shared,
-                                  smooth=None if smooth is None else smooth[outside])
+                                  smooth=None if smooth is None else smooth[outside],
+                                  objects=scene.object_ids[t[outside]])
     indirect = patching.interpolate(gather.corner_indirect, element[outside], local[outside])
     if smooth is not None:  # gathered about the smooth normals: a relief's tilt takes less
         indirect *= relief_sky_factor(smooth[outside], normals[outside])[:, None]

@@ -14,20 +14,48 @@ from ..shading.bump import relief_shadowing
 LIGHT_END_REL = 1e-6
 
 
+class LampShadows:
+    """The lamps' shadow-ray query (origins, directions, t_min, t_max) -> (R,) bool: `bvh`'s (an
+    object with `occluded`), and for a lamp under shadow linking its own (`own`: Light -> such
+    an object, which meets that lamp's blockers alone; `for_light`)."""
+
+    def __init__(self, bvh, own: dict | None = None):
+        self.bvh, self.own = bvh, own or {}
+
+    def __call__(self, origins, directions, t_min, t_max) -> np.ndarray:
+        return self.bvh.occluded(origins, directions, t_min, t_max)
+
+    def for_light(self, light):
+        """The query `light`'s shadow rays take."""
+        own = self.own.get(light)
+        return self if own is None else own.occluded
+
+
+def light_query(occluded, light):
+    """`occluded` as `light`'s shadow rays take it (`LampShadows.for_light`); itself where it
+    is a plain query or None."""
+    return occluded.for_light(light) if isinstance(occluded, LampShadows) else occluded
+
+
 def shadowed_irradiance(light, points: np.ndarray, normals: np.ndarray, origins: np.ndarray,
                         occluded, area_samples_per_side: int,
-                        strata: Strata | None = None, direction_weight=None
-                        ) -> tuple[np.ndarray, np.ndarray]:
+                        strata: Strata | None = None, direction_weight=None,
+                        objects: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(M, 3) direct irradiance W/m^2 of `light` at points with unit normals, times its visible
     fraction from `origins` (the points lifted off their surface), and that fraction (M,): 1 where
-    the light does not reach, casts no shadow, or `occluded` is None (no shadows). strata: as
-    `light_visibility`'s; direction_weight: as `lights.direct_irradiance`'s."""
+    the light does not reach, casts no shadow, or `occluded` is None (no shadows; a
+    `LampShadows` takes the light's own query). strata: as `light_visibility`'s;
+    direction_weight: as `lights.direct_irradiance`'s; objects (M,): the points' objects, for
+    the light's light linking (None: it reaches every point)."""
     e = light_units.direct_irradiance(light, points, normals, direction_weight)
+    reach = light_units.receiving(light, objects)
+    if reach is not None:
+        e *= reach[:, None]
     lit = np.flatnonzero(e.max(axis=1) > 0.0)
     vis = np.ones(len(points))
     if occluded is not None and light.cast_shadow and lit.size:
-        vis[lit] = light_visibility(light, origins[lit], occluded, area_samples_per_side,
-                                    strata=strata_rows(strata, lit))
+        vis[lit] = light_visibility(light, origins[lit], light_query(occluded, light),
+                                    area_samples_per_side, strata=strata_rows(strata, lit))
     e *= vis[:, None]
     return e, vis
 
@@ -111,18 +139,19 @@ def shadowing_lamps(scene: Scene) -> list:
 
 def lamp_irradiance(scene: Scene, points: np.ndarray, normals: np.ndarray, occluded, offset: float,
                     area_samples_per_side: int, lift: np.ndarray | None = None,
-                    strata: Strata | None = None, smooth: np.ndarray | None = None
-                    ) -> np.ndarray:
+                    strata: Strata | None = None, smooth: np.ndarray | None = None,
+                    objects: np.ndarray | None = None) -> np.ndarray:
     """(M, 3) irradiance W/m^2 of the scene's lamps (point, spot, sun, area) with shadow rays, as
     the radiosity first shot computes it for patch points; rays leave along `lift` (M, 3) when
     given (`emitters.emitter_irradiance`); strata: pixels' sub-samples that share out the area
     lamps' points (`light_visibility`). smooth (M, 3): the normals before a relief tilted them
     to `normals`, whose facets then hide part of a low lamp (`bump.bump_shadowing`, as Cycles
-    weighs diffuse light under a Bump or Normal Map)."""
+    weighs diffuse light under a Bump or Normal Map). objects (M,): the points' objects, for the
+    lamps' light linking."""
     out = np.zeros((len(points), 3))
     origins = points + offset * (normals if lift is None else lift)
     weight = None if smooth is None else relief_shadowing(smooth, normals)
     for light in scene.lights:
         out += shadowed_irradiance(light, points, normals, origins, occluded,
-                                   area_samples_per_side, strata, weight)[0]
+                                   area_samples_per_side, strata, weight, objects)[0]
     return out

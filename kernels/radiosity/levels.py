@@ -5,7 +5,7 @@ loop of `solve.py` splits and solves (`Levels`: the patches themselves for the m
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
@@ -16,6 +16,7 @@ from ..progress import Steps
 from . import patches as patching
 from .clusters import CLUSTER_AREA_SHARE
 from .emitters import Emitters, clear_shafts
+from .lamps import LampShadows
 from .settings import RadiositySettings
 from .sources import first_shot, patch_emission, patch_reflectance, shot_emission, world_shot
 
@@ -33,15 +34,18 @@ class SolveContext:
     # What the lamps' and emitters' shadow rays meet, where it differs from `bvh`: shadowless
     # surfaces passed (`alpha.shadow_aware`); None: `bvh`.
     shadow_bvh: object = None
+    # The lamps under shadow linking: Light -> what their shadow rays meet (`alpha.linked_shadows`)
+    linked: dict = field(default_factory=dict)
 
     def occluded(self, origins, directions, t_min, t_max) -> np.ndarray:
         """The BVH's visibility query between surfaces: (R,) bool."""
         return self.bvh.occluded(origins, directions, t_min, t_max)
 
-    def shadow_occluded(self, origins, directions, t_min, t_max) -> np.ndarray:
-        """The lights' shadow-ray query: (R,) bool."""
-        bvh = self.bvh if self.shadow_bvh is None else self.shadow_bvh
-        return bvh.occluded(origins, directions, t_min, t_max)
+    @property
+    def shadow_occluded(self) -> LampShadows:
+        """The lights' shadow-ray query (origins, directions, t_min, t_max) -> (R,) bool, each
+        lamp under shadow linking taking its own."""
+        return LampShadows(self.bvh if self.shadow_bvh is None else self.shadow_bvh, self.linked)
 
 
 @dataclass(frozen=True, eq=False)

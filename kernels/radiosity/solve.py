@@ -43,7 +43,7 @@ from ..geometry.bvh import BVH
 from ..geometry.frames import RAY_OFFSET_REL
 from ..geometry.scene import Scene
 from ..progress import Steps, drain, scaled
-from ..shading.alpha import alpha_aware, shadow_aware
+from ..shading.alpha import alpha_aware, linked_shadows, shadow_aware
 from ..shading.world_light import WORLD_SUN_NAME, world_lit
 from . import final_gather
 from . import patches as patching
@@ -109,6 +109,7 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
         bvh = BVH.build(scene.triangles)
     # Leaf cards and fences: visibility rays pass alpha surfaces with probability 1 - alpha.
     shadow_bvh = shadow_aware(bvh, scene, RAY_OFFSET_REL * scale, settings.seed)
+    linked = linked_shadows(bvh, scene, RAY_OFFSET_REL * scale, settings.seed)
     bvh = alpha_aware(bvh, scene, RAY_OFFSET_REL * scale, settings.seed)
     exchanging = exchanging_triangles(scene)
     # The first patches: auto's test for clusters, the hierarchy's count, the other solvers' mesh.
@@ -120,7 +121,8 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
     if plan is not None:
         settings = plan.settings
         ctx = SolveContext(scene, settings, bvh, size, scale,
-                           shot_emitters(scene, settings, bvh, RAY_OFFSET_REL * scale), shadow_bvh)
+                           shot_emitters(scene, settings, bvh, RAY_OFFSET_REL * scale), shadow_bvh,
+                           linked)
         levels = TreeLevels(scene, plan.roots, plan.depth, ctx.occluded, settings, scale,
                             plan.memory)
     else:
@@ -136,7 +138,8 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
             # clustered).
             settings = replace(settings, solver="clustered")
         ctx = SolveContext(scene, settings, bvh, size, scale,
-                           shot_emitters(scene, settings, bvh, RAY_OFFSET_REL * scale), shadow_bvh)
+                           shot_emitters(scene, settings, bvh, RAY_OFFSET_REL * scale), shadow_bvh,
+                           linked)
         # Not grouped on the first patches, never grouped: split children (shadow edges, the
         # near field, refinement) are there to hold variation that a group's one value would
         # flatten (a wall 16 cm behind a plate, its 0.25 m children grouped: the light on it
@@ -235,7 +238,7 @@ def _prepare_gather(ctx: SolveContext, solution: PatchSolution, stats: dict
     start = time.perf_counter()
     gather = final_gather.prepare(ctx.scene, solution, ctx.emitters, ctx.bvh, settings.smooth_angle,
                                   settings.area_light_samples_per_side, gather_settings(settings),
-                                  ctx.shadow_bvh)
+                                  ctx.shadow_bvh, ctx.linked)
     stats["final_gather"] = {**gather.stats, "prepare_seconds": time.perf_counter() - start}
     return gather
 

@@ -169,9 +169,11 @@ def first_shot(scene: Scene, patches: patching.Patches, occluded, settings: Radi
         some_dark = np.any(reached & (v < 1.0), axis=1)
         boundary[:] |= some_lit & some_dark
 
+    objects = np.repeat(scene.object_ids[patches.parent], samples)  # the samples' (light linking)
     for light in scene.lights:
         e, vis = shadowed_irradiance(light, flat, normals, origins, occluded,
-                                     settings.area_light_samples_per_side)  # (N S, 3), (N S,)
+                                     settings.area_light_samples_per_side,
+                                     objects=objects)  # (N S, 3), (N S,)
         if light.kind in ("POINT", "SPOT"):  # the samples' mean made the exact patch integral
             e *= np.repeat(near_lamp_scale(light, patches.corners, patches.normals,
                                            patches.areas, weights, flat), samples)[:, None]
@@ -258,9 +260,10 @@ def shadow_edges(scene: Scene, patches: patching.Patches, occluded,
     weights, flat, normals, origins = lifted_samples(patches, settings.light_samples_per_side,
                                                      scale)
     count, samples = weights.shape
+    objects = np.repeat(scene.object_ids[patches.parent], samples)
     for light in lamps:
         e, vis = shadowed_irradiance(light, flat, normals, origins, occluded,
-                                     settings.area_light_samples_per_side)
+                                     settings.area_light_samples_per_side, objects=objects)
         v = vis.reshape(count, samples)  # 1 where the sample faces away
         # The most seen of the lit samples against the least seen of all (those facing away
         # are 1, never below a facing one's).

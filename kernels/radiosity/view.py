@@ -29,7 +29,7 @@ from ..shading.specular_layer import (
     view_tables,
 )
 from .final_gather import camera_enclosed
-from .lamps import light_visibility, shadowed_irradiance
+from .lamps import light_query, light_visibility, shadowed_irradiance
 from .result import RadiosityResult
 from .sources import with_world_suns
 
@@ -140,17 +140,23 @@ def _lamp_highlights(scene: Scene, result: RadiosityResult, tri: np.ndarray, bar
     if not scene.lights or not any(shiny) or not len(tri):
         return out
     geometric, normals, bvh, offset = frame
-    samples = result.gather.area_samples_per_side if result.gather is not None else 4
+    gather = result.gather
+    samples = gather.area_samples_per_side if gather is not None else 4
+    # The lamps' shadow rays as the solve cast them (shadowless surfaces, shadow linking)
+    occluded = gather.shadow_occluded() if gather is not None else bvh.occluded
+    objects = scene.object_ids[tri]  # for the lamps' light linking
     base = metal_f0(scene, tri, albedo_at(scene, tri, bary))
     for light in scene.lights:
         if light.kind == "AREA":  # its highlight spread over the emitter, point by point
+            reach = light_units.receiving(light, objects)
             for to_light, e in _area_lamp_points(light, points, normals,
-                                                 points + offset * geometric, bvh.occluded,
-                                                 samples):
+                                                 points + offset * geometric,
+                                                 light_query(occluded, light), samples):
+                e = e if reach is None else e * reach[:, None]
                 out += lamp_highlights(scene.materials, mids, normals, -dirs, to_light, e, base)
             continue
         e, _ = shadowed_irradiance(light, points, normals, points + offset * geometric,
-                                   bvh.occluded, samples)
+                                   occluded, samples, objects=objects)
         to_light, _ = light_units.light_vectors(light, points)
         out += lamp_highlights(scene.materials, mids, normals, -dirs, to_light, e, base)
     return out

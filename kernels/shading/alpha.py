@@ -112,6 +112,15 @@ def shadow_aware(bvh: BVH, scene: Scene, offset: float, seed: int = 0) -> AlphaO
                      offset, seed)
 
 
+def linked_shadows(bvh: BVH, scene: Scene, offset: float, seed: int = 0) -> dict:
+    """Light -> `alpha_aware`'s query for that light's shadow rays, for the lights under shadow
+    linking (`Light.blockers`): they pass the objects outside its blockers as they pass what
+    every shadow ray passes (`Scene.shadow_passing`); {} where no light has blockers."""
+    return {light: _occluder(bvh, HiddenCoverage(scene_alpha(scene), scene.shadow_passing(light)),
+                             offset, seed)
+            for light in scene.lights if light.blockers is not None}
+
+
 def _occluder(bvh: BVH, coverage, offset: float, seed: int) -> AlphaOccluder:
     """`bvh`'s yes / no query through `coverage` (a ray blocked with probability 1 -
     transmittance)."""

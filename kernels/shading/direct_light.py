@@ -156,7 +156,11 @@ def shadow_maps_steps(scene: Scene, receivers: Receivers, spacing: float,
             continue
         shadow = settings.shadow
         casting = potential_casters(scene.triangles, light, box)
-        caster_ids = np.flatnonzero(casting if unlit is None else casting & ~unlit)
+        if unlit is not None:
+            casting &= ~unlit
+        if light.blockers is not None:  # shadow linking: only its blockers cast its shadows
+            casting &= light.blockers[scene.object_ids]
+        caster_ids = np.flatnonzero(casting)
         casters = scene.triangles[caster_ids]
         fit = fit_sun(casters, light, receivers) if light.kind == "SUN" else None
         if settings.auto_resolution:
@@ -188,14 +192,19 @@ def maps_visibility(maps: list, receivers: Receivers, out: np.ndarray) -> np.nda
     return out
 
 
-def irradiance_per_light(scene: Scene, points, normals, smooth=None) -> np.ndarray:
+def irradiance_per_light(scene: Scene, points, normals, smooth=None, objects=None) -> np.ndarray:
     """(L, N, 3) unshadowed irradiance of each light at the receivers, W/m^2. smooth (N, 3):
     the normals before a relief tilted them to `normals`, whose facets then hide part of a low
-    light from the diffuse base (`bump.bump_shadowing`, as Cycles weighs diffuse light)."""
+    light from the diffuse base (`bump.bump_shadowing`, as Cycles weighs diffuse light).
+    objects (N,): the receivers' objects (indices into `scene.objects`), for the lights' light
+    linking; None: every light reaches every receiver."""
     weight = None if smooth is None else relief_shadowing(smooth, normals)
     out = np.zeros((len(scene.lights), len(points), 3))
     for k, light in enumerate(scene.lights):
         out[k] = light_units.direct_irradiance(light, points, normals, weight)
+        reach = light_units.receiving(light, objects)
+        if reach is not None:
+            out[k] *= reach[:, None]
     return out
 
 
@@ -299,17 +308,18 @@ def _shade(scene: Scene, maps: list, f, receivers: Receivers | None = None,
     if receivers is None:
         receivers = _seen_receivers(f)
     vis = maps_visibility(maps, receivers, np.ones((len(scene.lights), len(points)), np.float32))
-    e_diffuse = irradiance_per_light(scene, points, normals)
+    objects = scene.object_ids[tri]
+    e_diffuse = irradiance_per_light(scene, points, normals, objects=objects)
     e = e_diffuse  # the lobes'
     bent = np.flatnonzero(np.any(glossy != normals, axis=1))
     if bent.size:
         e = e_diffuse.copy()
-        e[:, bent] = irradiance_per_light(scene, points[bent], glossy[bent])
+        e[:, bent] = irradiance_per_light(scene, points[bent], glossy[bent], objects=objects[bent])
     if relief:  # the diffuse base's on the relief's tilted points
         tilted = np.flatnonzero(np.einsum("ij,ij->i", smooth, normals) < 1.0)
         e_diffuse = e_diffuse.copy()
         e_diffuse[:, tilted] = irradiance_per_light(scene, points[tilted], normals[tilted],
-                                                    smooth[tilted])
+                                                    smooth[tilted], objects[tilted])
     # What reflects diffusely toward the eye: no metal or glass, and the base under the specular
     # layer darkened at this view (`specular_layer.py`), as Cycles' diffuse lobe.
     mids = hit_materials(scene, tri, bary, scene.material_ids[tri])  # metallic / roughness maps
@@ -339,7 +349,8 @@ def _shade(scene: Scene, maps: list, f, receivers: Receivers | None = None,
         back = Receivers.of(points[lit_behind], -geometric[lit_behind])
         vis_back = maps_visibility(maps, back, np.ones((len(scene.lights), len(lit_behind)),
                                                        np.float32))
-        e_back = irradiance_per_light(scene, points[lit_behind], -normals[lit_behind])
+        e_back = irradiance_per_light(scene, points[lit_behind], -normals[lit_behind],
+                                      objects=objects[lit_behind])
         diffuse[lit_behind] += translucent[lit_behind] / np.pi * np.einsum(
             "lnc,ln->nc", e_back, vis_back)
     coat = coat_layer(scene.materials, mids, np.einsum("ij,ij->i", glossy, d))
@@ -389,7 +400,8 @@ def shadow_bake_steps(scene: Scene, objects, lightmap_sizes: dict, padding: int,
     parts: dict = {}
     for k, kind, t in sets:
         stop = start + len(t)
-        mask = shadow_mask(irradiance_per_light(scene, t.points, t.normals), vis[:, start:stop])
+        lit = irradiance_per_light(scene, t.points, t.normals, objects=np.full(len(t.points), k))
+        mask = shadow_mask(lit, vis[:, start:stop])
         parts.setdefault(k, {})[kind] = (t, mask, vis[:, start:stop])
         start = stop
     for k in objects:

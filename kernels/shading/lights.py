@@ -104,6 +104,15 @@ def spot_falloff(cos_angle: np.ndarray, spot_size: float, spot_blend: float) -> 
 AREA_SAMPLES_PER_SIDE = 16
 
 
+def receiving(light: Light, objects: np.ndarray | None) -> np.ndarray | None:
+    """(N,) float64, 1 where the points on objects `objects` (N,) (indices into
+    `Scene.objects`) take `light`'s light and 0 where its light linking leaves them out; None
+    where every object takes it (or the points' objects are unknown)."""
+    if light.receivers is None or objects is None:
+        return None
+    return light.receivers[objects].astype(np.float64)
+
+
 def light_vectors(light: Light, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Unit directions (N, 3) from `points` towards the light and distances (N,) m (inf for a sun)."""
     points = np.asarray(points, np.float64)

@@ -45,6 +45,8 @@ class SurfaceHits:
     # ensure_valid_specular_reflection, which its glossy closures apply and its diffuse ones do
     # not); None: `ns`
     spec: np.ndarray | None = None
+    # (N,) int: each hit's object, an index into `Scene.objects` (light linking); None: unknown
+    objects: np.ndarray | None = None
 
     @property
     def glossy_normal(self) -> np.ndarray:
@@ -251,4 +253,4 @@ def surface_at(scene: Scene, tri_normals, origins, dirs, hits, shading: str = "b
         albedo[rows] = sample_texture(mat.base_color_texture, uv[rows])
     emission = emission_at(scene, tri, np.concatenate([w, u, v], axis=1))
     return SurfaceHits(p, ng, ns, front, material, albedo, emission, smooth, length[:, 0],
-                       None if spec is ns else spec)
+                       None if spec is ns else spec, scene.object_ids[tri])

@@ -47,7 +47,7 @@ from ..measure.metrics import REC709_LUMINANCE
 from ..measure.phase_clock import PhaseClock
 from ..progress import Steps, drain, scaled
 from ..shading import lights as light_units
-from ..shading.alpha import lighting_coverage, ray_coverage, scene_alpha
+from ..shading.alpha import HiddenCoverage, lighting_coverage, ray_coverage, scene_alpha
 from ..shading.bump import bump_shadowing, valid_reflection
 from ..shading.glossy_lobe import (
     MEAN_FACTOR,
@@ -110,6 +110,9 @@ SUBSAMPLE_LOBE_SHARE = 8
 # back-lit leaf card over a sunlit floor against Cycles: relMSE 9.4e-4 with 4, 3.7e-4 with 8,
 # 3.1e-4 with 16 (the leaf's mean within 1.3%, 0.2%, 0.1%).
 TRANSLUCENT_RAYS = 8
+# `Tracer._visible`'s cover when none is given: the scene's shadow rays' (`shadow_cover`, which
+# may itself be None: every surface opaque to them).
+DEFAULT_COVER = object()
 # An environment map read for reflected rays: (N, 3) world points, (N, 3) unit directions, (N,)
 # the surfaces' roughness -> (N, 3) radiance W/(m^2 sr) arriving at the points along the
 # directions (over a rough surface's lobe). A look-up with an `irradiance` attribute that is not
@@ -201,6 +204,13 @@ class Tracer:
         # rays (Object > Visibility > Ray Visibility) fully transparent to them.
         self.camera_cover = ray_coverage(scene, "camera")
         self.shadow_cover = ray_coverage(scene, "shadow")
+        # Shadow linking: the lights whose shadow rays pass the objects outside their blockers,
+        # each with its own coverage (`link_covers[light_cover[light]]`).
+        self.link_covers, self.light_cover = [], {}
+        for light in scene.lights:
+            if light.blockers is not None:
+                self.light_cover[light] = len(self.link_covers)
+                self.link_covers.append(HiddenCoverage(self.alpha, scene.shadow_passing(light)))
         self.tri_normals = geometric_normals(scene.triangles)
         self.emitters = scene_emitters(scene, settings)
         # Hits whose triangle (or part of it) sees an area emitter or a lamp whole cast no shadow
@@ -214,6 +224,19 @@ class Tracer:
                             np.ones(len(em.lights))]),  # shadow rays a hit casts to each
             self.shadow_bvh, self.offset, view_pixels)
         self.area_lamps = [li for li in scene.lights if li.kind == "AREA"]
+        # Per area emitter (`emitters.hulls` order: the area lamps, then emissive meshes): its
+        # coverage in `link_covers` (-1: the scene's), and (E, O) whether each object takes its
+        # light (light linking; None where every light reaches every object).
+        n_emitters = len(em.hulls)
+        self.emitter_cover = np.full(n_emitters, -1)
+        for e, lamp in enumerate(self.area_lamps):
+            self.emitter_cover[e] = self.light_cover.get(lamp, -1)
+        self.emitter_reach = None
+        if any(lamp.receivers is not None for lamp in self.area_lamps):
+            self.emitter_reach = np.ones((n_emitters, len(scene.objects)), bool)
+            for e, lamp in enumerate(self.area_lamps):
+                if lamp.receivers is not None:
+                    self.emitter_reach[e] = lamp.receivers
         # A world map's suns (`world_light.extract_suns`): highlights of the rough lobes, and
         # the map without them for those lobes' rays (sky_scene).
         self.map_suns, self.sky_scene = (), scene
@@ -272,14 +295,30 @@ class Tracer:
 
     # --- direct light ---------------------------------------------------------------------------
 
-    def _visible(self, origins, directions, t_max) -> np.ndarray:
+    def _visible(self, origins, directions, t_max, cover=DEFAULT_COVER) -> np.ndarray:
+        """(N,) what of each shadow ray arrives (1 or 0; a transmittance through partly covered
+        surfaces) through `cover` (default: every shadow ray's, `shadow_cover`)."""
         self.stats.shadow_rays += len(origins)
         with self.clock("shadow traversal"):
-            cover = self.shadow_cover
+            cover = self.shadow_cover if cover is DEFAULT_COVER else cover
             if cover is not None:  # (N,) float transmittance
                 return transmittance(self.shadow_bvh, origins, directions, 0.0, t_max,
                                      cover, self.offset, cover.opaque)
             return ~self.shadow_bvh.occluded(origins, directions, 0.0, t_max)
+
+    def _visible_linked(self, origins, directions, t_max, group: np.ndarray | None
+                        ) -> np.ndarray:
+        """`_visible` of shadow rays towards lights of different shadow linking: group (N,)
+        int, each ray's light's coverage in `link_covers` (-1: the scene's `shadow_cover`);
+        None: every ray the scene's. One BVH call per coverage."""
+        if group is None or not self.link_covers:
+            return self._visible(origins, directions, t_max)
+        out = np.empty(len(origins))
+        for g in np.unique(group):
+            rows = np.flatnonzero(group == g)
+            cover = self.shadow_cover if g < 0 else self.link_covers[g]
+            out[rows] = self._visible(origins[rows], directions[rows], t_max[rows], cover)
+        return out
 
     def _hits(self, origins, dirs, t_min, camera: bool, t_max=np.inf
               ) -> tuple[Hits, Layers | None]:
@@ -335,10 +374,14 @@ class Tracer:
         # Every lamp's lit hits first, then all their shadow rays in one BVH call: a call's
         # fixed cost (pool set-up, the traversal's steps) is paid once per depth, not per lamp.
         lit_sets = []  # (light, diffuse, sub (k,), cast (k,) bool, to_l (n, 3), e (n, 3))
-        shadow_o, shadow_d, shadow_t = [], [], []
+        shadow_o, shadow_d, shadow_t, shadow_g = [], [], [], []
+        objects = None if h.objects is None else h.objects[idx]
         for k, (light, diffuse) in enumerate(lamps):
             to_l, dist = light_units.light_vectors(light, p)
             e = light_units.direct_irradiance(light, p, ns)  # (n, 3), includes cos and falloff
+            reach = light_units.receiving(light, objects)  # light linking
+            if reach is not None:
+                e *= reach[:, None]
             sub = np.flatnonzero(max_of_three(e) > 0)
             if not len(sub):
                 continue
@@ -352,9 +395,10 @@ class Tracer:
             shadow_o.append(origin[rays])
             shadow_d.append(to_l[rays])
             shadow_t.append(np.where(np.isinf(dist[rays]), np.inf, dist[rays] - self.offset))
+            shadow_g.append(np.full(len(rays), self.light_cover.get(light, -1)))
         if sum(len(o) for o in shadow_o):
-            seen = self._visible(np.concatenate(shadow_o), np.concatenate(shadow_d),
-                                 np.concatenate(shadow_t))
+            seen = self._visible_linked(np.concatenate(shadow_o), np.concatenate(shadow_d),
+                                        np.concatenate(shadow_t), np.concatenate(shadow_g))
             seen_at = np.cumsum([0] + [len(o) for o in shadow_o])
         for k, (light, diffuse, sub, cast, to_l, e) in enumerate(lit_sets):
             vis = np.ones(len(sub))
@@ -397,7 +441,7 @@ class Tracer:
             area_lobes = [(f0[idx], weight[idx], rough[idx]) for f0, weight, rough in lobes]
             cloth = (fabric.take(idx), np.zeros((len(idx), 3))) if sheen_at.any() else None
             diffuse, shine = self._area_direct(origin, ns, brdf_w, sub_strata, wo[idx], area_lobes,
-                                               smooth, whole, gn, cloth)
+                                               smooth, whole, gn, cloth, objects)
             lambert[idx] += diffuse
             out[idx] += shine
             if cloth is not None:
@@ -417,7 +461,8 @@ class Tracer:
         if not len(on):
             return out
         back = SurfaceHits(h.p[on], -h.ng[on], -h.ns[on], ~h.front[on], h.material[on],
-                           colour[on], np.zeros((len(on), 3)))
+                           colour[on], np.zeros((len(on), 3)),
+                           objects=None if h.objects is None else h.objects[on])
         light, _ = self.direct(back, wo[on], np.ones(len(on)), [])
         out[on] = light if under is None else light * under[on]
         return out
@@ -493,7 +538,8 @@ class Tracer:
             n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), MIN_NORMAL_LENGTH)
             wo = eye - p
             wo /= np.maximum(np.linalg.norm(wo, axis=1, keepdims=True), 1e-12)
-            corner = SurfaceHits(p, h.ng, n, h.front, h.material, h.albedo, h.emission)
+            corner = SurfaceHits(p, h.ng, n, h.front, h.material, h.albedo, h.emission,
+                                 objects=h.objects)
             lit_k, lambert_k = self.direct(corner, wo, diffuse_w, lobes, strata,
                                            (hits.tri, np.broadcast_to(np.eye(3)[k], (len(p), 3))))
             lit += w[:, None] * lit_k
@@ -502,7 +548,8 @@ class Tracer:
 
     def _area_direct(self, origin, ns, brdf_d, strata: Strata | None = None, wo=None,
                      lobes: tuple | list = (), smooth=None, whole=None,
-                     glossy=None, sheen: tuple | None = None) -> tuple[np.ndarray, np.ndarray]:
+                     glossy=None, sheen: tuple | None = None, objects: np.ndarray | None = None
+                     ) -> tuple[np.ndarray, np.ndarray]:
         """Light from area lights and emissive triangles: every emitter sample against every hit,
         EMITTER_BLOCK samples at a time, with one batch of shadow rays per block. Returns the
         diffuse part (N, 3) (brdf_d weighted) and the area lights' highlights in the glossy
@@ -517,6 +564,7 @@ class Tracer:
         given: hit n sees emitter e whole (`shadow_shafts.py`) and casts no shadow rays to it.
         glossy (N, 3): the normals the lobes turn about (`SurfaceHits.spec`); None: ns.
         sheen: (Fabric of the N hits, out (N, 3)): the sheen's light is added to out.
+        objects (N,): the hits' objects, for the area lamps' light linking (None: unknown).
 
         A hit closer to a mesh light's sample than REFINE_REACH x its patch's size takes the
         sample's FINE_SPLIT finer ones instead (`emitters.mesh_light_samples`).
@@ -537,13 +585,18 @@ class Tracer:
             """Adds the light of emitter samples to hits n_idx (P,): the pairs' unit directions
             (P, 3) and distances (P,) to the sample, geometry terms g (P,), the samples'
             radiance x area (P, 3), emitters (P,) and whether each is an area lamp (P,)."""
+            if self.emitter_reach is not None and objects is not None:  # light linking
+                keep = np.flatnonzero(self.emitter_reach[emitter, objects[n_idx]])
+                n_idx, to_l, dist, g, radiance_da, emitter, lamp = (
+                    x[keep] for x in (n_idx, to_l, dist, g, radiance_da, emitter, lamp))
             vis = np.ones(len(n_idx))
             cast = np.arange(len(n_idx)) if whole is None else np.flatnonzero(
                 ~whole[n_idx, emitter])
             self.stats.clear_shadow_rays += len(n_idx) - len(cast)
             if len(cast):
-                vis[cast] = self._visible(origin[n_idx[cast]], to_l[cast],
-                                          dist[cast] * (1.0 - 1e-4) - self.offset)
+                vis[cast] = self._visible_linked(origin[n_idx[cast]], to_l[cast],
+                                                 dist[cast] * (1.0 - 1e-4) - self.offset,
+                                                 self.emitter_cover[emitter[cast]])
             weight = radiance_da * (g * vis)[:, None]
             relief = 1.0 if smooth is None else bump_shadowing(smooth[n_idx], ns[n_idx], to_l)[:, None]
             _scatter_add(out, n_idx, brdf_d[n_idx] * weight * relief)

@@ -357,18 +357,20 @@ def test_cycles_ray_visibility_and_holdouts_are_noted():
     assert not any("'Plain'" in why or "'Lamp'" in why for why in notes)
 
 
-def test_light_linking_world_volumes_and_holdout_collections_are_noted():
-    """What Cycles renders from settings the kernels do not model is named, not dropped: a
-    light's light and shadow linking, a world volume, a collection held out or indirect only
-    in the view layer. A scene without them has no such note."""
-    cube_object("Plain")
+def test_mesh_light_linking_world_volumes_and_holdout_collections_are_noted():
+    """What Cycles renders from settings the kernels do not model is named, not dropped: an
+    emissive mesh's light and shadow linking (a lamp's is modelled: test_light_linking.py), a
+    world volume, a collection held out or indirect only in the view layer. A scene without
+    them has no such note."""
+    glow = cube_object("Glow")
     lamp = bpy.data.objects.new("Rim", bpy.data.lights.new("Rim", "POINT"))
     bpy.context.scene.collection.objects.link(lamp)
     assert not any("linking" in why or "volume" in why for why in bridge.snapshot().ignored)
     chosen = bpy.data.collections.new("Chosen")
     chosen.objects.link(cube_object("Hero"))
-    lamp.light_linking.receiver_collection = chosen
-    lamp.light_linking.blocker_collection = chosen
+    for emitter in (lamp, glow):
+        emitter.light_linking.receiver_collection = chosen
+        emitter.light_linking.blocker_collection = chosen
     world = bpy.data.worlds.new("Foggy")
     bpy.context.scene.world = world
     tree = world.node_tree or _world_tree(world)
@@ -383,8 +385,9 @@ def test_light_linking_world_volumes_and_holdout_collections_are_noted():
     layers["Held"].holdout = True
     layers["Bounce"].indirect_only = True
     notes = bridge.snapshot().ignored
-    assert any("'Rim'" in why and "light linking" in why and "'Chosen'" in why for why in notes)
-    assert any("'Rim'" in why and "shadow linking" in why for why in notes)
+    assert any("'Glow'" in why and "light linking of an emissive mesh" in why for why in notes)
+    assert any("'Glow'" in why and "shadow linking" in why for why in notes)
+    assert not any("'Rim'" in why for why in notes)
     assert any("volume shader ('ShaderNodeVolumePrincipled')" in why for why in notes)
     assert any("'Held': a holdout" in why for why in notes)
     assert any("'Bounce': indirect only" in why for why in notes)
