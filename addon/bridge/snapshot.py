@@ -231,8 +231,9 @@ RAY_KINDS = {"MESH": ("camera", "diffuse", "glossy", "transmission", "shadow"),
              "LIGHT": ("diffuse", "glossy", "transmission")}
 
 
-# The ray kinds traced views honour (`ObjectInfo.hidden_from`); other kernels see the object.
-TRACED_KINDS = ("camera", "shadow")
+# The ray kinds every technique honours (`ObjectInfo.hidden_from`: the tracer's rays, the
+# rasterised views' coverage, shadow maps' casters, radiosity's shadow rays); others are noted.
+MODELLED_KINDS = ("camera", "shadow")
 
 
 def hidden_from(obj) -> tuple[str, ...]:
@@ -245,15 +246,11 @@ def hidden_from(obj) -> tuple[str, ...]:
 def _ray_visibility(obj, hidden: tuple[str, ...]) -> list[str]:
     """What Cycles' visibility settings of `obj` (the rays it is `hidden` from) change that the
     kernels do not model, one note each; [] for the defaults."""
-    traced = [kind for kind in hidden if kind in TRACED_KINDS]
-    others = [kind for kind in hidden if kind not in TRACED_KINDS]
+    others = [kind for kind in hidden if kind not in MODELLED_KINDS]
     notes = []
-    if traced:
-        notes.append(f"object '{obj.name}': Cycles hides it from {', '.join(traced)} rays; "
-                     f"traced views do too, other techniques see it")
     if others:
         notes.append(f"object '{obj.name}': Cycles hides it from {', '.join(others)} rays; "
-                     f"not modelled, the kernels see it with every ray")
+                     f"not modelled, the kernels' rays of those kinds see it")
     if obj.type == "MESH":
         for flag, what in (("is_holdout", "a holdout"), ("is_shadow_catcher", "a shadow catcher")):
             if getattr(obj, flag, False):

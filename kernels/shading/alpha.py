@@ -104,12 +104,13 @@ def lighting_coverage(scene: Scene) -> SceneAlpha | HiddenCoverage | None:
 
 def shadow_aware(bvh: BVH, scene: Scene, offset: float, seed: int = 0) -> AlphaOccluder | None:
     """`alpha_aware` for the shadow rays of kernels that take a yes / no visibility query
-    (radiosity's lamps and emitters): the shadowless surfaces (`Material.shadowless`) passed
-    too; None when the scene has none (the lighting query serves)."""
-    if scene.shadowless() is None:
+    (radiosity's lamps and emitters): the shadowless surfaces (`Material.shadowless`) and the
+    objects Cycles hides from shadow rays passed too (`Scene.ray_hidden`); None when the scene
+    has neither (the lighting query serves)."""
+    if scene.shadowless() is None and not any("shadow" in o.hidden_from for o in scene.objects):
         return None
-    return _occluder(bvh, HiddenCoverage(scene_alpha(scene), scene.shadowless(scene.camera_only())),
-                     offset, seed)
+    return _occluder(bvh, HiddenCoverage(scene_alpha(scene), scene.ray_hidden("shadow")), offset,
+                     seed)
 
 
 def linked_shadows(bvh: BVH, scene: Scene, offset: float, seed: int = 0) -> dict:

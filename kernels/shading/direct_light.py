@@ -148,8 +148,9 @@ def shadow_maps_steps(scene: Scene, receivers: Receivers, spacing: float,
     box = receivers.box if len(receivers) else np.zeros((0, 3))
     sample = receivers.sample(DISTANCE_SAMPLES)
     maps = []
-    # Unlit surfaces (every ray but the camera's passes them) and shadowless ones cast no shadow.
-    unlit = scene.shadowless(scene.camera_only())
+    # Unlit surfaces (every ray but the camera's passes them), shadowless ones and objects Cycles
+    # hides from shadow rays cast no shadow.
+    unlit = scene.ray_hidden("shadow")
     for k, light in enumerate(lights):
         if not light.cast_shadow or scene.triangle_count == 0:
             maps.append(None)

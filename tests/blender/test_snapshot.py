@@ -346,13 +346,15 @@ def test_mixed_shaders_keep_diffuse_albedo_emission_and_shares():
 def test_cycles_ray_visibility_and_holdouts_are_noted():
     cube_object("Plain")
     backdrop = cube_object("Backdrop")
-    backdrop.visible_camera = backdrop.visible_shadow = False
+    backdrop.visible_camera = backdrop.visible_shadow = backdrop.visible_glossy = False
     cube_object("Catcher").is_shadow_catcher = True
     # a new lamp object reads visible_camera False and is_shadow_catcher True: unused for lamps
     bpy.context.scene.collection.objects.link(
         bpy.data.objects.new("Lamp", bpy.data.lights.new("Lamp", "POINT")))
     notes = bridge.snapshot().ignored
-    assert any("'Backdrop'" in why and "camera, shadow rays" in why for why in notes)
+    # camera and shadow visibility are modelled (test_trace.py, test_camera_views.py), glossy not
+    backdrop = [why for why in notes if "'Backdrop'" in why]
+    assert len(backdrop) == 1 and "hides it from glossy rays" in backdrop[0]
     assert any("'Catcher'" in why and "shadow catcher" in why for why in notes)
     assert not any("'Plain'" in why or "'Lamp'" in why for why in notes)
 
