@@ -61,6 +61,13 @@ def light_node_factor(tree) -> tuple[np.ndarray, str | None]:
     return value * scale, None
 
 
+def is_portal(light) -> bool:
+    """Whether `light` is a Cycles portal (an area light marked so, Light > Portal): it emits
+    nothing and is unseen, a hint for sampling the world through a window; no light at all to
+    the kernels."""
+    return light.type == "AREA" and bool(getattr(getattr(light, "cycles", None), "is_portal", False))
+
+
 def read_light(name: str, light, matrix: np.ndarray) -> tuple[Light, list[str]]:
     """A Blender light datablock placed by `matrix` (4, 4) as a kernel `Light`, plus what was ignored."""
     ignored: list[str] = []

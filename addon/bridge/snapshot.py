@@ -13,7 +13,7 @@ from ...kernels.shading.material_maps import resolve_material_maps
 from .attributes import material_attribute
 from .camera import read_camera
 from .light_linking import linked_lights, linking_of
-from .lights import read_light
+from .lights import is_portal, read_light
 from .materials import DEFAULT_MATERIAL, MaterialReader
 from .mesh import MeshChunk, mesh_chunk, triangles_problem
 from .render_state import render_state
@@ -83,7 +83,7 @@ def _snapshot(context, request: SnapshotRequest, resolution: tuple[int, int] | N
         instance_counts[base] = k + 1
         name = base if k == 0 else f"{base}#{k}"
         if obj.type == "LIGHT":
-            if request.lights:
+            if request.lights and not is_portal(obj.data):
                 light, why = read_light(name, obj.data, matrix)
                 lights.append(light)
                 linking[name] = linking_of(source)

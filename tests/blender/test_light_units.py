@@ -128,6 +128,24 @@ def test_area_light_radiance_matches_cycles(normalize, tmp_path):
     assert cycles_irradiance(scene, (0, 0), tmp_path) == pytest.approx(predicted, rel=TOLERANCE)
 
 
+def test_a_portal_is_no_light(tmp_path):
+    """An area light marked as a Cycles portal emits nothing (it guides the world's sampling
+    through a window): the snapshot has no light for it, and Cycles' irradiance under a portal
+    of 500 W over the plane, lit by a sun, is the sun's alone."""
+    scene = build_plane_scene()
+    scene.world = bpy.data.worlds.new("Black")  # Cycles 5.2 crashes on a portal with no world
+    scene.world.color = (0.0, 0.0, 0.0)  # 4.5's world without nodes; 5.2's has a Background
+    for node in scene.world.node_tree.nodes if scene.world.node_tree else ():
+        if node.type == "BACKGROUND":
+            node.inputs["Strength"].default_value = 0.0
+    sun = add_light("SUN", (0, 0, 5), energy=2.0, angle=0.0)
+    portal = add_light("AREA", (0, 0, 1.0), energy=500.0, size=2.0)
+    portal.data.cycles.is_portal = True
+    snap = bridge.snapshot(request=bridge.SnapshotRequest(textures=False, camera=False))
+    assert [light.name for light in snap.lights] == [sun.name]
+    assert cycles_irradiance(scene, (0, 0), tmp_path) == pytest.approx(2.0, rel=TOLERANCE)
+
+
 def _light_nodes(obj, falloff_output="Quadratic"):
     """The light's node tree: an RGB node (0.2, 0.6, 1) into the Emission colour, a Light
     Falloff (strength 3) output into its strength."""
