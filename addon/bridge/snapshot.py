@@ -20,7 +20,13 @@ from .render_state import render_state
 from .request import SnapshotRequest
 from .socket_fallback import BakeTarget
 from .transforms import matrix_array
-from .world import read_world, read_world_texture, world_env_mapping, world_volume_notes
+from .world import (
+    read_world,
+    read_world_texture,
+    world_env_mapping,
+    world_hidden_from,
+    world_volume_notes,
+)
 
 # What `snapshot` reads unless told otherwise: everything (a frozen dataclass, shared safely).
 DEFAULT_REQUEST = SnapshotRequest()
@@ -165,7 +171,7 @@ def _snapshot(context, request: SnapshotRequest, resolution: tuple[int, int] | N
                    if light.kind == "AREA" and light.receivers is not None)
     return resolve_material_maps(replace(
         _assemble(chunks, materials, lights, camera, world, request, ignored),
-        world_texture=texture,
+        world_texture=texture, world_hidden_from=world_hidden_from(scene),
         world_transform=None if texture is None else world_env_mapping(scene)))
 
 

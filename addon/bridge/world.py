@@ -67,6 +67,18 @@ def read_world(scene, mapped=None) -> tuple[np.ndarray, list[str]]:
     return color * strength, ignored
 
 
+# The world's ray visibility flags the kernels honour (`Scene.world_hidden_from`); its shadow and
+# volume-scatter flags change nothing they model.
+WORLD_RAY_KINDS = ("camera", "diffuse", "glossy", "transmission")
+
+
+def world_hidden_from(scene) -> tuple[str, ...]:
+    """The ray kinds Cycles hides the scene's world from (World > Settings > Ray Visibility);
+    () for none or no world."""
+    flags = getattr(scene.world, "cycles_visibility", None) if scene.world is not None else None
+    return tuple(kind for kind in WORLD_RAY_KINDS if not getattr(flags, kind, True))
+
+
 def world_volume_notes(scene) -> list[str]:
     """A note where the world's Volume output is linked (fog, god rays): Cycles fills the scene
     with it, the kernels see clear air; [] otherwise."""

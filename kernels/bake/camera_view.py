@@ -108,15 +108,16 @@ def background_and_fragments(scene: Scene, resolution=None, out: np.ndarray | No
     world colour, which escaping pixel rays see, and the fragments to shade."""
     if scene.camera is None:
         raise ValueError("the scene has no camera")
+    from ..shading.world_light import world_radiance, world_seen_by
+
     width, height = resolution or scene.camera.resolution
     image = np.empty((height, width, 3), np.float32) if out is None else out
-    if scene.world_texture is None:
-        image[...] = scene.world_color
+    world = world_seen_by(scene, "camera")  # black where Cycles hides it from the camera
+    if world.world_texture is None:
+        image[...] = world.world_color
     else:  # the world's map along each pixel's ray
-        from ..shading.world_light import world_radiance
-
         _, dirs = camera_rays(scene.camera, width, height)
-        image[...] = world_radiance(scene, dirs.reshape(-1, 3)).reshape(height, width, 3)
+        image[...] = world_radiance(world, dirs.reshape(-1, 3)).reshape(height, width, 3)
     return image, camera_fragments(scene, (width, height))
 
 
@@ -242,7 +243,7 @@ def seen_along(scene: Scene, o: np.ndarray, d: np.ndarray, shade, bvh, cover, ro
     escapes; through partly covered surfaces their blend (`layered_hits`) when `cover` (the
     camera's coverage, `ray_coverage`) is given."""
     from ..shading.reflected_emitters import ray_offset
-    from ..shading.world_light import world_radiance
+    from ..shading.world_light import world_radiance, world_seen_by
 
     reach = camera_reach(scene.camera, d)  # the far clip plane, as the z-buffer's
     if cover is None:
@@ -254,10 +255,11 @@ def seen_along(scene: Scene, o: np.ndarray, d: np.ndarray, shade, bvh, cover, ro
     tri = np.asarray(hits.tri, np.int64)
     hit = tri >= 0
     value = np.empty((len(ray), 3))
-    if scene.world_texture is None:
-        value[~hit] = scene.world_color
+    world = world_seen_by(scene, "camera")
+    if world.world_texture is None:
+        value[~hit] = world.world_color
     else:
-        value[~hit] = world_radiance(scene, d[ray[~hit]])
+        value[~hit] = world_radiance(world, d[ray[~hit]])
     if hit.any():
         t, r = tri[hit], ray[hit]
         u, v = hits.u[hit].astype(np.float64), hits.v[hit].astype(np.float64)

@@ -415,6 +415,7 @@ def capture_faces_steps(scene: Scene, index: int, size: int, tracer_settings: Tr
     hidden = hidden_bvh(scene, [index])
     tracer = Tracer(scene, hidden, tracer_settings, shadow_bvh=bvh,
                     view_pixels=6 * size * size)  # the whole cube's, for any faces
+    tracer.primary_kind = "glossy"  # the faces are what the object's mirror rays see
     side = size + 2 * BORDER
     n, a = supersample, edge_samples
     texels = len(faces) * side * side

@@ -369,6 +369,10 @@ class Scene:
     # (3, 4) affine [A | t]: the map is read along normalize(A d + t) for a world direction d (a
     # Mapping node turning it); None: along d
     world_transform: np.ndarray | None = None
+    # The rays Cycles hides the world from (World > Settings > Ray Visibility): "camera" (the
+    # background is black), "glossy" (reflections show no sky), "transmission" (nor refractions),
+    # "diffuse" (the world lights no surface)
+    world_hidden_from: tuple[str, ...] = ()
     generated: np.ndarray | None = None
     # (T, 3) float64 emitted radiance W/(m^2 sr) per triangle where a material's emission comes
     # from a texture (its mean over the triangle, `shading/material_maps.py`); None: per material

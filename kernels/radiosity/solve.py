@@ -44,7 +44,7 @@ from ..geometry.frames import RAY_OFFSET_REL
 from ..geometry.scene import Scene
 from ..progress import Steps, drain, scaled
 from ..shading.alpha import alpha_aware, linked_shadows, shadow_aware
-from ..shading.world_light import WORLD_SUN_NAME, world_lit
+from ..shading.world_light import WORLD_SUN_NAME, world_lit, world_seen_by
 from . import final_gather
 from . import patches as patching
 from .final_gather import FinalGather, PatchSolution
@@ -96,7 +96,8 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
     if scene.triangle_count == 0:
         raise ValueError("the scene has no triangles")
     t0 = time.perf_counter()
-    scene = with_world_suns(scene)
+    # The world lights the patches only where Cycles shows it to diffuse rays.
+    scene = with_world_suns(world_seen_by(scene, "diffuse"))
     flat = scene.triangles.reshape(-1, 3).astype(np.float64)
     scale = float(np.linalg.norm(flat.max(axis=0) - flat.min(axis=0)))
     size = settings.patch_size or patching.auto_patch_size(scene, settings.patch_budget)

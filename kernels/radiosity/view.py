@@ -46,8 +46,10 @@ def render_steps(scene: Scene, result: RadiosityResult, resolution=None,
     (0 or 1: the centres only). Yields progress, returns (H, W, 3)."""
     image, f = background_and_fragments(scene, resolution, out)
     yield 0.3
-    # As the solve lit it: a world map's suns are lamps there, and gone from its map.
-    lit = result.gather.scene if result.gather is not None else with_world_suns(scene)
+    # As the solve lit it: a world map's suns are lamps there, and gone from its map (the solve
+    # saw no world where Cycles hides it from diffuse rays; the glossy lobes still may).
+    solved = result.gather is not None and "diffuse" not in scene.world_hidden_from
+    lit = result.gather.scene if solved else with_world_suns(scene)
     # What the camera sees lies inside no solid when the camera does not: no enclosure probes.
     open_camera = result.gather is not None and not camera_enclosed(result.gather, scene.camera)
 

@@ -30,7 +30,7 @@ from .specular_layer import (
     view_factors,
     view_tables,
 )
-from .world_light import horizon_sky, world_lit, world_radiance
+from .world_light import horizon_sky, world_lit, world_radiance, world_seen_by
 
 # Rays across a rough lobe of reflectance 1 (`_lobe_sky`), as the tracer's default lobe_rays.
 LOBE_RAYS = 8
@@ -81,6 +81,7 @@ def reflected_emitters(scene: Scene, tri: np.ndarray, bary: np.ndarray, mids: np
     what a coat leaves them; a coat's own (`specular_layer.coat_layer`: weight x its albedo at
     the view), smooth or rough by its own roughness."""
     out = np.zeros((len(tri), 3))
+    scene = world_seen_by(scene, "glossy")  # the sky glossy rays see: none where it is hidden
     mats = scene.materials
     lamps = [light for light in scene.lights if light.kind == "AREA"] if area_lamps else []
     emissive = bool(np.any(triangle_emission(scene) > 0.0))

@@ -119,6 +119,15 @@ def equirect_uv(dirs: np.ndarray) -> np.ndarray:
     return np.stack([u, v], axis=1)
 
 
+def world_seen_by(scene: Scene, kind: str) -> Scene:
+    """`scene` as rays of `kind` ("camera", "diffuse", "glossy", "transmission") see its world:
+    black where Cycles hides the world from them (`Scene.world_hidden_from`), else itself."""
+    if kind not in scene.world_hidden_from:
+        return scene
+    return replace(scene, world_color=np.zeros(3, np.float32), world_texture=None,
+                   world_transform=None)
+
+
 def world_lit(scene: Scene) -> bool:
     """Whether the world sends any light (a map's mean, `world_color`, is above 0 somewhere)."""
     return bool((np.asarray(scene.world_color) > 0.0).any())

@@ -70,7 +70,13 @@ from ..shading.specular_layer import (
     view_factors,
     view_tables,
 )
-from ..shading.world_light import cosine_lift, extract_suns, horizon_sky, world_radiance
+from ..shading.world_light import (
+    cosine_lift,
+    extract_suns,
+    horizon_sky,
+    world_radiance,
+    world_seen_by,
+)
 from . import differentials as rd
 from .emitters import FINE_SPLIT, REFINE_REACH, lamp_hull, scene_emitters
 from .settings import TraceResult, TracerSettings, TraceStats, auto_settings
@@ -238,13 +244,19 @@ class Tracer:
                 if lamp.receivers is not None:
                     self.emitter_reach[e] = lamp.receivers
         # A world map's suns (`world_light.extract_suns`): highlights of the rough lobes, and
-        # the map without them for those lobes' rays (sky_scene).
-        self.map_suns, self.sky_scene = (), scene
-        if scene.world_texture is not None:
-            self.map_suns, residual = extract_suns(scene.world_texture, scene.world_transform)
-            self.sky_scene = replace(scene, world_texture=residual)
+        # the map without them for those lobes' rays (sky_scene); neither where Cycles hides the
+        # world from glossy rays.
+        self.map_suns, self.sky_scene = (), world_seen_by(scene, "glossy")
+        if self.sky_scene.world_texture is not None:
+            sky = self.sky_scene
+            self.map_suns, residual = extract_suns(sky.world_texture, sky.world_transform)
+            self.sky_scene = replace(sky, world_texture=residual)
         # That map averaged over rough lobes, for the rays that stand for one (`world_lobes.py`).
-        self.world_lobes = None if scene.world_texture is None else WorldLobes(self.sky_scene)
+        self.world_lobes = (None if self.sky_scene.world_texture is None
+                            else WorldLobes(self.sky_scene))
+        # What the primary rays are to the world's ray visibility: the camera's; a cube map's
+        # faces are what glossy rays see (`envmap.py`).
+        self.primary_kind = "camera"
         self.stats = TraceStats()
         # Seconds per phase and per depth (`PhaseClock`), for the profile benches print.
         self.clock = PhaseClock()
@@ -653,6 +665,15 @@ class Tracer:
                   em.area_emitter[parent[lit]], ~em.area_two_sided[parent[lit]])
         return out, shine
 
+    def _world_unseen(self, depth: int, refracted: np.ndarray) -> np.ndarray:
+        """(N,) bool: escaping rays of this depth (refracted (N,): each last refracted) that
+        Cycles hides the world from (`Scene.world_hidden_from`): the primary rays by their
+        kind (`primary_kind`), later ones as transmission or glossy rays."""
+        hidden = self.scene.world_hidden_from
+        if depth == 0:
+            return np.full(len(refracted), self.primary_kind in hidden)
+        return np.where(refracted, "transmission" in hidden, "glossy" in hidden)
+
     def _mapped(self, tri: np.ndarray) -> np.ndarray:
         """(N,) bool: which hit triangles belong to an environment-mapped object."""
         return np.isin(self.scene.object_ids[tri], list(self.environment))
@@ -950,6 +971,9 @@ class Tracer:
         # it: a mirror's sharp image of a lamp would be a hot spot that Cycles' lobe blurs over
         # the surface.
         sharp = np.ones(len(origins), bool)
+        # Whether a ray was last refracted (Cycles' transmission ray) rather than reflected: for
+        # the world's ray visibility (`_world_unseen`).
+        refracted = np.zeros(len(origins), bool)
         # The roughness of the lobe a ray stands for alone (0: none): a rough surface's one
         # reflected ray, and the rays after it. Escaping, it reads the world's map averaged over
         # that lobe (`world_lobes.py`), as Cycles' many rays across the lobe see it.
@@ -984,8 +1008,9 @@ class Tracer:
             front = None  # (N,) bool, with layers: the entries that are their ray's front one
             if layers is not None:  # a ray per surface it sees, weighted by what reaches it
                 src, front = layers.ray, layers.first()
-                origins, dirs, pixel, sharp, entered, blur = (
-                    origins[src], dirs[src], pixel[src], sharp[src], entered[src], blur[src])
+                origins, dirs, pixel, sharp, entered, blur, refracted = (
+                    origins[src], dirs[src], pixel[src], sharp[src], entered[src], blur[src],
+                    refracted[src])
                 weight, t_min = weight[src] * layers.weight[:, None], t_min[src]
                 if follow and 0 < depth <= s.max_depth:
                     dp, dd = dp[:, src], dd[:, src]
@@ -1010,13 +1035,17 @@ class Tracer:
                 background[~rough_ray] = world_radiance(self.scene, escaped[~rough_ray])
                 one = rough_ray & ~wide
                 background[one] = world_radiance(self.sky_scene, escaped[one])
-                background[wide] = self.world_lobes.radiance(escaped[wide], lobe[wide])
+                background[wide] = (0.0 if self.world_lobes is None
+                                    else self.world_lobes.radiance(escaped[wide], lobe[wide]))
+            if self.scene.world_hidden_from:  # Cycles' world ray visibility
+                background = np.where(self._world_unseen(depth, refracted[miss])[:, None], 0.0,
+                                      background)
             _scatter_add(result, pixel[miss], weight[miss] * background)
             if untextured is not None:
                 _scatter_add(flat, pixel[miss], weight[miss] * background)
             keep = ~miss
             origins, dirs, pixel, weight = origins[keep], dirs[keep], pixel[keep], weight[keep]
-            sharp, entered, blur = sharp[keep], entered[keep], blur[keep]
+            sharp, entered, blur, refracted = sharp[keep], entered[keep], blur[keep], refracted[keep]
             if front is not None:
                 front = front[keep]
             if follow and 0 < depth <= s.max_depth:
@@ -1320,6 +1349,8 @@ class Tracer:
             sharp = np.concatenate([c[4] for c in children])
             entered = np.concatenate([c[5] for c in children])
             blur = np.concatenate([c[6] for c in children])
+            refracted = np.concatenate([np.full(len(c[0]), side < 0.0)
+                                        for c, (_, side, *_) in zip(children, spawned, strict=True)])
             if carry:
                 dp = np.concatenate([c[7] for c in children], axis=1)
                 dd = np.concatenate([c[8] for c in children], axis=1)
