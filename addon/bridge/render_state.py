@@ -53,6 +53,9 @@ def render_state(scene, view_layer=None) -> Iterator[list[str]]:
             if not obj.hide_render and obj.hide_get(view_layer=view_layer):
                 obj.hide_set(False, view_layer=view_layer)
                 shown.append(obj)
+            # an object instancing particles, vertices or faces: shown itself as in renders
+            use(obj, "show_instancer_for_viewport", obj.show_instancer_for_render,
+                f"object '{obj.name}'")
             for mod in obj.modifiers:
                 what = f"object '{obj.name}' modifier '{mod.name}'"
                 use(mod, "show_viewport", mod.show_render, what)

@@ -66,8 +66,8 @@ def _snapshot(context, request: SnapshotRequest, resolution: tuple[int, int] | N
         obj = inst.object
         source = obj.original
         holder = inst.parent.original if inst.is_instance and inst.parent else source
-        if source.hide_render or holder.hide_render:
-            continue
+        if source.hide_render or holder.hide_render or not inst.show_self:
+            continue  # show_self: an instancer shown or not (`render_state`: as in renders)
         # The depsgraph lists a curve, surface, text or metaball object twice: as itself and as
         # a MESH instance of its evaluated geometry parented to itself (4.5 and 5.2; the same
         # triangles, which Cycles renders once). Only MESH entries are read, and that instance
@@ -81,7 +81,7 @@ def _snapshot(context, request: SnapshotRequest, resolution: tuple[int, int] | N
         if source.name_full not in hidden:
             hidden[source.name_full] = hidden_from(source)
             ignored.extend(_ray_visibility(source, hidden[source.name_full]))
-            ignored.extend(_light_linking(source))
+            ignored.extend(_light_linking(source) + _particle_hair(source))
         is_instance = inst.is_instance and not (holder == source and source.type != "MESH")
         matrix = matrix_array(inst.matrix_world)
         base = source.name if not is_instance else f"{holder.name}/{source.name}"
@@ -274,6 +274,20 @@ def _light_linking(obj) -> list[str]:
     return [f"object '{obj.name}': {'light' if field_name == 'receivers' else 'shadow'} linking "
             f"of an emissive mesh in Cycles; not modelled, its light reaches every object and "
             f"every object shadows it" for field_name in linking_of(obj)]
+
+
+def _particle_hair(obj) -> list[str]:
+    """Notes for `obj`'s hair particle systems drawn as strands (Particles > Render As Path),
+    which Cycles renders as curves and the kernels, reading meshes only, leave out."""
+    notes = []
+    for mod in getattr(obj, "modifiers", ()):
+        if mod.type != "PARTICLE_SYSTEM" or not mod.show_render:
+            continue
+        settings = mod.particle_system.settings
+        if settings.type == "HAIR" and settings.render_type == "PATH":
+            notes.append(f"object '{obj.name}': hair particles '{mod.particle_system.name}' render "
+                         f"as strands in Cycles; the kernels read meshes only, left out")
+    return notes
 
 
 def _layer_notes(view_layer) -> list[str]:
