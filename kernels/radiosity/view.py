@@ -136,8 +136,8 @@ def _lamp_highlights(scene: Scene, result: RadiosityResult, tri: np.ndarray, bar
     (`specular_layer.lamp_highlights`), as Cycles lights the glossy lobes directly at the
     camera's first hit. Emissive meshes draw none. frame: `_front_frame` of the points."""
     out = np.zeros((len(tri), 3))
-    shiny = [(m.roughness >= MIRROR_ROUGHNESS and (m.metallic > 0.0 or (
-        layer_f0(m.ior, m.specular) > 0.0 and m.transmission < 1.0)))
+    shiny = [(m.roughness >= MIRROR_ROUGHNESS and (m.metallic > 0.0 or m.transmission > 0.0 or (
+        layer_f0(m.ior, m.specular) > 0.0)))
         or (m.coat > 0.0 and m.coat_roughness >= MIRROR_ROUGHNESS) for m in scene.materials]
     if not scene.lights or not any(shiny) or not len(tri):
         return out

@@ -20,7 +20,7 @@ from ..geometry.scene import Scene, geometric_normals, triangle_emission
 from . import lights as light_units
 from .glossy_lobe import MEAN_FACTOR, lobe_mean, lobe_points, lobe_rays
 from .material_maps import albedo_at, emission_at, metal_f0
-from .optics import reflect
+from .optics import fresnel_dielectric, reflect
 from .specular_layer import (
     MIRROR_ROUGHNESS,
     coat_layer,
@@ -44,9 +44,10 @@ def ray_offset(scene: Scene) -> float:
 
 def rays_needed(scene: Scene, area_lamps: bool = True) -> bool:
     """Whether `reflected_emitters` can draw anything in `scene`: a glossy lobe (a specular layer,
-    a metal, a coat) and something for it to show (the world, emissive triangles, `area_lamps`)."""
-    glossy = any(m.metallic > 0.0 or m.coat > 0.0 or (
-        layer_f0(m.ior, m.specular) > 0.0 and m.transmission < 1.0) for m in scene.materials)
+    a metal, a coat, glass) and something for it to show (the world, emissive triangles,
+    `area_lamps`)."""
+    glossy = any(m.metallic > 0.0 or m.coat > 0.0 or m.transmission > 0.0
+                 or layer_f0(m.ior, m.specular) > 0.0 for m in scene.materials)
     lamps = area_lamps and any(light.kind == "AREA" for light in scene.lights)
     return glossy and (world_lit(scene) or lamps or bool(np.any(triangle_emission(scene) > 0.0)))
 
@@ -96,12 +97,23 @@ def reflected_emitters(scene: Scene, tri: np.ndarray, bary: np.ndarray, mids: np
     layer_w = np.array([(1.0 - m.metallic) * (1.0 - m.transmission)
                         if layer_f0(m.ior, m.specular) > 0.0 else 0.0 for m in mats])
     metal_w = np.array([m.metallic for m in mats], np.float64)
-    rows = np.flatnonzero(((layer_w[mids] > 0.0) | (metal_w[mids] > 0.0))
+    # glass: its surface reflects by the dielectric Fresnel factor at the view, tinted as the
+    # tracer's (entered from outside, n = 1 / IOR)
+    glass_w = np.array([(1.0 - m.metallic) * m.transmission for m in mats])
+    rows = np.flatnonzero(((layer_w[mids] > 0.0) | (metal_w[mids] > 0.0) | (glass_w[mids] > 0.0))
                           & shown.sees(smooth_m[mids]))
     if rows.size:
         m = mids[rows]
         weight = np.repeat((layer_w[m] * (1.0 - view_factors(view_tables(mats), m, cos[rows]))
                             )[:, None], 3, axis=1)
+        glass = np.flatnonzero(glass_w[m] > 0.0)
+        if glass.size:
+            mg = m[glass]
+            tint = np.array([np.ones(3) if mats[k].glass_tint is None else mats[k].glass_tint
+                             for k in mg], np.float64).reshape(-1, 3)
+            ior = np.array([max(mats[k].ior, 1.0 + 1e-6) for k in mg])
+            weight[glass] += (glass_w[mg] * fresnel_dielectric(cos[rows[glass]], 1.0 / ior)
+                              )[:, None] * tint
         metal = np.flatnonzero(metal_w[m] > 0.0)
         if metal.size:
             t, b = tri[rows[metal]], bary[rows[metal]]

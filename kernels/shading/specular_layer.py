@@ -270,15 +270,19 @@ def lamp_highlights(materials, material: np.ndarray, normals: np.ndarray, wo: np
     of surfaces of `material` (N,) (rows of `materials`): unit shading normals, directions to the
     eye wo and to the lamp (N, 3), and the lamp's irradiance there (N, 3, cosine included).
     Lobes of roughness >= MIRROR_ROUGHNESS: the specular layer over a dielectric base (F0 from
-    the IOR and level, weight (1 - metallic)(1 - transmission)) and a metal's (F0 the base colour,
-    `base` (N, 3) where textures set it, weight metallic), and a coat's over both (F0 from its
-    IOR, its own roughness, weight coat), which leaves the two under it what it lets through
-    (`coat_layer`); glass lobes are not drawn."""
+    the IOR and level, weight (1 - metallic)(1 - transmission)), a metal's (F0 the base colour,
+    `base` (N, 3) where textures set it, weight metallic) and a rough glass's reflection (F0 from
+    its IOR alone, weight (1 - metallic) transmission, as the tracer lights it), and a coat's
+    over them (F0 from its IOR, its own roughness, weight coat), which leaves those under it
+    what it lets through (`coat_layer`)."""
     rough = np.array([m.roughness for m in materials], np.float64)[material]
     glossy = np.array([m.roughness >= MIRROR_ROUGHNESS for m in materials])[material]
     layer_w = np.array([(1.0 - m.metallic) * (1.0 - m.transmission) for m in materials])[material]
     layer_f = np.array([layer_f0(m.ior, m.specular) for m in materials])[material]
     metal_w = np.array([m.metallic for m in materials], np.float64)[material]
+    glass_w = np.array([(1.0 - m.metallic) * m.transmission for m in materials])[material]
+    glass_f = np.array([((max(m.ior, 1.0) - 1.0) / (max(m.ior, 1.0) + 1.0)) ** 2
+                        for m in materials])[material]
     if base is None:
         base = np.array([m.base_color for m in materials], np.float64).reshape(-1, 3)[material]
     out = np.zeros((len(material), 3))
@@ -293,6 +297,7 @@ def lamp_highlights(materials, material: np.ndarray, normals: np.ndarray, wo: np
 
     add(glossy, layer_w * (layer_f > 0.0), np.repeat(layer_f[:, None], 3, axis=1), rough)
     add(glossy, metal_w, np.asarray(base, np.float64), rough)
+    add(glossy, glass_w, np.repeat(glass_f[:, None], 3, axis=1), rough)
     coat = coat_layer(materials, material, np.einsum("ij,ij->i", normals, wo))
     if coat is not None:
         out *= coat.under  # the two lobes under the coat, then the coat's own

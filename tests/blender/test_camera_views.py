@@ -458,3 +458,24 @@ def test_objects_hidden_from_shadow_or_camera_rays(technique, bound):
     _, error = view_against_cycles(technique)
     print(f"relMSE {error:.2e}")
     assert error < bound
+
+
+@pytest.mark.parametrize("technique", ["shadowmap", "radiosity"])
+@pytest.mark.parametrize("roughness", [0.0, 0.3])
+def test_glass_reflects_the_sky_and_the_sun(technique, roughness):
+    """A clear glass ball (Principled, Transmission 1) on the floor under a sun: with no
+    transmission bounce in either model, Cycles shows the glass's surface reflection alone, the
+    sky by the dielectric Fresnel factor at the view and, rough, the sun's highlight (F0 from the
+    IOR), as the views now draw it. Against Cycles' models, 256 samples, 96 x 72: shadow maps
+    relMSE 4.3e-4 (smooth) and 8.3e-4 (0.3), radiosity 4.5e-4 and 8.2e-4; with the glass drawn
+    black, 1.3e-2 and 1.8e-2."""
+    from blender_parts import lit_floor, principled, smooth_sphere, view_against_cycles
+
+    lit_floor()
+    mat, bsdf = principled("Glass", base=(1.0, 1.0, 1.0))
+    bsdf.inputs["Transmission Weight"].default_value = 1.0
+    bsdf.inputs["Roughness"].default_value = roughness
+    smooth_sphere(mat, radius=0.6)
+    _, error = view_against_cycles(technique)
+    print(f"relMSE {error:.2e}")
+    assert error < 3e-3
