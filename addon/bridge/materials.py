@@ -24,12 +24,13 @@ import numpy as np
 
 from ...kernels.geometry.scene import Material, Texture
 from ...kernels.shading.optics import fresnel_dielectric
+from ...kernels.shading.specular_layer import layer_f0
 from ...kernels.shading.textures import MISSING_TEXEL, texture_mean
 from .images import image_pixels, stored_srgb, tile_pixels
 from .nodes import active_output, follow_through, node_tree
 from .request import SnapshotRequest
 from .socket_fallback import BakeTarget, SocketFallback
-from .socket_values import SocketReader, Value
+from .socket_values import SocketReader, Value, pointwise
 
 DEFAULT_MATERIAL_NAME = "(default surface)"
 # What Cycles shades faces without a material with (measured: a plane under a sun renders to the
@@ -76,6 +77,26 @@ class Relief:
         return dict(normal_texture=self.normal_texture, normal_strength=self.normal_strength,
                     height_texture=self.height_texture, bump_strength=self.bump_strength,
                     bump_distance=self.bump_distance)
+
+
+def _lobe_weighted_roughness(dielectric: Material, metal: Material):
+    """The one roughness a point of metal share M (N, 3) takes for a masked mix of a dielectric
+    and a metal of their own roughness, as a curve for `pointwise`: their roughness weighted by
+    what each lobe reflects there, M x the metal's mean colour and (1 - M) x the dielectric
+    layer's F0 (the kernels give a point one roughness for all its lobes; Cycles draws two).
+    The metal's lobe outshines the layer's wherever it is a part of the point, as the constant
+    mix's metal roughness has it (`mix_materials`), and the ends stay the parts' own."""
+    shine_m = float(np.mean(metal.base_color))
+    shine_d = layer_f0(dielectric.ior, dielectric.specular)
+
+    def curve(share: np.ndarray) -> np.ndarray:
+        m = np.clip(share, 0.0, 1.0)
+        w_m, w_d = m * shine_m, (1.0 - m) * shine_d
+        total = w_m + w_d
+        linear = m * metal.roughness + (1.0 - m) * dielectric.roughness  # neither reflects
+        return np.where(total > 0.0, (w_m * metal.roughness + w_d * dielectric.roughness)
+                        / np.where(total > 0.0, total, 1.0), linear)
+    return curve
 
 
 def mix_materials(name: str, parts: list, ignored: list) -> Material:
@@ -827,6 +848,9 @@ class MaterialReader:
             fields.update(base_color=dielectric.base_color, metal_color=metal.base_color,
                           metallic=0.0, metallic_texture=metallic.texture, ior=dielectric.ior,
                           specular=dielectric.specular)
+            if b.roughness != a.roughness:
+                rough = pointwise(metallic, _lobe_weighted_roughness(dielectric, metal))
+                fields.update(roughness=0.5, roughness_texture=rough.texture)
         return Material(name="", **fields, **_first_relief(parts))
 
     def _blended_mix(self, fac_socket, sources: list, parts: list,
