@@ -91,7 +91,7 @@ def _snapshot(context, request: SnapshotRequest, resolution: tuple[int, int] | N
         if obj.type == "LIGHT":
             if request.lights and not is_portal(obj.data):
                 light, why = read_light(name, obj.data, matrix)
-                lights.append(light)
+                lights.append(replace(light, hidden_from=hidden[source.name_full]))
                 linking[name] = linking_of(source)
                 ignored.extend(why)
             continue
@@ -237,9 +237,10 @@ RAY_KINDS = {"MESH": ("camera", "diffuse", "glossy", "transmission", "shadow"),
              "LIGHT": ("diffuse", "glossy", "transmission")}
 
 
-# The ray kinds every technique honours (`ObjectInfo.hidden_from`: the tracer's rays, the
-# rasterised views' coverage, shadow maps' casters, radiosity's shadow rays); others are noted.
-MODELLED_KINDS = ("camera", "shadow")
+# The ray kinds every technique honours, per object type: a mesh's (`ObjectInfo.hidden_from`:
+# the tracer's rays, the rasterised views' coverage, shadow maps' casters, radiosity's shadow
+# rays), a lamp's (`Light.hidden_from`: the lobes it lights); others are noted.
+MODELLED_KINDS = {"MESH": ("camera", "shadow"), "LIGHT": ("diffuse", "glossy")}
 
 
 def hidden_from(obj) -> tuple[str, ...]:
@@ -252,7 +253,7 @@ def hidden_from(obj) -> tuple[str, ...]:
 def _ray_visibility(obj, hidden: tuple[str, ...]) -> list[str]:
     """What Cycles' visibility settings of `obj` (the rays it is `hidden` from) change that the
     kernels do not model, one note each; [] for the defaults."""
-    others = [kind for kind in hidden if kind not in MODELLED_KINDS]
+    others = [kind for kind in hidden if kind not in MODELLED_KINDS.get(obj.type, ())]
     notes = []
     if others:
         notes.append(f"object '{obj.name}': Cycles hides it from {', '.join(others)} rays; "

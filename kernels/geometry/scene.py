@@ -247,6 +247,7 @@ class Light:
     | size_x/y    | m, world                 | area: extents along axis_x and axis_y (scaled)    |
     | receivers   | (O,) bool over objects   | light linking: the objects it lights (None: all)  |
     | blockers    | (O,) bool over objects   | shadow linking: those that shadow it (None: all)  |
+    | hidden_from | ray kinds                | Cycles' ray visibility: "diffuse", "glossy"       |
     """
 
     name: str
@@ -271,6 +272,17 @@ class Light:
     # light, and those whose surfaces its shadow rays meet (`Scene.shadow_passing`).
     receivers: np.ndarray | None = None
     blockers: np.ndarray | None = None
+    # The lobes it does not light (Object > Visibility > Ray Visibility of the lamp): "diffuse"
+    # (diffuse bases, sheens, translucency), "glossy" (highlights, mirror images)
+    hidden_from: tuple[str, ...] = ()
+
+    @property
+    def lights_diffuse(self) -> bool:
+        return "diffuse" not in self.hidden_from
+
+    @property
+    def lights_glossy(self) -> bool:
+        return "glossy" not in self.hidden_from
 
 
 @dataclass(frozen=True, eq=False)

@@ -128,13 +128,19 @@ def near_lamp_scale(light, corners: np.ndarray, normals: np.ndarray, areas: np.n
 
 
 def hard_lamps(scene: Scene) -> list:
-    """The point, spot and sun lamps that cast shadows: steps, not ramps."""
-    return [light for light in scene.lights if light.kind != "AREA" and light.cast_shadow]
+    """The point, spot and sun lamps that cast shadows on diffuse surfaces: steps, not ramps."""
+    return [light for light in shadowing_lamps(scene) if light.kind != "AREA"]
 
 
 def shadowing_lamps(scene: Scene) -> list:
-    """The lamps of every kind (point, spot, sun, area) that cast shadows."""
-    return [light for light in scene.lights if light.cast_shadow]
+    """The lamps of every kind (point, spot, sun, area) that cast shadows on diffuse surfaces
+    (those that light them: `Light.lights_diffuse`)."""
+    return [light for light in diffuse_lamps(scene) if light.cast_shadow]
+
+
+def diffuse_lamps(scene: Scene) -> list:
+    """The lamps that light diffuse surfaces (Cycles' ray visibility: `Light.hidden_from`)."""
+    return [light for light in scene.lights if light.lights_diffuse]
 
 
 def lamp_irradiance(scene: Scene, points: np.ndarray, normals: np.ndarray, occluded, offset: float,
@@ -151,7 +157,7 @@ def lamp_irradiance(scene: Scene, points: np.ndarray, normals: np.ndarray, occlu
     out = np.zeros((len(points), 3))
     origins = points + offset * (normals if lift is None else lift)
     weight = None if smooth is None else relief_shadowing(smooth, normals)
-    for light in scene.lights:
+    for light in diffuse_lamps(scene):
         out += shadowed_irradiance(light, points, normals, origins, occluded,
                                    area_samples_per_side, strata, weight, objects)[0]
     return out

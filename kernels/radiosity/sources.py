@@ -24,7 +24,7 @@ from ..shading.world_light import extract_suns, world_irradiance, world_lit, wor
 from . import patches as patching
 from .emitters import Emitters, emitter_irradiance, emitters_of, open_backs
 from .form_factors.sampling import sample_patches
-from .lamps import near_lamp_scale, shadowed_irradiance, shadowing_lamps
+from .lamps import diffuse_lamps, near_lamp_scale, shadowed_irradiance, shadowing_lamps
 from .settings import RadiositySettings, gather_settings
 
 # The largest diffuse reflectance the solve takes. At 1 a patch keeps back none of the light it
@@ -170,7 +170,7 @@ def first_shot(scene: Scene, patches: patching.Patches, occluded, settings: Radi
         boundary[:] |= some_lit & some_dark
 
     objects = np.repeat(scene.object_ids[patches.parent], samples)  # the samples' (light linking)
-    for light in scene.lights:
+    for light in diffuse_lamps(scene):
         e, vis = shadowed_irradiance(light, flat, normals, origins, occluded,
                                      settings.area_light_samples_per_side,
                                      objects=objects)  # (N S, 3), (N S,)

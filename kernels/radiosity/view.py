@@ -148,7 +148,7 @@ def _lamp_highlights(scene: Scene, result: RadiosityResult, tri: np.ndarray, bar
     occluded = gather.shadow_occluded() if gather is not None else bvh.occluded
     objects = scene.object_ids[tri]  # for the lamps' light linking
     base = metal_f0(scene, tri, albedo_at(scene, tri, bary))
-    for light in scene.lights:
+    for light in (light for light in scene.lights if light.lights_glossy):
         if light.kind == "AREA":  # its highlight spread over the emitter, point by point
             reach = light_units.receiving(light, objects)
             for to_light, e in _area_lamp_points(light, points, normals,

@@ -209,6 +209,12 @@ def irradiance_per_light(scene: Scene, points, normals, smooth=None, objects=Non
     return out
 
 
+def lamps_lighting(scene: Scene, lobe: str) -> np.ndarray:
+    """(L,) 1.0 for the scene's lights that light `lobe` ("diffuse" or "glossy": their ray
+    visibility, `Light.hidden_from`), else 0.0."""
+    return np.array([lobe not in light.hidden_from for light in scene.lights], np.float64)
+
+
 def shadow_mask(irradiance: np.ndarray, visibility: np.ndarray) -> np.ndarray:
     """(N,) float32: fraction of the direct light (by luminance) that arrives; 0 where none could."""
     y = np.einsum("lnc,c->ln", irradiance, LUMINANCE)
@@ -321,6 +327,9 @@ def _shade(scene: Scene, maps: list, f, receivers: Receivers | None = None,
         e_diffuse = e_diffuse.copy()
         e_diffuse[:, tilted] = irradiance_per_light(scene, points[tilted], normals[tilted],
                                                     smooth[tilted], objects[tilted])
+    # Each lamp's light where its ray visibility lets it: the diffuse base's, the lobes'.
+    e_diffuse = e_diffuse * lamps_lighting(scene, "diffuse")[:, None, None]
+    e = e * lamps_lighting(scene, "glossy")[:, None, None]
     # What reflects diffusely toward the eye: no metal or glass, and the base under the specular
     # layer darkened at this view (`specular_layer.py`), as Cycles' diffuse lobe.
     mids = hit_materials(scene, tri, bary, scene.material_ids[tri])  # metallic / roughness maps
@@ -352,6 +361,7 @@ def _shade(scene: Scene, maps: list, f, receivers: Receivers | None = None,
                                                        np.float32))
         e_back = irradiance_per_light(scene, points[lit_behind], -normals[lit_behind],
                                       objects=objects[lit_behind])
+        e_back *= lamps_lighting(scene, "diffuse")[:, None, None]
         diffuse[lit_behind] += translucent[lit_behind] / np.pi * np.einsum(
             "lnc,ln->nc", e_back, vis_back)
     coat = coat_layer(scene.materials, mids, np.einsum("ij,ij->i", glossy, d))
@@ -402,6 +412,7 @@ def shadow_bake_steps(scene: Scene, objects, lightmap_sizes: dict, padding: int,
     for k, kind, t in sets:
         stop = start + len(t)
         lit = irradiance_per_light(scene, t.points, t.normals, objects=np.full(len(t.points), k))
+        lit *= lamps_lighting(scene, "diffuse")[:, None, None]
         mask = shadow_mask(lit, vis[:, start:stop])
         parts.setdefault(k, {})[kind] = (t, mask, vis[:, start:stop])
         start = stop

@@ -84,7 +84,8 @@ def reflected_emitters(scene: Scene, tri: np.ndarray, bary: np.ndarray, mids: np
     out = np.zeros((len(tri), 3))
     scene = world_seen_by(scene, "glossy")  # the sky glossy rays see: none where it is hidden
     mats = scene.materials
-    lamps = [light for light in scene.lights if light.kind == "AREA"] if area_lamps else []
+    lamps = [light for light in scene.lights if light.kind == "AREA" and light.lights_glossy
+             ] if area_lamps else []
     emissive = bool(np.any(triangle_emission(scene) > 0.0))
     world = world_lit(scene)
     shown = _Shown(scene, bvh, points + offset * geometric, dirs, normals, geometric, world,

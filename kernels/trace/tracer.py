@@ -237,6 +237,13 @@ class Tracer:
         self.emitter_cover = np.full(n_emitters, -1)
         for e, lamp in enumerate(self.area_lamps):
             self.emitter_cover[e] = self.light_cover.get(lamp, -1)
+        # and which lobes each lights (the lamp's ray visibility; emissive meshes light both)
+        self.emitter_diffuse = np.ones(n_emitters, bool)
+        self.emitter_glossy = np.ones(n_emitters, bool)
+        for e, lamp in enumerate(self.area_lamps):
+            self.emitter_diffuse[e], self.emitter_glossy[e] = lamp.lights_diffuse, lamp.lights_glossy
+        # The area lamps mirrors show (those glossy rays see).
+        self.mirror_lamps = [li for li in self.area_lamps if li.lights_glossy]
         self.emitter_reach = None
         if any(lamp.receivers is not None for lamp in self.area_lamps):
             self.emitter_reach = np.ones((n_emitters, len(scene.objects)), bool)
@@ -379,7 +386,8 @@ class Tracer:
         smooth = None if h.smooth is None else h.smooth[idx]
         # The lamps light the diffuse base and the lobes; a world map's suns only the lobes (the
         # world is hidden from diffuse rays in this model, but glossy ones see it).
-        lamps = [(light, True) for light in self.emitters.lights]
+        lamps = [(light, light.lights_diffuse) for light in self.emitters.lights
+                 if light.lights_diffuse or (lobes and light.lights_glossy)]
         lamps += [(sun, False) for sun in self.map_suns] if lobes else []
         tri, bary = (None, None) if where is None else (where[0][idx], where[1][idx])
         areas = len(self.emitters.hulls)  # the shafts' emitters: area emitters, then lamps
@@ -441,7 +449,7 @@ class Tracer:
                 if relief is not None:
                     fuzz = fuzz * relief[pick]
                 sheen[rows[pick]] += fuzz * e[sub[pick]] * (vis[pick] / cos_i[pick])[:, None]
-            for f0, weight, rough in lobes:
+            for f0, weight, rough in (lobes if light.lights_glossy else ()):
                 shine = ggx_highlight(gn[sub], to_l[sub], wo[rows], rough[rows], f0[rows])
                 out[rows] += shine * e[sub] * weight[rows] * (vis / cos_i)[:, None]
         if len(self.emitters.area_points):
@@ -611,7 +619,8 @@ class Tracer:
                                                  self.emitter_cover[emitter[cast]])
             weight = radiance_da * (g * vis)[:, None]
             relief = 1.0 if smooth is None else bump_shadowing(smooth[n_idx], ns[n_idx], to_l)[:, None]
-            _scatter_add(out, n_idx, brdf_d[n_idx] * weight * relief)
+            diffuse_on = self.emitter_diffuse[emitter][:, None]  # the lamp's ray visibility
+            _scatter_add(out, n_idx, brdf_d[n_idx] * weight * relief * diffuse_on)
             if sheen is not None:  # every emitter lights a sheen, as it does the base
                 fabric, sheen_out = sheen
                 pick = np.flatnonzero(fabric.present[n_idx])
@@ -620,9 +629,11 @@ class Tracer:
                     cos_r = np.maximum(np.einsum("ij,ij->i", ns[rows], l_dir), 1e-6)
                     fuzz = fabric.brdf_cos(rows, ns[rows], l_dir, wo[rows])
                     fuzz = fuzz * (relief if np.isscalar(relief) else relief[pick])
-                    _scatter_add(sheen_out, rows, fuzz * weight[pick] / cos_r[:, None])
+                    _scatter_add(sheen_out, rows,
+                                 fuzz * weight[pick] * diffuse_on[pick] / cos_r[:, None])
             for f0, w, rough in lobes:  # area lamps only: no rough lobe's ray meets them
-                pick = np.flatnonzero(lamp & (max_of_three(w[n_idx]) > 0.0))
+                pick = np.flatnonzero(lamp & self.emitter_glossy[emitter]
+                                      & (max_of_three(w[n_idx]) > 0.0))
                 if pick.size:
                     rows, l_dir = n_idx[pick], to_l[pick]
                     brdf_cos = ggx_highlight(glossy[rows], l_dir, wo[rows], rough[rows], f0[rows])
@@ -703,8 +714,8 @@ class Tracer:
             if len(rows):
                 out[rows] += mirror_w[rows] * lookup(p[rows], r_dir[rows], rough[rows])
                 rows = rows[rough[rows] < self.settings.mirror_roughness]
-                if self.area_lamps and len(rows):
-                    lamp, t = light_units.area_lamps_seen(self.area_lamps, p[rows], r_dir[rows],
+                if self.mirror_lamps and len(rows):
+                    lamp, t = light_units.area_lamps_seen(self.mirror_lamps, p[rows], r_dir[rows],
                                                           np.full(len(rows), np.inf))
                     meet = np.flatnonzero(np.isfinite(t))
                     if meet.size:
@@ -1016,9 +1027,9 @@ class Tracer:
                     dp, dd = dp[:, src], dd[:, src]
                 hits = layers.hits
             miss = hits.tri < 0
-            if depth > 0 and sharp.any() and self.area_lamps:
+            if depth > 0 and sharp.any() and self.mirror_lamps:
                 rows = np.flatnonzero(sharp)
-                lamps, _ = light_units.area_lamps_seen(self.area_lamps, origins[rows], dirs[rows],
+                lamps, _ = light_units.area_lamps_seen(self.mirror_lamps, origins[rows], dirs[rows],
                                                        np.where(miss[rows], np.inf, hits.t[rows]))
                 _scatter_add(result, pixel[rows], weight[rows] * lamps)
             if s.output == "albedo":

@@ -1,7 +1,8 @@
-"""Cycles' light and shadow linking (Object > Shading > Light Linking) as the kernels read it:
-which objects each lamp lights (`Light.receivers`) and which shadow it (`Light.blockers`),
-resolved from the linking collections as Blender's depsgraph does, and every technique's view
-of a linked scene against Cycles' model of it."""
+"""What each lamp reaches, as Cycles decides it: light and shadow linking (Object > Shading >
+Light Linking: which objects a lamp lights, `Light.receivers`, and which shadow it,
+`Light.blockers`, resolved from the linking collections as Blender's depsgraph does) and the
+lamp's ray visibility (which lobes it lights, `Light.hidden_from`), with every technique's
+view of such scenes against Cycles' model of it."""
 
 import bpy
 import pytest
@@ -127,3 +128,36 @@ def test_hybrid_linked_lamps_against_cycles():
     err = rel_mse(ours, theirs)
     print(f"relMSE {err:.2e}")
     assert err < 1.2e-2
+
+
+@pytest.mark.parametrize("technique, bound", [("trace", 5e-3), ("shadowmap", 5e-3),
+                                              ("radiosity", 6e-3)])
+def test_a_lamps_ray_visibility_chooses_the_lobes_it_lights(technique, bound):
+    """A rough red ball and a mirror-like gold ball on the floor: the sun hidden from glossy
+    rays (no highlight), a 400 W point lamp hidden from diffuse rays (a highlight alone) and an
+    area lamp hidden from glossy rays (no highlight, no image in the mirror). Against Cycles'
+    models, 256 samples, 96 x 72: trace relMSE 1.6e-3, shadow maps 1.8e-3, radiosity 2.2e-3;
+    with every lamp lighting every lobe, 4.3, 0.40 and 4.3."""
+    scene = lit_floor()
+    ball, bsdf = principled("Ball", base=(0.6, 0.2, 0.1))
+    bsdf.inputs["Roughness"].default_value = 0.25
+    smooth_sphere(ball, radius=0.6)
+    gold, bsdf = principled("Gold", base=(0.9, 0.8, 0.5), metallic=1.0)
+    bsdf.inputs["Roughness"].default_value = 0.0
+    smooth_sphere(gold, radius=0.35, location=(1.0, -0.3, 0.35))
+    next(o for o in scene.objects if o.type == "LIGHT").visible_glossy = False
+    key = _lamp("Key")
+    key.data.energy, key.location, key.visible_diffuse = 400.0, (1.5, -2.0, 2.5), False
+    panel = _lamp("Panel", "AREA")
+    panel.data.energy, panel.data.size = 150.0, 1.0
+    panel.location, panel.rotation_euler = (-1.5, -1.0, 2.0), (0.6, -0.5, 0.0)
+    panel.visible_glossy = False
+    if technique == "trace":
+        snap, error = traced_against_cycles(scene, depth=2)
+    else:
+        snap, error = view_against_cycles(technique)
+    assert {li.name: li.hidden_from for li in snap.lights} == {
+        "Sun": ("glossy",), "Key": ("diffuse",), "Panel": ("glossy",)}
+    assert not any("hides it from" in why for why in snap.ignored)  # modelled, not noted
+    print(f"relMSE {error:.2e}")
+    assert error < bound
