@@ -21,6 +21,7 @@ from .request import SnapshotRequest
 from .socket_fallback import BakeTarget
 from .transforms import matrix_array
 from .world import (
+    read_camera_world,
     read_world,
     read_world_texture,
     world_env_mapping,
@@ -172,6 +173,7 @@ def _snapshot(context, request: SnapshotRequest, resolution: tuple[int, int] | N
     return resolve_material_maps(replace(
         _assemble(chunks, materials, lights, camera, world, request, ignored),
         world_texture=texture, world_hidden_from=world_hidden_from(scene),
+        camera_world=read_camera_world(scene, render=request.world_render),
         world_transform=None if texture is None else world_env_mapping(scene)))
 
 

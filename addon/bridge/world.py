@@ -29,7 +29,7 @@ def read_world(scene, mapped=None) -> tuple[np.ndarray, list[str]]:
         note = f"world: {unread}, rendered by Cycles into a {width} x {height} map"
         if _has_light_path(world):
             note += (" as diffuse rays see it through its Light Path node (the map lights the "
-                     "surfaces; the camera's view of the world shows it too)")
+                     "surfaces), and again as camera rays see it (the background)")
         return _equirect_mean(mapped.pixels), [note]
     output = active_output(tree, "OUTPUT_WORLD")
     if output is None:
@@ -147,6 +147,23 @@ def read_world_texture(scene, render: bool = True):
     pixels = np.concatenate([rgb, np.ones(rgb.shape[:2] + (1,), np.float32)], axis=-1)
     return Texture(kind="IMAGE", name=f"{scene.world.name} (rendered)", pixels=pixels,
                    extension="REPEAT", interpolation="LINEAR")
+
+
+def read_camera_world(scene, render: bool = True):
+    """The world as camera rays see it, rendered by Cycles into an equirectangular map (a kernel
+    `Texture`), where that differs from what lights the surfaces (`read_world_texture` renders a
+    world with a Light Path node as diffuse rays see it: a backdrop shown to the camera, a map
+    lighting the scene); None otherwise."""
+    if not render or scene.world is None or not _has_light_path(scene.world) \
+            or _world_render_reason(scene) is None:
+        return None
+    try:
+        rgb, _ = render_world_map(scene.world, lighting=False)
+    except RuntimeError:  # no Cycles in this build
+        return None
+    pixels = np.concatenate([rgb, np.ones(rgb.shape[:2] + (1,), np.float32)], axis=-1)
+    return Texture(kind="IMAGE", name=f"{scene.world.name} (as the camera sees it)",
+                   pixels=pixels, extension="REPEAT", interpolation="LINEAR")
 
 
 def _has_light_path(world) -> bool:

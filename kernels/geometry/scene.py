@@ -385,6 +385,9 @@ class Scene:
     # background is black), "glossy" (reflections show no sky), "transmission" (nor refractions),
     # "diffuse" (the world lights no surface)
     world_hidden_from: tuple[str, ...] = ()
+    # The world as camera rays see it where that differs from `world_texture` (a Light Path node
+    # in the world showing the camera a backdrop): an equirectangular map; None: the same
+    camera_world: Texture | None = None
     generated: np.ndarray | None = None
     # (T, 3) float64 emitted radiance W/(m^2 sr) per triangle where a material's emission comes
     # from a texture (its mean over the triangle, `shading/material_maps.py`); None: per material

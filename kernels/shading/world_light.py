@@ -121,8 +121,11 @@ def equirect_uv(dirs: np.ndarray) -> np.ndarray:
 
 def world_seen_by(scene: Scene, kind: str) -> Scene:
     """`scene` as rays of `kind` ("camera", "diffuse", "glossy", "transmission") see its world:
-    black where Cycles hides the world from them (`Scene.world_hidden_from`), else itself."""
+    black where Cycles hides the world from them (`Scene.world_hidden_from`), the camera's own
+    map for camera rays where it has one (`Scene.camera_world`), else itself."""
     if kind not in scene.world_hidden_from:
+        if kind == "camera" and scene.camera_world is not None:
+            return replace(scene, world_texture=scene.camera_world, world_transform=None)
         return scene
     return replace(scene, world_color=np.zeros(3, np.float32), world_texture=None,
                    world_transform=None)

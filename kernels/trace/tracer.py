@@ -1032,10 +1032,12 @@ class Tracer:
                 lamps, _ = light_units.area_lamps_seen(self.mirror_lamps, origins[rows], dirs[rows],
                                                        np.where(miss[rows], np.inf, hits.t[rows]))
                 _scatter_add(result, pixel[rows], weight[rows] * lamps)
+            # the world as this depth's rays see it (the primary rays' own map, `world_seen_by`)
+            seen_by = world_seen_by(self.scene, self.primary_kind) if depth == 0 else self.scene
             if s.output == "albedo":
                 background = 0.0
-            elif self.scene.world_texture is None:
-                background = self.scene.world_color
+            elif seen_by.world_texture is None:
+                background = seen_by.world_color
             else:  # the world's map along each escaping ray; a rough lobe's ray (off no smooth
                 # surface) reads it without the suns that the lobes' highlights already carry,
                 # averaged over the lobe where it stands for a whole one
@@ -1043,7 +1045,7 @@ class Tracer:
                 rough_ray = ~sharp[miss] if depth > 0 else np.zeros(len(escaped), bool)
                 wide = lobe > 0.0
                 background = np.empty((len(escaped), 3))
-                background[~rough_ray] = world_radiance(self.scene, escaped[~rough_ray])
+                background[~rough_ray] = world_radiance(seen_by, escaped[~rough_ray])
                 one = rough_ray & ~wide
                 background[one] = world_radiance(self.sky_scene, escaped[one])
                 background[wide] = (0.0 if self.world_lobes is None
