@@ -479,3 +479,26 @@ def test_glass_reflects_the_sky_and_the_sun(technique, roughness):
     _, error = view_against_cycles(technique)
     print(f"relMSE {error:.2e}")
     assert error < 3e-3
+
+
+def test_the_floor_under_a_holed_card_lying_on_it():
+    """A 2 m card of rough metal (nothing diffuse) with square holes (a Checker's Fac as its
+    alpha) lying 1.4 cm over the sunlit floor: the floor under it shows through the holes. A
+    flat one-sided sheet encloses nothing (`final_gather.enclosed` passes it), where its
+    enclosure probes took all of the floor under the card for the inside of a solid and the
+    gather divided its light by its small open part. Against Cycles' radiosity model, 256
+    samples, 96 x 72: relMSE 2.4e-3; 0.15 with the card enclosing the floor (glTF-IO's
+    01_alpha_mask, this set-up, 2.3e-2 -> 1.1e-3 at 160 x 120)."""
+    from blender_parts import lit_floor, principled, view_against_cycles
+
+    lit_floor()
+    card, bsdf = principled("Card", base=(0.8, 0.1, 0.1), metallic=1.0)
+    bsdf.inputs["Roughness"].default_value = 1.0
+    checker = card.node_tree.nodes.new("ShaderNodeTexChecker")
+    checker.inputs["Scale"].default_value = 8.0
+    card.node_tree.links.new(checker.outputs["Fac"], bsdf.inputs["Alpha"])
+    bpy.ops.mesh.primitive_plane_add(size=2.0, location=(0.0, 0.0, 0.014))
+    bpy.context.object.data.materials.append(card)
+    _, error = view_against_cycles("radiosity")
+    print(f"relMSE {error:.2e}")
+    assert error < 4e-3
