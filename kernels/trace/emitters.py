@@ -53,6 +53,36 @@ class Emitters:
     fine_count: np.ndarray  # (S,) int
 
 
+@dataclass(frozen=True, eq=False)
+class EmitterReach:
+    """What each area emitter (`Emitters.hulls` order: the area lamps, then emissive meshes)
+    reaches, from its lamp's light and shadow linking and ray visibility (`Light.receivers`,
+    `Light.blockers`, `Light.hidden_from`); an emissive mesh reaches everything."""
+
+    cover: np.ndarray  # (E,) int: its shadow rays' coverage in `Tracer.link_covers` (-1: the scene's)
+    diffuse: np.ndarray  # (E,) bool: it lights diffuse bases and sheens
+    glossy: np.ndarray  # (E,) bool: it lights the glossy lobes
+    objects: np.ndarray | None  # (E, O) bool: the objects it lights; None: every one, by every one
+
+
+def emitter_reach(area_lamps: list[Light], count: int, object_count: int,
+                  cover_of: dict) -> EmitterReach:
+    """`EmitterReach` of `count` area emitters whose first ones are `area_lamps`, over a scene of
+    `object_count` objects; cover_of: Light -> its coverage's index (lamps under shadow
+    linking)."""
+    cover = np.full(count, -1)
+    diffuse, glossy = np.ones(count, bool), np.ones(count, bool)
+    objects = None
+    for e, lamp in enumerate(area_lamps):
+        cover[e] = cover_of.get(lamp, -1)
+        diffuse[e], glossy[e] = lamp.lights_diffuse, lamp.lights_glossy
+        if lamp.receivers is not None:
+            if objects is None:
+                objects = np.ones((count, object_count), bool)
+            objects[e] = lamp.receivers
+    return EmitterReach(cover, diffuse, glossy, objects)
+
+
 @dataclass
 class Samples:
     """Point samples of emitting surfaces."""

@@ -78,7 +78,7 @@ from ..shading.world_light import (
     world_seen_by,
 )
 from . import differentials as rd
-from .emitters import FINE_SPLIT, REFINE_REACH, lamp_hull, scene_emitters
+from .emitters import FINE_SPLIT, REFINE_REACH, emitter_reach, lamp_hull, scene_emitters
 from .settings import TraceResult, TracerSettings, TraceStats, auto_settings
 from .shadow_shafts import ClearShafts
 from .surface import (
@@ -230,26 +230,11 @@ class Tracer:
                             np.ones(len(em.lights))]),  # shadow rays a hit casts to each
             self.shadow_bvh, self.offset, view_pixels)
         self.area_lamps = [li for li in scene.lights if li.kind == "AREA"]
-        # Per area emitter (`emitters.hulls` order: the area lamps, then emissive meshes): its
-        # coverage in `link_covers` (-1: the scene's), and (E, O) whether each object takes its
-        # light (light linking; None where every light reaches every object).
-        n_emitters = len(em.hulls)
-        self.emitter_cover = np.full(n_emitters, -1)
-        for e, lamp in enumerate(self.area_lamps):
-            self.emitter_cover[e] = self.light_cover.get(lamp, -1)
-        # and which lobes each lights (the lamp's ray visibility; emissive meshes light both)
-        self.emitter_diffuse = np.ones(n_emitters, bool)
-        self.emitter_glossy = np.ones(n_emitters, bool)
-        for e, lamp in enumerate(self.area_lamps):
-            self.emitter_diffuse[e], self.emitter_glossy[e] = lamp.lights_diffuse, lamp.lights_glossy
-        # The area lamps mirrors show (those glossy rays see).
+        # What each area emitter reaches (its lamp's linking and ray visibility), and the area
+        # lamps mirrors show (those glossy rays see).
+        self.reach = emitter_reach(self.area_lamps, len(em.hulls), len(scene.objects),
+                                   self.light_cover)
         self.mirror_lamps = [li for li in self.area_lamps if li.lights_glossy]
-        self.emitter_reach = None
-        if any(lamp.receivers is not None for lamp in self.area_lamps):
-            self.emitter_reach = np.ones((n_emitters, len(scene.objects)), bool)
-            for e, lamp in enumerate(self.area_lamps):
-                if lamp.receivers is not None:
-                    self.emitter_reach[e] = lamp.receivers
         # A world map's suns (`world_light.extract_suns`): highlights of the rough lobes, and
         # the map without them for those lobes' rays (sky_scene); neither where Cycles hides the
         # world from glossy rays.
@@ -384,8 +369,9 @@ class Tracer:
         origin = p + ng * self.offset
         brdf_w = diffuse_w[idx] / np.pi  # white base colour
         smooth = None if h.smooth is None else h.smooth[idx]
-        # The lamps light the diffuse base and the lobes; a world map's suns only the lobes (the
-        # world is hidden from diffuse rays in this model, but glossy ones see it).
+        # The lamps light the diffuse base and the lobes that their ray visibility lets them; a
+        # world map's suns only the lobes (the world is hidden from diffuse rays in this model,
+        # but glossy ones see it).
         lamps = [(light, light.lights_diffuse) for light in self.emitters.lights
                  if light.lights_diffuse or (lobes and light.lights_glossy)]
         lamps += [(sun, False) for sun in self.map_suns] if lobes else []
@@ -605,8 +591,8 @@ class Tracer:
             """Adds the light of emitter samples to hits n_idx (P,): the pairs' unit directions
             (P, 3) and distances (P,) to the sample, geometry terms g (P,), the samples'
             radiance x area (P, 3), emitters (P,) and whether each is an area lamp (P,)."""
-            if self.emitter_reach is not None and objects is not None:  # light linking
-                keep = np.flatnonzero(self.emitter_reach[emitter, objects[n_idx]])
+            if self.reach.objects is not None and objects is not None:  # light linking
+                keep = np.flatnonzero(self.reach.objects[emitter, objects[n_idx]])
                 n_idx, to_l, dist, g, radiance_da, emitter, lamp = (
                     x[keep] for x in (n_idx, to_l, dist, g, radiance_da, emitter, lamp))
             vis = np.ones(len(n_idx))
@@ -616,10 +602,10 @@ class Tracer:
             if len(cast):
                 vis[cast] = self._visible_linked(origin[n_idx[cast]], to_l[cast],
                                                  dist[cast] * (1.0 - 1e-4) - self.offset,
-                                                 self.emitter_cover[emitter[cast]])
+                                                 self.reach.cover[emitter[cast]])
             weight = radiance_da * (g * vis)[:, None]
             relief = 1.0 if smooth is None else bump_shadowing(smooth[n_idx], ns[n_idx], to_l)[:, None]
-            diffuse_on = self.emitter_diffuse[emitter][:, None]  # the lamp's ray visibility
+            diffuse_on = self.reach.diffuse[emitter][:, None]  # the lamp's ray visibility
             _scatter_add(out, n_idx, brdf_d[n_idx] * weight * relief * diffuse_on)
             if sheen is not None:  # every emitter lights a sheen, as it does the base
                 fabric, sheen_out = sheen
@@ -632,7 +618,7 @@ class Tracer:
                     _scatter_add(sheen_out, rows,
                                  fuzz * weight[pick] * diffuse_on[pick] / cos_r[:, None])
             for f0, w, rough in lobes:  # area lamps only: no rough lobe's ray meets them
-                pick = np.flatnonzero(lamp & self.emitter_glossy[emitter]
+                pick = np.flatnonzero(lamp & self.reach.glossy[emitter]
                                       & (max_of_three(w[n_idx]) > 0.0))
                 if pick.size:
                     rows, l_dir = n_idx[pick], to_l[pick]
