@@ -25,6 +25,8 @@ preallocated typed arrays. The conventions that differ between Blender and the k
 | socket_fallback | sockets it cannot read, baked by Cycles over the object's UVs, cached  |
 | tree_digest | a digest of a node tree (the fallback's cache key)                          |
 | lights     | lights as kernel `Light`s                                                   |
+| light_linking | lamps' light and shadow linking over the scene's objects                 |
+| ray_visibility | objects' Cycles ray visibility: what the kernels honour, what is noted     |
 | camera     | the camera as a kernel `Camera`, the render size                            |
 | world      | the world shader: uniform colour, radiance map (read, or rendered by Cycles) |
 | snapshot   | `snapshot`: the kernel `Scene` of the evaluated depsgraph                   |

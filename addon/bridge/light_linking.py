@@ -67,3 +67,14 @@ def linked_lights(lights: list[Light], linking: dict[str, dict],
     return [replace(light, **{field_name: takes_part(states, objects)
                               for field_name, states in linking[light.name].items()})
             if light.name in linking else light for light in lights]
+
+
+def mesh_linking_notes(obj) -> list[str]:
+    """Notes for an emissive mesh's light and shadow linking (Object > Shading > Light Linking),
+    which the kernels do not model (a lamp's they do); [] where `obj` is a
+    lamp or has none."""
+    if obj.type == "LIGHT":
+        return []
+    return [f"object '{obj.name}': {'light' if field_name == 'receivers' else 'shadow'} linking "
+            f"of an emissive mesh in Cycles; not modelled, its light reaches every object and "
+            f"every object shadows it" for field_name in linking_of(obj)]

@@ -12,10 +12,11 @@ from ...kernels.geometry.scene import Light, Material, ObjectInfo, Scene, Textur
 from ...kernels.shading.material_maps import resolve_material_maps
 from .attributes import material_attribute
 from .camera import read_camera
-from .light_linking import linked_lights, linking_of
+from .light_linking import linked_lights, linking_of, mesh_linking_notes
 from .lights import is_portal, read_light
 from .materials import DEFAULT_MATERIAL, MaterialReader
 from .mesh import MeshChunk, mesh_chunk, triangles_problem
+from .ray_visibility import hidden_from, visibility_notes
 from .render_state import render_state
 from .request import SnapshotRequest
 from .socket_fallback import BakeTarget
@@ -81,8 +82,8 @@ def _snapshot(context, request: SnapshotRequest, resolution: tuple[int, int] | N
             continue
         if source.name_full not in hidden:
             hidden[source.name_full] = hidden_from(source)
-            ignored.extend(_ray_visibility(source, hidden[source.name_full]))
-            ignored.extend(_light_linking(source) + _particle_hair(source))
+            ignored.extend(visibility_notes(source, hidden[source.name_full])
+                           + mesh_linking_notes(source) + _particle_hair(source))
         is_instance = inst.is_instance and not (holder == source and source.type != "MESH")
         matrix = matrix_array(inst.matrix_world)
         base = source.name if not is_instance else f"{holder.name}/{source.name}"
@@ -230,53 +231,6 @@ def _corner_colors(chunk, attribute_of: list) -> np.ndarray | None:
             rows = chunk.slot_ids == m
             colors[rows] = values[rows]
     return colors
-
-
-# Cycles' per-object ray visibility (Object Properties > Visibility > Ray Visibility): what a
-# mesh can be hidden from, and what a lamp's light can (a lamp object's other flags, camera and
-# shadow catcher among them, are unused by Cycles and read False / True in a new file).
-RAY_KINDS = {"MESH": ("camera", "diffuse", "glossy", "transmission", "shadow"),
-             "LIGHT": ("diffuse", "glossy", "transmission")}
-
-
-# The ray kinds every technique honours, per object type: a mesh's (`ObjectInfo.hidden_from`:
-# the tracer's rays, the rasterised views' coverage, shadow maps' casters, radiosity's shadow
-# rays), a lamp's (`Light.hidden_from`: the lobes it lights); others are noted.
-MODELLED_KINDS = {"MESH": ("camera", "shadow"), "LIGHT": ("diffuse", "glossy")}
-
-
-def hidden_from(obj) -> tuple[str, ...]:
-    """The ray kinds Cycles hides `obj` from (`RAY_KINDS` of its type whose visible_ flag is
-    off); () for the defaults."""
-    return tuple(kind for kind in RAY_KINDS.get(obj.type, ())
-                 if not getattr(obj, f"visible_{kind}", True))
-
-
-def _ray_visibility(obj, hidden: tuple[str, ...]) -> list[str]:
-    """What Cycles' visibility settings of `obj` (the rays it is `hidden` from) change that the
-    kernels do not model, one note each; [] for the defaults."""
-    others = [kind for kind in hidden if kind not in MODELLED_KINDS.get(obj.type, ())]
-    notes = []
-    if others:
-        notes.append(f"object '{obj.name}': Cycles hides it from {', '.join(others)} rays; "
-                     f"not modelled, the kernels' rays of those kinds see it")
-    if obj.type == "MESH":
-        for flag, what in (("is_holdout", "a holdout"), ("is_shadow_catcher", "a shadow catcher")):
-            if getattr(obj, flag, False):
-                notes.append(f"object '{obj.name}': {what} in Cycles; not modelled, read as a "
-                             f"surface")
-    return notes
-
-
-def _light_linking(obj) -> list[str]:
-    """Notes for an emissive mesh's light and shadow linking (Object > Shading > Light Linking),
-    which the kernels do not model (a lamp's they do: `light_linking.py`); [] where `obj` is a
-    lamp or has none."""
-    if obj.type == "LIGHT":
-        return []
-    return [f"object '{obj.name}': {'light' if field_name == 'receivers' else 'shadow'} linking "
-            f"of an emissive mesh in Cycles; not modelled, its light reaches every object and "
-            f"every object shadows it" for field_name in linking_of(obj)]
 
 
 def _particle_hair(obj) -> list[str]:
