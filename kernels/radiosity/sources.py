@@ -18,6 +18,7 @@ import numpy as np
 
 from ..geometry.frames import RAY_OFFSET_REL
 from ..geometry.scene import Scene, triangle_emission
+from ..shading.alpha import surface_alpha
 from ..shading.direct_light import diffuse_at, diffuse_weight
 from ..shading.specular_layer import diffuse_factor
 from ..shading.world_light import extract_suns, world_irradiance, world_lit, world_source
@@ -32,6 +33,9 @@ from .settings import RadiositySettings, gather_settings
 # renders a base colour of 1 as given (its bounces stop at a count), so the solve takes it at
 # this, 0.1% less per bounce, and names the material (`capped_materials`).
 MAX_REFLECTANCE = 0.999
+# Points per side of the grid a partly covered patch is sampled on for its reflectance
+# (`patch_reflectance`): 16 look-ups of its colour and alpha.
+COVERAGE_SAMPLES = 4
 
 
 def patch_reflectance(scene: Scene, patches: patching.Patches) -> np.ndarray:
@@ -47,10 +51,26 @@ def patch_reflectance(scene: Scene, patches: patching.Patches) -> np.ndarray:
     texels alone, as at level 0 (0.00184). Only the texels (`RadiosityResult.radiance_at`) show
     the base under the layer.
 
+    A partly covered patch (alpha: a leaf card, a fence) reflects with its coverage: the mean
+    of alpha x colour over COVERAGE_SAMPLES^2 points of it. The exchange's rays that end on it
+    count it whole, so its holes must reflect nothing there (a red card of square holes over a
+    floor sent it twice the red light Cycles' floor takes).
+
     Channels at or above 1 (a white base colour, a texture's white texels) are taken at
     `MAX_REFLECTANCE`, which the solvers need below 1."""
     rho = diffuse_at(scene, patches.parent, patches.bary.mean(axis=1), under_layer=False)
-    return np.minimum(rho.astype(np.float64), MAX_REFLECTANCE)
+    rho = rho.astype(np.float64)
+    covered = np.array([m.has_alpha for m in scene.materials], bool)
+    rows = np.flatnonzero(covered[scene.material_ids[patches.parent]]) if covered.any() else []
+    if len(rows):
+        # the samples' barycentrics in the parent: the patch's corners taken as points
+        bary, weights = sample_patches(patches.bary[rows], COVERAGE_SAMPLES, "midpoint")
+        tri = np.repeat(patches.parent[rows], bary.shape[1])
+        flat = bary.reshape(-1, 3)
+        colours = diffuse_at(scene, tri, flat, under_layer=False).reshape(bary.shape)
+        cover = surface_alpha(scene, tri, flat).reshape(weights.shape) * weights
+        rho[rows] = np.einsum("rs,rsc->rc", cover, colours)
+    return np.minimum(rho, MAX_REFLECTANCE)
 
 
 def capped_materials(scene: Scene, patches: patching.Patches, rho: np.ndarray) -> list[str]:
