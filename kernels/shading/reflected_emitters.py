@@ -101,6 +101,9 @@ def reflected_emitters(scene: Scene, tri: np.ndarray, bary: np.ndarray, mids: np
     # glass: its surface reflects by the dielectric Fresnel factor at the view, tinted as the
     # tracer's (entered from outside, n = 1 / IOR)
     glass_w = np.array([(1.0 - m.metallic) * m.transmission for m in mats])
+    glass_tint = np.array([np.ones(3) if m.glass_tint is None else m.glass_tint for m in mats],
+                          np.float64).reshape(-1, 3)
+    glass_eta = np.array([1.0 / max(m.ior, 1.0 + 1e-6) for m in mats])
     rows = np.flatnonzero(((layer_w[mids] > 0.0) | (metal_w[mids] > 0.0) | (glass_w[mids] > 0.0))
                           & shown.sees(smooth_m[mids]))
     if rows.size:
@@ -110,11 +113,8 @@ def reflected_emitters(scene: Scene, tri: np.ndarray, bary: np.ndarray, mids: np
         glass = np.flatnonzero(glass_w[m] > 0.0)
         if glass.size:
             mg = m[glass]
-            tint = np.array([np.ones(3) if mats[k].glass_tint is None else mats[k].glass_tint
-                             for k in mg], np.float64).reshape(-1, 3)
-            ior = np.array([max(mats[k].ior, 1.0 + 1e-6) for k in mg])
-            weight[glass] += (glass_w[mg] * fresnel_dielectric(cos[rows[glass]], 1.0 / ior)
-                              )[:, None] * tint
+            weight[glass] += (glass_w[mg] * fresnel_dielectric(cos[rows[glass]], glass_eta[mg])
+                              )[:, None] * glass_tint[mg]
         metal = np.flatnonzero(metal_w[m] > 0.0)
         if metal.size:
             t, b = tri[rows[metal]], bary[rows[metal]]

@@ -281,8 +281,7 @@ def lamp_highlights(materials, material: np.ndarray, normals: np.ndarray, wo: np
     layer_f = np.array([layer_f0(m.ior, m.specular) for m in materials])[material]
     metal_w = np.array([m.metallic for m in materials], np.float64)[material]
     glass_w = np.array([(1.0 - m.metallic) * m.transmission for m in materials])[material]
-    glass_f = np.array([((max(m.ior, 1.0) - 1.0) / (max(m.ior, 1.0) + 1.0)) ** 2
-                        for m in materials])[material]
+    glass_f = np.array([layer_f0(m.ior, 0.5) for m in materials])[material]  # F0 of the IOR alone
     if base is None:
         base = np.array([m.base_color for m in materials], np.float64).reshape(-1, 3)[material]
     out = np.zeros((len(material), 3))
