@@ -15,6 +15,9 @@ RAY_KINDS = {"MESH": ("camera", "diffuse", "glossy", "transmission", "shadow"),
 # the tracer's rays, the rasterised views' coverage, shadow maps' casters, radiosity's shadow
 # rays), a lamp's (`Light.hidden_from`: the lobes it lights); others are noted.
 MODELLED_KINDS = {"MESH": ("camera", "shadow"), "LIGHT": ("diffuse", "glossy")}
+# A mesh's kinds the tracer honours alone (its reflected and refracted rays pass the object);
+# the raster views' reflections and radiosity see it.
+TRACED_KINDS = {"MESH": ("glossy", "transmission")}
 
 
 def hidden_from(obj) -> tuple[str, ...]:
@@ -27,8 +30,13 @@ def hidden_from(obj) -> tuple[str, ...]:
 def visibility_notes(obj, hidden: tuple[str, ...]) -> list[str]:
     """What Cycles' visibility settings of `obj` (the rays it is `hidden` from) change that the
     kernels do not model, one note each; [] for the defaults."""
-    others = [kind for kind in hidden if kind not in MODELLED_KINDS.get(obj.type, ())]
+    traced = [kind for kind in hidden if kind in TRACED_KINDS.get(obj.type, ())]
+    others = [kind for kind in hidden if kind not in MODELLED_KINDS.get(obj.type, ())
+              and kind not in traced]
     notes = []
+    if traced:
+        notes.append(f"object '{obj.name}': Cycles hides it from {', '.join(traced)} rays; "
+                     f"traced views do too, the other techniques' reflections see it")
     if others:
         notes.append(f"object '{obj.name}': Cycles hides it from {', '.join(others)} rays; "
                      f"not modelled, the kernels' rays of those kinds see it")

@@ -210,6 +210,11 @@ class Tracer:
         # rays (Object > Visibility > Ray Visibility) fully transparent to them.
         self.camera_cover = ray_coverage(scene, "camera")
         self.shadow_cover = ray_coverage(scene, "shadow")
+        # Where some object is hidden from glossy or transmission rays: what the reflected and
+        # the refracted rays meet (`_kind_hits`); None: both meet `bounce_cover`.
+        self.kind_covers = None
+        if any(kind in o.hidden_from for o in scene.objects for kind in ("glossy", "transmission")):
+            self.kind_covers = (ray_coverage(scene, "glossy"), ray_coverage(scene, "transmission"))
         # Shadow linking: the lights whose shadow rays pass the objects outside their blockers,
         # each with its own coverage (`link_covers[light_cover[light]]`).
         self.link_covers, self.light_cover = [], {}
@@ -324,18 +329,50 @@ class Tracer:
             out[rows] = self._visible(origins[rows], directions[rows], t_max[rows], cover)
         return out
 
-    def _hits(self, origins, dirs, t_min, camera: bool, t_max=np.inf
-              ) -> tuple[Hits, Layers | None]:
+    def _hits(self, origins, dirs, t_min, camera: bool, t_max=np.inf,
+              refracted: np.ndarray | None = None) -> tuple[Hits, Layers | None]:
         """Closest hits of the rays that see (`camera`: the camera's), and None; in scenes with
         alpha (or objects hidden from the camera), the layers each ray sees through partly
         covered surfaces (`layered_hits`: a surface of coverage a shows a S + (1 - a) T, as
-        Cycles blends it) and, as the hits, each ray's front one."""
+        Cycles blends it) and, as the hits, each ray's front one. refracted (N,) bool, for
+        rays past the camera's: which are transmission rays (the others glossy), for objects
+        Cycles hides from either (`kind_covers`)."""
+        if not camera and refracted is not None and self.kind_covers is not None:
+            return self._kind_hits(origins, dirs, t_min, t_max, refracted)
         cover = self.camera_cover if camera else self.bounce_cover
         if cover is None:
             return self.bvh.intersect(origins, dirs, t_min, t_max), None
         layers = layered_hits(self.bvh, origins, dirs, t_min, t_max, cover, self.offset,
                               cover.opaque)
         return layers.front_hits(len(origins)), layers
+
+    def _kind_hits(self, origins, dirs, t_min, t_max, refracted: np.ndarray
+                   ) -> tuple[Hits, Layers]:
+        """`_hits` of glossy and transmission rays (refracted (N,) bool), each kind through its
+        own coverage (`kind_covers`), joined: the front hits of all N and their layers."""
+        count = len(origins)
+        t_min = np.broadcast_to(np.asarray(t_min, np.float64), (count,))
+        t_max = np.broadcast_to(np.asarray(t_max, np.float64), (count,))
+        ray, weight, parts = [], [], []
+        for flag, cover in zip((False, True), self.kind_covers, strict=True):
+            rows = np.flatnonzero(refracted == flag)
+            if not rows.size:
+                continue
+            args = (origins[rows], dirs[rows], t_min[rows], t_max[rows])
+            if cover is None:
+                hits = self.bvh.intersect(*args)
+                ray.append(rows)
+                weight.append(np.ones(len(rows)))
+            else:
+                layers = layered_hits(self.bvh, *args, cover, self.offset, cover.opaque)
+                hits = layers.hits
+                ray.append(rows[layers.ray])
+                weight.append(layers.weight)
+            parts.append(hits)
+        joined = Hits(*(np.concatenate([getattr(h, name) for h in parts])
+                        for name in ("t", "tri", "u", "v")))
+        layers = Layers(ray=np.concatenate(ray), weight=np.concatenate(weight), hits=joined)
+        return layers.front_hits(count), layers
 
     def direct(self, h: SurfaceHits, wo: np.ndarray, diffuse_w: np.ndarray, lobes: list,
                strata: Strata | None = None, where: tuple | None = None,
@@ -997,7 +1034,7 @@ class Tracer:
             with self.clock("traversal"):
                 hits, layers = self._hits(origins, dirs, t_min, camera=depth == 0,
                                           t_max=reach if depth == 0 and reach is not None
-                                          else np.inf)
+                                          else np.inf, refracted=refracted)
             if depth == 0 and primary_ids is not None:
                 primary_ids[...] = self.hit_ids(hits.tri)
             if depth == 0 and primary_t is not None:

@@ -481,6 +481,32 @@ def test_objects_hidden_from_camera_or_shadow_rays_are_traced_as_cycles_renders_
     assert rel_mse(ours, cycles) < 0.1 * rel_mse(flags_ignored, cycles)
 
 
+@pytest.mark.parametrize("hidden, bound", [("glossy", 1.5e-3), ("transmission", 1.5e-3)])
+def test_an_object_hidden_from_glossy_or_transmission_rays(hidden, bound):
+    """A red ball beside a mirror ball and a glass ball on the floor, hidden from glossy rays
+    (the mirror shows none of it) or from transmission rays (the glass shows none): the
+    tracer's reflected and refracted rays pass it through their own coverage
+    (`Tracer._kind_hits`). Against Cycles' Whitted model, depth 4, 256 samples, 96 x 72: relMSE
+    3.8e-4 and 4.0e-4 (3.9e-4 with the ball seen by every ray); ignored, 1.6e-3 and 6.8e-3."""
+    from blender_parts import lit_floor, principled, smooth_sphere, traced_against_cycles
+
+    scene = lit_floor()
+    mirror, bsdf = principled("Mirror", base=(0.9, 0.9, 0.9), metallic=1.0)
+    bsdf.inputs["Roughness"].default_value = 0.0
+    smooth_sphere(mirror, radius=0.6, location=(0.5, 0.0, 0.6))
+    glass, bsdf = principled("Glass", base=(1.0, 1.0, 1.0))
+    bsdf.inputs["Transmission Weight"].default_value = 1.0
+    bsdf.inputs["Roughness"].default_value = 0.0
+    smooth_sphere(glass, radius=0.4, location=(-0.9, -0.6, 0.4))
+    red = smooth_sphere(principled("Red", base=(0.8, 0.1, 0.1))[0], radius=0.4,
+                        location=(-0.7, 0.8, 0.4))
+    setattr(red, f"visible_{hidden}", False)
+    snap, error = traced_against_cycles(scene, depth=4)
+    assert any("traced views do too" in why for why in snap.ignored)
+    print(f"relMSE {error:.2e}")
+    assert error < bound
+
+
 @pytest.mark.slow
 def test_a_highlight_smaller_than_a_pixel_is_averaged_over_it(monkeypatch):
     """Small smooth metal balls (roughness 0.1) over a grey floor under a small bright area
