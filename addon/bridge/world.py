@@ -140,13 +140,8 @@ def read_world_texture(scene, render: bool = True):
                        interpolation="CLOSEST" if env.interpolation == "Closest" else "LINEAR")
     if not render or _world_render_reason(scene) is None:
         return None
-    try:
-        rgb, _ = render_world_map(scene.world, lighting=_has_light_path(scene.world))
-    except RuntimeError:  # no Cycles in this build: `read_world` notes the shader as not read
-        return None
-    pixels = np.concatenate([rgb, np.ones(rgb.shape[:2] + (1,), np.float32)], axis=-1)
-    return Texture(kind="IMAGE", name=f"{scene.world.name} (rendered)", pixels=pixels,
-                   extension="REPEAT", interpolation="LINEAR")
+    # no Cycles in this build: None, and `read_world` notes the shader as not read
+    return _rendered_map(scene.world, _has_light_path(scene.world), "rendered")
 
 
 def read_camera_world(scene, render: bool = True):
@@ -157,13 +152,20 @@ def read_camera_world(scene, render: bool = True):
     if not render or scene.world is None or not _has_light_path(scene.world) \
             or _world_render_reason(scene) is None:
         return None
+    return _rendered_map(scene.world, False, "as the camera sees it")
+
+
+def _rendered_map(world, lighting: bool, what: str) -> Texture | None:
+    """`world` rendered by Cycles into an equirectangular map (`render_world_map`, as diffuse
+    rays see it with `lighting`), a kernel `Texture` named '<world> (<what>)'; None where this
+    build has no Cycles."""
     try:
-        rgb, _ = render_world_map(scene.world, lighting=False)
-    except RuntimeError:  # no Cycles in this build
+        rgb, _ = render_world_map(world, lighting=lighting)
+    except RuntimeError:
         return None
     pixels = np.concatenate([rgb, np.ones(rgb.shape[:2] + (1,), np.float32)], axis=-1)
-    return Texture(kind="IMAGE", name=f"{scene.world.name} (as the camera sees it)",
-                   pixels=pixels, extension="REPEAT", interpolation="LINEAR")
+    return Texture(kind="IMAGE", name=f"{world.name} ({what})", pixels=pixels,
+                   extension="REPEAT", interpolation="LINEAR")
 
 
 def _has_light_path(world) -> bool:
