@@ -47,7 +47,7 @@ of a 0.6 s solve.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -242,18 +242,15 @@ class FinalGather:
     area_samples_per_side: int
     settings: FinalGatherSettings
     stats: dict
-    # What the lamps' and emitters' shadow rays meet where it differs from `bvh` (shadowless
-    # surfaces passed: `alpha.shadow_aware`); None: `bvh`.
-    shadow_bvh: object = None
-    # The lamps under shadow linking: Light -> what their shadow rays meet (`alpha.linked_shadows`)
-    linked: dict = field(default_factory=dict)
+    # What the lamps' and emitters' shadow rays meet (`levels.SolveContext.shadows`); None: `bvh`
+    shadows: LampShadows | None = None
     # (T,) bool: triangles of flat one-sided sheets, which enclose nothing (`enclosed`); None: none
     sheets: np.ndarray | None = None
 
     def shadow_occluded(self) -> LampShadows:
         """The lights' shadow-ray query (origins, directions, t_min, t_max) -> (R,) bool, each
         lamp under shadow linking taking its own."""
-        return LampShadows(self.bvh if self.shadow_bvh is None else self.shadow_bvh, self.linked)
+        return LampShadows(self.bvh) if self.shadows is None else self.shadows
 
     def opened(self, open_: np.ndarray) -> Visibility:
         """What M receivers are known to be (open_ (M,) bool: inside no solid, which their
@@ -308,16 +305,15 @@ class PatchSolution:
 
 def prepare(scene: Scene, solution: PatchSolution, emitters: Emitters, bvh, smooth_angle: float,
             area_samples_per_side: int, settings: FinalGatherSettings,
-            shadow_bvh=None, linked: dict | None = None) -> FinalGather:
+            shadows: LampShadows | None = None) -> FinalGather:
     """The patch-level half: the indirect irradiance (W/m^2, RGB) at the corners of the patches,
     or of their elements (`elements.py`, within `settings.element_pairs`).
 
     What arrived at a patch less the first shot is what the solver carried between patches, the
     same numbers it solved with, so no sampling noise of the direct light leaks into the indirect
     part. Elements gather it afresh from the patches' B, plus the world's light of their patch.
-    shadow_bvh: what the receivers' shadow rays to lamps and emitters meet, where it differs
-    from `bvh` (`FinalGather.shadow_bvh`); linked: the lamps under shadow linking
-    (`FinalGather.linked`)."""
+    shadows: what the receivers' shadow rays to lamps and emitters meet (`FinalGather.shadows`;
+    None: `bvh`)."""
     patches, radiosity, emitted = solution.patches, solution.radiosity, solution.emitted
     reflectance, direct = solution.reflectance, solution.direct
     clear, world = solution.clear, solution.world
@@ -399,7 +395,7 @@ def prepare(scene: Scene, solution: PatchSolution, emitters: Emitters, bvh, smoo
              "straddling_patches": int(((open_fraction > 0.0) & (open_fraction < 1.0)).sum())}
     return FinalGather(scene, bvh, emitters, clear, unroofed, patches, levels, corner, tri_normals,
                        coincident, np.pi * triangle_emission(scene), offset, area_samples_per_side,
-                       settings, stats, shadow_bvh, linked or {}, sheets)
+                       settings, stats, shadows, sheets)
 
 
 def exitance(gather: FinalGather, tri: np.ndarray, bary: np.ndarray,

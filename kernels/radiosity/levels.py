@@ -5,7 +5,7 @@ loop of `solve.py` splits and solves (`Levels`: the patches themselves for the m
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
@@ -31,11 +31,9 @@ class SolveContext:
     size: float  # m, the patch size asked for
     scale: float  # m, the scene's bounding-box diagonal
     emitters: Emitters  # the emissive triangles that shoot first (`shot_emitters`)
-    # What the lamps' and emitters' shadow rays meet, where it differs from `bvh`: shadowless
-    # surfaces passed (`alpha.shadow_aware`); None: `bvh`.
-    shadow_bvh: object = None
-    # The lamps under shadow linking: Light -> what their shadow rays meet (`alpha.linked_shadows`)
-    linked: dict = field(default_factory=dict)
+    # What the lamps' and emitters' shadow rays meet (shadowless surfaces passed, each lamp under
+    # shadow linking its own: `lamps.LampShadows`); None: `bvh`.
+    shadows: LampShadows | None = None
 
     def occluded(self, origins, directions, t_min, t_max) -> np.ndarray:
         """The BVH's visibility query between surfaces: (R,) bool."""
@@ -45,7 +43,7 @@ class SolveContext:
     def shadow_occluded(self) -> LampShadows:
         """The lights' shadow-ray query (origins, directions, t_min, t_max) -> (R,) bool, each
         lamp under shadow linking taking its own."""
-        return LampShadows(self.bvh if self.shadow_bvh is None else self.shadow_bvh, self.linked)
+        return LampShadows(self.bvh) if self.shadows is None else self.shadows
 
 
 @dataclass(frozen=True, eq=False)

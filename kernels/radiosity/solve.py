@@ -49,6 +49,7 @@ from . import final_gather
 from . import patches as patching
 from .final_gather import FinalGather, PatchSolution
 from .hierarchical import TreeLevels
+from .lamps import LampShadows
 from .levels import LevelLight, Levels, SolveContext, level_light
 from .near_field import near_field
 from .patch_levels import PatchLevels
@@ -112,6 +113,8 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
     shadow_bvh = shadow_aware(bvh, scene, RAY_OFFSET_REL * scale, settings.seed)
     linked = linked_shadows(bvh, scene, RAY_OFFSET_REL * scale, settings.seed)
     bvh = alpha_aware(bvh, scene, RAY_OFFSET_REL * scale, settings.seed)
+    # The lamps' and emitters' shadow rays: shadowless surfaces passed, each linked lamp its own.
+    shadows = LampShadows(bvh if shadow_bvh is None else shadow_bvh, linked)
     exchanging = exchanging_triangles(scene)
     # The first patches: auto's test for clusters, the hierarchy's count, the other solvers' mesh.
     patches = patching.make_patches(scene, size, exchanging)
@@ -122,8 +125,7 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
     if plan is not None:
         settings = plan.settings
         ctx = SolveContext(scene, settings, bvh, size, scale,
-                           shot_emitters(scene, settings, bvh, RAY_OFFSET_REL * scale), shadow_bvh,
-                           linked)
+                           shot_emitters(scene, settings, bvh, RAY_OFFSET_REL * scale), shadows)
         levels = TreeLevels(scene, plan.roots, plan.depth, ctx.occluded, settings, scale,
                             plan.memory)
     else:
@@ -139,8 +141,7 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
             # clustered).
             settings = replace(settings, solver="clustered")
         ctx = SolveContext(scene, settings, bvh, size, scale,
-                           shot_emitters(scene, settings, bvh, RAY_OFFSET_REL * scale), shadow_bvh,
-                           linked)
+                           shot_emitters(scene, settings, bvh, RAY_OFFSET_REL * scale), shadows)
         # Not grouped on the first patches, never grouped: split children (shadow edges, the
         # near field, refinement) are there to hold variation that a group's one value would
         # flatten (a wall 16 cm behind a plate, its 0.25 m children grouped: the light on it
@@ -239,7 +240,7 @@ def _prepare_gather(ctx: SolveContext, solution: PatchSolution, stats: dict
     start = time.perf_counter()
     gather = final_gather.prepare(ctx.scene, solution, ctx.emitters, ctx.bvh, settings.smooth_angle,
                                   settings.area_light_samples_per_side, gather_settings(settings),
-                                  ctx.shadow_bvh, ctx.linked)
+                                  ctx.shadows)
     stats["final_gather"] = {**gather.stats, "prepare_seconds": time.perf_counter() - start}
     return gather
 
