@@ -29,17 +29,18 @@ from .solvers import GaussSeidelSettings, GaussSeidelSolver, ProgressiveSettings
 class PatchLevels:
     """`levels.Levels` of the matrix solvers: the patches, split in place level by level.
 
-    groups: the first patches' `planning.patch_groups` (None where no solver uses groups;
-    `coarse` ones where auto chose them, `planning.coarse_groups_pay`); split
+    groups: the first patches' `planning.patch_groups` (None where no solver uses groups);
+    coarse_cell: the grid width (m) of coarse ones where auto chose them
+    (`planning.coarse_groups_pay`), None for groups at the patch size; split
     children, known lit or shadowed once the lamps have shot, are grouped apart
     (`clusters.light_bucket`)."""
 
     def __init__(self, ctx: SolveContext, patches: patching.Patches,
-                 groups: clusters.Groups | None, coarse: bool = False) -> None:
+                 groups: clusters.Groups | None, coarse_cell: float | None = None) -> None:
         self.ctx = ctx
         self.current = patches
         self.groups = groups
-        self.coarse = coarse  # the groups are `clusters.group_patches(coarse=True)`
+        self.coarse_cell = coarse_cell
         self.fresh = np.ones(len(patches), bool)  # the patches no shadow-edge test has seen
 
     @property
@@ -64,7 +65,9 @@ class PatchLevels:
         ctx, patches = self.ctx, self.current
         if self.groups is not None and (patches.level > 0).any():
             # Without split children these are the first patches and their groups as they were.
-            self.groups = patch_groups(patches, ctx.size, ctx.settings, light.direct, self.coarse)
+            coarse = self.coarse_cell is not None
+            self.groups = patch_groups(patches, self.coarse_cell if coarse else ctx.size,
+                                       ctx.settings, light.direct, coarse)
         stats: dict = {"patches": len(patches), "per_level": patches.level_counts()}
         b = yield from _solve_level(ctx, patches, light, self.groups, stats)
         return LevelSolution(b, stats)

@@ -133,7 +133,7 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
         coarse = None if clustering_pays(len(patches), groups, settings) else coarse_groups_pay(
             patches, size, settings)
         if coarse is not None:  # small objects by their six faces, not a matrix over them all
-            groups = coarse
+            groups = coarse.groups
         if settings.solver == "auto" and clustering_pays(len(patches), groups, settings):
             # Decided on the first patches, for every level: splits and light octaves add
             # groups, and a dense matrix over the patches they would hand on to costs O(N^2)
@@ -147,7 +147,7 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
         # flatten (a wall 16 cm behind a plate, its 0.25 m children grouped: the light on it
         # flat where it falls off fourfold).
         levels = PatchLevels(ctx, patches, groups if settings.solver == "clustered" else None,
-                             coarse=coarse is not None)
+                             coarse_cell=None if coarse is None else coarse.cell)
     yield 0.02
     solved = yield from _level_steps(ctx, levels)
     light = solved.light

@@ -182,7 +182,29 @@ def test_auto_takes_the_coarse_groups_only_past_the_matrix_solvers_cap():
     size = 1.0
     many = patching.make_patches(boxes(60), size)
     assert len(many) > AUTO_MATRIX_MAX_PATCHES
-    groups = coarse_groups_pay(many, size, RadiositySettings())
-    assert groups is not None and groups.count == 60 * 6
+    coarse = coarse_groups_pay(many, size, RadiositySettings())
+    assert coarse is not None and coarse.groups.count == 60 * 6 and coarse.cell == size
     assert coarse_groups_pay(many, size, RadiositySettings(solver="progressive")) is None
     assert coarse_groups_pay(patching.make_patches(boxes(20), size), size, RadiositySettings()) is None
+
+
+def test_coarse_groups_widen_their_grid_until_they_fit():
+    """A 4 m room of 19,200 small triangles over 1 m patches: its coarse groups at the patch size
+    (six walls of 4 x 4 cells) break a memory limit that their groups over a grid twice as wide
+    (2 x 2 cells a wall) fit, so auto clusters over that grid rather than hand every triangle to
+    progressive refinement; the solve regroups at that width and keeps the furnace's B = E / (1 -
+    rho) within 2%."""
+    from classic_bake.kernels.radiosity.planning import clustered_bytes, coarse_groups_pay
+
+    room = build([(tessellated_box(40, 4.0), grey(0.5, emission=1.0))])
+    size = 1.0
+    patches = patching.make_patches(room, size)
+    settings = RadiositySettings(patch_size=size, dense_memory_limit=clustered_bytes(6 * 4),
+                                 **FAST)
+    assert coarse_groups_pay(patches, size, replace(settings, dense_memory_limit=1 << 40)).cell == size
+    coarse = coarse_groups_pay(patches, size, settings)
+    assert coarse is not None and coarse.cell == 2.0 * size and coarse.groups.count == 6 * 4
+    assert coarse_groups_pay(patches, size, replace(settings, dense_memory_limit=1)) is None
+    result = solve_radiosity(room, replace(settings, shadow_splits=0, near_splits=0))
+    assert result.stats["solver"] == "clustered" and result.stats["levels"][-1]["groups"] == 6 * 4
+    np.testing.assert_allclose(result.radiosity, np.pi / (1.0 - 0.5), rtol=0.02)
