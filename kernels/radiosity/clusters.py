@@ -123,12 +123,14 @@ class Groups:
 
 
 def group_patches(patches: patching.Patches, size: float,
-                  direct: np.ndarray | None = None, coarse: bool = False) -> Groups:
+                  direct: np.ndarray | None = None, coarse: bool = False,
+                  pooled: bool = False) -> Groups:
     """Patches under CLUSTER_AREA_SHARE x size^2 m^2 grouped by object, cell of a grid `size` m
     wide (by centroid), the cube-map cell their normal points into and, when their direct
     irradiance (N, 3) W/m^2 is given, its octave (`light_bucket`); every other patch alone
     (module docstring). `coarse`: objects under SMALL_OBJECT_SHARE x size across by the six
-    cube faces alone, in one cell."""
+    cube faces alone, in one cell; `pooled` (with coarse): such objects whose centres share a
+    cell share its six groups."""
     count = len(patches)
     small = patches.areas < CLUSTER_AREA_SHARE * size * size
     keys = np.zeros((count, 7), np.int64)
@@ -136,12 +138,16 @@ def group_patches(patches: patching.Patches, size: float,
     keys[~small, 1] = np.flatnonzero(~small)
     if small.any():
         centroid = patches.corners[small].mean(axis=1)
-        keys[small, 1] = patches.object_ids[small]
-        tiny = _object_extents(patches)[patches.object_ids[small]] < SMALL_OBJECT_SHARE * size
+        object_ids = patches.object_ids[small]
+        lo, hi = _object_boxes(patches)
+        tiny = np.linalg.norm(hi - lo, axis=1)[object_ids] < SMALL_OBJECT_SHARE * size
         tiny &= coarse
-        # a tiny object is one cell of the grid, wherever its parts fall
         cells = np.floor(centroid / max(size, 1e-300)).astype(np.int64)
-        keys[small, 2:5] = np.where(tiny[:, None], 0, cells)
+        # a tiny object is one cell of the grid, wherever its parts fall; pooled, the cell of its
+        # centre, which other tiny objects there share (object id -1)
+        own = np.floor((lo + hi)[object_ids] * 0.5 / max(size, 1e-300)).astype(np.int64)
+        keys[small, 1] = np.where(tiny & pooled, -1, object_ids)
+        keys[small, 2:5] = np.where(tiny[:, None], own if pooled else 0, cells)
         keys[small, 5] = np.where(tiny, normal_bucket(patches.normals[small], 1),
                                   normal_bucket(patches.normals[small]))
         keys[small, 6] = -1
@@ -164,14 +170,17 @@ def light_bucket(direct: np.ndarray) -> np.ndarray:
     return np.where(lum > 0.0, octave, LIGHT_OCTAVES + 1).astype(np.int64)
 
 
-def _object_extents(patches: patching.Patches) -> np.ndarray:
-    """(objects,) the diagonal (m) of each object's patches' bounding box, by object id."""
+def _object_boxes(patches: patching.Patches) -> tuple[np.ndarray, np.ndarray]:
+    """(objects, 3) twice: the low and high corners (m) of each object's patches' bounding box,
+    by object id (an id no patch has: a point box at the origin)."""
     count = int(patches.object_ids.max(initial=-1)) + 1
     lo = np.full((count, 3), np.inf)
     hi = np.full((count, 3), -np.inf)
     np.minimum.at(lo, patches.object_ids, patches.corners.min(axis=1))
     np.maximum.at(hi, patches.object_ids, patches.corners.max(axis=1))
-    return np.linalg.norm(np.maximum(hi - lo, 0.0), axis=1)
+    empty = lo[:, 0] > hi[:, 0]
+    lo[empty] = hi[empty] = 0.0
+    return lo, hi
 
 
 def normal_bucket(normals: np.ndarray, cells: int = NORMAL_CELLS) -> np.ndarray:

@@ -21,7 +21,7 @@ from .form_factors.hemicube import HemicubeFormFactors, HemicubeSettings
 from .form_factors.raycast import RayCastFormFactors, RayCastSettings
 from .form_factors.rows import enforce_reciprocity, iter_matrix
 from .levels import LevelLight, LevelSolution, SolveContext
-from .planning import choose_solver, memory_estimate, patch_groups, quick_test_pays
+from .planning import CoarseGroups, choose_solver, memory_estimate, patch_groups, quick_test_pays
 from .settings import RadiositySettings
 from .solvers import GaussSeidelSettings, GaussSeidelSolver, ProgressiveSettings, ProgressiveSolver
 
@@ -30,17 +30,17 @@ class PatchLevels:
     """`levels.Levels` of the matrix solvers: the patches, split in place level by level.
 
     groups: the first patches' `planning.patch_groups` (None where no solver uses groups);
-    coarse_cell: the grid width (m) of coarse ones where auto chose them
-    (`planning.coarse_groups_pay`), None for groups at the patch size; split
+    coarse: how coarse ones were made where auto chose them (`planning.coarse_groups_pay`),
+    None for groups at the patch size; split
     children, known lit or shadowed once the lamps have shot, are grouped apart
     (`clusters.light_bucket`)."""
 
     def __init__(self, ctx: SolveContext, patches: patching.Patches,
-                 groups: clusters.Groups | None, coarse_cell: float | None = None) -> None:
+                 groups: clusters.Groups | None, coarse: CoarseGroups | None = None) -> None:
         self.ctx = ctx
         self.current = patches
         self.groups = groups
-        self.coarse_cell = coarse_cell
+        self.coarse = coarse
         self.fresh = np.ones(len(patches), bool)  # the patches no shadow-edge test has seen
 
     @property
@@ -65,9 +65,9 @@ class PatchLevels:
         ctx, patches = self.ctx, self.current
         if self.groups is not None and (patches.level > 0).any():
             # Without split children these are the first patches and their groups as they were.
-            coarse = self.coarse_cell is not None
-            self.groups = patch_groups(patches, self.coarse_cell if coarse else ctx.size,
-                                       ctx.settings, light.direct, coarse)
+            self.groups = (patch_groups(patches, ctx.size, ctx.settings, light.direct)
+                           if self.coarse is None else
+                           self.coarse.regrouped(patches, ctx.settings, light.direct))
         stats: dict = {"patches": len(patches), "per_level": patches.level_counts()}
         b = yield from _solve_level(ctx, patches, light, self.groups, stats)
         return LevelSolution(b, stats)

@@ -70,7 +70,8 @@ AUTO_MATRIX_MAX_PATCHES = 3000
 # more than AUTO_MATRIX_MAX_PATCHES patches to progressive refinement, which casts a row of rays
 # per shot and shoots each patch many times: an imported airliner (354 objects, 41k triangles and
 # as many patches) made 2778 coarse groups at the patch size, 8% over the memory limit, and ran
-# progressive refinement for over 20 minutes; at twice the width, 2241 groups.
+# progressive refinement for over 20 minutes; at twice the width, 2241 groups. Small objects
+# of one cell are then pooled: 3000 scattered 10 cm cubes make six groups each, at any width.
 COARSE_CELL_DOUBLINGS = 4
 
 
@@ -180,35 +181,43 @@ def clustering_pays(patch_count: int, groups: clusters.Groups | None,
 
 
 def patch_groups(patches: patching.Patches, size: float, settings: RadiositySettings,
-                 direct: np.ndarray | None = None, coarse: bool = False) -> clusters.Groups | None:
+                 direct: np.ndarray | None = None, coarse: bool = False,
+                 pooled: bool = False) -> clusters.Groups | None:
     """`clusters.group_patches` where auto or the clustered solver may use them, else None."""
     if settings.method == "raycast" and settings.solver in ("auto", "clustered"):
-        return clusters.group_patches(patches, size, direct, coarse)
+        return clusters.group_patches(patches, size, direct, coarse, pooled)
     return None
 
 
 @dataclass(frozen=True, eq=False)
 class CoarseGroups:
-    """Coarse groups (`clusters.group_patches(coarse=True)`) over a grid `cell` m wide: every
-    level regroups its patches so (`patch_levels.PatchLevels`)."""
+    """Coarse groups (`clusters.group_patches(coarse=True)`) over a grid `cell` m wide, `pooled`
+    or not: every level regroups its patches so (`patch_levels.PatchLevels`)."""
 
     groups: clusters.Groups
     cell: float
+    pooled: bool = False
+
+    def regrouped(self, patches: patching.Patches, settings: RadiositySettings,
+                  direct: np.ndarray | None) -> clusters.Groups | None:
+        return patch_groups(patches, self.cell, settings, direct, True, self.pooled)
 
 
 def coarse_groups_pay(patches: patching.Patches, size: float, settings: RadiositySettings
                       ) -> CoarseGroups | None:
     """The coarse groups (`clusters.SMALL_OBJECT_SHARE`) when auto, left with a matrix solver over
-    more than AUTO_MATRIX_MAX_PATCHES patches, would cluster them (`clustering_pays`), over the
-    narrowest grid of `size` m doubled up to COARSE_CELL_DOUBLINGS times that does; else None."""
+    more than AUTO_MATRIX_MAX_PATCHES patches, would cluster them (`clustering_pays`): over the
+    narrowest grid of `size` m doubled up to COARSE_CELL_DOUBLINGS times that does, then the
+    same with small objects pooled by cell; else None."""
     if settings.solver != "auto" or len(patches) <= AUTO_MATRIX_MAX_PATCHES:
         return None
-    cell = size
-    for _ in range(COARSE_CELL_DOUBLINGS + 1):
-        groups = patch_groups(patches, cell, settings, coarse=True)
-        if clustering_pays(len(patches), groups, settings):
-            return CoarseGroups(groups, cell)
-        cell *= 2.0
+    for pooled in (False, True):
+        cell = size
+        for _ in range(COARSE_CELL_DOUBLINGS + 1):
+            groups = patch_groups(patches, cell, settings, coarse=True, pooled=pooled)
+            if clustering_pays(len(patches), groups, settings):
+                return CoarseGroups(groups, cell, pooled)
+            cell *= 2.0
     return None
 
 

@@ -147,7 +147,7 @@ def radiosity_steps(scene: Scene, settings: RadiositySettings = RadiositySetting
         # flatten (a wall 16 cm behind a plate, its 0.25 m children grouped: the light on it
         # flat where it falls off fourfold).
         levels = PatchLevels(ctx, patches, groups if settings.solver == "clustered" else None,
-                             coarse_cell=None if coarse is None else coarse.cell)
+                             coarse=coarse)
     yield 0.02
     solved = yield from _level_steps(ctx, levels)
     light = solved.light

@@ -208,3 +208,26 @@ def test_coarse_groups_widen_their_grid_until_they_fit():
     result = solve_radiosity(room, replace(settings, shadow_splits=0, near_splits=0))
     assert result.stats["solver"] == "clustered" and result.stats["levels"][-1]["groups"] == 6 * 4
     np.testing.assert_allclose(result.radiosity, np.pi / (1.0 - 0.5), rtol=0.02)
+
+
+def test_small_objects_of_one_cell_pool_their_groups_when_nothing_else_fits():
+    """60 small boxes (six coarse groups each at any grid width: one object never shares a group
+    with another) break a memory limit that 36 groups fit: auto then pools the boxes whose
+    centres share a cell of the grid, six groups a cell, rather than shoot every triangle; the
+    boxes of one cell are grouped by the side they face, boxes of other cells apart."""
+    from classic_bake.kernels.radiosity.planning import clustered_bytes, coarse_groups_pay
+
+    boxes = build([(tessellated_box(3, 0.1)[:, ::-1] + np.array([0.3 * (k % 10), 0.3 * (k // 10), 0]),
+                    grey(0.5)) for k in range(60)])
+    size = 1.0
+    patches = patching.make_patches(boxes, size)
+    settings = RadiositySettings(dense_memory_limit=clustered_bytes(36))
+    coarse = coarse_groups_pay(patches, size, settings)
+    assert coarse is not None and coarse.pooled and coarse.cell == size
+    # box centres: x in 0.05 .. 2.75 (cells 0-2), y in 0.05 .. 1.55 (cells 0-1)
+    assert coarse.groups.count == 3 * 2 * 6
+    centre_cell = np.floor(patches.corners.mean(axis=1)[:, :2] / size).astype(int)
+    first = patches.object_ids == patches.object_ids[0]
+    same_group = coarse.groups.of_patch == coarse.groups.of_patch[np.flatnonzero(first)[0]]
+    assert (centre_cell[same_group] == centre_cell[first][0]).all()
+    assert len(np.unique(patches.object_ids[same_group])) > 1
