@@ -170,6 +170,8 @@ def mix_materials(name: str, parts: list, ignored: list) -> Material:
         metal_color=None if tint is None else tint.astype(np.float32),
         metal_edge=next((m.metal_edge for w, m in parts if w * m.metallic > 0.0
                          and m.metal_edge is not None), None),
+        specular_tint=next((m.specular_tint for w, m in parts if w * (1.0 - m.metallic) > 0.0
+                            and m.specular_tint is not None), None),
         metallic=metal / total,
         roughness=float(mean([m.roughness for _, m in parts], m_w + t_w, weights)),
         ior=float(mean([m.ior for _, m in parts], t_w, weights)),
@@ -942,9 +944,6 @@ class MaterialReader:
             tint, _ = self._color(inputs["Specular Tint"], ignored, textures=False)
             if not np.allclose(tint, 1.0, atol=1e-3):
                 edge = np.clip(tint, 0.0, 1.0).astype(np.float32)
-                if metallic < 1.0 or metallic_tex is not None:
-                    ignored.append("Specular Tint on the dielectric part is not modelled (white); "
-                                   "the metal's is its F82 tint")
         sheen = self._sheen(inputs, ignored)
         alpha, alpha_tex = self._alpha(inputs["Alpha"], ignored) if "Alpha" in inputs else (1.0, None)
         relief = self._normal(inputs["Normal"], ignored)
@@ -965,6 +964,7 @@ class MaterialReader:
             alpha=alpha,
             alpha_texture=alpha_tex,
             metal_edge=edge,
+            specular_tint=edge,
             ignored=tuple(ignored),
             **relief.fields(),
             **coat,

@@ -116,6 +116,10 @@ class Material:
     |                    |           |         | Tint, a Principled metal's Specular Tint): its |
     |                    |           |         | reflectance near 82 degrees is Schlick's times |
     |                    |           |         | this (`optics.fresnel_f82`); None: white       |
+    | specular_tint      | [0, 1]^3  | None    | the dielectric specular layer's F0 tint (a     |
+    |                    |           |         | Principled's Specular Tint): F0 x this head on,|
+    |                    |           |         | white at grazing                               |
+    |                    |           |         | (`specular_layer.tinted_albedo`); None: white  |
     | glass_tint         | [0, 1]^3  | None    | what a glass's reflection is tinted by (a      |
     |                    |           |         | Glass BSDF's colour); None: white, as the      |
     |                    |           |         | Principled reflects                            |
@@ -182,6 +186,7 @@ class Material:
     bump_distance: float = 1.0
     metal_color: np.ndarray | None = None
     metal_edge: np.ndarray | None = None
+    specular_tint: np.ndarray | None = None
     glass_tint: np.ndarray | None = None
     emission_texture: Texture | None = None
     metallic_texture: Texture | None = None

@@ -25,8 +25,10 @@ from .specular_layer import (
     MIRROR_ROUGHNESS,
     coat_layer,
     layer_f0,
+    layer_tints,
     metal_reflectance,
     metal_tables,
+    tinted_albedo,
     view_factors,
     view_tables,
 )
@@ -108,8 +110,9 @@ def reflected_emitters(scene: Scene, tri: np.ndarray, bary: np.ndarray, mids: np
                           & shown.sees(smooth_m[mids]))
     if rows.size:
         m = mids[rows]
-        weight = np.repeat((layer_w[m] * (1.0 - view_factors(view_tables(mats), m, cos[rows]))
-                            )[:, None], 3, axis=1)
+        f0 = np.array([layer_f0(mat.ior, mat.specular) for mat in mats])[m]
+        weight = layer_w[m][:, None] * tinted_albedo(
+            1.0 - view_factors(view_tables(mats), m, cos[rows]), f0, layer_tints(mats)[m])
         glass = np.flatnonzero(glass_w[m] > 0.0)
         if glass.size:
             mg = m[glass]

@@ -62,6 +62,24 @@ def layer_f0(ior: float, level: float) -> float:
     return float(min(max(base * 2.0 * level, 0.0), 1.0))
 
 
+def tinted_albedo(e: np.ndarray, f0: np.ndarray, tint: np.ndarray) -> np.ndarray:
+    """(N, 3) what a layer of F0 f0 (N,) tinted by the Principled's Specular Tint (N, 3)
+    reflects where its untinted albedo is e (N,): Cycles' dielectric Fresnel is then
+    F = t F0 + (1 - t F0) s with s = (F_real - F0) / (1 - F0) (tint times F0 head on, white at
+    grazing), so E - (1 - t) F0 (1 - E) / (1 - F0), exact for a smooth layer (E = F_real) and
+    equal to E for a white tint. The base under it keeps 1 - E: Cycles takes the largest
+    channel, the same wherever one channel of the tint is white."""
+    e = np.asarray(e, np.float64)[:, None]
+    f0 = np.asarray(f0, np.float64)[:, None]
+    return e - (1.0 - np.asarray(tint, np.float64)) * f0 * (1.0 - e) / np.maximum(1.0 - f0, 1e-9)
+
+
+def layer_tints(materials) -> np.ndarray:
+    """(M, 3) each material's `specular_tint` (white where it has none)."""
+    return np.array([np.ones(3) if m.specular_tint is None else m.specular_tint
+                     for m in materials], np.float64).reshape(-1, 3)
+
+
 def _smith_lambda(cos_theta: np.ndarray, alpha: float) -> np.ndarray:
     """GGX's Smith Lambda for directions at cos_theta (> 0) from the normal."""
     cos2 = np.maximum(cos_theta * cos_theta, 1e-300)
@@ -270,11 +288,11 @@ def lamp_highlights(materials, material: np.ndarray, normals: np.ndarray, wo: np
     of surfaces of `material` (N,) (rows of `materials`): unit shading normals, directions to the
     eye wo and to the lamp (N, 3), and the lamp's irradiance there (N, 3, cosine included).
     Lobes of roughness >= MIRROR_ROUGHNESS: the specular layer over a dielectric base (F0 from
-    the IOR and level, weight (1 - metallic)(1 - transmission)), a metal's (F0 the base colour,
-    `base` (N, 3) where textures set it, weight metallic) and a rough glass's reflection (F0 from
-    its IOR alone, weight (1 - metallic) transmission, as the tracer lights it), and a coat's
-    over them (F0 from its IOR, its own roughness, weight coat), which leaves those under it
-    what it lets through (`coat_layer`)."""
+    the IOR and level times its Specular Tint, weight (1 - metallic)(1 - transmission)), a
+    metal's (F0 the base colour, `base` (N, 3) where textures set it, weight metallic) and a
+    rough glass's reflection (F0 from its IOR alone, weight (1 - metallic) transmission, as the
+    tracer lights it), and a coat's over them (F0 from its IOR, its own roughness, weight coat),
+    which leaves those under it what it lets through (`coat_layer`)."""
     rough = np.array([m.roughness for m in materials], np.float64)[material]
     glossy = np.array([m.roughness >= MIRROR_ROUGHNESS for m in materials])[material]
     layer_w = np.array([(1.0 - m.metallic) * (1.0 - m.transmission) for m in materials])[material]
@@ -294,7 +312,8 @@ def lamp_highlights(materials, material: np.ndarray, normals: np.ndarray, wo: np
                                  f0[rows])
             out[rows] += (weight[rows] / np.maximum(cos_i, 1e-6))[:, None] * brdf * irradiance[rows]
 
-    add(glossy, layer_w * (layer_f > 0.0), np.repeat(layer_f[:, None], 3, axis=1), rough)
+    add(glossy, layer_w * (layer_f > 0.0), layer_f[:, None] * layer_tints(materials)[material],
+        rough)
     add(glossy, metal_w, np.asarray(base, np.float64), rough)
     add(glossy, glass_w, np.repeat(glass_f[:, None], 3, axis=1), rough)
     coat = coat_layer(materials, material, np.einsum("ij,ij->i", normals, wo))

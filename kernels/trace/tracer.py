@@ -65,8 +65,10 @@ from ..shading.specular_layer import (
     coat_tables,
     ggx_highlight,
     layer_f0,
+    layer_tints,
     metal_reflectance,
     metal_tables,
+    tinted_albedo,
     view_factors,
     view_tables,
 )
@@ -272,6 +274,7 @@ class Tracer:
         # The specular layer's F0 from the material's own IOR, as its albedo tables take it (an
         # IOR below 1 reflects as its inverse does; 0: F0 = 1, as Cycles shows it).
         self.layer_f0 = np.array([layer_f0(m.ior, m.specular) for m in mats])
+        self.layer_tint = layer_tints(mats)
         self.specular = np.array([m.specular for m in mats])
         self.layer_tables = view_tables(mats)
         self.metal_tables = metal_tables(mats)
@@ -1136,8 +1139,8 @@ class Tracer:
             # reflects and refracts nothing: Cycles' microfacet closures are 0 where cos(N, view)
             # <= 0 (its diffuse keeps cos(N, light): lamps on the viewer's side light none).
             glossy_on = np.einsum("ij,ij->i", dirs, gn) < 0.0
-            diffuse_w = dielectric * view_factors(self.layer_tables, m,
-                                                  np.einsum("ij,ij->i", dirs, gn))
+            layer_e = 1.0 - view_factors(self.layer_tables, m, np.einsum("ij,ij->i", dirs, gn))
+            diffuse_w = dielectric * (1.0 - layer_e)
             if s.output == "albedo":  # what the first hit reflects diffusely; no light, no ray
                 # (a translucent surface's colour too: Cycles' Diffuse Color pass counts it)
                 translucent = self.translucent[m]
@@ -1155,7 +1158,7 @@ class Tracer:
             lobes = []
             if has_spec.any():
                 lobes.append((np.where(has_spec[:, None], f0_dielectric[:, None], 0.0)
-                              * np.ones((1, 3)), np.where(has_spec, dielectric, 0.0)[:, None]
+                              * self.layer_tint[m], np.where(has_spec, dielectric, 0.0)[:, None]
                               * np.ones((1, 3)), rough))
             rough_metal = (metallic > 0) & (rough >= s.mirror_roughness) & glossy_on
             f0_metal = np.where(self.tinted[m][:, None], self.metal_color[m], h.albedo)
@@ -1251,12 +1254,14 @@ class Tracer:
                 smooth[metal])
             # The dielectric specular layer of opaque surfaces reflects its surroundings along
             # the mirror direction with its albedo at this view, what the base lost under it:
-            # exact Fresnel at the level-scaled F0 when smooth (`specular_layer.py`). A rough
-            # layer's one ray stands for its lobe (Cycles' glossy rays see the surroundings; the
-            # lamps' highlights come from `direct`): the energy is right, the blur is not drawn.
-            layer_w = np.where((dielectric > 0) & (spec_level > 0) & glossy_on,
-                               dielectric - diffuse_w, 0.0)
-            mirror_w = metal_w + layer_w[:, None]
+            # exact Fresnel at the level-scaled F0 when smooth (`specular_layer.py`), tinted by
+            # its Specular Tint (`tinted_albedo`). A rough layer's one ray stands for its lobe
+            # (Cycles' glossy rays see the surroundings; the lamps' highlights come from
+            # `direct`): the energy is right, the blur is not drawn.
+            layer_on = (dielectric > 0) & (spec_level > 0) & glossy_on
+            layer_w = np.where(layer_on[:, None], dielectric[:, None] * tinted_albedo(
+                layer_e, f0_dielectric, self.layer_tint[m]), 0.0)
+            mirror_w = metal_w + layer_w
             if self.environment:  # environment-mapped mirrors: a look-up, whatever the depth
                 with self.clock("environment"):
                     own = own + self._environment(hits.tri, h.p, r_dir, mirror_w, gn,

@@ -204,3 +204,21 @@ def test_a_white_lobe_with_its_lost_light_restored_keeps_all_of_it(roughness):
                                atol=3e-3)
     grey = energy_compensation(mu, r, np.full((12, 3), 0.5))[:, 0]
     assert np.all(grey >= 1.0) and np.all(e * grey < 1.0)
+
+
+def test_a_tinted_smooth_layer_reflects_cycles_generalised_fresnel():
+    """A smooth layer's albedo is the dielectric Fresnel F(mu); tinted by t, Cycles reflects
+    t F0 + (1 - t F0) (F - F0) / (1 - F0): t F0 head on, 1 at grazing, F for a white tint."""
+    from classic_bake.kernels.shading.specular_layer import tinted_albedo
+
+    mu = np.linspace(0.0, 1.0, 11)
+    ior = 1.5
+    f = fresnel_dielectric(mu, 1.0 / ior)
+    f0 = np.full(mu.shape, ((ior - 1.0) / (ior + 1.0)) ** 2)
+    tint = np.tile([1.0, 0.3, 0.0], (mu.size, 1))
+    expected = tint * f0[:, None] + (1.0 - tint * f0[:, None]) * ((f - f0) / (1.0 - f0))[:, None]
+    got = tinted_albedo(f, f0, tint)
+    np.testing.assert_allclose(got, expected, atol=1e-12)
+    np.testing.assert_allclose(got[:, 0], f, atol=1e-12)
+    np.testing.assert_allclose(got[-1], [0.04, 0.3 * 0.04, 0.0], atol=1e-12)
+    np.testing.assert_allclose(got[0], 1.0, atol=1e-12)
