@@ -6,7 +6,14 @@ view of such scenes against Cycles' model of it."""
 
 import bpy
 import pytest
-from blender_parts import lit_floor, principled, smooth_sphere, traced_against_cycles, view_against_cycles
+from blender_parts import (
+    against_cycles,
+    lit_floor,
+    principled,
+    smooth_sphere,
+    traced_against_cycles,
+    view_against_cycles,
+)
 
 from classic_bake.addon import bridge
 from classic_bake.addon import cycles as cr
@@ -152,10 +159,7 @@ def test_a_lamps_ray_visibility_chooses_the_lobes_it_lights(technique, bound):
     panel.data.energy, panel.data.size = 150.0, 1.0
     panel.location, panel.rotation_euler = (-1.5, -1.0, 2.0), (0.6, -0.5, 0.0)
     panel.visible_glossy = False
-    if technique == "trace":
-        snap, error = traced_against_cycles(scene, depth=2)
-    else:
-        snap, error = view_against_cycles(technique)
+    snap, error = against_cycles(technique, scene, depth=2)
     assert {li.name: li.hidden_from for li in snap.lights} == {
         "Sun": ("glossy",), "Key": ("diffuse",), "Panel": ("glossy",)}
     assert not any("hides it from" in why for why in snap.ignored)  # modelled, not noted

@@ -663,7 +663,7 @@ def test_a_dielectrics_specular_tint_tints_its_layer(technique, roughness):
     shadow-map view, the radiosity model), mirror / rough: the tracer 1.6e-4 / 4.8e-4, the
     shadow-map view 3.1e-4 / 5.5e-4, the radiosity view 7.6e-4 / 9.9e-4; the tint left out
     (white), 1.4e-2 / 1.2e-2, 9.1e-3 / 8.7e-3 and 7.0e-3 / 8.3e-3."""
-    from blender_parts import view_against_cycles
+    from blender_parts import against_cycles
 
     scene = lit_floor()
     mat, bsdf = principled("Tinted", base=(0.05, 0.05, 0.05))
@@ -671,10 +671,7 @@ def test_a_dielectrics_specular_tint_tints_its_layer(technique, roughness):
     bsdf.inputs["Roughness"].default_value = roughness
     bsdf.inputs["Specular Tint"].default_value = (1.0, 0.3, 0.3, 1.0)
     smooth_sphere(mat)
-    if technique == "trace":
-        snap, error = traced_against_cycles(scene)
-    else:
-        snap, error = view_against_cycles(technique)
+    snap, error = against_cycles(technique, scene)
     read = next(m for m in snap.materials if m.name == "Tinted")
     np.testing.assert_allclose(read.specular_tint, (1.0, 0.3, 0.3))
     assert not read.ignored, read.ignored
@@ -692,7 +689,7 @@ def test_a_surface_transparent_to_shadow_rays_casts_no_shadow(technique, bound):
     light still meets it. Against Cycles at 96 x 72: the tracer 6.8e-4, the shadow-map view
     9.1e-4, the radiosity view 1.2e-3; read as its surface alone (its shadow cast),
     3.7e-2 (tracer) and 2.1e-2 (radiosity, compare)."""
-    from blender_parts import view_against_cycles
+    from blender_parts import against_cycles
 
     scene = lit_floor()
     mat, tree, out = bare_material("Shadowless")
@@ -706,10 +703,7 @@ def test_a_surface_transparent_to_shadow_rays_casts_no_shadow(technique, bound):
     tree.links.new(clear.outputs[0], mix.inputs[2])
     tree.links.new(mix.outputs[0], out.inputs["Surface"])
     smooth_sphere(mat)
-    if technique == "trace":
-        snap, error = traced_against_cycles(scene)
-    else:
-        snap, error = view_against_cycles(technique)
+    snap, error = against_cycles(technique, scene)
     read = next(m for m in snap.materials if m.name == "Shadowless")
     assert read.shadowless and not read.ignored, read.ignored
     print(technique, "relMSE against Cycles", error)

@@ -408,17 +408,14 @@ def test_a_light_path_world_shows_the_camera_its_backdrop(technique):
     ball (roughness 0.2) on the grey floor under a sun, against Cycles' models, 256 samples,
     96 x 72: relMSE 2.5e-4 (trace), 6.8e-4 (shadow maps), 6.9e-4 (radiosity); the camera shown the
     lighting world, 2.5e-2 in each."""
-    from blender_parts import lit_floor, principled, smooth_sphere, traced_against_cycles, view_against_cycles
+    from blender_parts import against_cycles, lit_floor, principled, smooth_sphere
 
     scene = lit_floor()
     _backdrop_world((0.9, 0.85, 0.8))
     metal, bsdf = principled("Metal", base=(0.9, 0.9, 0.9), metallic=1.0)
     bsdf.inputs["Roughness"].default_value = 0.2
     smooth_sphere(metal, radius=0.6)
-    if technique == "trace":
-        snap, error = traced_against_cycles(scene, depth=2)
-    else:
-        snap, error = view_against_cycles(technique)
+    snap, error = against_cycles(technique, scene, depth=2)
     assert snap.camera_world is not None
     print(f"relMSE {error:.2e}")
     assert error < 3e-3
@@ -491,7 +488,7 @@ def test_the_worlds_ray_visibility_is_honoured(hidden, technique, surface, bound
     models, 256 samples, 96 x 72: relMSE 1.5e-4 to 9.5e-4 (measured on 5.2; a metal under a
     striped map with glossy rays hidden included), where the flags ignored gave 5.6 (camera),
     0.13 to 0.15 (glossy), 3.2 (transmission), 0.50 (diffuse)."""
-    from blender_parts import lit_floor, principled, smooth_sphere, traced_against_cycles, view_against_cycles
+    from blender_parts import against_cycles, lit_floor, principled, smooth_sphere
     from scene_builder import striped_sky
 
     scene = lit_floor()
@@ -504,10 +501,7 @@ def test_the_worlds_ray_visibility_is_honoured(hidden, technique, surface, bound
         bsdf.inputs["Base Color"].default_value = (1.0, 1.0, 1.0, 1.0)
     smooth_sphere(mat, radius=0.6)
     setattr(scene.world.cycles_visibility, hidden, False)
-    if technique == "trace":
-        snap, error = traced_against_cycles(scene, depth=2)
-    else:
-        snap, error = view_against_cycles(technique)
+    snap, error = against_cycles(technique, scene, depth=2)
     assert snap.world_hidden_from == (hidden,)
     print(f"relMSE {error:.2e}")
     assert error < bound

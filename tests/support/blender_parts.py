@@ -244,6 +244,14 @@ def traced_against_cycles(scene, depth=4, samples=256, resolution=(96, 72)):
     return snap, rel_mse(ours, theirs)
 
 
+def against_cycles(technique: str, scene, depth=4):
+    """(snapshot, relMSE) of the technique's view against Cycles at 96 x 72: the tracer's
+    ("trace", `traced_against_cycles` at `depth`), else `view_against_cycles`."""
+    if technique == "trace":
+        return traced_against_cycles(scene, depth)
+    return view_against_cycles(technique)
+
+
 def translucent_mix(tree, diffuse=(0.2, 0.6, 0.2), translucent=(0.2, 0.6, 0.2)):
     """A Mix Shader (Fac 0.5) of a Diffuse BSDF and a Translucent BSDF of those colours in
     `tree`: a leaf's material. Returns the Mix Shader node."""
