@@ -99,6 +99,8 @@ def describe(summary: JobSummary, scene, result, bakes: dict, plan: dict) -> Non
                    for level in stats["levels"]],
         "final_gather": stats.get("final_gather"),  # None when switched off
         "world": stats.get("world"),  # sky rays per patch, suns taken from the world's map
+        # where auto coarsened the groups of a scene of many parts to fit the memory limit
+        "coarse_groups": stats.get("coarse_groups"),
     }
 
 

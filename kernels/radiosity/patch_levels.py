@@ -74,8 +74,11 @@ class PatchLevels:
 
     def stats(self, levels: list[dict]) -> dict:
         last = levels[-1]
-        return {"levels": levels, "solver": last["solver"],
-                "memory_estimate": last["memory_estimate"], "method": self.ctx.settings.method}
+        out = {"levels": levels, "solver": last["solver"],
+               "memory_estimate": last["memory_estimate"], "method": self.ctx.settings.method}
+        if self.coarse is not None:  # how far auto coarsened the groups to fit the memory limit
+            out["coarse_groups"] = {"cell_m": self.coarse.cell, "pooled": self.coarse.pooled}
+        return out
 
 
 def _rows(scene: Scene, patches: patching.Patches, bvh, settings: RadiositySettings):

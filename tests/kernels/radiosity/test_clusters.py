@@ -207,6 +207,7 @@ def test_coarse_groups_widen_their_grid_until_they_fit():
     assert coarse_groups_pay(patches, size, replace(settings, dense_memory_limit=1)) is None
     result = solve_radiosity(room, replace(settings, shadow_splits=0, near_splits=0))
     assert result.stats["solver"] == "clustered" and result.stats["levels"][-1]["groups"] == 6 * 4
+    assert result.stats["coarse_groups"] == {"cell_m": 2.0 * size, "pooled": False}
     np.testing.assert_allclose(result.radiosity, np.pi / (1.0 - 0.5), rtol=0.02)
 
 
