@@ -112,7 +112,8 @@ def reflected_emitters(scene: Scene, tri: np.ndarray, bary: np.ndarray, mids: np
         m = mids[rows]
         f0 = np.array([layer_f0(mat.ior, mat.specular) for mat in mats])[m]
         weight = layer_w[m][:, None] * tinted_albedo(
-            1.0 - view_factors(view_tables(mats), m, cos[rows]), f0, layer_tints(mats)[m])
+            1.0 - view_factors(view_tables(mats, tinted=False), m, cos[rows]), f0,
+            layer_tints(mats)[m])
         glass = np.flatnonzero(glass_w[m] > 0.0)
         if glass.size:
             mg = m[glass]

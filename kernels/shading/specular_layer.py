@@ -63,12 +63,13 @@ def layer_f0(ior: float, level: float) -> float:
 
 
 def tinted_albedo(e: np.ndarray, f0: np.ndarray, tint: np.ndarray) -> np.ndarray:
-    """(N, 3) what a layer of F0 f0 (N,) tinted by the Principled's Specular Tint (N, 3)
+    """(N, 3) (N, 1 for a scalar tint) what a layer of F0 f0 (N,) tinted by the Principled's
+    Specular Tint (N, 3)
     reflects where its untinted albedo is e (N,): Cycles' dielectric Fresnel is then
     F = t F0 + (1 - t F0) s with s = (F_real - F0) / (1 - F0) (tint times F0 head on, white at
     grazing), so E - (1 - t) F0 (1 - E) / (1 - F0), exact for a smooth layer (E = F_real) and
-    equal to E for a white tint. The base under it keeps 1 - E: Cycles takes the largest
-    channel, the same wherever one channel of the tint is white."""
+    equal to E for a white tint. The base under it keeps 1 - this in its largest channel, as
+    Cycles layers them (`view_tables`). tint: (N, 3), or a scalar for all channels alike."""
     e = np.asarray(e, np.float64)[:, None]
     f0 = np.asarray(f0, np.float64)[:, None]
     return e - (1.0 - np.asarray(tint, np.float64)) * f0 * (1.0 - e) / np.maximum(1.0 - f0, 1e-9)
@@ -154,21 +155,31 @@ def directional_albedo(mu: float, roughness: float, f0: float) -> float:
 
 def diffuse_factor(material, mu: float = 1.0) -> float:
     """1 - E(mu): the share of the Principled diffuse base a surface of `material` (its
-    roughness, ior and `specular` level) shows seen at cos(theta) = mu; 1 without a layer."""
+    roughness, ior, `specular` level and tint) shows seen at cos(theta) = mu; 1 without a
+    layer. A tinted layer leaves 1 - E in its largest channel (`tinted_albedo`)."""
     f0 = layer_f0(material.ior, material.specular)
-    return 1.0 - directional_albedo(float(mu), float(material.roughness), f0)
+    e = directional_albedo(float(mu), float(material.roughness), f0)
+    return 1.0 - float(tinted_albedo(np.array([e]), np.array([f0]), _tint_max(material))[0, 0])
 
 
-def view_tables(materials) -> np.ndarray:
+def view_tables(materials, tinted: bool = True) -> np.ndarray:
     """(M, MU_STEPS) per material, 1 - E(mu) at sqrt(mu) = 0, 1 / (MU_STEPS - 1), ..., 1: the
-    share of the base each shows at each view (`view_factors`)."""
-    rows = [_view_table(float(m.roughness), layer_f0(m.ior, m.specular)) for m in materials]
+    share of the base each shows at each view (`view_factors`), under a tinted layer 1 - E in
+    the tint's largest channel, as Cycles layers them (`tinted_albedo`); `tinted` False: 1 - E
+    of the layer untinted, what `tinted_albedo` takes."""
+    rows = [_view_table(float(m.roughness), layer_f0(m.ior, m.specular),
+                        _tint_max(m) if tinted else 1.0) for m in materials]
     return np.array(rows).reshape(len(rows), MU_STEPS)
 
 
+def _tint_max(material) -> float:
+    return 1.0 if material.specular_tint is None else float(np.max(material.specular_tint))
+
+
 @lru_cache(maxsize=64)
-def _view_table(roughness: float, f0: float) -> tuple[float, ...]:
-    return tuple(1.0 - albedo_curve(np.linspace(0.0, 1.0, MU_STEPS) ** 2, roughness, f0))
+def _view_table(roughness: float, f0: float, tint_max: float = 1.0) -> tuple[float, ...]:
+    e = albedo_curve(np.linspace(0.0, 1.0, MU_STEPS) ** 2, roughness, f0)
+    return tuple(1.0 - tinted_albedo(e, np.full(e.shape, f0), tint_max)[:, 0])
 
 
 def view_factors(tables: np.ndarray, material: np.ndarray, mu: np.ndarray) -> np.ndarray:

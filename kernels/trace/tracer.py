@@ -277,6 +277,7 @@ class Tracer:
         self.layer_tint = layer_tints(mats)
         self.specular = np.array([m.specular for m in mats])
         self.layer_tables = view_tables(mats)
+        self.layer_untinted = view_tables(mats, tinted=False)  # the tint's own: `tinted_albedo`
         self.metal_tables = metal_tables(mats)
         # The Principled coat: a clear layer over everything else (`specular_layer.coat_*`).
         self.coat = np.array([m.coat for m in mats], np.float64)
@@ -1138,9 +1139,9 @@ class Tracer:
             # A glossy normal turned from the viewer (custom normals against the faces' winding)
             # reflects and refracts nothing: Cycles' microfacet closures are 0 where cos(N, view)
             # <= 0 (its diffuse keeps cos(N, light): lamps on the viewer's side light none).
-            glossy_on = np.einsum("ij,ij->i", dirs, gn) < 0.0
-            layer_e = 1.0 - view_factors(self.layer_tables, m, np.einsum("ij,ij->i", dirs, gn))
-            diffuse_w = dielectric * (1.0 - layer_e)
+            mu_view = np.einsum("ij,ij->i", dirs, gn)
+            glossy_on = mu_view < 0.0
+            diffuse_w = dielectric * view_factors(self.layer_tables, m, mu_view)
             if s.output == "albedo":  # what the first hit reflects diffusely; no light, no ray
                 # (a translucent surface's colour too: Cycles' Diffuse Color pass counts it)
                 translucent = self.translucent[m]
@@ -1259,6 +1260,7 @@ class Tracer:
             # (Cycles' glossy rays see the surroundings; the lamps' highlights come from
             # `direct`): the energy is right, the blur is not drawn.
             layer_on = (dielectric > 0) & (spec_level > 0) & glossy_on
+            layer_e = 1.0 - view_factors(self.layer_untinted, m, mu_view)
             layer_w = np.where(layer_on[:, None], dielectric[:, None] * tinted_albedo(
                 layer_e, f0_dielectric, self.layer_tint[m]), 0.0)
             mirror_w = metal_w + layer_w
