@@ -84,15 +84,31 @@ def test_metallic_and_roughness_textures_become_variants_per_triangle():
     resolved = resolve_material_maps(_scene(uv, mat))
     left, right = (resolved.materials[k] for k in resolved.material_ids)
     assert (left.metallic, right.metallic) == (0.0, 1.0)
-    assert left.roughness == right.roughness == pytest.approx(0.3125)  # 0.3 to 1/16
+    # a map of one value keeps it exactly (levels run between the map's extremes)
+    assert left.roughness == right.roughness == pytest.approx(0.3)
     # Variants for every value a look-up can round to: metallic 0, 1/8, ..., 1 (bilinear
-    # look-ups between the halves), roughness 5/16 alone.
+    # look-ups between the halves), roughness 0.3 alone.
     assert left.metallic_texture is None and "9 variants" in resolved.ignored[-1]
     (family,) = resolved.map_variants
     np.testing.assert_allclose(family.metallic, np.arange(9) / 8)
-    np.testing.assert_allclose(family.roughness, [0.3125])
+    np.testing.assert_allclose(family.roughness, [0.3], rtol=1e-6)
     # Reports list the material once, under its own name, whatever its variants.
     assert [m.name for m in resolved.read_materials] == ["(default)", "Asset"]
+
+
+def test_a_map_of_one_value_and_a_mask_keep_their_values():
+    """A metallic map uniformly 0.3115 (a glTF metallicFactor over a map of 1) is that metal
+    everywhere, not the nearest 1/8; a mask of 0 and 0.3115 keeps both ends."""
+    for left, right in ((0.3115, 0.3115), (0.0, 0.3115)):
+        pixels = np.zeros((1, 2, 4), np.float32)
+        pixels[0, :, 2] = (left, right)
+        metal = Texture(kind="IMAGE", name="m", pixels=pixels, interpolation="CLOSEST",
+                        weights=np.array([0, 0, 1, 0], np.float32))
+        uv = np.array([[[0.05, 0.1], [0.45, 0.1], [0.25, 0.9]],
+                       [[0.55, 0.1], [0.95, 0.1], [0.75, 0.9]]], np.float32)
+        resolved = resolve_material_maps(_scene(uv, Material(name="Can", metallic_texture=metal)))
+        got = [resolved.materials[k].metallic for k in resolved.material_ids]
+        np.testing.assert_allclose(got, (left, right), rtol=1e-6)
 
 
 def test_ray_hits_read_metallic_and_roughness_at_the_hit():
@@ -111,7 +127,8 @@ def test_ray_hits_read_metallic_and_roughness_at_the_hit():
     bary = np.array([[0.7, 0.1, 0.2], [0.1, 0.7, 0.2]])
     hits = hit_materials(scene, np.array([0, 0]), bary, scene.material_ids[[0, 0]])
     got = [(scene.materials[k].metallic, scene.materials[k].roughness) for k in hits]
-    assert got == [(0.0, 0.1875), (1.0, 0.8125)]  # 0.2 and 0.8 to 1/16
+    # the map's two values exactly: its extremes are levels
+    np.testing.assert_allclose(got, [(0.0, 0.2), (1.0, 0.8)], rtol=1e-6)
     assert all(scene.materials[k].metallic_texture is None for k in hits)
 
 
