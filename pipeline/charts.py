@@ -189,10 +189,12 @@ def speed_accuracy_chart(
             (front,) = axes.plot([p[0] for p in best], [p[1] for p in best], linestyle=style,
                                  color=line.get_color(), label=f"{name} frontier")
             series[f"{name} frontier"] = _read_back(front, [])
-    axes.set_xscale("log")
     axes.margins(0.12)  # room for the annotations of the end points
-    if log_y:
-        axes.set_yscale("log")
+    if len(omitted) < sum(len(points) for _, points, _, _ in ladders):
+        # Log axes need a point to scale to: a scene both render alike (every error 0) has none.
+        axes.set_xscale("log")
+        if log_y:
+            axes.set_yscale("log")
     axes.set_xlabel(SECONDS_LABEL)
     axes.set_ylabel(METRIC_LABELS.get(metric, metric))
     axes.set_title(title)
@@ -280,7 +282,7 @@ def sweep_chart(
         ys = _sweep_values(quantity, len(xs), index)
         (line,) = axes.plot(xs, ys, marker=markers[index], color=colours[index], label=label)
         axes.set_ylabel(str(quantity.get("axis_label", label)), color=colours[index])
-        if quantity.get("log", False):
+        if quantity.get("log", False) and any(y > 0.0 for y in ys):  # else no point to scale to
             axes.set_yscale("log")
         series[label] = _read_back(line, [])
         lines.append(line)

@@ -68,6 +68,19 @@ def test_speed_accuracy_chart_frontier_joins_only_the_unbeaten_points(tmp_path):
     assert (front["x"], front["y"]) == ([0.5, 1.0, 2.0], [0.5, 0.1, 0.01])
 
 
+def test_a_chart_of_no_plottable_point_is_still_drawn(tmp_path):
+    """Every error 0 (a view both renderers draw alike, e.g. the world alone): nothing can sit
+    on log axes, every point is listed as left out, and the chart is written all the same."""
+    kernel = [{"setting": "default", "seconds": 2.0, "rel_mse": 0.0}]
+    cycles = [{"samples": 1, "seconds": 0.4, "rel_mse": 0.0}]
+    result = charts.speed_accuracy_chart(kernel, cycles, tmp_path / "zero")
+    assert len(result.omitted) == 2 and result.png.stat().st_size > 0
+    assert "not on log axes" in result.svg.read_text(encoding="utf-8")
+    sweep = charts.sweep_chart([1.0, 2.0], [{"label": "relMSE", "values": [0.0, None], "log": True}],
+                               tmp_path / "zero_sweep", x_label="x", title="all zero")
+    assert sweep.png.stat().st_size > 0
+
+
 def test_speed_accuracy_chart_other_metric_and_unplottable_points(tmp_path):
     cycles = CYCLES_LADDER + [{"samples": 4096, "seconds": 300.0, "flip": 0.0}]
     result = charts.speed_accuracy_chart(KERNEL_LADDER, cycles, tmp_path / "flip", metric="flip")
