@@ -9,8 +9,8 @@ here once per snapshot, so that every kernel reads them as it reads a constant m
   triangle as a light (`Scene.triangle_radiance`: the texture's mean over the triangle, what the
   tracer's mesh lights and radiosity's sources emit); triangles whose mean is black emit nothing
   and cost no shadow rays;
-* metallic and roughness: rounded to levels at most `METALLIC_STEP` / `ROUGHNESS_STEP` apart
-  between the map's extremes, each pair the maps can give a variant of the material with those
+* metallic and roughness: rounded to the multiples of `METALLIC_STEP` / `ROUGHNESS_STEP` and the
+  map's extremes, each pair the maps can give a variant of the material with those
   constants (`Scene.map_variants`). A ray hit takes
   the variant of the maps' values at the hit (`hit_materials`: the tracer, so a low-poly asset's
   painted metal trim is metal where it is painted); a triangle carries the variant of their
@@ -30,12 +30,11 @@ import numpy as np
 from ..geometry.scene import MapVariants, Material, Scene, Texture, triangle_emission
 from .textures import sample_texture, srgb_to_linear
 
-# Metallic and roughness per triangle are rounded to levels at most these steps apart before
-# triangles are grouped into material variants: finer than a glTF texture's 8-bit steps would
-# make a variant per triangle; 1/16 in roughness moves a GGX highlight's width by under 7% at
-# roughness 0.5. The levels run between the map's extremes, not on a grid from 0, where a
-# uniform metallic of 0.3115 (a battery's map of 1 times its metallicFactor) rounds to 0.25 and
-# its diffuse comes out 9% too bright.
+# Metallic and roughness per triangle are rounded to multiples of these steps before triangles
+# are grouped into material variants: finer than a glTF texture's 8-bit steps would make a
+# variant per triangle; 1/16 in roughness moves a GGX highlight's width by under 7% at roughness
+# 0.5. The map's extremes are levels too: on the grid alone a uniform metallic of 0.3115 (a
+# battery's map of 1 times its metallicFactor) rounds to 0.25, its diffuse 9% too bright.
 METALLIC_STEP = 1.0 / 8.0
 ROUGHNESS_STEP = 1.0 / 16.0
 # Sub-triangles per side when a triangle's mean is taken: enough to average a texture over a
@@ -196,8 +195,8 @@ def resolve_material_maps(scene: Scene) -> Scene:
         material_ids[tri] = ids[metal, rough]
         families.append(MapVariants(mat, metal_levels, rough_levels, ids))
         notes.append(f"material '{mat.name}': metallic / roughness textures read at each ray hit "
-                     f"of a traced view, per triangle elsewhere ({ids.size} variants, steps at "
-                     f"most {METALLIC_STEP:g} / {ROUGHNESS_STEP:g})")
+                     f"of a traced view, per triangle elsewhere ({ids.size} variants, steps "
+                     f"{METALLIC_STEP:g} / {ROUGHNESS_STEP:g} and the maps' extremes)")
     return replace(scene, materials=tuple(materials), material_ids=material_ids,
                    triangle_radiance=radiance, ignored=tuple(notes), map_variants=tuple(families))
 
@@ -233,26 +232,24 @@ def _means(scene: Scene, tri: np.ndarray, texture: Texture | None) -> np.ndarray
 
 
 def _level_index(values: np.ndarray | None, levels: np.ndarray, count: int) -> np.ndarray:
-    """(count,) int64 indices into `levels` (evenly spaced, `_levels`) of the nearest level to
-    each of `values` (count,); zeros where there are no values (no map: one level, the
-    constant)."""
+    """(count,) int64 indices into `levels` (ascending, `_levels`) of the nearest level to each
+    of `values` (count,); zeros where there are no values (no map: one level, the constant)."""
     if values is None or len(levels) == 1:
         return np.zeros(count, np.int64)
-    index = np.round((np.clip(values, 0.0, 1.0) - levels[0]) / (levels[1] - levels[0]))
-    return np.clip(index, 0, len(levels) - 1).astype(np.int64)
+    return np.searchsorted((levels[1:] + levels[:-1]) * 0.5, np.clip(values, 0.0, 1.0))
 
 
 def _levels(scene: Scene, tri: np.ndarray, texture: Texture | None, constant: float,
             step: float) -> np.ndarray:
-    """The values a map's look-ups on triangles `tri` are rounded to: evenly spaced, at most
-    `step` apart, from its lowest to its highest possible value (`_value_bounds`), so a map of
-    one value or of two (a metal mask times glTF's metallicFactor) keeps them exactly; the
+    """The values a map's look-ups on triangles `tri` are rounded to: its lowest and highest
+    possible values (`_value_bounds`) and the multiples of `step` between them, so a map of one
+    value or of two (a metal mask times glTF's metallicFactor) keeps them exactly; the
     material's constant alone when there is no map."""
     if texture is None:
         return np.array([float(constant)])
     lo, hi = np.clip(_value_bounds(scene, tri, texture), 0.0, 1.0)
-    count = int(np.ceil((hi - lo) / step - 1e-9)) + 1
-    return np.linspace(lo, hi, max(count, 1)) if hi > lo else np.array([float(lo)])
+    inner = np.arange(np.floor(lo / step) + 1, np.ceil(hi / step)) * step
+    return np.unique(np.concatenate([[lo], inner[(inner > lo) & (inner < hi)], [hi]]))
 
 
 def _value_bounds(scene: Scene, tri: np.ndarray, texture: Texture) -> tuple[float, float]:
