@@ -84,7 +84,7 @@ def test_metallic_and_roughness_textures_become_variants_per_triangle():
     resolved = resolve_material_maps(_scene(uv, mat))
     left, right = (resolved.materials[k] for k in resolved.material_ids)
     assert (left.metallic, right.metallic) == (0.0, 1.0)
-    # a map of one value keeps it exactly (levels run between the map's extremes)
+    # a map of one value keeps it exactly (its extremes are levels)
     assert left.roughness == right.roughness == pytest.approx(0.3)
     # Variants for every value a look-up can round to: metallic 0, 1/8, ..., 1 (bilinear
     # look-ups between the halves), roughness 0.3 alone.
