@@ -341,8 +341,8 @@ class MapVariants:
     `metallic[i]` and roughness `roughness[j]`, the quantised values its maps can take."""
 
     source: Material  # the material as read, its metallic / roughness textures on it
-    metallic: np.ndarray  # (I,) float64 levels, ascending, evenly spaced
-    roughness: np.ndarray  # (J,) float64 levels, ascending, evenly spaced
+    metallic: np.ndarray  # (I,) float64 levels, ascending (`material_maps._levels`)
+    roughness: np.ndarray  # (J,) float64 levels, ascending
     ids: np.ndarray  # (I, J) int32
 
 

@@ -64,8 +64,8 @@ def layer_f0(ior: float, level: float) -> float:
 
 def tinted_albedo(e: np.ndarray, f0: np.ndarray, tint: np.ndarray) -> np.ndarray:
     """(N, 3) (N, 1 for a scalar tint) what a layer of F0 f0 (N,) tinted by the Principled's
-    Specular Tint (N, 3)
-    reflects where its untinted albedo is e (N,): Cycles' dielectric Fresnel is then
+    Specular Tint (N, 3) reflects where its untinted albedo is e (N,): Cycles' dielectric
+    Fresnel is then
     F = t F0 + (1 - t F0) s with s = (F_real - F0) / (1 - F0) (tint times F0 head on, white at
     grazing), so E - (1 - t) F0 (1 - E) / (1 - F0), exact for a smooth layer (E = F_real) and
     equal to E for a white tint. The base under it keeps 1 - this in its largest channel, as
