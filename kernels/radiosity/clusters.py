@@ -145,9 +145,10 @@ def group_patches(patches: patching.Patches, size: float,
         cells = np.floor(centroid / max(size, 1e-300)).astype(np.int64)
         # a tiny object is one cell of the grid, wherever its parts fall; pooled, the cell of its
         # centre, which other tiny objects there share (object id -1)
-        own = np.floor((lo + hi)[object_ids] * 0.5 / max(size, 1e-300)).astype(np.int64)
+        own = (np.floor((lo + hi)[object_ids] * 0.5 / max(size, 1e-300)).astype(np.int64)
+               if pooled else 0)
         keys[small, 1] = np.where(tiny & pooled, -1, object_ids)
-        keys[small, 2:5] = np.where(tiny[:, None], own if pooled else 0, cells)
+        keys[small, 2:5] = np.where(tiny[:, None], own, cells)
         keys[small, 5] = np.where(tiny, normal_bucket(patches.normals[small], 1),
                                   normal_bucket(patches.normals[small]))
         keys[small, 6] = -1

@@ -97,8 +97,8 @@ def reflected_emitters(scene: Scene, tri: np.ndarray, bary: np.ndarray, mids: np
     # The specular layer and the metal, under the coat if any.
     roughness_m = np.array([m.roughness for m in mats], np.float64)
     smooth_m = roughness_m < MIRROR_ROUGHNESS
-    layer_w = np.array([(1.0 - m.metallic) * (1.0 - m.transmission)
-                        if layer_f0(m.ior, m.specular) > 0.0 else 0.0 for m in mats])
+    layer_f = np.array([layer_f0(m.ior, m.specular) for m in mats])
+    layer_w = np.array([(1.0 - m.metallic) * (1.0 - m.transmission) for m in mats]) * (layer_f > 0.0)
     metal_w = np.array([m.metallic for m in mats], np.float64)
     # glass: its surface reflects by the dielectric Fresnel factor at the view, tinted as the
     # tracer's (entered from outside, n = 1 / IOR)
@@ -110,9 +110,8 @@ def reflected_emitters(scene: Scene, tri: np.ndarray, bary: np.ndarray, mids: np
                           & shown.sees(smooth_m[mids]))
     if rows.size:
         m = mids[rows]
-        f0 = np.array([layer_f0(mat.ior, mat.specular) for mat in mats])[m]
         weight = layer_w[m][:, None] * tinted_albedo(
-            1.0 - view_factors(view_tables(mats, tinted=False), m, cos[rows]), f0,
+            1.0 - view_factors(view_tables(mats, tinted=False), m, cos[rows]), layer_f[m],
             layer_tints(mats)[m])
         glass = np.flatnonzero(glass_w[m] > 0.0)
         if glass.size:
