@@ -40,6 +40,10 @@ class Fragments:
     depth      (N,)       distance along the ray from its origin, m
     geometric  (N, 3)     unit front normals of the triangles seen
     back       (N,) bool  the triangle is seen from behind (its front faces away)
+    cell       float      side of each sample's cell, pixels (1 at the centres, 1/n for n x n
+                          sub-samples): the share of the pixel's surface a sample stands for
+    to_cell    (N, 2)     from each sample to its cell's centre, pixels (x right, y down); None:
+                          the samples are the centres
     """
 
     rows: np.ndarray
@@ -51,6 +55,8 @@ class Fragments:
     depth: np.ndarray
     geometric: np.ndarray
     back: np.ndarray
+    cell: float = 1.0
+    to_cell: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(self.rows.shape[0])
@@ -237,11 +243,13 @@ def blend_partial_cover(scene: Scene, image: np.ndarray, fragments: Fragments, s
 
 
 def seen_along(scene: Scene, o: np.ndarray, d: np.ndarray, shade, bvh, cover, rows: np.ndarray,
-               cols: np.ndarray) -> np.ndarray:
+               cols: np.ndarray, cell: float = 1.0, to_cell: np.ndarray | None = None
+               ) -> np.ndarray:
     """(N, 3) what camera rays o + t d (N, 3 each, d unit) through pixels (rows, cols) see:
-    the surface each meets first shaded by shade(Fragments), the world's colour where it
-    escapes; through partly covered surfaces their blend (`layered_hits`) when `cover` (the
-    camera's coverage, `ray_coverage`) is given."""
+    the surface each meets first shaded by shade(Fragments) (of `cell`, the side in pixels of
+    each ray's share of its pixel, and to_cell (N, 2), from each ray to its share's centre), the
+    world's colour where it escapes; through partly covered surfaces their blend
+    (`layered_hits`) when `cover` (the camera's coverage, `ray_coverage`) is given."""
     from ..shading.reflected_emitters import ray_offset
     from ..shading.world_light import world_radiance, world_seen_by
 
@@ -268,7 +276,8 @@ def seen_along(scene: Scene, o: np.ndarray, d: np.ndarray, shade, bvh, cover, ro
         value[hit] = shade(Fragments(
             rows=rows[r], cols=cols[r], tri=t, bary=np.stack([1.0 - u - v, u, v], 1),
             points=o[r] + d[r] * depth[:, None], dirs=d[r], depth=depth, geometric=geometric,
-            back=np.einsum("ij,ij->i", geometric, d[r]) > 0.0))
+            back=np.einsum("ij,ij->i", geometric, d[r]) > 0.0, cell=cell,
+            to_cell=None if to_cell is None else to_cell[r]))
     out = np.zeros((len(o), 3))
     for c in range(3):  # each ray's layers summed
         out[:, c] = np.bincount(ray, weight * value[:, c], minlength=len(o))
@@ -301,6 +310,9 @@ def supersample_edges(scene: Scene, image: np.ndarray, fragments: Fragments, sha
     sub_cols = np.tile(cols, samples * samples)
     o, d = pixel_rays(scene.camera, width, height, sub_cols + offsets[:, 0],
                       sub_rows + offsets[:, 1])
-    value = seen_along(scene, o, d, shade, bvh, ray_coverage(scene, "camera"), sub_rows, sub_cols)
+    # Each ray stands for its cell of the pixel's n x n grid (`pixel_patterns`)
+    centres = np.repeat(stratified_offsets(samples), rows.size, axis=0)
+    value = seen_along(scene, o, d, shade, bvh, ray_coverage(scene, "camera"), sub_rows, sub_cols,
+                       1.0 / samples, centres - offsets)
     image[rows, cols] = value.reshape(samples * samples, rows.size, 3).mean(axis=0)
     return int(rows.size)

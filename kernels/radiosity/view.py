@@ -17,7 +17,8 @@ from ..geometry.scene import Scene, geometric_normals, interpolated_normals, tri
 from ..progress import Steps
 from ..shading import lights as light_units
 from ..shading.alpha import ray_coverage
-from ..shading.bump import scene_normals, valid_reflection
+from ..shading.bump import relief_at, scene_normals, valid_reflection
+from ..shading.highlight_spread import NormalFootprint, normal_derivatives
 from ..shading.material_maps import albedo_at, emission_detail, hit_materials, metal_f0
 from ..shading.reflected_emitters import ray_offset, reflected_emitters
 from ..shading.specular_layer import (
@@ -53,7 +54,10 @@ def render_steps(scene: Scene, result: RadiosityResult, resolution=None,
     # What the camera sees lies inside no solid when the camera does not: no enclosure probes.
     open_camera = result.gather is not None and not camera_enclosed(result.gather, scene.camera)
 
-    def shade(f) -> np.ndarray:
+    slopes = None  # the pixel centres' normal derivatives, for the sub-pixel rays' too
+
+    def shade(f, centres: bool = False) -> np.ndarray:
+        nonlocal slopes
         values = np.empty((len(f), 3))
         # Cycles shades a surface on the side it is seen from; the solution is the front's.
         front, back = ~f.back, f.back
@@ -69,8 +73,15 @@ def render_steps(scene: Scene, result: RadiosityResult, resolution=None,
                               np.einsum("ij,ij->i", shading_normals, f.dirs[front]))
             if coat is not None:  # what the coat lets through of the base's light
                 values[front] *= coat.under
+            if centres:
+                slopes = normal_derivatives(shading_normals, f.rows[front], f.cols[front],
+                                            scene.object_ids[t], image.shape[:2],
+                                            relief_at(scene, t))
+            footprint = None if slopes is None else NormalFootprint.of_pixels(
+                slopes, f.rows[front], f.cols[front], f.cell,
+                None if f.to_cell is None else f.to_cell[front])
             values[front] += _lamp_highlights(lit, result, t, b, mids, f.points[front],
-                                              f.dirs[front], frame)
+                                              f.dirs[front], frame, footprint)
             values[front] += reflected_emitters(lit, t, b, mids, f.points[front], f.dirs[front],
                                                 *frame)
         if back.any():
@@ -79,7 +90,7 @@ def render_steps(scene: Scene, result: RadiosityResult, resolution=None,
         return values if detail is None else values + detail
 
     if len(f):
-        image[f.rows, f.cols] = shade(f)
+        image[f.rows, f.cols] = shade(f, centres=True)
     yield 0.6
     blends = ray_coverage(scene, "camera") is not None  # surfaces the camera sees through
     if (blends or edge_samples > 1) and len(f):
@@ -127,14 +138,15 @@ def _front_frame(scene: Scene, result: RadiosityResult, tri: np.ndarray, bary: n
 
 
 def _lamp_highlights(scene: Scene, result: RadiosityResult, tri: np.ndarray, bary: np.ndarray,
-                     mids: np.ndarray, points: np.ndarray, dirs: np.ndarray, frame: tuple
-                     ) -> np.ndarray:
+                     mids: np.ndarray, points: np.ndarray, dirs: np.ndarray, frame: tuple,
+                     footprint: NormalFootprint | None = None) -> np.ndarray:
     """(M, 3) radiance W/(m^2 sr) the lamps' light leaves toward a camera looking along dirs
     (M, 3) by the rough glossy lobes (specular layers, metals) of surface points (triangles,
     barycentrics, materials (M,), world points (M, 3)): each lamp's shadowed irradiance (an
     area lamp's grid point by point, `_area_lamp_points`) times the GGX lobes
     (`specular_layer.lamp_highlights`), as Cycles lights the glossy lobes directly at the
-    camera's first hit. Emissive meshes draw none. frame: `_front_frame` of the points."""
+    camera's first hit. Emissive meshes draw none. frame: `_front_frame` of the points;
+    footprint: how their normals change across their pixels (`lamp_highlights`)."""
     out = np.zeros((len(tri), 3))
     shiny = [(m.roughness >= MIRROR_ROUGHNESS and (m.metallic > 0.0 or m.transmission > 0.0 or (
         layer_f0(m.ior, m.specular) > 0.0)))
@@ -155,12 +167,14 @@ def _lamp_highlights(scene: Scene, result: RadiosityResult, tri: np.ndarray, bar
                                                  points + offset * geometric,
                                                  light_query(occluded, light), samples):
                 e = e if reach is None else e * reach[:, None]
-                out += lamp_highlights(scene.materials, mids, normals, -dirs, to_light, e, base)
+                out += lamp_highlights(scene.materials, mids, normals, -dirs, to_light, e, base,
+                               footprint)
             continue
         e, _ = shadowed_irradiance(light, points, normals, points + offset * geometric,
                                    occluded, samples, objects=objects)
         to_light, _ = light_units.light_vectors(light, points)
-        out += lamp_highlights(scene.materials, mids, normals, -dirs, to_light, e, base)
+        out += lamp_highlights(scene.materials, mids, normals, -dirs, to_light, e, base,
+                               footprint)
     return out
 
 

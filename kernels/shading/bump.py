@@ -323,6 +323,11 @@ def has_bump(material: Material) -> bool:
     return material.height_texture is not None or material.normal_texture is not None
 
 
+def relief_at(scene: Scene, tri: np.ndarray) -> np.ndarray:
+    """(N,) bool: the triangles' (N,) materials carry a bump or normal map."""
+    return np.array([has_bump(m) for m in scene.materials], bool)[scene.material_ids[tri]]
+
+
 def perturb(material: Material, n: np.ndarray, triangles: np.ndarray, corner_uvs: np.ndarray,
             uv: np.ndarray) -> np.ndarray:
     """(N, 3) shading normals of `material` at N points: its normal map, then its Bump node's

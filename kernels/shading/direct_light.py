@@ -15,6 +15,7 @@ as large as the receivers' own spacing where they are, clamped to [MIN_MAP, MAX_
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import NamedTuple
 
 import numpy as np
 
@@ -37,7 +38,8 @@ from ..shadow.shadowmap import Receivers, ShadowMap, ShadowMapSettings
 from ..shadow.views import fit_sun, plan_shadow_map, potential_casters
 from . import lights as light_units
 from .alpha import alpha_materials, has_alpha, ray_coverage, surface_alpha
-from .bump import relief_shadowing, scene_normals, valid_reflection
+from .bump import relief_at, relief_shadowing, scene_normals, valid_reflection
+from .highlight_spread import NormalFootprint, PixelSlopes, normal_derivatives
 from .material_maps import albedo_at, emission_at, hit_materials, metal_f0, translucent_colours
 from .reflected_emitters import ray_offset, rays_needed, reflected_emitters
 from .specular_layer import coat_layer, diffuse_factor, lamp_highlights, view_factors, view_tables
@@ -271,12 +273,15 @@ def render_steps(scene: Scene, settings: DirectLightSettings, resolution=None,
     blends = ray_coverage(scene, "camera") is not None  # surfaces the camera sees through
     bvh = BVH.build(scene.triangles) if rays or blends or edge_samples > 1 else None
     mirror = (bvh, ray_offset(scene)) if rays else None
-    image[f.rows, f.cols] = _shade(scene, maps, f, receivers, mirror)
+    normals = _view_normals(scene, f)
+    slopes = normal_derivatives(normals.glossy, f.rows, f.cols, scene.object_ids[f.tri],
+                                image.shape[:2], relief_at(scene, f.tri))
+    image[f.rows, f.cols] = _shade(scene, maps, f, receivers, mirror, slopes, normals)
     yield 0.8
     # The maps planned for the pixel centres serve the surfaces behind partly covered ones and
     # the sub-pixel rays too.
     def shade(g):
-        return _shade(scene, maps, g, mirror=mirror)
+        return _shade(scene, maps, g, mirror=mirror, slopes=slopes)
     if blends:
         blend_partial_cover(scene, image, f, shade, bvh)
     if edge_samples > 1:
@@ -292,26 +297,43 @@ def _seen_receivers(f) -> Receivers:
     return Receivers.of(f.points, geo)
 
 
+class ViewNormals(NamedTuple):
+    """The normals fragments are shaded with, each (M, 3), turned to the side the eye sees."""
+
+    geometric: np.ndarray  # the faces'
+    smooth: np.ndarray  # interpolated
+    mapped: np.ndarray  # interpolated, then bump and normal maps
+    glossy: np.ndarray  # mapped, bent until the view's reflection leaves the surface
+    relief: bool  # any bump or normal map changed `mapped`
+
+
+def _view_normals(scene: Scene, f) -> ViewNormals:
+    """`ViewNormals` of fragments f. A mapped normal tilted away from the eye keeps its tilt for
+    the diffuse base (as Cycles' diffuse closures do); the glossy lobes turn about it bent until
+    the view's reflection leaves the surface (`bump.valid_reflection`), as the tracer's do."""
+    side = np.where(f.back, -1.0, 1.0)[:, None]
+    smooth = interpolated_normals(scene, f.tri, f.bary)
+    mapped = scene_normals(scene, f.tri, f.bary, smooth)
+    relief = mapped is not smooth
+    geometric = f.geometric * side
+    mapped = mapped * side
+    return ViewNormals(geometric, smooth * side, mapped, valid_reflection(geometric, -f.dirs, mapped),
+                       relief)
+
+
 def _shade(scene: Scene, maps: list, f, receivers: Receivers | None = None,
-           mirror: tuple | None = None) -> np.ndarray:
-    """(M, 3) radiance of fragments f (`Fragments`; `receivers`: `_seen_receivers(f)` when the
-    caller has it): emission plus each light's diffuse light times its shadow-map visibility
-    (`maps`, `shadow_maps_steps`) and the rough lobes' highlights; with `mirror` (the scene's
-    BVH, the rays' offset m), what the glossy lobes show of the sky and of emissive surfaces
+           mirror: tuple | None = None, slopes: PixelSlopes | None = None,
+           view_normals: ViewNormals | None = None) -> np.ndarray:
+    """(M, 3) radiance of fragments f (`Fragments`; `receivers`: `_seen_receivers(f)` and
+    view_normals: `_view_normals(scene, f)`, when the caller has them): emission plus each
+    light's diffuse light times its shadow-map visibility (`maps`, `shadow_maps_steps`) and the
+    rough lobes' highlights, each averaged over its pixel's normals where slopes gives their
+    change (`highlight_spread.normal_derivatives`); with `mirror` (the scene's BVH, the rays'
+    offset m), what the glossy lobes show of the sky and of emissive surfaces
     (`reflected_emitters`: Cycles' direct model lights them from the world too)."""
     tri, bary, points, d = f.tri, f.bary, f.points, f.dirs
-    # Shaded on the side the eye sees: the face's normal, the interpolated and mapped ones turned
-    # with it. A mapped normal tilted away from the eye keeps its tilt for the diffuse base (as
-    # Cycles' diffuse closures do); the glossy lobes turn about it bent until the view's
-    # reflection leaves the surface (`bump.valid_reflection`), as the tracer's do.
-    side = np.where(f.back, -1.0, 1.0)[:, None]
-    geometric = f.geometric * side
-    smooth = interpolated_normals(scene, tri, bary)
-    normals = scene_normals(scene, tri, bary, smooth)
-    relief = normals is not smooth
-    normals = normals * side
-    smooth = smooth * side
-    glossy = valid_reflection(geometric, -d, normals)
+    geometric, smooth, normals, glossy, relief = (
+        view_normals if view_normals is not None else _view_normals(scene, f))
     if receivers is None:
         receivers = _seen_receivers(f)
     vis = maps_visibility(maps, receivers, np.ones((len(scene.lights), len(points)), np.float32))
@@ -343,10 +365,12 @@ def _shade(scene: Scene, maps: list, f, receivers: Receivers | None = None,
     # The rough lobes' highlights (a layer's, a metal's), as Cycles' direct-light render draws
     # them (lights as points).
     shine = np.zeros_like(points)
+    footprint = None if slopes is None else NormalFootprint.of_pixels(
+        slopes, f.rows, f.cols, f.cell, f.to_cell)
     for k, light in enumerate(scene.lights):
         to_light, _ = light_units.light_vectors(light, points)
         shine += lamp_highlights(scene.materials, mids, glossy, -d, to_light, e[k],
-                                 f0) * vis[k, :, None]
+                                 f0, footprint) * vis[k, :, None]
     if mirror is not None:
         shine += reflected_emitters(scene, tri, bary, mids, points, d, geometric, glossy,
                                     *mirror, area_lamps=False)

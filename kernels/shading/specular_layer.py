@@ -37,6 +37,12 @@ from functools import lru_cache
 
 import numpy as np
 
+from .highlight_spread import (
+    NormalFootprint,
+    sub_normals,
+    sub_sides,
+    widened_roughness,
+)
 from .optics import f82_factor, fresnel_dielectric, fresnel_f82, fresnel_schlick
 
 # Midpoint-rule points of the (u, phi) square: within 3e-4 (absolute) of 512 x 256 points at
@@ -292,9 +298,45 @@ def ggx_highlight(n, wi, wo, roughness, f0) -> np.ndarray:
     return f * kept * (d * g / (4.0 * cos_o))[:, None]
 
 
+def pixel_highlight(n, wi, wo, roughness, f0, footprint: NormalFootprint | None = None
+                    ) -> np.ndarray:
+    """`ggx_highlight` (N, 3) averaged over each sample's footprint (`highlight_spread`): the
+    BRDF about the normal at its cell's centre, the lobe widened by the footprint's spread of
+    normals, or, where the lobe is far narrower than that spread, the mean of a grid of normals
+    across it (`sub_sides`), each widened by its sub-cell's share; times the cosine at n, which
+    a lamp's irradiance there carries (the footprint's normals facing the lamp more than n does
+    would otherwise take light n does not get: at a terminator, an area lamp's sliver of
+    irradiance over n's tiny cosine made pixels 40x too bright). Without a footprint, the lobe
+    at the normal n."""
+    if footprint is None:
+        return ggx_highlight(n, wi, wo, roughness, f0)
+    roughness = np.asarray(roughness, np.float64)
+    cos_n = np.clip(np.einsum("ij,ij->i", n, wi), 0.0, 1.0)
+
+    def brdf(normals, rows, lobe_roughness):
+        cos_i = np.einsum("ij,ij->i", normals, wi[rows])
+        return (ggx_highlight(normals, wi[rows], wo[rows], lobe_roughness, f0[rows])
+                / np.maximum(cos_i, 1e-6)[:, None])
+
+    centred = footprint.centres(n)
+    spread = footprint.spread
+    out = brdf(centred, slice(None), widened_roughness(roughness, spread))
+    sides = sub_sides(roughness ** 4, footprint)
+    for side in np.unique(sides[sides > 1]):
+        sub = np.flatnonzero(sides == side)
+        part = footprint.at(sub)
+        rest = widened_roughness(roughness[sub], part.spread / side ** 2)
+        total = np.zeros((len(sub), 3))
+        for normal in sub_normals(centred[sub], part, int(side)):
+            total += brdf(normal, sub, rest)
+        out[sub] = total / side ** 2
+    return out * cos_n[:, None]
+
+
 def lamp_highlights(materials, material: np.ndarray, normals: np.ndarray, wo: np.ndarray,
                     to_light: np.ndarray, irradiance: np.ndarray,
-                    base: np.ndarray | None = None) -> np.ndarray:
+                    base: np.ndarray | None = None, footprint: NormalFootprint | None = None
+                    ) -> np.ndarray:
     """(N, 3) radiance W/(m^2 sr) a lamp's light leaves toward the eye by the rough glossy lobes
     of surfaces of `material` (N,) (rows of `materials`): unit shading normals, directions to the
     eye wo and to the lamp (N, 3), and the lamp's irradiance there (N, 3, cosine included).
@@ -303,7 +345,9 @@ def lamp_highlights(materials, material: np.ndarray, normals: np.ndarray, wo: np
     metal's (F0 the base colour, `base` (N, 3) where textures set it, weight metallic) and a
     rough glass's reflection (F0 from its IOR alone, weight (1 - metallic) transmission, as the
     tracer lights it), and a coat's over them (F0 from its IOR, its own roughness, weight coat),
-    which leaves those under it what it lets through (`coat_layer`)."""
+    which leaves those under it what it lets through (`coat_layer`). footprint, when given: how
+    the normal changes across each point's pixel or sub-pixel cell, over which every lobe is
+    averaged (`pixel_highlight`)."""
     rough = np.array([m.roughness for m in materials], np.float64)[material]
     glossy = np.array([m.roughness >= MIRROR_ROUGHNESS for m in materials])[material]
     layer_w = np.array([(1.0 - m.metallic) * (1.0 - m.transmission) for m in materials])[material]
@@ -319,8 +363,8 @@ def lamp_highlights(materials, material: np.ndarray, normals: np.ndarray, wo: np
         rows = np.flatnonzero(lit & (weight > 0.0))
         if rows.size:
             cos_i = np.einsum("ij,ij->i", normals[rows], to_light[rows])
-            brdf = ggx_highlight(normals[rows], to_light[rows], wo[rows], roughness[rows],
-                                 f0[rows])
+            brdf = pixel_highlight(normals[rows], to_light[rows], wo[rows], roughness[rows],
+                                   f0[rows], None if footprint is None else footprint.at(rows))
             out[rows] += (weight[rows] / np.maximum(cos_i, 1e-6))[:, None] * brdf * irradiance[rows]
 
     add(glossy, layer_w * (layer_f > 0.0), layer_f[:, None] * layer_tints(materials)[material],
@@ -331,6 +375,7 @@ def lamp_highlights(materials, material: np.ndarray, normals: np.ndarray, wo: np
     if coat is not None:
         out *= coat.under  # the two lobes under the coat, then the coat's own
         coat_rough = np.array([m.coat_roughness for m in materials], np.float64)[material]
+
         coat_f = np.array([layer_f0(m.coat_ior, 0.5) for m in materials])[material]
         add(coat_rough >= MIRROR_ROUGHNESS, coat.weight, np.repeat(coat_f[:, None], 3, axis=1),
             coat_rough)
