@@ -13,8 +13,10 @@ isotropic per-axis variance of (|dn/dx|^2 + |dn/dy|^2) / 24; convolving the lobe
 it widens GGX as Beckmann's slope variance alpha^2 / 2 widens, alpha'^2 = alpha^2 + (|dn/dx|^2
 + |dn/dy|^2) / 12 (`widened_roughness`; Kaplanyan et al. 2016, "Filtering distributions of
 normals for shading antialiasing"). A lobe far narrower than that spread keeps GGX's sharp peak
-and long tails, which no wider GGX matches: it is evaluated at SUB_SIDE x SUB_SIDE normals across
-the footprint instead, each widened by what is left of the spread within its cell.
+and long tails, which no wider GGX matches: on a smooth surface it is evaluated at a grid of
+normals across the footprint instead (`sub_sides`), each widened by what is left of the spread
+within its sub-cell. A sub-pixel sample (an edge pixel's ray) stands for its cell of the pixel:
+its footprint is the cell's, about the normal at the cell's centre.
 """
 
 from __future__ import annotations

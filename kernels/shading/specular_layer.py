@@ -37,12 +37,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from .highlight_spread import (
-    NormalFootprint,
-    sub_normals,
-    sub_sides,
-    widened_roughness,
-)
+from .highlight_spread import NormalFootprint, sub_normals, sub_sides, widened_roughness
 from .optics import f82_factor, fresnel_dielectric, fresnel_f82, fresnel_schlick
 
 # Midpoint-rule points of the (u, phi) square: within 3e-4 (absolute) of 512 x 256 points at
