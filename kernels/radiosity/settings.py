@@ -215,6 +215,11 @@ class FinalGatherSettings:
     | element_pairs    | >= 0     | 50000   | element-to-patch pairs the indirect light may be |
     |                  |          |         | gathered over (`elements.py`: patches split into |
     |                  |          |         | 4^k elements while within it; 0: never)          |
+    | tilt_rays        | >= 0     | 64      | rays per receiver whose smooth normal leans from |
+    |                  |          |         | its face, which gather its indirect light about  |
+    |                  |          |         | that normal (`final_gather`'s                    |
+    |                  |          |         | `ray_gathered_irradiance`; 0: the patches',      |
+    |                  |          |         | about the face)                                  |
     """
 
     emitter_rays: int = 16
@@ -225,12 +230,13 @@ class FinalGatherSettings:
     world_rays: int = 0
     translucent_bounce: bool = False
     element_pairs: int = ELEMENT_PAIRS
+    tilt_rays: int = 64
 
     def __post_init__(self) -> None:
         if self.emitter_rays < 1 or self.patch_samples < 1 or self.max_emitters < 0:
             raise ValueError("emitter_rays and patch_samples must be >= 1, max_emitters >= 0")
-        if self.world_rays < 0 or self.element_pairs < 0:
-            raise ValueError("world_rays and element_pairs must be >= 0")
+        if self.world_rays < 0 or self.element_pairs < 0 or self.tilt_rays < 0:
+            raise ValueError("world_rays, element_pairs and tilt_rays must be >= 0")
 
 
 def gather_settings(settings: RadiositySettings) -> FinalGatherSettings:

@@ -543,3 +543,28 @@ def test_small_highlights_show_their_pixels_mean(technique, monkeypatch):
     print(f"{technique}: polished balls relMSE {error:.2e}, lobes at the centres {at_centres:.2e}")
     assert error < 0.85 * at_centres
     assert error < (1e-3 if technique == "shadowmap" else 1.3e-3)
+
+
+def test_radiosity_gathers_light_about_normals_that_lean_from_their_faces(monkeypatch):
+    """A cube on the floor under a sun and a blue-grey world, shaded smooth with no auto-smooth
+    split: every corner's normal is the mean of three faces', so the normals lean up to 55
+    degrees from the faces, as a low-poly model smoothed across its corners does. Cycles shades
+    with those normals; the patches hold what the faces receive, so the leaning receivers gather
+    their indirect light by rays about their normals (`ray_gathered_irradiance`). Against
+    Cycles' radiosity model, 256 samples (measured on 5.2 and 4.5): relMSE 4.7e-4; with the patches'
+    light, 1.67e-3."""
+    from blender_parts import lit_floor, principled, view_against_cycles
+
+    from classic_bake.kernels.radiosity import final_gather
+
+    lit_floor()
+    bpy.ops.mesh.primitive_cube_add(size=1.0, location=(0.0, 0.0, 0.5))
+    cube = bpy.context.active_object
+    cube.data.materials.append(principled("Clay", base=(0.7, 0.6, 0.5))[0])
+    bpy.ops.object.shade_smooth()
+    _, error = view_against_cycles("radiosity", RESOLUTION)
+    monkeypatch.setattr(final_gather, "TILT_COS", -1.0)  # no receiver leans: the patches' light
+    _, from_patches = view_against_cycles("radiosity", RESOLUTION)
+    print(f"smooth cube relMSE {error:.2e}, from the patches {from_patches:.2e}")
+    assert error < 1e-3
+    assert error < 0.5 * from_patches

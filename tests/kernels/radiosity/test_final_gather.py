@@ -480,8 +480,8 @@ def test_smooth_normals_weigh_the_light_as_cycles_shades_them():
     light's cosine to that normal, as Cycles' DIFFUSE bake does, and still leaves its rays along
     the face: under a sun straight down (3 W/m^2) and an emissive square above, rho = 0.5, the
     gathered B is rho (E cos + pi L F(x, n_shading)) at every receiver, F the exact factor for
-    the leaning normal (nothing else reflects light back). A normal pointing behind the face is
-    turned to its side instead of going dark."""
+    the leaning normal (nothing else reflects light back). A normal pointing behind the face
+    goes dark, as Cycles shades it (the light is behind that normal)."""
     from dataclasses import replace
 
     from classic_bake.kernels.geometry.scene import Light
@@ -517,11 +517,11 @@ def test_smooth_normals_weigh_the_light_as_cycles_shades_them():
     assert got_flat == pytest.approx(expected(up), rel=1e-4)
     assert got_smooth == pytest.approx(expected(np.tile(leaning, (3, 1))), rel=1e-4)
     assert got_smooth.max() < got_flat.min()  # cos 30 deg dims the sun's share
-    # A corner normal pointing behind the face is turned to the face's side.
+    # Corner normals pointing behind the face: no light reaches them.
     normals[:2] = [0.0, 0.0, -1.0]
     under = solve_radiosity(replace(scene, normals=normals.astype(np.float32)),
                             RadiositySettings(patch_budget=8), BVH.build(scene.triangles))
-    assert under.exitance_at(tri, bary)[:, 0] == pytest.approx(got_flat, rel=1e-9)
+    assert under.exitance_at(tri, bary)[:, 0] == pytest.approx(0.0, abs=1e-9)
 
 
 def test_a_back_side_takes_one_bounce_of_the_solution():
@@ -529,7 +529,7 @@ def test_a_back_side_takes_one_bounce_of_the_solution():
     into the empty sky, its back facing the floor; a sun straight down (3 W/m^2) lights the floor
     and the front, never the back. A camera looking up at the back sees rho_plate B_floor / pi,
     B_floor = rho_floor E = 1.5 W/m^2, as Cycles shades the side it sees. Folded a little (not a
-    flat sheet, `sheets.py`), the back's own rays (`final_gather.back_bounce`) meet the floor
+    flat sheet, `sheets.py`), the back's own rays (`final_gather.ray_gathered_irradiance`) meet the floor
     nearly everywhere (1 - F = 0.1% lies beyond its edge), and read the floor patches' B, whose
     means lose the plate's 0.04 m^2 shadow (1.3% of the cosine-weighted view, which Cycles would
     see): 0.5%; without those rays that back shows nothing. Flat, the plate's back is a copy in
