@@ -531,26 +531,27 @@ def ray_gathered_irradiance(gather: FinalGather, points: np.ndarray, faces: np.n
     5.9e-3 with the difference between the two cosines gathered by rays instead)."""
     k = cosine_ray_count(rays)
     out = np.zeros((len(points), 3))
+    glow = gather.emission.copy()  # pi L_e of the emissive triangles not gathered
+    glow[gather.emitters.index] = 0.0
     per_call = max(1, RAYS_PER_CALL // k)
     for a in range(0, len(points), per_call):
         p, f, n = points[a:a + per_call], faces[a:a + per_call], normals[a:a + per_call]
         dirs = cosine_directions(n, rays, rng)  # (P, k, 3)
         above = np.einsum("pkc,pc->pk", dirs, f) > 0.0
         seen = _seen_along(gather, np.repeat(p + gather.offset * f, k, axis=0),
-                           dirs.reshape(-1, 3), reflected).reshape(len(p), k, 3)
+                           dirs.reshape(-1, 3), reflected, glow).reshape(len(p), k, 3)
         out[a:a + per_call] = np.einsum("pkc,pk->pc", seen, above) / k
     return out
 
 
-def _seen_along(gather: FinalGather, origins: np.ndarray, dirs: np.ndarray, reflected
-                ) -> np.ndarray:
+def _seen_along(gather: FinalGather, origins: np.ndarray, dirs: np.ndarray, reflected,
+                glow: np.ndarray) -> np.ndarray:
     """(N, 3) pi times the radiance along rays (origins, unit dirs (N, 3)) from the world and the
     solution: a ray that escapes sees the world (when it lights the scene); one that meets a
-    surface's front sees its `reflected(tri, bary)` exitance W/m^2 (None: 0), plus the emission
-    of emissive triangles the gathered emitters leave out (those are counted exactly by
-    `emitter_irradiance`), which glow on the back side too."""
-    glow = gather.emission.copy()  # pi L_e of the emissive triangles not gathered
-    glow[gather.emitters.index] = 0.0
+    surface's front sees its `reflected(tri, bary)` exitance W/m^2 (None: 0), plus its
+    triangle's `glow` (T, 3) W/m^2: the emission of emissive triangles the gathered emitters
+    leave out (those are counted exactly by `emitter_irradiance`), which glow on the back side
+    too."""
     hits = gather.bvh.intersect(np.ascontiguousarray(origins), np.ascontiguousarray(dirs))
     tri = np.asarray(hits.tri, np.int64)
     seen = np.zeros((len(dirs), 3))
