@@ -69,11 +69,16 @@ def tinted_albedo(e: np.ndarray, f0: np.ndarray, tint: np.ndarray) -> np.ndarray
     Fresnel is then
     F = t F0 + (1 - t F0) s with s = (F_real - F0) / (1 - F0) (tint times F0 head on, white at
     grazing), so E - (1 - t) F0 (1 - E) / (1 - F0), exact for a smooth layer (E = F_real) and
-    equal to E for a white tint. The base under it keeps 1 - this in its largest channel, as
-    Cycles layers them (`view_tables`). tint: (N, 3), or a scalar for all channels alike."""
+    equal to E for a white tint; kept within [0, E], since a tint of at most 1 takes light away.
+    That form takes the lobe's albedo with F = 1 as 1: under a rough layer of a huge IOR (F0
+    near 1) it fell far below 0 and the base showed more than all of itself (an imported house
+    of IOR 1000 and a black tint drew 1.6x Cycles' light; Cycles shows it as with IOR 1.5). The
+    base under it keeps 1 - this in its largest channel, as Cycles layers them (`view_tables`).
+    tint: (N, 3), or a scalar for all channels alike."""
     e = np.asarray(e, np.float64)[:, None]
     f0 = np.asarray(f0, np.float64)[:, None]
-    return e - (1.0 - np.asarray(tint, np.float64)) * f0 * (1.0 - e) / np.maximum(1.0 - f0, 1e-9)
+    tinted = e - (1.0 - np.asarray(tint, np.float64)) * f0 * (1.0 - e) / np.maximum(1.0 - f0, 1e-9)
+    return np.clip(tinted, 0.0, e)
 
 
 def layer_tints(materials) -> np.ndarray:
