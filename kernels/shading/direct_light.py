@@ -39,7 +39,7 @@ from ..shadow.views import fit_sun, plan_shadow_map, potential_casters
 from . import lights as light_units
 from .alpha import alpha_materials, has_alpha, ray_coverage, surface_alpha
 from .bump import relief_at, relief_shadowing, scene_normals, valid_reflection
-from .highlight_spread import NormalFootprint, PixelSlopes, normal_derivatives
+from .highlight_spread import NormalFootprint, PixelSlopes, fragment_patches, normal_derivatives
 from .material_maps import albedo_at, emission_at, hit_materials, metal_f0, translucent_colours
 from .reflected_emitters import ray_offset, rays_needed, reflected_emitters
 from .specular_layer import coat_layer, diffuse_factor, lamp_highlights, view_factors, view_tables
@@ -366,14 +366,14 @@ def _shade(scene: Scene, maps: list, f, receivers: Receivers | None = None,
     # them (lights as points).
     shine = np.zeros_like(points)
     footprint = None if slopes is None else NormalFootprint.of_pixels(
-        slopes, f.rows, f.cols, f.cell, f.to_cell)
+        slopes, f.rows, f.cols, f.cell, f.to_cell, fragment_patches(scene, f, slopes.smooth.shape))
     for k, light in enumerate(scene.lights):
         to_light, _ = light_units.light_vectors(light, points)
         shine += lamp_highlights(scene.materials, mids, glossy, -d, to_light, e[k],
                                  f0, footprint) * vis[k, :, None]
     if mirror is not None:
         shine += reflected_emitters(scene, tri, bary, mids, points, d, geometric, glossy,
-                                    *mirror, area_lamps=False)
+                                    *mirror, area_lamps=False, footprint=footprint)
     diffuse = emission + albedo / np.pi * np.einsum("lnc,ln->nc", e_diffuse, vis)
     # A translucent surface passes the light on its back (colour / pi), its shadow test taken
     # on that side (a receiver facing away from a light is in its shadow).

@@ -25,6 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..geometry.camera import Camera, camera_ray_lines
+
 # alpha^2 a pixel's normals add per squared unit of normal change across it: 1/12 (the variance
 # of a uniform position in [-1/2, 1/2]) for the two axes' variance together, which is twice the
 # isotropic per-axis variance, as alpha^2 is twice Beckmann's per-axis slope variance.
@@ -43,6 +45,13 @@ SPREAD_CAP = 0.18
 SUB_SPREAD_RATIO = 4.0
 SUB_SIDE = 4
 MAX_SUB_SIDE = 8
+# Radians a mirror's image may turn between the rays that sample it across a cell: above it, a
+# bevel's smooth normals (36 degrees across a sixth of a pixel on an imported sword) showed an
+# area lamp's image at its one ray's point and the pixel 500x Cycles' mean.
+MIRROR_SWEEP_TURN = 0.05
+# |cos| between a camera ray and the plane it meets below which its hit's move across the pixel
+# is taken at this cos (edge-on the move is unbounded; the spread it gives is capped anyway).
+GRAZING_COS = 1e-4
 # Pixels whose spread (|dn/dx|^2 + |dn/dy|^2) exceeds this are widened only, never swept nor
 # their sub-samples' normals moved to their cells' centres: there the pixel is rarely a smooth
 # surface's (a part one pixel wide differs from both of its neighbours), and normals it does not
@@ -52,49 +61,130 @@ MAX_SWEPT_SPREAD = 0.04
 
 
 @dataclass(frozen=True)
+class TrianglePatch:
+    """Where N samples lie on their triangles, and how that moves across their cells.
+
+    bary     (N, 3)     barycentrics at the cell's centre
+    dx, dy   (N, 3)     their change across the cell along the image's x and y (each sums to 0)
+    corners  (N, 3, 3)  the triangles' corner normals, turned to the side the eye sees
+    """
+
+    bary: np.ndarray
+    dx: np.ndarray
+    dy: np.ndarray
+    corners: np.ndarray
+
+    def at(self, rows) -> TrianglePatch:
+        """The patches of samples `rows`."""
+        return TrianglePatch(self.bary[rows], self.dx[rows], self.dy[rows], self.corners[rows])
+
+    def moved(self, by: np.ndarray, scale: float) -> TrianglePatch:
+        """The patches moved by (N, 2) cells (x, y), their cells `scale` times as wide."""
+        bary = self.bary + self.dx * by[:, :1] + self.dy * by[:, 1:]
+        return TrianglePatch(bary, self.dx * scale, self.dy * scale, self.corners)
+
+    def normals(self, ox: float = 0.0, oy: float = 0.0) -> np.ndarray:
+        """(N, 3) the unit interpolated normals at (ox, oy) cells from the centres, held within
+        the triangles (negative weights dropped): past its edges a smooth mesh's normal is its
+        neighbours', which start where the triangle's end; extrapolated, a bevel a sixth of a
+        pixel wide swept normals it never has into a lamp's highlight."""
+        b = np.maximum(self.bary + ox * self.dx + oy * self.dy, 0.0)
+        n = np.einsum("nk,nkc->nc", b, self.corners)
+        return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
+
+    def slopes(self) -> tuple[np.ndarray, np.ndarray]:
+        """(dn/dx, dn/dy) (N, 3) each: the unit normal's change across the cell at its centre."""
+        raw = np.einsum("nk,nkc->nc", self.bary, self.corners)
+        length = np.maximum(np.linalg.norm(raw, axis=1), 1e-12)[:, None]
+        unit = raw / length
+        out = []
+        for db in (self.dx, self.dy):
+            d_raw = np.einsum("nk,nkc->nc", db, self.corners)
+            out.append((d_raw - unit * np.einsum("ij,ij->i", unit, d_raw)[:, None]) / length)
+        return out[0], out[1]
+
+
+@dataclass(frozen=True)
 class NormalFootprint:
     """How the shading normal changes across each sample's cell (N samples).
 
-    dx, dy  (N, 3)  the change of the unit normal from the cell's centre to the next cell's
-                    centre along the image's x and y (at a pixel centre, to the next pixel)
-    shift   (N, 3)  from the sample's normal to its cell centre's (0: the samples are centres)
-    smooth  (N,)    bool: the pixel's derivatives are a smooth surface's (no relief map, the
-                    spread of its pixel at most MAX_SWEPT_SPREAD); elsewhere the lobe is only
-                    widened, about the sample's own normal
+    dx, dy   (N, 3)  the change of the unit normal from the cell's centre to the next cell's
+                     centre along the image's x and y (at a pixel centre, to the next pixel)
+    shift    (N, 3)  from the sample's normal to its cell centre's (0: the samples are centres)
+    smooth   (N,)    bool: the derivatives are a smooth surface's (no relief map, and the
+                     spread of its pixel at most MAX_SWEPT_SPREAD or the sample's own
+                     triangle's); elsewhere the lobe is only widened, about the sample's normal
+    patch    the samples' own triangles across their cells (`TrianglePatch`; None: not known)
+    own      (N,) bool: dx, dy are the own triangle's, whose normals the sweeps then take
+                     (`TrianglePatch.normals`) rather than the linear extension
     """
 
     dx: np.ndarray
     dy: np.ndarray
     shift: np.ndarray
     smooth: np.ndarray
+    patch: TrianglePatch | None = None
+    own: np.ndarray | None = None
 
     @classmethod
     def of_pixels(cls, slopes: PixelSlopes, rows: np.ndarray, cols: np.ndarray,
-                  cell: float = 1.0, to_cell: np.ndarray | None = None) -> NormalFootprint:
+                  cell: float = 1.0, to_cell: np.ndarray | None = None,
+                  patch: TrianglePatch | None = None) -> NormalFootprint:
         """The footprints of samples in pixels (rows, cols) (N,) whose cells are `cell` pixels
         wide, from the pixels' `slopes`; to_cell (N, 2): from each sample to its cell's centre,
-        pixels (None: 0)."""
+        pixels (None: 0); patch: the samples' own triangles per pixel (`triangle_patches`),
+        whose slopes are taken along each axis where larger than the pixel's (a sub-pixel ray
+        on a bevel narrower than the pixel, whose normals turn within it)."""
         dx, dy = slopes.dx[rows, cols], slopes.dy[rows, cols]
-        smooth = slopes.smooth[rows, cols] & (
-            np.einsum("ij,ij->i", dx, dx) + np.einsum("ij,ij->i", dy, dy) <= MAX_SWEPT_SPREAD)
+        own = None
+        if patch is not None:
+            own_dx, own_dy = patch.slopes()
+            own = _sq(own_dx) + _sq(own_dy) >= _sq(dx) + _sq(dy)
+            dx, dy = (np.where((_sq(d) < _sq(o))[:, None], o, d)
+                      for d, o in zip((dx, dy), (own_dx, own_dy), strict=True))
+            moved = np.zeros((len(rows), 2)) if to_cell is None else to_cell
+            patch = patch.moved(moved, cell)
+        smooth = slopes.smooth[rows, cols] & ((_sq(dx) + _sq(dy) <= MAX_SWEPT_SPREAD)
+                                              | (False if own is None else own))
         shift = np.zeros_like(dx)
         if to_cell is not None:
             shift[smooth] = (dx * to_cell[:, :1] + dy * to_cell[:, 1:])[smooth]
-        return cls(dx * cell, dy * cell, shift, smooth)
+        return cls(dx * cell, dy * cell, shift, smooth, patch, own)
 
     def at(self, rows: np.ndarray) -> NormalFootprint:
         """The footprints of samples `rows`."""
-        return NormalFootprint(self.dx[rows], self.dy[rows], self.shift[rows], self.smooth[rows])
+        if self.patch is None:
+            return NormalFootprint(self.dx[rows], self.dy[rows], self.shift[rows],
+                                   self.smooth[rows])
+        return NormalFootprint(self.dx[rows], self.dy[rows], self.shift[rows], self.smooth[rows],
+                               self.patch.at(rows), self.own[rows])
+
+    def own_triangles(self) -> NormalFootprint:
+        """The footprints of the samples' own triangles alone (no change where not known)."""
+        if self.patch is None:
+            return NormalFootprint(np.zeros_like(self.dx), np.zeros_like(self.dy),
+                                   np.zeros_like(self.dx), self.smooth)
+        dx, dy = self.patch.slopes()
+        return NormalFootprint(dx, dy, np.zeros_like(dx), self.smooth, self.patch,
+                               np.ones(len(dx), bool))
 
     def centres(self, normals: np.ndarray) -> np.ndarray:
         """(N, 3) the unit normals (N, 3) of the samples moved to their cells' centres."""
-        n = normals + self.shift
-        return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
+        return self.normals_at(normals + self.shift, 0.0, 0.0)
+
+    def normals_at(self, normals: np.ndarray, ox: float, oy: float) -> np.ndarray:
+        """(N, 3) unit normals (ox, oy) cells from the samples' (N, 3) centre normals: along
+        the footprint's slopes, or where they are the own triangle's, on the triangle."""
+        n = normals + ox * self.dx + oy * self.dy
+        n = n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
+        if self.own is not None and self.own.any():
+            n[self.own] = self.patch.at(self.own).normals(ox, oy)
+        return n
 
     @property
     def spread(self) -> np.ndarray:
         """(N,) |dn/dx|^2 + |dn/dy|^2."""
-        return np.einsum("ij,ij->i", self.dx, self.dx) + np.einsum("ij,ij->i", self.dy, self.dy)
+        return _sq(self.dx) + _sq(self.dy)
 
 
 @dataclass(frozen=True)
@@ -145,6 +235,52 @@ def normal_derivatives(normals: np.ndarray, rows: np.ndarray, cols: np.ndarray, 
     return PixelSlopes(out[0], out[1], smooth)
 
 
+def triangle_patches(camera: Camera, shape: tuple[int, int], rows: np.ndarray,
+                     cols: np.ndarray, corners: np.ndarray, corner_normals: np.ndarray,
+                     bary: np.ndarray, side: np.ndarray) -> TrianglePatch:
+    """The `TrianglePatch` of pixels: samples in pixels (rows, cols) (N,) of an image of
+    `shape` (H, W) at barycentrics bary (N, 3) of triangles of (N, 3, 3) world corners and
+    (N, 3, 3) corner normals, turned by side (N,) +-1 to the side the eye sees; the
+    barycentrics' change per pixel along x and y. The camera ray's hit on the triangle's plane
+    moves by dp (Igehy's ray differentials, as the tracer's), the barycentrics by their in-plane
+    gradients . dp. Edge-on, the hit's move is bounded by GRAZING_COS."""
+    height, width = shape
+    o, d, o_x, o_y, d_x, d_y = camera_ray_lines(camera, width, height, cols + 0.5, rows + 0.5)
+    v = corners.astype(np.float64)
+    e1, e2 = v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]
+    normal = np.cross(e1, e2)
+    p = np.einsum("nk,nkc->nc", bary, v)
+    s = np.einsum("ij,ij->i", p - o, d) / np.einsum("ij,ij->i", d, d)  # p = o + s d
+    cos = np.einsum("ij,ij->i", d, normal)
+    floor = GRAZING_COS * np.linalg.norm(d, axis=1) * np.linalg.norm(normal, axis=1)
+    cos = np.where(cos < 0.0, -1.0, 1.0) * np.maximum(np.abs(cos), np.maximum(floor, 1e-300))
+    d11, d12, d22 = (np.einsum("ij,ij->i", a, b) for a, b in ((e1, e1), (e1, e2), (e2, e2)))
+    det = d11 * d22 - d12 * d12
+    det = np.where(det > 0.0, det, 1.0)[:, None]  # a degenerate triangle is never seen
+    grad1 = (d22[:, None] * e1 - d12[:, None] * e2) / det
+    grad2 = (d11[:, None] * e2 - d12[:, None] * e1) / det
+    moves = []
+    for do, dd in ((o_x, d_x), (o_y, d_y)):
+        q = do + s[:, None] * dd  # the line's move at p; then back into the plane along d
+        dp = q - (np.einsum("ij,ij->i", q, normal) / cos)[:, None] * d
+        b1, b2 = np.einsum("ij,ij->i", dp, grad1), np.einsum("ij,ij->i", dp, grad2)
+        moves.append(np.stack([-b1 - b2, b1, b2], axis=1))
+    turned = corner_normals.astype(np.float64) * np.asarray(side, np.float64)[:, None, None]
+    return TrianglePatch(np.asarray(bary, np.float64), moves[0], moves[1], turned)
+
+
+def fragment_patches(scene, f, shape: tuple[int, int]) -> TrianglePatch:
+    """`triangle_patches` of the scene's camera at fragments f (`camera_view.Fragments`: tri,
+    bary, rows, cols, back) of an image of `shape` (H, W)."""
+    return triangle_patches(scene.camera, shape, f.rows, f.cols, scene.triangles[f.tri],
+                            scene.normals[f.tri], f.bary, np.where(f.back, -1.0, 1.0))
+
+
+def _sq(v: np.ndarray) -> np.ndarray:
+    """(N,) squared lengths of rows v (N, 3)."""
+    return np.einsum("ij,ij->i", v, v)
+
+
 def widened_roughness(roughness: np.ndarray, spread: np.ndarray | None) -> np.ndarray:
     """(N,) Blender roughness whose alpha^2 (roughness^4) is widened by a footprint's spread (N,)
     (`NormalFootprint.spread`): alpha'^2 = alpha^2 + min(spread x PIXEL_SLOPE_VARIANCE,
@@ -164,11 +300,20 @@ def sub_sides(alpha2: np.ndarray, footprint: NormalFootprint) -> np.ndarray:
     return np.where(narrow, np.clip(need, SUB_SIDE, MAX_SUB_SIDE), 1).astype(np.int64)
 
 
+def mirror_sides(footprint: NormalFootprint) -> np.ndarray:
+    """(N,) int: the sides m of the grids of normals a mirror's rays take across each sample's
+    own triangle's footprint (`NormalFootprint.own_triangles`): its mirror image turns by twice
+    the normal, so m x m rays keep each within MIRROR_SWEEP_TURN of its neighbours (1: the one
+    ray), at most MAX_SUB_SIDE."""
+    turn = 2.0 * np.sqrt(footprint.own_triangles().spread)
+    return np.clip(np.ceil(turn / MIRROR_SWEEP_TURN), 1, MAX_SUB_SIDE).astype(np.int64)
+
+
 def sub_normals(normals: np.ndarray, footprint: NormalFootprint, side: int):
-    """Yields side^2 unit normals (N, 3) each: `normals` moved across their footprints to the
-    centres of a side x side grid of sub-cells."""
+    """Yields side^2 unit normals (N, 3) each: `normals` (the cells' centres') moved across
+    their footprints to the centres of a side x side grid of sub-cells
+    (`NormalFootprint.normals_at`)."""
     offsets = (np.arange(side) + 0.5) / side - 0.5
     for oy in offsets:
         for ox in offsets:
-            n = normals + ox * footprint.dx + oy * footprint.dy
-            yield n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
+            yield footprint.normals_at(normals, ox, oy)

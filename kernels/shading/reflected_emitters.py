@@ -19,6 +19,7 @@ from ..geometry.frames import RAY_OFFSET_REL
 from ..geometry.scene import Scene, geometric_normals, triangle_emission
 from . import lights as light_units
 from .glossy_lobe import MEAN_FACTOR, lobe_mean, lobe_points, lobe_rays
+from .highlight_spread import NormalFootprint, mirror_sides, sub_normals
 from .material_maps import albedo_at, emission_at, metal_f0
 from .optics import fresnel_dielectric, reflect
 from .specular_layer import (
@@ -56,8 +57,8 @@ def rays_needed(scene: Scene, area_lamps: bool = True) -> bool:
 
 def reflected_emitters(scene: Scene, tri: np.ndarray, bary: np.ndarray, mids: np.ndarray,
                        points: np.ndarray, dirs: np.ndarray, geometric: np.ndarray,
-                       normals: np.ndarray, bvh, offset: float, area_lamps: bool = True
-                       ) -> np.ndarray:
+                       normals: np.ndarray, bvh, offset: float, area_lamps: bool = True,
+                       footprint: NormalFootprint | None = None) -> np.ndarray:
     """(M, 3) radiance W/(m^2 sr) the glossy lobes of surface points send toward a camera from
     what emits: rays along each point's mirror direction or across its lobe.
 
@@ -73,6 +74,9 @@ def reflected_emitters(scene: Scene, tri: np.ndarray, bary: np.ndarray, mids: np
     | offset     | > 0           | m           | the rays' start off the surface                |
     | area_lamps | bool, True    |             | smooth lobes see area lamps (False: a model    |
     |            |               |             | that shrinks them to points, `cycles.direct`)  |
+    | footprint  | None          |             | how each point's normal turns across its pixel |
+    |            |               |             | or cell (`highlight_spread`): a smooth lobe's  |
+    |            |               |             | mirror rays then sweep it (`mirror_sides`)     |
 
     A rough lobe (roughness at least MIRROR_ROUGHNESS) takes the world's radiance over the lobe
     where its rays escape (`_lobe_sky`: the sky is a light, sampled directly; lamps are the
@@ -91,7 +95,7 @@ def reflected_emitters(scene: Scene, tri: np.ndarray, bary: np.ndarray, mids: np
     emissive = bool(np.any(triangle_emission(scene) > 0.0))
     world = world_lit(scene)
     shown = _Shown(scene, bvh, points + offset * geometric, dirs, normals, geometric, world,
-                   lamps, emissive)
+                   lamps, emissive, footprint)
     cos = np.einsum("ij,ij->i", normals, dirs)
     coat = coat_layer(mats, mids, cos)
     # The specular layer and the metal, under the coat if any.
@@ -154,6 +158,7 @@ class _Shown:
     world: bool
     lamps: list
     emissive: bool
+    footprint: NormalFootprint | None = None
 
     def sees(self, smooth: np.ndarray) -> np.ndarray:
         """(K,) bool: lobes, smooth or not (K,), that can find anything."""
@@ -166,37 +171,55 @@ class _Shown:
         its lobe (`_lobe_sky`); a smooth one what its mirror ray meets first (the world where it
         escapes, an area lamp, an emissive surface's front, its emission texture read at the
         hit)."""
-        scene, origins, d = self.scene, self.origins[rows], self.dirs[rows]
-        normals, geometric = self.normals[rows], self.geometric[rows]
         seen = np.zeros((len(rows), 3))
         rough_rows = np.flatnonzero(~smooth)
         if self.world and rough_rows.size:
-            seen[rough_rows] = _lobe_sky(scene, self.bvh, origins[rough_rows], -d[rough_rows],
-                                         normals[rough_rows], geometric[rough_rows],
+            at = rows[rough_rows]
+            seen[rough_rows] = _lobe_sky(self.scene, self.bvh, self.origins[at], -self.dirs[at],
+                                         self.normals[at], self.geometric[at],
                                          roughness[rough_rows], weight[rough_rows])
-        r = reflect(d, normals)
-        up = np.einsum("ij,ij->i", r, geometric) > 0.0  # a mirror direction into the surface: none
-        smooth_rows = np.flatnonzero(up & smooth)
+        smooth_rows = np.flatnonzero(smooth)
         if smooth_rows.size == 0:
             return seen
-        hits = self.bvh.intersect(origins[smooth_rows], r[smooth_rows])
+        fp = None if self.footprint is None else self.footprint.at(rows[smooth_rows])
+        sides = np.ones(len(smooth_rows), np.int64) if fp is None else mirror_sides(fp)
+        for side in np.unique(sides):
+            part = np.flatnonzero(sides == side)
+            at = rows[smooth_rows[part]]
+            if side == 1:
+                seen[smooth_rows[part]] = self._mirrored(at, self.normals[at])
+                continue
+            total = np.zeros((len(part), 3))
+            for normal in sub_normals(self.normals[at], fp.at(part).own_triangles(), int(side)):
+                total += self._mirrored(at, normal)
+            seen[smooth_rows[part]] = total / side ** 2
+        return seen
+
+    def _mirrored(self, rows: np.ndarray, normals: np.ndarray) -> np.ndarray:
+        """(K, 3) what the mirror rays of points `rows` (K,) about unit normals (K, 3) meet
+        first: the world where they escape, an area lamp, an emissive surface's front (its
+        emission texture read at the hit); 0 where the mirror direction enters the surface."""
+        scene, seen = self.scene, np.zeros((len(rows), 3))
+        r = reflect(self.dirs[rows], normals)
+        up = np.flatnonzero(np.einsum("ij,ij->i", r, self.geometric[rows]) > 0.0)
+        if up.size == 0:
+            return seen
+        origins, r = self.origins[rows[up]], r[up]
+        hits = self.bvh.intersect(origins, r)
         missed = hits.tri < 0
         if self.world and missed.any():
-            seen[smooth_rows[missed]] = world_radiance(scene, r[smooth_rows[missed]])
+            seen[up[missed]] = world_radiance(scene, r[missed])
         # an emissive triangle's front (a radiosity gather's BVH may hold sheets' copies past T)
         own = (hits.tri >= 0) & (hits.tri < scene.triangle_count)
         if self.emissive and own.any():
             k = np.flatnonzero(own)
             hit = hits.tri[k]
-            front = np.einsum("ij,ij->i", r[smooth_rows[k]],
-                              geometric_normals(scene.triangles[hit])) < 0.0
+            front = np.einsum("ij,ij->i", r[k], geometric_normals(scene.triangles[hit])) < 0.0
             u, v = hits.u[k[front]].astype(np.float64), hits.v[k[front]].astype(np.float64)
-            seen[smooth_rows[k[front]]] += emission_at(scene, hit[front],
-                                                       np.stack([1.0 - u - v, u, v], 1))
+            seen[up[k[front]]] += emission_at(scene, hit[front], np.stack([1.0 - u - v, u, v], 1))
         if self.lamps:
             t_hit = np.where(missed, np.inf, hits.t.astype(np.float64))
-            seen[smooth_rows] += light_units.area_lamps_seen(self.lamps, origins[smooth_rows],
-                                                             r[smooth_rows], t_hit)[0]
+            seen[up] += light_units.area_lamps_seen(self.lamps, origins, r, t_hit)[0]
         return seen
 
 

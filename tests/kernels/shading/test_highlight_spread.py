@@ -5,11 +5,15 @@ points."""
 import numpy as np
 import pytest
 
+from classic_bake.kernels.geometry.camera import camera_ray_lines, image_plane
+from classic_bake.kernels.geometry.scene import Camera
 from classic_bake.kernels.shading.highlight_spread import (
     PIXEL_SLOPE_VARIANCE,
     SPREAD_CAP,
     NormalFootprint,
+    TrianglePatch,
     normal_derivatives,
+    triangle_patches,
     widened_roughness,
 )
 from classic_bake.kernels.shading.specular_layer import pixel_highlight
@@ -110,3 +114,78 @@ def test_widening_is_capped_and_absent_without_a_footprint():
     wide = widened_roughness(roughness, np.array([0.012, 1e3]))
     assert wide[0] ** 4 == pytest.approx(0.1 ** 4 + 0.012 * PIXEL_SLOPE_VARIANCE)
     assert wide[1] ** 4 == pytest.approx(0.5 ** 4 + SPREAD_CAP)
+
+
+def tilted_camera(kind, res=(64, 48)):
+    """A camera at (0.3, -0.2, 4) looking down -z, turned 20 degrees about x."""
+    lo, hi = image_plane(kind, res, lens_mm=50.0, ortho_scale=2.0)
+    c, s = np.cos(np.radians(20.0)), np.sin(np.radians(20.0))
+    m = np.eye(4)
+    m[:3, :3] = [[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]]
+    m[:3, 3] = [0.3, -0.2, 4.0]
+    return Camera(kind=kind, matrix_world=m, plane_min=lo, plane_max=hi, resolution=res,
+                  clip_start=0.0)
+
+
+def seen_normal(camera, res, x, y, corners, normals):
+    """The interpolated unit normal where the camera line through image point (x, y) meets the
+    triangle's plane, and its barycentrics: the brute-force reference."""
+    o, d, *_ = camera_ray_lines(camera, *res, np.array([x]), np.array([y]))
+    e1, e2 = corners[1] - corners[0], corners[2] - corners[0]
+    n = np.cross(e1, e2)
+    p = o[0] + d[0] * np.dot(corners[0] - o[0], n) / np.dot(d[0], n)
+    b = np.linalg.lstsq(np.stack([e1, e2], 1), p - corners[0], rcond=None)[0]
+    bary = np.array([1.0 - b.sum(), b[0], b[1]])
+    raw = bary @ normals
+    return raw / np.linalg.norm(raw), bary
+
+
+@pytest.mark.parametrize("kind", ["PERSP", "ORTHO"])
+def test_a_triangles_normal_slopes_are_its_change_to_the_next_pixel(kind):
+    """triangle_patches (ray differentials through the triangle's barycentrics) against the
+    interpolated normal at the next pixels' hits, by central differences of a twentieth of a
+    pixel: barycentrics and the normal's slopes within 1e-3 of their change (a bevel's corner
+    normals 50 degrees apart)."""
+    res = (64, 48)
+    camera = tilted_camera(kind, res)
+    corners = np.array([[-0.4, -0.1, 0.0], [0.5, 0.05, 0.3], [0.0, 0.6, -0.2]])
+    normals = np.array([[0.0, -0.77, 0.64], [0.1, 0.0, 1.0], [0.0, 0.2, 0.98]])
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    row, col = 21, 30
+    _, bary = seen_normal(camera, res, col + 0.5, row + 0.5, corners, normals)
+    patch = triangle_patches(camera, (res[1], res[0]), np.array([row]), np.array([col]),
+                             corners[None], normals[None], bary[None], np.ones(1))
+    slopes = patch.slopes()
+    h = 0.05
+    for k, (ox, oy) in enumerate(((h, 0.0), (0.0, h))):
+        plus, b_plus = seen_normal(camera, res, col + 0.5 + ox, row + 0.5 + oy, corners, normals)
+        minus, b_minus = seen_normal(camera, res, col + 0.5 - ox, row + 0.5 - oy, corners, normals)
+        expected = (plus - minus) / (2 * h)
+        assert np.linalg.norm(expected) > 1e-3
+        np.testing.assert_allclose(slopes[k][0], expected, atol=1e-3 * np.linalg.norm(expected))
+        db = (b_plus - b_minus) / (2 * h)
+        np.testing.assert_allclose((patch.dx, patch.dy)[k][0], db, atol=1e-3 * np.linalg.norm(db))
+    back = triangle_patches(camera, (res[1], res[0]), np.array([row]), np.array([col]),
+                            corners[None], normals[None], bary[None], -np.ones(1))
+    np.testing.assert_allclose(back.slopes()[0], -slopes[0])  # seen from behind: turned over
+
+
+def test_a_sub_pixel_ray_on_a_bevel_sweeps_its_own_triangles_normals():
+    """A sub-pixel ray (a third of a pixel) on a bevel whose normals turn 50 degrees across it,
+    in a pixel on a flat face (no change between the neighbours): the footprint takes the
+    bevel's own slopes and is swept on the bevel, whose normals never pass its corners'."""
+    flat = normal_derivatives(np.tile([0.0, 0.0, 1.0], (4, 1)), np.array([0, 0, 1, 1]),
+                              np.array([0, 1, 0, 1]), np.zeros(4, np.int64), (2, 2))
+    corners = np.array([[[0.0, -0.77, 0.64], [0.0, -0.77, 0.64], [0.0, 0.0, 1.0]]])
+    corners /= np.linalg.norm(corners, axis=2, keepdims=True)
+    # the ray a fifth of the way across the bevel; the bevel 1/6 px wide (along y)
+    patch = TrianglePatch(np.array([[0.4, 0.4, 0.2]]), np.zeros((1, 3)),
+                          np.array([[-3.0, -3.0, 6.0]]), corners)
+    fp = NormalFootprint.of_pixels(flat, np.array([0]), np.array([0]), 1.0 / 3.0, patch=patch)
+    np.testing.assert_allclose(fp.dy, patch.slopes()[1] / 3.0)
+    assert fp.smooth[0] and fp.own[0]  # swept (sub_sides), on the triangle
+    lo, hi = corners[0, 0], corners[0, 2]
+    for ox, oy in ((0.0, -0.5), (0.0, 0.5), (0.3, 0.2)):
+        n = fp.normals_at(np.array([[0.0, 0.0, 1.0]]), ox, oy)[0]
+        arc = np.arccos(np.clip(lo @ hi, -1, 1))
+        assert np.arccos(np.clip(n @ lo, -1, 1)) + np.arccos(np.clip(n @ hi, -1, 1)) <= arc + 1e-9
