@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..geometry.camera import Camera, camera_ray_lines
+from .pixel_texture import GRAZING_COS
 
 # alpha^2 a pixel's normals add per squared unit of normal change across it: 1/12 (the variance
 # of a uniform position in [-1/2, 1/2]) for the two axes' variance together, which is twice the
@@ -49,9 +50,6 @@ MAX_SUB_SIDE = 8
 # bevel's smooth normals (36 degrees across a sixth of a pixel on an imported sword) showed an
 # area lamp's image at its one ray's point and the pixel 500x Cycles' mean.
 MIRROR_SWEEP_TURN = 0.05
-# |cos| between a camera ray and the plane it meets below which its hit's move across the pixel
-# is taken at this cos (edge-on the move is unbounded; the spread it gives is capped anyway).
-GRAZING_COS = 1e-4
 # Pixels whose spread (|dn/dx|^2 + |dn/dy|^2) exceeds this are widened only, never swept nor
 # their sub-samples' normals moved to their cells' centres: there the pixel is rarely a smooth
 # surface's (a part one pixel wide differs from both of its neighbours), and normals it does not
@@ -115,8 +113,10 @@ class NormalFootprint:
                      spread of its pixel at most MAX_SWEPT_SPREAD or the sample's own
                      triangle's); elsewhere the lobe is only widened, about the sample's normal
     patch    the samples' own triangles across their cells (`TrianglePatch`; None: not known)
-    own      (N,) bool: dx, dy are the own triangle's, whose normals the sweeps then take
-                     (`TrianglePatch.normals`) rather than the linear extension
+    own      (N,) bool: dx, dy are the own triangle's and no relief map moves its normals,
+                     which the sweeps then take (`TrianglePatch.normals`) rather than the
+                     linear extension
+    plain    (N,) bool: no relief map moves the sample's normal (None: not known)
     """
 
     dx: np.ndarray
@@ -125,6 +125,7 @@ class NormalFootprint:
     smooth: np.ndarray
     patch: TrianglePatch | None = None
     own: np.ndarray | None = None
+    plain: np.ndarray | None = None
 
     @classmethod
     def of_pixels(cls, slopes: PixelSlopes, rows: np.ndarray, cols: np.ndarray,
@@ -136,20 +137,21 @@ class NormalFootprint:
         whose slopes are taken along each axis where larger than the pixel's (a sub-pixel ray
         on a bevel narrower than the pixel, whose normals turn within it)."""
         dx, dy = slopes.dx[rows, cols], slopes.dy[rows, cols]
-        own = None
+        own, plain = None, slopes.smooth[rows, cols]
         if patch is not None:
             own_dx, own_dy = patch.slopes()
-            own = _sq(own_dx) + _sq(own_dy) >= _sq(dx) + _sq(dy)
+            # a relief map's normals are not the triangle's: its slopes widen, never sweep
+            own = (_sq(own_dx) + _sq(own_dy) >= _sq(dx) + _sq(dy)) & plain
             dx, dy = (np.where((_sq(d) < _sq(o))[:, None], o, d)
                       for d, o in zip((dx, dy), (own_dx, own_dy), strict=True))
             moved = np.zeros((len(rows), 2)) if to_cell is None else to_cell
             patch = patch.moved(moved, cell)
-        smooth = slopes.smooth[rows, cols] & ((_sq(dx) + _sq(dy) <= MAX_SWEPT_SPREAD)
-                                              | (False if own is None else own))
+        smooth = plain & ((_sq(dx) + _sq(dy) <= MAX_SWEPT_SPREAD)
+                          | (False if own is None else own))
         shift = np.zeros_like(dx)
         if to_cell is not None:
             shift[smooth] = (dx * to_cell[:, :1] + dy * to_cell[:, 1:])[smooth]
-        return cls(dx * cell, dy * cell, shift, smooth, patch, own)
+        return cls(dx * cell, dy * cell, shift, smooth, patch, own, plain)
 
     def at(self, rows: np.ndarray) -> NormalFootprint:
         """The footprints of samples `rows`."""
@@ -157,16 +159,17 @@ class NormalFootprint:
             return NormalFootprint(self.dx[rows], self.dy[rows], self.shift[rows],
                                    self.smooth[rows])
         return NormalFootprint(self.dx[rows], self.dy[rows], self.shift[rows], self.smooth[rows],
-                               self.patch.at(rows), self.own[rows])
+                               self.patch.at(rows), self.own[rows], self.plain[rows])
 
     def own_triangles(self) -> NormalFootprint:
-        """The footprints of the samples' own triangles alone (no change where not known)."""
+        """The footprints of the samples' own triangles alone (no change where not known),
+        swept on the triangles where no relief map moves their normals."""
         if self.patch is None:
             return NormalFootprint(np.zeros_like(self.dx), np.zeros_like(self.dy),
                                    np.zeros_like(self.dx), self.smooth)
         dx, dy = self.patch.slopes()
-        return NormalFootprint(dx, dy, np.zeros_like(dx), self.smooth, self.patch,
-                               np.ones(len(dx), bool))
+        return NormalFootprint(dx, dy, np.zeros_like(dx), self.smooth, self.patch, self.plain,
+                               self.plain)
 
     def centres(self, normals: np.ndarray) -> np.ndarray:
         """(N, 3) the unit normals (N, 3) of the samples moved to their cells' centres."""
@@ -243,7 +246,8 @@ def triangle_patches(camera: Camera, shape: tuple[int, int], rows: np.ndarray,
     (N, 3, 3) corner normals, turned by side (N,) +-1 to the side the eye sees; the
     barycentrics' change per pixel along x and y. The camera ray's hit on the triangle's plane
     moves by dp (Igehy's ray differentials, as the tracer's), the barycentrics by their in-plane
-    gradients . dp. Edge-on, the hit's move is bounded by GRAZING_COS."""
+    gradients . dp. Edge-on, the hit's move is bounded by GRAZING_COS (`pixel_texture`), and
+    the spread it gives by `widened_roughness`'s cap."""
     height, width = shape
     o, d, o_x, o_y, d_x, d_y = camera_ray_lines(camera, width, height, cols + 0.5, rows + 0.5)
     v = corners.astype(np.float64)

@@ -189,3 +189,25 @@ def test_a_sub_pixel_ray_on_a_bevel_sweeps_its_own_triangles_normals():
         n = fp.normals_at(np.array([[0.0, 0.0, 1.0]]), ox, oy)[0]
         arc = np.arccos(np.clip(lo @ hi, -1, 1))
         assert np.arccos(np.clip(n @ lo, -1, 1)) + np.arccos(np.clip(n @ hi, -1, 1)) <= arc + 1e-9
+
+
+def test_a_relief_mapped_sample_keeps_its_mapped_normal():
+    """The same bevel under a normal map (the pixel's slopes marked as relief): its own
+    triangle's slopes widen the lobe but the sweeps never put the triangle's unmapped normals in
+    place of the map's (an imported apple's tilted normal map lost its shading)."""
+    relief = normal_derivatives(np.tile([0.0, 0.0, 1.0], (4, 1)), np.array([0, 0, 1, 1]),
+                                np.array([0, 1, 0, 1]), np.zeros(4, np.int64), (2, 2),
+                                np.ones(4, bool))
+    corners = np.array([[[0.0, -0.77, 0.64], [0.0, -0.77, 0.64], [0.0, 0.0, 1.0]]])
+    corners /= np.linalg.norm(corners, axis=2, keepdims=True)
+    patch = TrianglePatch(np.array([[0.4, 0.4, 0.2]]), np.zeros((1, 3)),
+                          np.array([[-3.0, -3.0, 6.0]]), corners)
+    fp = NormalFootprint.of_pixels(relief, np.array([0]), np.array([0]), 1.0 / 3.0, patch=patch)
+    mapped = np.array([[0.6, 0.0, 0.8]])
+    assert not fp.own[0] and not fp.smooth[0] and fp.spread[0] > 0.1
+    np.testing.assert_allclose(fp.centres(mapped), mapped)
+    mirror = fp.own_triangles()
+    assert not mirror.own[0]
+    n = mirror.normals_at(mapped, 0.0, 0.5)[0]  # along the slopes, about the mapped normal
+    expected = mapped[0] + 0.5 * mirror.dy[0]
+    np.testing.assert_allclose(n, expected / np.linalg.norm(expected))
