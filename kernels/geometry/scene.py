@@ -453,6 +453,38 @@ class Scene:
             out[rows] = corners[rows]
         return out
 
+    @cached_property
+    def texture_seams(self) -> np.ndarray:
+        """(T, 3) bool: the edge opposite each corner is where the texture coordinates
+        (`texture_coords`) jump, no other triangle of the object meeting it at the same two
+        points with the same coordinates there (a UV seam, or the mesh's border); False on
+        triangles whose material has no base-colour texture. Points, not
+        vertex indices: importers split vertices along hard edges whose coordinates go on. A
+        look-up extrapolated past such an edge reads another island of the atlas: filters stop
+        there."""
+        out = np.zeros((self.triangle_count, 3), bool)
+        textured = np.array([m.base_color_texture is not None for m in self.materials], bool)
+        rows = np.flatnonzero(textured[self.material_ids])  # only textures are filtered
+        if rows.size == 0:
+            return out
+        first, second = np.array([1, 2, 0]), np.array([2, 0, 1])  # the edge opposite corner k
+        # float32 holds every input exactly (corners, UVs); + 0.0 turns -0.0 into 0.0
+        points = self.triangles[rows].astype(np.float32) + np.float32(0.0)
+        coords = self.texture_coords[rows].astype(np.float32) + np.float32(0.0)
+        pa, pb, ca, cb = points[:, first], points[:, second], coords[:, first], coords[:, second]
+        step = pa - pb  # each edge keyed by its ends in lexicographic order
+        swap = np.where(step[..., 0] != 0.0, step[..., 0] > 0.0,
+                        np.where(step[..., 1] != 0.0, step[..., 1] > 0.0, step[..., 2] > 0.0))
+        swap = swap[..., None]
+        owner = np.repeat(self.object_ids[rows, None, None].astype(np.float32), 3, axis=1)
+        keys = np.ascontiguousarray(np.concatenate(
+            [owner, np.where(swap, pb, pa), np.where(swap, pa, pb), np.where(swap, cb, ca),
+             np.where(swap, ca, cb)], axis=2).reshape(3 * rows.size, -1))
+        flat = keys.view(np.dtype((np.void, keys.shape[1] * keys.itemsize))).ravel()
+        _, inverse, counts = np.unique(flat, return_inverse=True, return_counts=True)
+        out[rows] = (counts[inverse] < 2).reshape(rows.size, 3)
+        return out
+
     @property
     def triangle_count(self) -> int:
         return int(self.triangles.shape[0])

@@ -407,7 +407,8 @@ def prepare(scene: Scene, solution: PatchSolution, emitters: Emitters, bvh, smoo
 def exitance(gather: FinalGather, tri: np.ndarray, bary: np.ndarray,
              reflected_only: bool = False, known: Visibility | None = None,
              visibility_out: Visibility | None = None,
-             strata: Strata | None = None, reflected=None) -> np.ndarray:
+             strata: Strata | None = None, reflected=None, albedo: np.ndarray | None = None
+             ) -> np.ndarray:
     """(M, 3) exitance B(x) W/m^2 at receivers given as scene triangles (M,) and barycentric
     coordinates (M, 3): E + rho (H_direct + H_indirect), or without E (`reflected_only`), and
     for a translucent surface (`Material.translucent`: tau) tau times the irradiance on its
@@ -419,7 +420,8 @@ def exitance(gather: FinalGather, tri: np.ndarray, bary: np.ndarray,
     The lamps' shadow rays are cast every time. A receiver that reflects nothing diffusely
     (`direct_light.diffuse_at`: black, metal, glass) casts no ray and stays UNKNOWN.
     strata (stratum (M,), m): the receivers are m sub-samples of pixels, which share out the
-    emitters' points (`emitters.emitter_irradiance`)."""
+    emitters' points (`emitters.emitter_irradiance`). albedo (M, 3): the receivers' base
+    colours, when given (a pixel's texture mean, `pixel_texture.cell_albedo`)."""
     scene = gather.scene
     tri = np.asarray(tri, np.int64)
     bary = np.asarray(bary, np.float64)
@@ -430,7 +432,7 @@ def exitance(gather: FinalGather, tri: np.ndarray, bary: np.ndarray,
     passed = reflected if gather.settings.translucent_bounce else None
     for a in range(0, len(tri), GATHER_CHUNK):
         t, b = tri[a:a + GATHER_CHUNK], bary[a:a + GATHER_CHUNK]
-        rho = diffuse_at(scene, t, b)
+        rho = diffuse_at(scene, t, b, albedo=None if albedo is None else albedo[a:a + GATHER_CHUNK])
         lit = np.flatnonzero(rho.max(axis=1) > 0.0)
         given = None if known is None else known.take(a + lit)
         h, found = _irradiance(gather, t[lit], b[lit], given, rng, strata_rows(strata, a + lit),

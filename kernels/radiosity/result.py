@@ -53,15 +53,17 @@ class RadiosityResult:
     def exitance_at(self, tri: np.ndarray, bary: np.ndarray, reflected_only: bool = False,
                     interpolated: bool = False, known: final_gather.Visibility | None = None,
                     visibility_out: final_gather.Visibility | None = None,
-                    strata: Strata | None = None) -> np.ndarray:
+                    strata: Strata | None = None, albedo: np.ndarray | None = None
+                    ) -> np.ndarray:
         """(M, 3) B at points given as scene triangles (M,) and barycentrics (M, 3): the final
         gather's when the result has one (`final_gather.py`, which also takes `known` and fills
-        `visibility_out`, and `strata`: pixels' sub-samples that share out the emitters'
-        points), else (or with `interpolated`) B interpolated from the patch corners.
+        `visibility_out`, `strata`: pixels' sub-samples that share out the emitters' points,
+        and `albedo` (M, 3): the points' base colours, e.g. filtered over their pixels), else
+        (or with `interpolated`) B interpolated from the patch corners.
         `reflected_only`: B minus the emission (what Cycles' DIFFUSE bake sees, times pi)."""
         if self.gather is not None and not interpolated:
             return final_gather.exitance(self.gather, tri, bary, reflected_only, known,
-                                         visibility_out, strata, self._reflected)
+                                         visibility_out, strata, self._reflected, albedo)
         patch, local = patching.locate(self.patches, tri, bary)
         values = patching.interpolate(self.corner_b, patch, local)
         if reflected_only:
@@ -76,10 +78,11 @@ class RadiosityResult:
     def radiance_at(self, tri: np.ndarray, bary: np.ndarray, reflected_only: bool = False,
                     interpolated: bool = False, known: final_gather.Visibility | None = None,
                     visibility_out: final_gather.Visibility | None = None,
-                    strata: Strata | None = None) -> np.ndarray:
+                    strata: Strata | None = None, albedo: np.ndarray | None = None
+                    ) -> np.ndarray:
         """(M, 3) outgoing radiance B / pi, W/(m^2 sr) (see `exitance_at`)."""
         return self.exitance_at(tri, bary, reflected_only, interpolated, known,
-                                visibility_out, strata) / np.pi
+                                visibility_out, strata, albedo) / np.pi
 
     def back_radiance_at(self, scene: Scene, tri: np.ndarray, bary: np.ndarray) -> np.ndarray:
         """(M, 3) outgoing radiance W/(m^2 sr) of the back side of surface points of `scene`

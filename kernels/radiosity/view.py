@@ -20,6 +20,7 @@ from ..shading.alpha import ray_coverage
 from ..shading.bump import relief_at, scene_normals, valid_reflection
 from ..shading.highlight_spread import NormalFootprint, normal_derivatives, triangle_patches
 from ..shading.material_maps import albedo_at, emission_detail, hit_materials, metal_f0
+from ..shading.pixel_texture import cell_albedo
 from ..shading.reflected_emitters import ray_offset, reflected_emitters
 from ..shading.specular_layer import (
     MIRROR_ROUGHNESS,
@@ -67,8 +68,11 @@ def render_steps(scene: Scene, result: RadiosityResult, resolution=None,
             mids = hit_materials(scene, t, b, scene.material_ids[t])  # metallic / roughness maps
             known = result.gather.opened(np.ones(len(t), bool)) if open_camera else None
             shading_normals = frame[1]
+            # the pixel centres' textures averaged over their pixels, as Cycles' box filter
+            albedo = cell_albedo(scene, t, b, f.rows[front], f.cols[front],
+                                 image.shape[:2]) if centres else None
             values[front] = _at_view(scene, t, mids, f.dirs[front], shading_normals,
-                                     result.radiance_at(t, b, known=known))
+                                     result.radiance_at(t, b, known=known, albedo=albedo))
             coat = coat_layer(scene.materials, mids,
                               np.einsum("ij,ij->i", shading_normals, f.dirs[front]))
             if coat is not None:  # what the coat lets through of the base's light

@@ -41,6 +41,7 @@ from .alpha import alpha_materials, has_alpha, ray_coverage, surface_alpha
 from .bump import relief_at, relief_shadowing, scene_normals, valid_reflection
 from .highlight_spread import NormalFootprint, PixelSlopes, fragment_patches, normal_derivatives
 from .material_maps import albedo_at, emission_at, hit_materials, metal_f0, translucent_colours
+from .pixel_texture import cell_albedo
 from .reflected_emitters import ray_offset, rays_needed, reflected_emitters
 from .specular_layer import coat_layer, diffuse_factor, lamp_highlights, view_factors, view_tables
 
@@ -236,15 +237,17 @@ def diffuse_weight(material, under_layer: bool = True) -> float:
     return weight * diffuse_factor(material) if under_layer and weight > 0.0 else weight
 
 
-def diffuse_at(scene: Scene, tri: np.ndarray, bary: np.ndarray, under_layer: bool = True
-               ) -> np.ndarray:
+def diffuse_at(scene: Scene, tri: np.ndarray, bary: np.ndarray, under_layer: bool = True,
+               albedo: np.ndarray | None = None) -> np.ndarray:
     """(N, 3) diffuse reflectance at barycentric points of triangles: the base colour
-    (`albedo_at`) times the `diffuse_weight` of the material at each point (metallic and
-    roughness maps read there, `material_maps.hit_materials`: a painted metal trim reflects
-    nothing diffusely where it is painted)."""
+    (`albedo_at`, or `albedo` (N, 3) when given: a pixel's filtered one) times the
+    `diffuse_weight` of the material at each point (metallic and roughness maps read there,
+    `material_maps.hit_materials`: a painted metal trim reflects nothing diffusely where it is
+    painted)."""
     weight = np.array([diffuse_weight(m, under_layer) for m in scene.materials], np.float64)
     mids = hit_materials(scene, tri, bary, scene.material_ids[tri])
-    return albedo_at(scene, tri, bary) * weight[mids][:, None]
+    base = albedo_at(scene, tri, bary) if albedo is None else albedo
+    return base * weight[mids][:, None]
 
 
 # --- the camera view ------------------------------------------------------------------------------
@@ -358,7 +361,10 @@ def _shade(scene: Scene, maps: list, f, receivers: Receivers | None = None,
     weight = np.array([diffuse_weight(m, under_layer=False) for m in scene.materials])[mids]
     weight = weight * view_factors(view_tables(scene.materials), mids,
                                    np.einsum("ij,ij->i", glossy, d))
-    base = albedo_at(scene, tri, bary)
+    if slopes is not None and f.cell == 1.0 and f.to_cell is None:  # pixel centres' rays
+        base = cell_albedo(scene, tri, bary, f.rows, f.cols, slopes.smooth.shape)
+    else:  # a sub-pixel ray's cell: the texture at its point
+        base = albedo_at(scene, tri, bary)
     albedo = base * weight[:, None]
     f0 = metal_f0(scene, tri, base)
     emission = emission_at(scene, tri, bary)

@@ -14,7 +14,7 @@ import numpy as np
 
 from ..geometry.camera import camera_ray_lines
 from ..geometry.scene import Scene
-from .surface import GRAZING_COS, Footprint
+from ..shading.pixel_texture import GRAZING_COS, Footprint
 
 # GRAZING_COS (surface.py): below this |cos| between a ray and the plane it meets, the footprint
 # would stretch without bound along the plane; the hit's position derivatives are taken as zero.

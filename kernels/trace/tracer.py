@@ -59,6 +59,7 @@ from ..shading.glossy_lobe import (
 )
 from ..shading.material_maps import emission_at, material_values, translucent_colours
 from ..shading.optics import fresnel_dielectric, reflect, refract
+from ..shading.pixel_texture import Footprint, filtered_albedo, footprint_albedo
 from ..shading.sheen import Fabric
 from ..shading.specular_layer import (
     coat_attenuation,
@@ -83,14 +84,7 @@ from . import differentials as rd
 from .emitters import FINE_SPLIT, REFINE_REACH, emitter_reach, lamp_hull, scene_emitters
 from .settings import TraceResult, TracerSettings, TraceStats, auto_settings
 from .shadow_shafts import ClearShafts
-from .surface import (
-    MIN_NORMAL_LENGTH,
-    Footprint,
-    SurfaceHits,
-    filtered_albedo,
-    footprint_albedo,
-    surface_at,
-)
+from .surface import MIN_NORMAL_LENGTH, SurfaceHits, surface_at
 from .world_lobes import WorldLobes
 
 # Emitter samples handled together in area lighting: B x hits arrays stay a few MB per block for

@@ -343,6 +343,22 @@ def test_final_gather_shades_with_the_bump_map():
     np.testing.assert_allclose(results[0.0], rho / np.pi * sun_e, rtol=1e-5)
 
 
+def test_the_view_shows_a_checker_finer_than_its_pixels_as_the_mean_colour():
+    """A sunlit floor whose checker squares are half a pixel (ortho pixels of 1/12 m, squares of
+    1/24 m): every pixel centre's gathered light times the pixel's mean base colour, the two
+    colours' mean (Cycles' box filter), where the centre alone sees one or the other."""
+    checker = Texture(kind="CHECKER", color1=np.array([0.7, 0.6, 0.5], np.float32),
+                      color2=np.array([0.1, 0.2, 0.05], np.float32), scale=24.0)
+    floor = Material(name="checker", base_color=np.full(3, 0.5, np.float32), specular=0.0,
+                     base_color_texture=checker)
+    cam = ortho_camera([0.5, 0.5, 2.0], [0, 0, -1], [0, 1, 0], 0.5, (6, 6))
+    scene = build([(floor_quad(), floor)], camera=cam, lights=[sun_down(2.0)])
+    image = _rendered(scene, solve_radiosity(scene, RadiositySettings(patch_budget=4, **FAST)))
+    mean = (np.array([0.7, 0.6, 0.5]) + np.array([0.1, 0.2, 0.05])) / 2
+    np.testing.assert_allclose(image, np.broadcast_to(mean / np.pi * 2.0, image.shape),
+                               rtol=1e-5)
+
+
 def test_lit_room_seen_from_outside_is_black():
     """An inward box with an emissive square under its ceiling, the camera outside: every
     fragment is a wall's back, which no light reaches (the lit inside shows nowhere)."""

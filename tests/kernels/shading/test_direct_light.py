@@ -14,7 +14,7 @@ from classic_bake.kernels.bake.bake_targets import (
     dilate,
     lightmap_targets,
 )
-from classic_bake.kernels.geometry.scene import Light, Material
+from classic_bake.kernels.geometry.scene import Light, Material, Texture
 from classic_bake.kernels.progress import drain
 from classic_bake.kernels.shading import direct_light as dl
 from classic_bake.kernels.shadow.shadowmap import Receivers
@@ -93,6 +93,22 @@ def test_unoccluded_sun_render_is_exact():
     image = drain(dl.render_steps(scene, dl.DirectLightSettings()))
     cos = -d[2] / np.linalg.norm(d)
     np.testing.assert_allclose(image, 0.8 / np.pi * 3.0 * cos, rtol=1e-5)
+
+
+def test_the_view_shows_a_checker_finer_than_its_pixels_as_the_mean_colour():
+    """Ortho pixels of 3/16 m over checker squares of 3/32 m: every pixel holds 2 x 2 squares,
+    so its box-filtered base colour is the two colours' mean exactly (Cycles' pixel filter),
+    where the pixel centre alone sees one or the other."""
+    tex = Texture(kind="CHECKER", color1=np.array([0.8, 0.1, 0.1], np.float32),
+                  color2=np.array([0.1, 0.7, 0.2], np.float32), scale=32.0 / 3.0)
+    mat = Material(name="checker", base_color=np.ones(3, np.float32), specular=0.0,
+                   base_color_texture=tex)
+    floor = quad([(-50, -50, 0), (50, -50, 0), (50, 50, 0), (-50, 50, 0)])
+    cam = ortho_camera((0, 0, 5), (0, 0, -1), (0, 1, 0), 3.0, (16, 16))
+    scene = build([(floor, mat)], cam, [sun((0, 0, -1), 3.0)])
+    image = drain(dl.render_steps(scene, dl.DirectLightSettings()))
+    mean = (np.array([0.8, 0.1, 0.1]) + np.array([0.1, 0.7, 0.2])) / 2
+    np.testing.assert_allclose(image, np.broadcast_to(mean * 3.0 / np.pi, image.shape), rtol=1e-5)
 
 
 def test_the_view_shows_only_diffuse_reflection():

@@ -11,9 +11,10 @@ from classic_bake.kernels.geometry.camera import pixel_rays
 from classic_bake.kernels.geometry.scene import Light, Material, Texture
 from classic_bake.kernels.measure.metrics import rel_mse
 from classic_bake.kernels.shading.optics import reflect, refract
+from classic_bake.kernels.shading.pixel_texture import Footprint
 from classic_bake.kernels.trace import differentials as rd
 from classic_bake.kernels.trace.settings import TracerSettings
-from classic_bake.kernels.trace.surface import Footprint, surface_at
+from classic_bake.kernels.trace.surface import surface_at
 from classic_bake.kernels.trace.tracer import Tracer, trace
 
 CENTRE = np.array([0.0, 0.0, 1.0])
