@@ -48,6 +48,9 @@ FIT_PULL = 1e-3
 FIT_TOLERANCE = 1e-6
 # Conjugate-gradient iterations at most (a mesh of a few thousand patches needs ~50-100).
 FIT_MAX_ITERATIONS = 500
+# How far past the values of the patches around it (times their spread) a fitted corner may go:
+# a linear ramp's corner at a border lies half a patch's step past its last patch.
+FIT_OVERSHOOT = 0.5
 # Patch weight floor (relative to the mean area): a patch given weight 0 (enclosed) still has its
 # corners pulled, so no group of the normal equations is empty.
 FIT_MIN_WEIGHT = 1e-9
@@ -355,6 +358,24 @@ def _agreeing_corners(patches: Patches, smooth_angle: float, scale: float | None
     return a[agree], b[agree]
 
 
+def smallest_neighbours(patches: Patches, scale: float | None = None) -> np.ndarray:
+    """(N,) m^2: the smallest area among the patches of its object that share a corner
+    position with each patch (itself included; welded as `_agreeing_corners` welds them)."""
+    count = len(patches)
+    if count == 0:
+        return np.zeros(0)
+    flat = patches.corners.reshape(-1, 3)
+    if scale is None:
+        scale = float(np.linalg.norm(flat.max(axis=0) - flat.min(axis=0)))
+    keys = np.round(flat / max(WELD_REL * scale, 1e-300)).astype(np.int64)
+    obj = np.repeat(patches.object_ids, 3).astype(np.int64)
+    _, vertex = np.unique(np.column_stack([keys, obj]), axis=0, return_inverse=True)
+    vertex = vertex.ravel()
+    least = np.full(int(vertex.max()) + 1, np.inf)
+    np.minimum.at(least, vertex, np.repeat(patches.areas, 3))
+    return least[vertex].reshape(count, 3).min(axis=1)
+
+
 def corner_values(patches: Patches, values: np.ndarray, smooth_angle: float,
                   scale: float | None = None) -> np.ndarray:
     """Smooth per-corner values (N, 3, C) from per-patch values (N, C): nodal averaging.
@@ -462,7 +483,31 @@ def fitted_corner_values(patches: Patches, values: np.ndarray, smooth_angle: flo
         rz_next = np.einsum("gc,gc->c", r, z)
         d = z + (rz_next / np.maximum(rz, 1e-300)) * d
         rz = rz_next
-    return np.maximum(v[group], 0.0).reshape(count, 3, channels)
+    lo, hi = _neighbourhood_bounds(group, groups, values)
+    return np.clip(v, np.maximum(lo, 0.0), hi)[group].reshape(count, 3, channels)
+
+
+def _neighbourhood_bounds(group: np.ndarray, groups: int, values: np.ndarray
+                          ) -> tuple[np.ndarray, np.ndarray]:
+    """(G, C) each: the range a fitted corner value may take, the values (N, C) of the patches
+    around it (the patches sharing a corner with a patch at it) widened by FIT_OVERSHOOT times
+    their spread. The fit's means alone let small patches between larger ones swing their
+    corners far past every value near them (an imported gift box's bow: corners 3x any patch
+    around)."""
+    count, channels = values.shape
+    patch = np.repeat(np.arange(count), 3)
+
+    def around(per_patch: np.ndarray, reduce) -> np.ndarray:  # (N, C) -> (G, C) over the corners
+        out = np.full((groups, channels), np.inf if reduce is np.minimum else -np.inf)
+        reduce.at(out, group, per_patch[patch])
+        return out
+
+    near_lo, near_hi = around(values, np.minimum), around(values, np.maximum)  # the 1-ring
+    patch_lo = near_lo[group].reshape(count, 3, channels).min(axis=1)
+    patch_hi = near_hi[group].reshape(count, 3, channels).max(axis=1)
+    lo, hi = around(patch_lo, np.minimum), around(patch_hi, np.maximum)  # the 2-ring
+    spread = hi - lo
+    return lo - FIT_OVERSHOOT * spread, hi + FIT_OVERSHOOT * spread
 
 
 def interpolate(corner: np.ndarray, patch: np.ndarray, local: np.ndarray,

@@ -597,3 +597,55 @@ def test_a_sheet_modelled_double_sided_encloses_nothing():
     points = np.array([[0.0, 0.0, 0.0], [0.3, -0.2, 0.0], [1.5, 1.5, 0.0]])
     normals = np.tile([0.0, 0.0, 1.0], (3, 1))
     assert not fg.enclosed(points, normals, bvh.intersect, normals_t, offset, coincident).any()
+
+
+def test_receivers_on_an_uneven_patch_gather_their_indirect_light_by_rays(monkeypatch):
+    """A 2 x 2 m floor on two patches, a wall of small triangles standing on its x = 1 edge (one
+    object, reflectance 0.9), a low sun on the wall: the floor's indirect light runs from the
+    wall's foot to a few percent of that at x = -1, which two patches, their corners pulled by
+    the wall's small ones, can only hold as their fitted means. Elements whose corners differ by
+    more than their mean on patches far larger than their neighbours (`FinalGather.uneven`)
+    gather by rays: along
+    the far edge the gathered indirect light is the solution's own (512 rays about each of 17
+    receivers; 64 each, within 15% on their mean), where the patches' fit gives it 2.9 times."""
+    from classic_bake.kernels.geometry.scene import Light
+
+    # the wall in 8 x 4 quads of 0.25 m, facing -x
+    wall = np.concatenate([quad([[1.0, y, z + 0.25], [1.0, y + 0.25, z + 0.25],
+                                 [1.0, y + 0.25, z], [1.0, y, z]])
+                           for y in np.arange(-1.0, 1.0, 0.25) for z in np.arange(0.0, 1.0, 0.25)])
+    sun_dir = np.array([1.0, 0.0, -0.35]) / np.linalg.norm([1.0, 0.0, -0.35])
+    sun = Light(name="Sun", kind="SUN", position=np.zeros(3), direction=sun_dir,
+                axis_x=np.array([0.0, 1.0, 0.0]), axis_y=np.array([0.0, 0.0, 1.0]),
+                irradiance=np.full(3, 3.0))
+    floor = square(0.0, 1.0, up=True)
+    scene = build([(np.concatenate([floor, wall]), grey(0.9))], lights=[sun])  # one object
+    settings = RadiositySettings(patch_size=4.0, refine_levels=0, shadow_splits=0, near_splits=0,
+                                 element_pairs=0, solver="gauss_seidel")
+    assert len(solve_radiosity(scene, settings).patches) == 2 + 64
+    result = solve_radiosity(scene, settings)
+    floor = range(2)  # the floor's triangles, first
+    targets = np.column_stack([np.full(17, -0.9), np.linspace(-0.8, 0.8, 17), np.zeros(17)])
+    tri, bary = np.zeros(17, np.int64), np.zeros((17, 3))
+    for t in floor:  # each target's floor triangle and barycentrics
+        c = scene.triangles[t].astype(np.float64)
+        m = np.column_stack([c[1] - c[0], c[2] - c[0]])[:2]
+        uv = np.linalg.solve(m, (targets[:, :2] - c[0, :2]).T).T
+        inside = (uv.min(axis=1) >= 0.0) & (uv.sum(axis=1) <= 1.0)
+        tri[inside] = t
+        bary[inside] = np.column_stack([1.0 - uv.sum(axis=1), uv])[inside]
+    direct = 3.0 * -sun_dir[2]  # the sun on the open floor
+
+    def gathered_indirect():
+        return (result.exitance_at(tri, bary)[:, 0] / 0.9 - direct).mean()
+
+    up = np.tile([0.0, 0.0, 1.0], (17, 1))
+    truth = fg.ray_gathered_irradiance(result.gather, targets, up, up, 512, result._reflected,
+                                       np.random.default_rng(3))[:, 0].mean()
+    assert 0.0 < truth < 0.1 * direct
+    assert gathered_indirect() == pytest.approx(truth, rel=0.15)
+    monkeypatch.setattr(fg, "UNEVEN_RATIO", np.inf)  # no element is uneven: the patches' fit
+    monkeypatch.setattr(fg, "STEEP_RATIO", np.inf)
+    del result.gather.__dict__["uneven"]  # the cached flags, worked out again
+    assert not result.gather.uneven.any()
+    assert gathered_indirect() > 2.0 * truth

@@ -5,6 +5,7 @@ fields."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from scene_builder import build, quad, uv_sphere
 
 from classic_bake.kernels.geometry.scene import Material
@@ -122,3 +123,24 @@ def test_smooth_surfaces_share_corners_across_their_facets():
     assert np.abs(spread - low).max() < 1e-9
     # ...and follows the height (to within the facets' sagitta at 12 rings).
     assert np.abs(fitted[..., 0] - (patches.corners[..., 2] + 2.0)).max() < 0.05
+
+
+def test_a_slivers_free_corner_stays_near_the_values_around_it(monkeypatch):
+    """A sliver (mean 10) on the long edge of a large triangle (mean 1): the means alone would
+    put the sliver's free corner at 28, so that its corners average 10 with the two it shares
+    with the large triangle held near 1 (27.7), and carry that into every patch at that
+    corner. The fit keeps each corner within the values of the patches around it, widened by
+    half their spread (FIT_OVERSHOOT): 14.5 here, the large triangle keeping its mean."""
+    large = np.array([[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]])
+    sliver = np.array([[[1.0, 0.0, 0.0], [0.505, 0.505, 0.0], [0.0, 1.0, 0.0]]])
+    scene = build([(np.concatenate([large, sliver]), grey())])
+    patches = patching.make_patches(scene, 10.0)
+    assert len(patches) == 2
+    values = np.array([[1.0], [10.0]])
+    fitted = patching.fitted_corner_values(patches, values, SMOOTH)[..., 0]
+    free = np.argmin(np.abs(patches.corners[1, :, 0] - 0.505))  # the sliver's own corner
+    assert fitted[1, free] == pytest.approx(10.0 + patching.FIT_OVERSHOOT * 9.0)
+    assert fitted[0].mean() == pytest.approx(1.0, abs=1e-3)  # the large triangle keeps its mean
+    monkeypatch.setattr(patching, "FIT_OVERSHOOT", np.inf)
+    unbounded = patching.fitted_corner_values(patches, values, SMOOTH)[..., 0]
+    assert unbounded[1, free] > 27.0
