@@ -10,6 +10,12 @@ from __future__ import annotations
 import numpy as np
 
 from .scene import Camera
+from .vec import row_dot
+
+# A ray this close to edge-on with the plane it meets (|cos|) takes its hit's move across the
+# pixel as zero (`plane_transfer`), and a cell's sample ray keeps its centre's texture
+# coordinates (`pixel_texture`): along the plane the move runs off towards infinity.
+GRAZING_COS = 1e-4
 
 # Rays that are sub-samples of pixels: (stratum of each ray (N,) int, number of strata m). A
 # pixel's m sub-samples may share out a light's samples among them (`Tracer._area_direct`,
@@ -164,3 +170,33 @@ def camera_ray_lines(camera: Camera, width: int, height: int, x: np.ndarray, y: 
         return o, d, step_x, step_y, zero, zero
     d = px[:, None] * rot[:, 0] + py[:, None] * rot[:, 1] - rot[:, 2]
     return np.broadcast_to(eye, d.shape), d, zero, zero, step_x, step_y
+
+
+def camera_hit_derivatives(camera: Camera, width: int, height: int, x: np.ndarray,
+                           y: np.ndarray, dirs: np.ndarray, p: np.ndarray, n: np.ndarray
+                           ) -> tuple[np.ndarray, np.ndarray]:
+    """Ray differentials (Igehy, "Tracing Ray Differentials", 1999) of camera rays through
+    image points (x, y) (M,) pixels of a width x height image, with unit directions dirs (M, 3),
+    hitting planes of normal n (M, 3) at p (M, 3): the hit's derivatives (2, M, 3) m/pixel and
+    the direction's (2, M, 3) /pixel, [0] along x, [1] along y."""
+    o, d, o_x, o_y, d_x, d_y = camera_ray_lines(camera, width, height, x, y)
+    length = np.sqrt(row_dot(d, d))[:, None]
+    s = row_dot(p - o, d)[:, None] / (length * length)  # p = o + s d
+    do = np.stack(np.broadcast_arrays(o_x, o_y))[:, None, :]  # (2, 1, 3): the lines' shift
+    dd = np.stack(np.broadcast_arrays(d_x, d_y))[:, None, :]
+    unit_dd = (dd - dirs * row_dot(dirs, dd)[..., None]) / length  # d / |d| differentiated
+    return plane_transfer(do + s * dd, np.zeros_like(unit_dd), dirs, np.zeros(len(p)), n), unit_dd
+
+
+def plane_transfer(dp: np.ndarray, dd: np.ndarray, dirs: np.ndarray, t: np.ndarray,
+                   n: np.ndarray) -> np.ndarray:
+    """Hit derivatives (2, N, 3) of rays leaving points with derivatives dp along unit dirs (N, 3)
+    (direction derivatives dd) to hits at distance t (N,) on planes of normal n (N, 3):
+    dp' = dp + t dd + dt dirs, dt chosen to keep the hit in the plane; 0 edge-on (GRAZING_COS)."""
+    q = dp + t[:, None] * dd
+    cos = row_dot(dirs, n)
+    ok = np.abs(cos) > GRAZING_COS * np.sqrt(row_dot(n, n))
+    dt = -row_dot(q, n) / np.where(ok, cos, 1.0)
+    q += dt[..., None] * dirs
+    q[:, ~ok] = 0.0
+    return q

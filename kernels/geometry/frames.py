@@ -23,3 +23,16 @@ def tangent_frames(normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     t1 = np.stack([1.0 + sign * x * x * a, sign * b, -sign * x], axis=1)
     t2 = np.stack([b, sign + y * y * a, -y], axis=1)
     return t1, t2
+
+
+def barycentric_gradients(triangles: np.ndarray) -> np.ndarray:
+    """(N, 2, 3) float64: the gradients of the barycentrics b1, b2 (the weights of corners 1
+    and 2) of triangles (N, 3, 3) in their planes, so that a point's move dp in the plane moves
+    b1 by grad[:, 0] . dp. A degenerate triangle gets a finite gradient (no ray hits it)."""
+    v = np.asarray(triangles, np.float64)
+    e1, e2 = v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]
+    d11, d12, d22 = (np.einsum("ij,ij->i", a, b) for a, b in ((e1, e1), (e1, e2), (e2, e2)))
+    det = d11 * d22 - d12 * d12
+    det = np.where(det > 0.0, det, 1.0)[:, None]
+    return np.stack([(d22[:, None] * e1 - d12[:, None] * e2) / det,
+                     (d11[:, None] * e2 - d12[:, None] * e1) / det], axis=1)

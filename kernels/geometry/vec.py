@@ -57,6 +57,12 @@ def row_norms(v: np.ndarray) -> np.ndarray:
     return np.sqrt(np.einsum("ij,ij->i", v, v))
 
 
+def row_dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row dot products over the last axis: (..., 3) x (..., 3) -> (...), by component (twice as
+    fast as einsum on (2, N, 3) x (N, 3))."""
+    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
+
+
 def cross3(a, b) -> np.ndarray:
     """(3,) float64 cross product of two 3-vectors. np.cross pays ~25 us per call for its axis
     handling, which a cube map's six view matrices paid every light; this costs ~1 us."""

@@ -25,8 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..geometry.camera import Camera, camera_ray_lines
-from .pixel_texture import GRAZING_COS
+from ..geometry.camera import Camera, camera_hit_derivatives, camera_ray_lines
+from ..geometry.frames import barycentric_gradients
 
 # alpha^2 a pixel's normals add per squared unit of normal change across it: 1/12 (the variance
 # of a uniform position in [-1/2, 1/2]) for the two axes' variance together, which is twice the
@@ -245,30 +245,19 @@ def triangle_patches(camera: Camera, shape: tuple[int, int], rows: np.ndarray,
     `shape` (H, W) at barycentrics bary (N, 3) of triangles of (N, 3, 3) world corners and
     (N, 3, 3) corner normals, turned by side (N,) +-1 to the side the eye sees; the
     barycentrics' change per pixel along x and y. The camera ray's hit on the triangle's plane
-    moves by dp (Igehy's ray differentials, as the tracer's), the barycentrics by their in-plane
-    gradients . dp. Edge-on, the hit's move is bounded by GRAZING_COS (`pixel_texture`), and
-    the spread it gives by `widened_roughness`'s cap."""
+    moves by dp (`camera_hit_derivatives`, the tracer's ray differentials; 0 edge-on), the
+    barycentrics by their in-plane gradients . dp."""
     height, width = shape
-    o, d, o_x, o_y, d_x, d_y = camera_ray_lines(camera, width, height, cols + 0.5, rows + 0.5)
-    v = corners.astype(np.float64)
-    e1, e2 = v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]
-    normal = np.cross(e1, e2)
+    v = np.asarray(corners, np.float64)
     p = np.einsum("nk,nkc->nc", bary, v)
-    s = np.einsum("ij,ij->i", p - o, d) / np.einsum("ij,ij->i", d, d)  # p = o + s d
-    cos = np.einsum("ij,ij->i", d, normal)
-    floor = GRAZING_COS * np.linalg.norm(d, axis=1) * np.linalg.norm(normal, axis=1)
-    cos = np.where(cos < 0.0, -1.0, 1.0) * np.maximum(np.abs(cos), np.maximum(floor, 1e-300))
-    d11, d12, d22 = (np.einsum("ij,ij->i", a, b) for a, b in ((e1, e1), (e1, e2), (e2, e2)))
-    det = d11 * d22 - d12 * d12
-    det = np.where(det > 0.0, det, 1.0)[:, None]  # a degenerate triangle is never seen
-    grad1 = (d22[:, None] * e1 - d12[:, None] * e2) / det
-    grad2 = (d11[:, None] * e2 - d12[:, None] * e1) / det
-    moves = []
-    for do, dd in ((o_x, d_x), (o_y, d_y)):
-        q = do + s[:, None] * dd  # the line's move at p; then back into the plane along d
-        dp = q - (np.einsum("ij,ij->i", q, normal) / cos)[:, None] * d
-        b1, b2 = np.einsum("ij,ij->i", dp, grad1), np.einsum("ij,ij->i", dp, grad2)
-        moves.append(np.stack([-b1 - b2, b1, b2], axis=1))
+    normal = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
+    x, y = cols + 0.5, rows + 0.5
+    o, d, *_ = camera_ray_lines(camera, width, height, x, y)
+    dirs = d / np.linalg.norm(d, axis=1, keepdims=True)
+    dp, _ = camera_hit_derivatives(camera, width, height, x, y, dirs, p, normal)
+    grad = barycentric_gradients(v)  # (N, 2, 3)
+    b1, b2 = (np.einsum("kij,ij->ki", dp, grad[:, c]) for c in (0, 1))  # (2, N) each
+    moves = np.stack([-b1 - b2, b1, b2], axis=-1)  # (2, N, 3): along x, along y
     turned = corner_normals.astype(np.float64) * np.asarray(side, np.float64)[:, None, None]
     return TrianglePatch(np.asarray(bary, np.float64), moves[0], moves[1], turned)
 

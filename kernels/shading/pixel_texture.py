@@ -13,14 +13,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..geometry.camera import Camera, camera_ray_lines
+from ..geometry.camera import GRAZING_COS, Camera, camera_ray_lines
 from ..geometry.scene import Scene
 from .material_maps import albedo_at
 from .textures import sample_texture_box
 
-# A cell's sample ray this close to edge-on with the hit triangle's plane (|cos|) keeps the centre's
-# UV: extrapolating along the plane would run off towards infinity.
-GRAZING_COS = 1e-4
 # Hits filtered at a time: the (corners, hits) float64 temporaries of a 3 x 3 grid stay ~1 MB, in
 # cache. A 640 x 480 view filtered in one go (300k hits, 38 MB temporaries) ran 30% slower.
 FILTER_CHUNK = 8192

@@ -38,7 +38,14 @@ import numpy as np
 from ..bake.camera_view import edge_pixels, stratified_offsets
 from ..geometry.alpha_occlusion import Layers, layered_hits, transmittance
 from ..geometry.bvh import BVH
-from ..geometry.camera import Strata, camera_rays, camera_reach, pixel_rays, strata_rows
+from ..geometry.camera import (
+    Strata,
+    camera_rays,
+    camera_reach,
+    pixel_rays,
+    plane_transfer,
+    strata_rows,
+)
 from ..geometry.frames import tangent_frames
 from ..geometry.intersect import Hits
 from ..geometry.scene import Scene, geometric_normals
@@ -1112,7 +1119,7 @@ class Tracer:
                 primary_ids[pixel[at]] = self.hit_ids(hits.tri[at], m[at])
             if follow and depth > 0:  # the hit's derivatives, carried from the ray's origin
                 with self.clock("differentials"):
-                    dp = rd.transfer(dp, dd, dirs, hits.t.astype(np.float64), h.ng)
+                    dp = plane_transfer(dp, dd, dirs, hits.t.astype(np.float64), h.ng)
             if footprint is not None:
                 textured = self.textured[m]
                 if textured.any():

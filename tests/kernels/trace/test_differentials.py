@@ -7,7 +7,7 @@ import pytest
 from scene_builder import build, ortho_camera, persp_camera, quad, uv_sphere
 
 from classic_bake.kernels.geometry.bvh import BVH
-from classic_bake.kernels.geometry.camera import pixel_rays
+from classic_bake.kernels.geometry.camera import pixel_rays, plane_transfer
 from classic_bake.kernels.geometry.scene import Light, Material, Texture
 from classic_bake.kernels.measure.metrics import rel_mse
 from classic_bake.kernels.shading.optics import reflect, refract
@@ -57,7 +57,7 @@ def follow(scene, bvh, x, y, bounces, glass):
         if depth == 0:
             dp, dd = rd.camera_derivatives(fp, np.arange(len(x)), d, h.p, h.ng)
         else:
-            dp = rd.transfer(dp, dd, d, hits.t.astype(np.float64), h.ng)
+            dp = plane_transfer(dp, dd, d, hits.t.astype(np.float64), h.ng)
         points.append(h.p)
         derivatives.append(dp)
         if depth == bounces:
