@@ -671,11 +671,11 @@ def _irradiance(gather: FinalGather, t: np.ndarray, b: np.ndarray, known: Visibi
     indirect = patching.interpolate(gather.corner_indirect, element[outside], local[outside])
     smoothed = normals if smooth is None else smooth
     if gather.settings.tilt_rays and reflected is not None:
-        lean = np.flatnonzero((np.einsum("ij,ij->i", smoothed[outside], geometric[outside])
-                               < TILT_COS) | gather.uneven[np.maximum(element[outside], 0)])
-        if lean.size:
-            rows = outside[lean]
-            indirect[lean] = ray_gathered_irradiance(gather, points[rows], geometric[rows],
+        by_rays = np.flatnonzero((np.einsum("ij,ij->i", smoothed[outside], geometric[outside])
+                                  < TILT_COS) | gather.uneven[np.maximum(element[outside], 0)])
+        if by_rays.size:
+            rows = outside[by_rays]
+            indirect[by_rays] = ray_gathered_irradiance(gather, points[rows], geometric[rows],
                                                      smoothed[rows], gather.settings.tilt_rays,
                                                      reflected, rng)
     if smooth is not None:  # gathered about the smooth normals: a relief's tilt takes less

@@ -333,15 +333,7 @@ def _agreeing_corners(patches: Patches, smooth_angle: float, scale: float | None
     """(a, b) corner indices (patch * 3 + k) of every ordered pair of corners, itself included,
     at one welded position of one object whose patches' normals are within `smooth_angle`
     (radians). `scale` m sets the welding grid (default: the patches' bounding-box diagonal)."""
-    count = len(patches)
-    flat = patches.corners.reshape(-1, 3)
-    if scale is None:
-        scale = float(np.linalg.norm(flat.max(axis=0) - flat.min(axis=0))) if count else 1.0
-    quantum = max(WELD_REL * scale, 1e-300)
-    keys = np.round(flat / quantum).astype(np.int64)
-    obj = np.repeat(patches.object_ids, 3).astype(np.int64)
-    _, vertex = np.unique(np.column_stack([keys, obj]), axis=0, return_inverse=True)
-    vertex = vertex.ravel()
+    vertex = _welded_vertices(patches, scale)
     order = np.argsort(vertex, kind="stable")
     sorted_v = vertex[order]
     starts = np.flatnonzero(np.concatenate([[True], sorted_v[1:] != sorted_v[:-1]]))
@@ -358,19 +350,26 @@ def _agreeing_corners(patches: Patches, smooth_angle: float, scale: float | None
     return a[agree], b[agree]
 
 
-def smallest_neighbours(patches: Patches, scale: float | None = None) -> np.ndarray:
-    """(N,) m^2: the smallest area among the patches of its object that share a corner
-    position with each patch (itself included; welded as `_agreeing_corners` welds them)."""
-    count = len(patches)
-    if count == 0:
-        return np.zeros(0)
+def _welded_vertices(patches: Patches, scale: float | None) -> np.ndarray:
+    """(3 N,) int64 the welded vertex of every corner (patch * 3 + k): corners of one object on
+    one point of a grid of WELD_REL x `scale` m (default scale: the patches' bounding-box
+    diagonal) share one."""
     flat = patches.corners.reshape(-1, 3)
     if scale is None:
-        scale = float(np.linalg.norm(flat.max(axis=0) - flat.min(axis=0)))
+        scale = float(np.linalg.norm(flat.max(axis=0) - flat.min(axis=0))) if len(patches) else 1.0
     keys = np.round(flat / max(WELD_REL * scale, 1e-300)).astype(np.int64)
     obj = np.repeat(patches.object_ids, 3).astype(np.int64)
     _, vertex = np.unique(np.column_stack([keys, obj]), axis=0, return_inverse=True)
-    vertex = vertex.ravel()
+    return vertex.ravel()
+
+
+def smallest_neighbours(patches: Patches, scale: float | None = None) -> np.ndarray:
+    """(N,) m^2: the smallest area among the patches of its object that share a corner
+    position with each patch (itself included; `_welded_vertices`)."""
+    count = len(patches)
+    if count == 0:
+        return np.zeros(0)
+    vertex = _welded_vertices(patches, scale)
     least = np.full(int(vertex.max()) + 1, np.inf)
     np.minimum.at(least, vertex, np.repeat(patches.areas, 3))
     return least[vertex].reshape(count, 3).min(axis=1)

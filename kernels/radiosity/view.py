@@ -18,7 +18,7 @@ from ..progress import Steps
 from ..shading import lights as light_units
 from ..shading.alpha import ray_coverage
 from ..shading.bump import relief_at, scene_normals, valid_reflection
-from ..shading.highlight_spread import NormalFootprint, normal_derivatives, triangle_patches
+from ..shading.highlight_spread import NormalFootprint, fragment_patches, normal_derivatives
 from ..shading.material_maps import albedo_at, emission_detail, hit_materials, metal_f0
 from ..shading.pixel_texture import cell_albedo
 from ..shading.reflected_emitters import ray_offset, reflected_emitters
@@ -84,8 +84,7 @@ def render_steps(scene: Scene, result: RadiosityResult, resolution=None,
             footprint = None if slopes is None else NormalFootprint.of_pixels(
                 slopes, f.rows[front], f.cols[front], f.cell,
                 None if f.to_cell is None else f.to_cell[front],
-                triangle_patches(scene.camera, slopes.smooth.shape, f.rows[front], f.cols[front],
-                                scene.triangles[t], scene.normals[t], b, np.ones(len(t))))
+                fragment_patches(scene, f, slopes.smooth.shape, front))
             values[front] += _lamp_highlights(lit, result, t, b, mids, f.points[front],
                                               f.dirs[front], frame, footprint)
             values[front] += reflected_emitters(lit, t, b, mids, f.points[front], f.dirs[front],

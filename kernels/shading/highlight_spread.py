@@ -262,11 +262,12 @@ def triangle_patches(camera: Camera, shape: tuple[int, int], rows: np.ndarray,
     return TrianglePatch(np.asarray(bary, np.float64), moves[0], moves[1], turned)
 
 
-def fragment_patches(scene, f, shape: tuple[int, int]) -> TrianglePatch:
+def fragment_patches(scene, f, shape: tuple[int, int], at=slice(None)) -> TrianglePatch:
     """`triangle_patches` of the scene's camera at fragments f (`camera_view.Fragments`: tri,
-    bary, rows, cols, back) of an image of `shape` (H, W)."""
-    return triangle_patches(scene.camera, shape, f.rows, f.cols, scene.triangles[f.tri],
-                            scene.normals[f.tri], f.bary, np.where(f.back, -1.0, 1.0))
+    bary, rows, cols, back) of an image of `shape` (H, W), those `at` (an index or mask)."""
+    tri = f.tri[at]
+    return triangle_patches(scene.camera, shape, f.rows[at], f.cols[at], scene.triangles[tri],
+                            scene.normals[tri], f.bary[at], np.where(f.back[at], -1.0, 1.0))
 
 
 def _sq(v: np.ndarray) -> np.ndarray:
