@@ -36,6 +36,13 @@ PIXEL_SLOPE_VARIANCE = 1.0 / 12.0
 # map's seam differs from its neighbours by far more than its own normals spread, and would
 # otherwise lose its highlight altogether.
 SPREAD_CAP = 0.18
+# alpha^2 a lamp sample adds per squared radian of its angular radius (`sample_roughness`): its
+# disc moves the half vector within half that radius, a per-axis variance of (radius / 2)^2 / 4,
+# and alpha^2 is twice it, as above. Against the dense integral of a 1 m lamp 2 m over a glossy
+# floor (48 x 48 points, no widening), 4 x 4 samples' relMSE along a line through the highlight
+# at roughness 0.1 / 0.2 / 0.3: 0.68 / 0.011 / 9e-5 as points, 0.26 / 0.0095 / 3.3e-5 widened by
+# 1/8; 1/2 does better at 0.1 and worse from 0.2 on.
+SAMPLE_SPREAD_SHARE = 1.0 / 8.0
 # Lobes whose alpha^2 is under SUB_SPREAD_RATIO times the alpha^2 the footprint adds are
 # evaluated at m x m normals across it, m the least that leaves each sub-cell's added alpha^2
 # under 1 / SUB_SPREAD_RATIO of the lobe's, at least SUB_SIDE and at most MAX_SUB_SIDE. A 9 x 9
@@ -281,7 +288,26 @@ def widened_roughness(roughness: np.ndarray, spread: np.ndarray | None) -> np.nd
     SPREAD_CAP). roughness itself without one."""
     if spread is None:
         return roughness
-    added = np.minimum(np.asarray(spread, np.float64) * PIXEL_SLOPE_VARIANCE, SPREAD_CAP)
+    return _widened(roughness, np.minimum(np.asarray(spread, np.float64) * PIXEL_SLOPE_VARIANCE,
+                                          SPREAD_CAP))
+
+
+def sample_roughness(roughness: np.ndarray, spread: np.ndarray | None) -> np.ndarray:
+    """(N,) Blender roughness of lobes of `roughness` (N,) lit by lamp samples of angular radius
+    `spread` (N,) rad seen from the surface (`emitters.sample_spread`); roughness itself
+    without one.
+
+    An area lamp is n x n points, each standing for its cell: a lobe much narrower than the
+    cells drew every point's own highlight, a grid of spots where Cycles reflects the whole
+    lamp. Each point's lobe convolved with its disc, alpha'^2 = alpha^2 + SAMPLE_SPREAD_SHARE
+    spread^2, joins them into the lamp's reflection."""
+    if spread is None:
+        return roughness
+    return _widened(roughness, SAMPLE_SPREAD_SHARE * np.square(np.asarray(spread, np.float64)))
+
+
+def _widened(roughness: np.ndarray, added: np.ndarray) -> np.ndarray:
+    """(N,) Blender roughness whose alpha^2 (roughness^4) is `added` (N,) more."""
     return (np.asarray(roughness, np.float64) ** 4 + added) ** 0.25
 
 

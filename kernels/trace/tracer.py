@@ -64,6 +64,7 @@ from ..shading.glossy_lobe import (
     lobe_rays,
     lobe_refractions,
 )
+from ..shading.highlight_spread import sample_roughness
 from ..shading.material_maps import emission_at, material_values, translucent_colours
 from ..shading.optics import fresnel_dielectric, reflect, refract
 from ..shading.pixel_texture import Footprint, filtered_albedo, footprint_albedo
@@ -88,7 +89,14 @@ from ..shading.world_light import (
     world_seen_by,
 )
 from . import differentials as rd
-from .emitters import FINE_SPLIT, REFINE_REACH, emitter_reach, lamp_hull, scene_emitters
+from .emitters import (
+    FINE_SPLIT,
+    REFINE_REACH,
+    emitter_reach,
+    lamp_hull,
+    sample_spread,
+    scene_emitters,
+)
 from .settings import TraceResult, TracerSettings, TraceStats, auto_settings
 from .shadow_shafts import ClearShafts
 from .surface import MIN_NORMAL_LENGTH, SurfaceHits, surface_at
@@ -629,10 +637,12 @@ class Tracer:
         else:
             keep, scale = None, None
 
-        def light(n_idx, to_l, dist, g, radiance_da, emitter, lamp) -> None:
+        def light(n_idx, to_l, dist, g, radiance_da, emitter, lamp, spread=None) -> None:
             """Adds the light of emitter samples to hits n_idx (P,): the pairs' unit directions
             (P, 3) and distances (P,) to the sample, geometry terms g (P,), the samples'
-            radiance x area (P, 3), emitters (P,) and whether each is an area lamp (P,)."""
+            radiance x area (P, 3), emitters (P,) and whether each is an area lamp (P,);
+            spread (P,) rad: the samples' angular radii, which widen the lamps' highlights
+            (`highlight_spread.sample_roughness`)."""
             if self.reach.objects is not None and objects is not None:  # light linking
                 keep = np.flatnonzero(self.reach.objects[emitter, objects[n_idx]])
                 n_idx, to_l, dist, g, radiance_da, emitter, lamp = (
@@ -664,7 +674,8 @@ class Tracer:
                                       & (max_of_three(w[n_idx]) > 0.0))
                 if pick.size:
                     rows, l_dir = n_idx[pick], to_l[pick]
-                    brdf_cos = ggx_highlight(glossy[rows], l_dir, wo[rows], rough[rows], f0[rows])
+                    r = sample_roughness(rough[rows], None if spread is None else spread[pick])
+                    brdf_cos = ggx_highlight(glossy[rows], l_dir, wo[rows], r, f0[rows])
                     cos_r = np.maximum(np.einsum("ij,ij->i", ns[rows], l_dir), 1e-6)
                     _scatter_add(shine, rows, brdf_cos * weight[pick] * w[rows] / cos_r[:, None])
 
@@ -687,9 +698,11 @@ class Tracer:
                 refined.append((first + b_near, n_near))
             b_idx, n_idx = np.nonzero(g > 0)
             if len(n_idx):
-                light(n_idx, to_l[b_idx, n_idx], dist[b_idx, n_idx], g[b_idx, n_idx],
-                      em.area_radiance_da[block][b_idx], em.area_emitter[block][b_idx],
-                      ~em.area_two_sided[block][b_idx])
+                l_dir, reach = to_l[b_idx, n_idx], dist[b_idx, n_idx]
+                light(n_idx, l_dir, reach, g[b_idx, n_idx], em.area_radiance_da[block][b_idx],
+                      em.area_emitter[block][b_idx], ~em.area_two_sided[block][b_idx],
+                      sample_spread(l_dir, reach, em.area_normals[block][b_idx],
+                                    em.area_da[block][b_idx]))
         if refined:  # each sample's finer ones, FINE_SPLIT a pair, for the hits near it
             parent = np.repeat(np.concatenate([r[0] for r in refined]), FINE_SPLIT)
             n_idx = np.repeat(np.concatenate([r[1] for r in refined]), FINE_SPLIT)

@@ -16,7 +16,7 @@ from classic_bake.kernels.geometry.bvh import BVH
 from classic_bake.kernels.geometry.camera import camera_rays
 from classic_bake.kernels.geometry.scene import Light, Material, Texture
 from classic_bake.kernels.measure.metrics import rel_mse
-from classic_bake.kernels.shading.specular_layer import schlick_grazing_curve
+from classic_bake.kernels.shading.specular_layer import ggx_highlight, schlick_grazing_curve
 from classic_bake.kernels.trace import shadow_shafts
 from classic_bake.kernels.trace.emitters import point_light, scene_emitters
 from classic_bake.kernels.trace.settings import TracerSettings, auto_settings
@@ -641,3 +641,38 @@ def test_hot_pixels_are_isolated_peaks():
     faint = np.full((5, 5, 3), 0.01 * HOT_FLOOR)
     faint[2, 2] = 0.5 * HOT_FLOOR
     assert not hot_pixels(faint).any()
+
+
+def test_a_glossy_floors_highlight_of_an_area_lamp_is_the_lamps_not_its_samples():
+    """A 1 m lamp of radiance 5 hangs 2 m over a polished metal floor (roughness 0.12), seen at
+    37 degrees from the floor across its reflection. Its 4 x 4 samples, each its own point, drew
+    a grid of spots that a row of pixels crosses between and on: widened by their cells' spread
+    (`highlight_spread.sample_roughness`) they join into the lamp's reflection. Against the
+    dense integral of the lamp (64 x 64 points, GGX unwidened) along the row: relMSE 0.071
+    (0.21 with each sample a point), the row's light 84% of the integral's (60%); at 16 x 16
+    samples 1.7e-4."""
+    lamp, _, floor = _panel_over_chrome()
+    metal = Material(name="metal", base_color=np.full(3, 0.9, np.float32), metallic=1.0,
+                     roughness=0.12)
+    forward = np.array([0.6, 0.0, -0.8])
+    target = np.array([-1.5, 0.0, 0.0])  # the mirror ray from here rises to the lamp's centre
+    cam = ortho_camera(target - 3.0 * forward, forward, (0, 0, 1), 2.4, (96, 1))
+    scene = build([(floor, metal)], cam, [lamp])
+    # The dense integral at each pixel's floor point: sum over points of f cos_i L cos_e da / d^2.
+    o, d = (a.reshape(-1, 3) for a in camera_rays(cam, 96, 1))
+    p = o - d * (o[:, 2:] / d[:, 2:])
+    g = (np.arange(64) + 0.5) / 64 - 0.5
+    up = np.tile([0.0, 0.0, 1.0], (len(p), 1))
+    wo = np.tile(-forward, (len(p), 1))
+    dense = np.zeros(len(p))
+    for x, y in zip(*(a.ravel() for a in np.meshgrid(g, g)), strict=True):
+        delta = np.array([x, y, 2.0]) - p
+        dist = np.linalg.norm(delta, axis=1)
+        wi = delta / dist[:, None]
+        f_cos = ggx_highlight(up, wi, wo, np.full(len(p), 0.12), np.full((len(p), 3), 0.9))[:, 0]
+        dense += f_cos * 5.0 * wi[:, 2] / dist ** 2 / 64 ** 2
+    rows = {n: trace(scene, TracerSettings(max_depth=0, adaptive=0, area_samples=n)).image[0, :, 0]
+            for n in (4, 16)}
+    assert np.mean((rows[16] - dense) ** 2) / np.mean(dense ** 2) < 1e-3  # the integral is right
+    assert np.mean((rows[4] - dense) ** 2) / np.mean(dense ** 2) < 0.1
+    assert rows[4].sum() / dense.sum() > 0.8
