@@ -168,12 +168,12 @@ def _lamp_highlights(scene: Scene, result: RadiosityResult, tri: np.ndarray, bar
     for light in (light for light in scene.lights if light.lights_glossy):
         if light.kind == "AREA":  # its highlight spread over the emitter, point by point
             reach = light_units.receiving(light, objects)
-            for to_light, e in _area_lamp_points(light, points, normals,
-                                                 points + offset * geometric,
-                                                 light_query(occluded, light), samples):
+            for to_light, e, spread in _area_lamp_points(light, points, normals,
+                                                         points + offset * geometric,
+                                                         light_query(occluded, light), samples):
                 e = e if reach is None else e * reach[:, None]
                 out += lamp_highlights(scene.materials, mids, normals, -dirs, to_light, e, base,
-                               footprint)
+                                       footprint, spread)
             continue
         e, _ = shadowed_irradiance(light, points, normals, points + offset * geometric,
                                    occluded, samples, objects=objects)
@@ -186,10 +186,11 @@ def _lamp_highlights(scene: Scene, result: RadiosityResult, tri: np.ndarray, bar
 def _area_lamp_points(light, points: np.ndarray, normals: np.ndarray, origins: np.ndarray,
                       occluded, samples: int):
     """Yields (unit directions (M, 3) to one of the area lamp's n x n grid points, the shadowed
-    irradiance W/m^2 (M, 3) that point brings): the lamp's `direct_irradiance` split over its
-    grid points in proportion to cos_receiver cos_lamp / d^2, each times its own shadow ray's
-    visibility from `origins`. A glossy lobe lit this way draws the emitter's whole extent, not
-    a highlight aimed at its centre."""
+    irradiance W/m^2 (M, 3) that point brings, the angular radius (M,) rad of the grid cell it
+    stands for): the lamp's `direct_irradiance` split over its grid points in proportion to
+    cos_receiver cos_lamp / d^2, each times its own shadow ray's visibility from `origins`. A
+    glossy lobe lit this way draws the emitter's whole extent, not a highlight aimed at its
+    centre."""
     targets = light_units.area_light_samples(light, samples)  # (K, 3)
     total = light_units.direct_irradiance(light, points, normals)  # (M, 3)
     delta = targets[:, None, :] - points[None, :, :]  # (K, M, 3)
@@ -203,5 +204,7 @@ def _area_lamp_points(light, points: np.ndarray, normals: np.ndarray, origins: n
     visible = np.ones_like(share)
     if occluded is not None and light.cast_shadow and len(points):
         visible = light_visibility(light, origins, occluded, samples, per_target=True)
+    da = light_units.area_of_shape(light.shape, light.size_x, light.size_y) / len(targets)
     for k in range(len(targets)):
-        yield to[k], total * (share[k] * visible[k])[:, None]
+        yield (to[k], total * (share[k] * visible[k])[:, None],
+               np.sqrt(da * cos_l[k] / np.pi) / np.maximum(dist[k], 1e-300))

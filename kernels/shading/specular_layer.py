@@ -37,7 +37,13 @@ from functools import lru_cache
 
 import numpy as np
 
-from .highlight_spread import NormalFootprint, sub_normals, sub_sides, widened_roughness
+from .highlight_spread import (
+    NormalFootprint,
+    sample_roughness,
+    sub_normals,
+    sub_sides,
+    widened_roughness,
+)
 from .optics import f82_factor, fresnel_dielectric, fresnel_f82, fresnel_schlick
 
 # Midpoint-rule points of the (u, phi) square: within 3e-4 (absolute) of 512 x 256 points at
@@ -335,8 +341,8 @@ def pixel_highlight(n, wi, wo, roughness, f0, footprint: NormalFootprint | None 
 
 def lamp_highlights(materials, material: np.ndarray, normals: np.ndarray, wo: np.ndarray,
                     to_light: np.ndarray, irradiance: np.ndarray,
-                    base: np.ndarray | None = None, footprint: NormalFootprint | None = None
-                    ) -> np.ndarray:
+                    base: np.ndarray | None = None, footprint: NormalFootprint | None = None,
+                    spread: np.ndarray | None = None) -> np.ndarray:
     """(N, 3) radiance W/(m^2 sr) a lamp's light leaves toward the eye by the rough glossy lobes
     of surfaces of `material` (N,) (rows of `materials`): unit shading normals, directions to the
     eye wo and to the lamp (N, 3), and the lamp's irradiance there (N, 3, cosine included).
@@ -347,8 +353,10 @@ def lamp_highlights(materials, material: np.ndarray, normals: np.ndarray, wo: np
     tracer lights it), and a coat's over them (F0 from its IOR, its own roughness, weight coat),
     which leaves those under it what it lets through (`coat_layer`). footprint, when given: how
     the normal changes across each point's pixel or sub-pixel cell, over which every lobe is
-    averaged (`pixel_highlight`)."""
-    rough = np.array([m.roughness for m in materials], np.float64)[material]
+    averaged (`pixel_highlight`); spread (N,) rad, when the light is one of an area lamp's
+    samples: its angular radius, which widens every lobe (`highlight_spread.sample_roughness`)."""
+    rough = sample_roughness(np.array([m.roughness for m in materials], np.float64)[material],
+                             spread)
     glossy = np.array([m.roughness >= MIRROR_ROUGHNESS for m in materials])[material]
     layer_w = np.array([(1.0 - m.metallic) * (1.0 - m.transmission) for m in materials])[material]
     layer_f = np.array([layer_f0(m.ior, m.specular) for m in materials])[material]
@@ -375,10 +383,11 @@ def lamp_highlights(materials, material: np.ndarray, normals: np.ndarray, wo: np
     if coat is not None:
         out *= coat.under  # the two lobes under the coat, then the coat's own
         coat_rough = np.array([m.coat_roughness for m in materials], np.float64)[material]
+        coat_lit = coat_rough >= MIRROR_ROUGHNESS
+        coat_rough = sample_roughness(coat_rough, spread)
 
         coat_f = np.array([layer_f0(m.coat_ior, 0.5) for m in materials])[material]
-        add(coat_rough >= MIRROR_ROUGHNESS, coat.weight, np.repeat(coat_f[:, None], 3, axis=1),
-            coat_rough)
+        add(coat_lit, coat.weight, np.repeat(coat_f[:, None], 3, axis=1), coat_rough)
     return out
 
 
