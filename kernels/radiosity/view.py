@@ -207,4 +207,4 @@ def _area_lamp_points(light, points: np.ndarray, normals: np.ndarray, origins: n
     da = light_units.area_of_shape(light.shape, light.size_x, light.size_y) / len(targets)
     for k in range(len(targets)):
         yield (to[k], total * (share[k] * visible[k])[:, None],
-               np.sqrt(da * cos_l[k] / np.pi) / np.maximum(dist[k], 1e-300))
+               light_units.sample_radius(da, cos_l[k], dist[k]))

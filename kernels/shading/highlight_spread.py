@@ -294,7 +294,7 @@ def widened_roughness(roughness: np.ndarray, spread: np.ndarray | None) -> np.nd
 
 def sample_roughness(roughness: np.ndarray, spread: np.ndarray | None) -> np.ndarray:
     """(N,) Blender roughness of lobes of `roughness` (N,) lit by lamp samples of angular radius
-    `spread` (N,) rad seen from the surface (`emitters.sample_spread`); roughness itself
+    `spread` (N,) rad seen from the surface (`lights.sample_radius`); roughness itself
     without one.
 
     An area lamp is n x n points, each standing for its cell: a lobe much narrower than the

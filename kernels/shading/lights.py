@@ -168,6 +168,13 @@ def area_light_samples(light: Light, per_side: int = AREA_SAMPLES_PER_SIDE) -> n
     return np.asarray(light.position, np.float64) + gx[:, None] * ax + gy[:, None] * ay
 
 
+def sample_radius(da: np.ndarray, cos_e: np.ndarray, dist: np.ndarray) -> np.ndarray:
+    """(N,) rad: the angular radius of an emitter sample seen from a point: the disc of its area
+    da (N,) m^2 foreshortened by cos_e (N,) (its normal against the direction to the point), at
+    distance dist (N,) m."""
+    return np.sqrt(np.asarray(da) * np.abs(cos_e) / np.pi) / np.maximum(dist, MIN_LIGHT_DISTANCE)
+
+
 def _area_irradiance(light: Light, points: np.ndarray, normals: np.ndarray,
                      direction_weight=None) -> np.ndarray:
     samples = area_light_samples(light)  # (S, 3)

@@ -246,15 +246,6 @@ def scene_emitters(scene: Scene, settings: TracerSettings) -> Emitters:
                     joined("radiance_da", finer), joined("da", finer), fine_first, fine_count)
 
 
-def sample_spread(to_l: np.ndarray, dist: np.ndarray, normals: np.ndarray, da: np.ndarray
-                  ) -> np.ndarray:
-    """(P,) rad: the angular radius of emitter samples seen from hits: each a disc of its area
-    da (P,) m^2, foreshortened by its normal (P, 3) against the unit direction to it to_l
-    (P, 3), at distance dist (P,) m."""
-    cos_e = np.abs(np.einsum("ij,ij->i", to_l, normals))
-    return np.sqrt(da * cos_e / np.pi) / np.maximum(dist, 1e-12)
-
-
 def point_light(name: str, position, intensity) -> Light:
     """A kernel point light of radiant intensity `intensity` (W/sr, RGB) — for tests and tools."""
     return Light(name=name, kind="POINT", position=np.asarray(position, np.float64),

@@ -49,7 +49,7 @@ from ..geometry.camera import (
 from ..geometry.frames import tangent_frames
 from ..geometry.intersect import Hits
 from ..geometry.scene import Scene, geometric_normals
-from ..geometry.vec import max_of_three
+from ..geometry.vec import max_of_three, row_dot
 from ..measure.metrics import REC709_LUMINANCE
 from ..measure.phase_clock import PhaseClock
 from ..progress import Steps, drain, scaled
@@ -94,7 +94,6 @@ from .emitters import (
     REFINE_REACH,
     emitter_reach,
     lamp_hull,
-    sample_spread,
     scene_emitters,
 )
 from .settings import TraceResult, TracerSettings, TraceStats, auto_settings
@@ -647,6 +646,7 @@ class Tracer:
                 keep = np.flatnonzero(self.reach.objects[emitter, objects[n_idx]])
                 n_idx, to_l, dist, g, radiance_da, emitter, lamp = (
                     x[keep] for x in (n_idx, to_l, dist, g, radiance_da, emitter, lamp))
+                spread = None if spread is None else spread[keep]
             vis = np.ones(len(n_idx))
             cast = np.arange(len(n_idx)) if whole is None else np.flatnonzero(
                 ~whole[n_idx, emitter])
@@ -701,8 +701,9 @@ class Tracer:
                 l_dir, reach = to_l[b_idx, n_idx], dist[b_idx, n_idx]
                 light(n_idx, l_dir, reach, g[b_idx, n_idx], em.area_radiance_da[block][b_idx],
                       em.area_emitter[block][b_idx], ~em.area_two_sided[block][b_idx],
-                      sample_spread(l_dir, reach, em.area_normals[block][b_idx],
-                                    em.area_da[block][b_idx]))
+                      light_units.sample_radius(em.area_da[block][b_idx],
+                                                row_dot(l_dir, em.area_normals[block][b_idx]),
+                                                reach))
         if refined:  # each sample's finer ones, FINE_SPLIT a pair, for the hits near it
             parent = np.repeat(np.concatenate([r[0] for r in refined]), FINE_SPLIT)
             n_idx = np.repeat(np.concatenate([r[1] for r in refined]), FINE_SPLIT)

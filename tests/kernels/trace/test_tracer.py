@@ -676,3 +676,26 @@ def test_a_glossy_floors_highlight_of_an_area_lamp_is_the_lamps_not_its_samples(
     assert np.mean((rows[16] - dense) ** 2) / np.mean(dense ** 2) < 1e-3  # the integral is right
     assert np.mean((rows[4] - dense) ** 2) / np.mean(dense ** 2) < 0.1
     assert rows[4].sum() / dense.sum() > 0.8
+
+
+def test_a_linked_lamps_highlights_are_the_same_on_the_objects_it_lights():
+    """The polished floor above, cut in two objects through the highlight's middle (the row of
+    pixels crosses the cut), under the lamp linked to one half only (light linking): that
+    half's highlight is the unlinked lamp's, to rounding, the other half's none."""
+    lamp, _, _ = _panel_over_chrome()
+    metal = Material(name="metal", base_color=np.full(3, 0.9, np.float32), metallic=1.0,
+                     roughness=0.12)
+    lit = quad([(-5, -5, 0), (5, -5, 0), (5, 0, 0), (-5, 0, 0)])  # y < 0
+    unlit = quad([(-5, 0, 0), (5, 0, 0), (5, 5, 0), (-5, 5, 0)])
+    forward = np.array([0.6, 0.0, -0.8])
+    cam = ortho_camera(np.array([-1.5, 0.0, 0.0]) - 3.0 * forward, forward, (0, 0, 1), 2.4,
+                       (96, 1))  # its row runs along y
+    settings = TracerSettings(max_depth=0, adaptive=0, area_samples=4)
+    rows = {}
+    for name, light in (("all", lamp), ("one", replace(lamp, receivers=np.array([True, False])))):
+        rows[name] = trace(build([(lit, metal), (unlit, metal)], cam, [light]), settings).image[0]
+    o, d = (a.reshape(-1, 3) for a in camera_rays(cam, 96, 1))
+    y = (o - d * (o[:, 2:] / d[:, 2:]))[:, 1]
+    assert rows["all"][y < 0].max() > 1.0 and rows["all"][y > 0].max() > 1.0
+    np.testing.assert_allclose(rows["one"][y < 0], rows["all"][y < 0], rtol=1e-6)
+    assert rows["one"][y > 0].max() == 0.0
