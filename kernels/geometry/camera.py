@@ -173,14 +173,16 @@ def camera_ray_lines(camera: Camera, width: int, height: int, x: np.ndarray, y: 
 
 
 def camera_hit_derivatives(camera: Camera, width: int, height: int, x: np.ndarray,
-                           y: np.ndarray, dirs: np.ndarray, p: np.ndarray, n: np.ndarray
+                           y: np.ndarray, dirs: np.ndarray | None, p: np.ndarray, n: np.ndarray
                            ) -> tuple[np.ndarray, np.ndarray]:
     """Ray differentials (Igehy, "Tracing Ray Differentials", 1999) of camera rays through
-    image points (x, y) (M,) pixels of a width x height image, with unit directions dirs (M, 3),
-    hitting planes of normal n (M, 3) at p (M, 3): the hit's derivatives (2, M, 3) m/pixel and
-    the direction's (2, M, 3) /pixel, [0] along x, [1] along y."""
+    image points (x, y) (M,) pixels of a width x height image, with unit directions dirs (M, 3)
+    (None: the lines' own, normalised), hitting planes of normal n (M, 3) at p (M, 3): the hit's
+    derivatives (2, M, 3) m/pixel and the direction's (2, M, 3) /pixel, [0] along x, [1] along
+    y."""
     o, d, o_x, o_y, d_x, d_y = camera_ray_lines(camera, width, height, x, y)
     length = np.sqrt(row_dot(d, d))[:, None]
+    dirs = d / length if dirs is None else dirs
     s = row_dot(p - o, d)[:, None] / (length * length)  # p = o + s d
     do = np.stack(np.broadcast_arrays(o_x, o_y))[:, None, :]  # (2, 1, 3): the lines' shift
     dd = np.stack(np.broadcast_arrays(d_x, d_y))[:, None, :]

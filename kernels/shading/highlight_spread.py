@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..geometry.camera import Camera, camera_hit_derivatives, camera_ray_lines
+from ..geometry.camera import Camera, camera_hit_derivatives
 from ..geometry.frames import barycentric_gradients
 
 # alpha^2 a pixel's normals add per squared unit of normal change across it: 1/12 (the variance
@@ -258,10 +258,8 @@ def triangle_patches(camera: Camera, shape: tuple[int, int], rows: np.ndarray,
     v = np.asarray(corners, np.float64)
     p = np.einsum("nk,nkc->nc", bary, v)
     normal = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
-    x, y = cols + 0.5, rows + 0.5
-    o, d, *_ = camera_ray_lines(camera, width, height, x, y)
-    dirs = d / np.linalg.norm(d, axis=1, keepdims=True)
-    dp, _ = camera_hit_derivatives(camera, width, height, x, y, dirs, p, normal)
+    dp, _ = camera_hit_derivatives(camera, width, height, cols + 0.5, rows + 0.5, None, p,
+                                   normal)
     grad = barycentric_gradients(v)  # (N, 2, 3)
     b1, b2 = (np.einsum("kij,ij->ki", dp, grad[:, c]) for c in (0, 1))  # (2, N) each
     moves = np.stack([-b1 - b2, b1, b2], axis=-1)  # (2, N, 3): along x, along y

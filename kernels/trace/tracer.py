@@ -89,13 +89,7 @@ from ..shading.world_light import (
     world_seen_by,
 )
 from . import differentials as rd
-from .emitters import (
-    FINE_SPLIT,
-    REFINE_REACH,
-    emitter_reach,
-    lamp_hull,
-    scene_emitters,
-)
+from .emitters import FINE_SPLIT, REFINE_REACH, emitter_reach, lamp_hull, scene_emitters
 from .settings import TraceResult, TracerSettings, TraceStats, auto_settings
 from .shadow_shafts import ClearShafts
 from .surface import MIN_NORMAL_LENGTH, SurfaceHits, surface_at
